@@ -1,0 +1,26 @@
+# Helpers that register visloc libraries and tests so every module declares what it links.
+#
+#   visloc_add_library(NAME SRCS a.cc b.cc DEPS visloc::geometry Eigen3::Eigen PRIVATE_DEPS ...)
+# creates target visloc_NAME with alias visloc::NAME. Headers are included from the repository
+# root ("core/geometry/rigid3.h"), so the include path names the module.
+function(visloc_add_library NAME)
+  cmake_parse_arguments(ARG "" "" "SRCS;DEPS;PRIVATE_DEPS" ${ARGN})
+  add_library(visloc_${NAME} STATIC ${ARG_SRCS})
+  add_library(visloc::${NAME} ALIAS visloc_${NAME})
+  target_include_directories(visloc_${NAME} PUBLIC ${PROJECT_SOURCE_DIR})
+  target_link_libraries(visloc_${NAME} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  target_compile_options(visloc_${NAME} PRIVATE ${VISLOC_WARNINGS})
+endfunction()
+
+#   visloc_add_test(NAME SRCS foo_test.cc DEPS visloc::foo)
+# builds a GTest executable and registers each test case with CTest.
+function(visloc_add_test NAME)
+  if(NOT VISLOC_BUILD_TESTS)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "" "" "SRCS;DEPS;PROPERTIES" ${ARGN})
+  add_executable(${NAME} ${ARG_SRCS})
+  target_link_libraries(${NAME} PRIVATE ${ARG_DEPS} GTest::gmock GTest::gtest GTest::gtest_main)
+  target_compile_options(${NAME} PRIVATE ${VISLOC_WARNINGS})
+  gtest_discover_tests(${NAME} DISCOVERY_TIMEOUT 60 PROPERTIES ${ARG_PROPERTIES})
+endfunction()

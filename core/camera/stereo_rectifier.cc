@@ -1,0 +1,92 @@
+#include "core/camera/stereo_rectifier.h"
+
+#include <cmath>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core/eigen.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/util/check.h"
+
+namespace visloc {
+namespace {
+
+cv::Mat CameraMatrix(const PinholeCamera& camera) {
+  cv::Mat k;
+  cv::eigen2cv(camera.K(), k);
+  return k;
+}
+
+cv::Mat DistortionCoefficients(const PinholeCamera& camera) {
+  const RadTanDistortion& d = camera.distortion();
+  return (cv::Mat_<double>(1, 4) << d.k1, d.k2, d.p1, d.p2);
+}
+
+Eigen::Quaterniond ToQuaternion(const cv::Mat& rotation) {
+  Eigen::Matrix3d r;
+  cv::cv2eigen(rotation, r);
+  return Eigen::Quaterniond(r).normalized();
+}
+
+}  // namespace
+
+StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera& right,
+                                 const Rigid3d& right_from_left)
+    : left_(left), right_(right) {
+  VISLOC_CHECK(left.width() == right.width() && left.height() == right.height(),
+               "stereo cameras differ in size: ", left.width(), "x", left.height(), " vs ",
+               right.width(), "x", right.height());
+  VISLOC_CHECK(right_from_left.translation.norm() > 1e-6, "stereo baseline is zero");
+  cv::Mat rotation, translation;
+  cv::eigen2cv(Eigen::Matrix3d(right_from_left.rotation.toRotationMatrix()), rotation);
+  cv::eigen2cv(Eigen::Vector3d(right_from_left.translation), translation);
+  const cv::Size size(left.width(), left.height());
+  cv::Mat r1, r2, p1, p2, q;
+  // alpha = 0 crops to valid pixels only, so no black borders produce spurious features.
+  cv::stereoRectify(CameraMatrix(left), DistortionCoefficients(left), CameraMatrix(right),
+                    DistortionCoefficients(right), size, rotation, translation, r1, r2, p1, p2, q,
+                    cv::CALIB_ZERO_DISPARITY, /*alpha=*/0.0, size);
+  const double f = p1.at<double>(0, 0);
+  rectified_camera_ = PinholeCamera(left.width(), left.height(), f, p1.at<double>(1, 1),
+                                    p1.at<double>(0, 2), p1.at<double>(1, 2));
+  // P2(0, 3) = -f * B for a right camera displaced along +x in the rectified frame.
+  baseline_m_ = std::abs(p2.at<double>(0, 3) / f);
+  rect_from_left_ = ToQuaternion(r1);
+  rect_from_right_ = ToQuaternion(r2);
+  cv::initUndistortRectifyMap(CameraMatrix(left), DistortionCoefficients(left), r1, p1, size,
+                              CV_32FC1, left_map_x_, left_map_y_);
+  cv::initUndistortRectifyMap(CameraMatrix(right), DistortionCoefficients(right), r2, p2, size,
+                              CV_32FC1, right_map_x_, right_map_y_);
+}
+
+void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                              cv::Mat* left_rect, cv::Mat* right_rect) const {
+  const cv::Size expected(left_.width(), left_.height());
+  VISLOC_CHECK(left_raw.size() == expected && right_raw.size() == expected,
+               "stereo images must be ", expected.width, "x", expected.height);
+  cv::remap(left_raw, *left_rect, left_map_x_, left_map_y_, cv::INTER_LINEAR);
+  cv::remap(right_raw, *right_rect, right_map_x_, right_map_y_, cv::INTER_LINEAR);
+}
+
+namespace {
+Eigen::Vector2d RectifyPixel(const PinholeCamera& raw, const Eigen::Quaterniond& rect_from_raw,
+                             const PinholeCamera& rectified, const Eigen::Vector2d& pixel) {
+  const Eigen::Vector3d ray_in_rect = rect_from_raw * raw.Unproject(pixel);
+  Eigen::Vector2d rect_pixel;
+  VISLOC_CHECK(rectified.Project(ray_in_rect, &rect_pixel), "pixel ", pixel.transpose(),
+               " maps behind the rectified camera");
+  return rect_pixel;
+}
+}  // namespace
+
+Eigen::Vector2d StereoRectifier::RectifyLeftPixel(const Eigen::Vector2d& raw_pixel) const {
+  return RectifyPixel(left_, rect_from_left_, rectified_camera_, raw_pixel);
+}
+
+Eigen::Vector2d StereoRectifier::RectifyRightPixel(const Eigen::Vector2d& raw_pixel) const {
+  // The right rectified camera has the same intrinsics; its x offset is in P2 and applies to
+  // projections of 3D points, not to rays, so projecting the rotated ray is correct.
+  return RectifyPixel(right_, rect_from_right_, rectified_camera_, raw_pixel);
+}
+
+}  // namespace visloc

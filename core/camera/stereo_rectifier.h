@@ -1,0 +1,48 @@
+#pragma once
+// Stereo rectification of a calibrated pair (OpenCV stereoRectify + remap tables).
+//
+// After rectification both cameras share the intrinsics `rectified_camera()` (no distortion)
+// and differ by a pure translation of `baseline_m()` along the rectified x axis, so a point's
+// projections share a row and its depth is Z = f * B / disparity (seed paper 000, eq. 1).
+// The rectified left frame is rotated from the raw left frame by `rect_from_left()`: poses
+// estimated in rectified coordinates must be rotated back before they are reported in the map
+// frame, which product.md defines on the raw left camera.
+
+#include <opencv2/core.hpp>
+
+#include "core/camera/pinhole_camera.h"
+#include "core/geometry/rigid3.h"
+
+namespace visloc {
+
+class StereoRectifier {
+ public:
+  // `right_from_left` maps left-camera coordinates into the right camera (metres). Throws
+  // CheckError when the cameras differ in size or the baseline is degenerate.
+  StereoRectifier(const PinholeCamera& left, const PinholeCamera& right,
+                  const Rigid3d& right_from_left);
+
+  const PinholeCamera& rectified_camera() const { return rectified_camera_; }
+  double baseline_m() const { return baseline_m_; }
+  // Rotation from the raw left camera frame into the rectified left camera frame.
+  const Eigen::Quaterniond& rect_from_left() const { return rect_from_left_; }
+
+  // Remaps raw images (8-bit, the calibrated size) to rectified images. Throws CheckError on
+  // a size mismatch.
+  void Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect,
+               cv::Mat* right_rect) const;
+  // Maps a raw pixel of the left or right image to its rectified pixel.
+  Eigen::Vector2d RectifyLeftPixel(const Eigen::Vector2d& raw_pixel) const;
+  Eigen::Vector2d RectifyRightPixel(const Eigen::Vector2d& raw_pixel) const;
+
+ private:
+  PinholeCamera left_;
+  PinholeCamera right_;
+  PinholeCamera rectified_camera_;
+  double baseline_m_ = 0.0;
+  Eigen::Quaterniond rect_from_left_;
+  Eigen::Quaterniond rect_from_right_;
+  cv::Mat left_map_x_, left_map_y_, right_map_x_, right_map_y_;
+};
+
+}  // namespace visloc

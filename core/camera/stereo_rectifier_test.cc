@@ -1,0 +1,81 @@
+#include "core/camera/stereo_rectifier.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/util/check.h"
+#include "core/util/random.h"
+
+namespace visloc {
+namespace {
+
+// A realistic, imperfect rig: different distortion per camera, a small relative rotation and a
+// baseline that is not purely along x.
+struct Rig {
+  PinholeCamera left{640, 480, 400.0, 402.0, 322.0, 238.0, {-0.20, 0.05, 0.001, -0.0005}};
+  PinholeCamera right{640, 480, 398.0, 399.0, 318.0, 244.0, {-0.18, 0.04, -0.0008, 0.0004}};
+  Rigid3d right_from_left{RotationFromRollPitchYaw(0.01, -0.015, 0.008),
+                          Eigen::Vector3d(-0.144, 0.003, -0.002)};
+};
+
+TEST(StereoRectifierTest, CorrespondingPointsShareARow) {
+  const Rig rig;
+  const StereoRectifier rectifier(rig.left, rig.right, rig.right_from_left);
+  EXPECT_NEAR(rectifier.baseline_m(), rig.right_from_left.translation.norm(), 1e-9);
+  Rng rng(3);
+  int checked = 0;
+  double worst_row_px = 0.0;
+  double worst_depth_rel = 0.0;
+  for (int i = 0; i < 500; ++i) {
+    const Eigen::Vector3d point_in_left(rng.Uniform(-2, 2), rng.Uniform(-1.5, 1.5),
+                                        rng.Uniform(1.0, 8.0));
+    Eigen::Vector2d left_px, right_px;
+    if (!rig.left.Project(point_in_left, &left_px) ||
+        !rig.right.Project(rig.right_from_left * point_in_left, &right_px) ||
+        !rig.left.IsInImage(left_px, 20) || !rig.right.IsInImage(right_px, 20)) {
+      continue;
+    }
+    const Eigen::Vector2d left_rect = rectifier.RectifyLeftPixel(left_px);
+    const Eigen::Vector2d right_rect = rectifier.RectifyRightPixel(right_px);
+    worst_row_px = std::max(worst_row_px, std::abs(left_rect.y() - right_rect.y()));
+    // Depth from disparity (paper eq. 1) in the rectified frame.
+    const double disparity = left_rect.x() - right_rect.x();
+    const double depth_rect = (rectifier.rect_from_left() * point_in_left).z();
+    const double depth_from_disparity =
+        rectifier.rectified_camera().fx() * rectifier.baseline_m() / disparity;
+    worst_depth_rel = std::max(worst_depth_rel,
+                               std::abs(depth_from_disparity - depth_rect) / depth_rect);
+    ++checked;
+  }
+  EXPECT_GT(checked, 200);
+  EXPECT_LT(worst_row_px, 0.1);
+  EXPECT_LT(worst_depth_rel, 1e-6);
+}
+
+TEST(StereoRectifierTest, RectifiedImagesAlignAFeatureOnOneRow) {
+  const Rig rig;
+  const StereoRectifier rectifier(rig.left, rig.right, rig.right_from_left);
+  // Render a bright dot at a 3D point into both raw images, rectify, compare centroids.
+  const Eigen::Vector3d point_in_left(0.3, 0.2, 3.0);
+  Eigen::Vector2d left_px, right_px;
+  ASSERT_TRUE(rig.left.Project(point_in_left, &left_px));
+  ASSERT_TRUE(rig.right.Project(rig.right_from_left * point_in_left, &right_px));
+  auto draw = [](const Eigen::Vector2d& center) {
+    cv::Mat image(480, 640, CV_8UC1, cv::Scalar(0));
+    cv::circle(image, cv::Point(cvRound(center.x() * 16), cvRound(center.y() * 16)), 4 * 16,
+               cv::Scalar(255), cv::FILLED, cv::LINE_AA, 4);
+    return image;
+  };
+  cv::Mat left_rect, right_rect;
+  rectifier.Rectify(draw(left_px), draw(right_px), &left_rect, &right_rect);
+  const cv::Moments ml = cv::moments(left_rect);
+  const cv::Moments mr = cv::moments(right_rect);
+  EXPECT_NEAR(ml.m01 / ml.m00, mr.m01 / mr.m00, 0.1);
+  EXPECT_THROW(rectifier.Rectify(cv::Mat(10, 10, CV_8UC1), cv::Mat(10, 10, CV_8UC1), &left_rect,
+                                 &right_rect),
+               CheckError);
+}
+
+}  // namespace
+}  // namespace visloc

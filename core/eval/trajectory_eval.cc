@@ -1,0 +1,137 @@
+#include "core/eval/trajectory_eval.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <tuple>
+
+#include "core/geometry/align.h"
+#include "core/util/check.h"
+
+namespace visloc {
+
+void EvalOptions::Check() const {
+  VISLOC_CHECK(max_time_diff_s >= 0.0, "max_time_diff_s ", max_time_diff_s);
+  VISLOC_CHECK(rpe_delta_s > 0.0, "rpe_delta_s ", rpe_delta_s);
+}
+
+ErrorStats ComputeErrorStats(std::vector<double> errors) {
+  ErrorStats stats;
+  stats.count = errors.size();
+  if (errors.empty()) return stats;
+  const double n = static_cast<double>(errors.size());
+  double sum = 0.0, sum_sq = 0.0;
+  for (double e : errors) {
+    sum += e;
+    sum_sq += e * e;
+  }
+  stats.mean = sum / n;
+  stats.rmse = std::sqrt(sum_sq / n);
+  stats.std_dev = std::sqrt(std::max(0.0, sum_sq / n - stats.mean * stats.mean));
+  std::sort(errors.begin(), errors.end());
+  stats.min = errors.front();
+  stats.max = errors.back();
+  const size_t mid = errors.size() / 2;
+  stats.median = errors.size() % 2 ? errors[mid] : 0.5 * (errors[mid - 1] + errors[mid]);
+  return stats;
+}
+
+std::vector<std::pair<size_t, size_t>> AssociateByTime(const Trajectory& gt, const Trajectory& est,
+                                                       double max_time_diff_s) {
+  const int64_t max_diff_ns = SecondsToNs(max_time_diff_s);
+  // Candidate pairs: each estimate with its nearest ground-truth neighbours in time.
+  std::vector<std::tuple<int64_t, size_t, size_t>> candidates;  // (|dt|, gt, est)
+  for (size_t e = 0; e < est.size(); ++e) {
+    const int64_t t = est[e].timestamp_ns;
+    const auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const StampedPose& p, int64_t x) {
+      return p.timestamp_ns < x;
+    });
+    const size_t upper = static_cast<size_t>(it - gt.begin());
+    for (size_t g : {upper, upper - 1}) {  // upper - 1 wraps when upper == 0; rejected below
+      if (g >= gt.size()) continue;
+      const int64_t diff = std::llabs(gt[g].timestamp_ns - t);
+      if (diff <= max_diff_ns) candidates.emplace_back(diff, g, e);
+    }
+  }
+  std::sort(candidates.begin(), candidates.end());
+  std::vector<bool> gt_used(gt.size(), false), est_used(est.size(), false);
+  std::vector<std::pair<size_t, size_t>> pairs;
+  for (const auto& [diff, g, e] : candidates) {
+    if (gt_used[g] || est_used[e]) continue;
+    gt_used[g] = est_used[e] = true;
+    pairs.emplace_back(g, e);
+  }
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+namespace {
+
+PoseErrors AbsoluteErrors(const std::vector<Rigid3d>& gt, const std::vector<Rigid3d>& est,
+                          const Rigid3d& gt_from_est) {
+  std::vector<double> translation, rotation;
+  for (size_t i = 0; i < gt.size(); ++i) {
+    const Rigid3d aligned = gt_from_est * est[i];
+    translation.push_back((gt[i].translation - aligned.translation).norm());
+    rotation.push_back(RotationAngleDeg(gt[i].rotation.conjugate() * aligned.rotation));
+  }
+  return {ComputeErrorStats(translation), ComputeErrorStats(rotation)};
+}
+
+PoseErrors RelativeErrors(const std::vector<int64_t>& times_ns, const std::vector<Rigid3d>& gt,
+                          const std::vector<Rigid3d>& est, const EvalOptions& options) {
+  const int64_t delta_ns = SecondsToNs(options.rpe_delta_s);
+  // A pair counts when its separation is within 10% of delta (or the association tolerance),
+  // so gaps in the estimate do not turn into RPE over much longer intervals.
+  const int64_t tolerance_ns = std::max(delta_ns / 10, SecondsToNs(options.max_time_diff_s));
+  std::vector<double> translation, rotation;
+  size_t j = 0;
+  for (size_t i = 0; i < times_ns.size(); ++i) {
+    const int64_t wanted = times_ns[i] + delta_ns;
+    j = std::max(j, i + 1);
+    while (j + 1 < times_ns.size() &&
+           std::llabs(times_ns[j + 1] - wanted) <= std::llabs(times_ns[j] - wanted)) {
+      ++j;
+    }
+    if (j >= times_ns.size() || std::llabs(times_ns[j] - wanted) > tolerance_ns) continue;
+    const Rigid3d gt_motion = gt[i].Inverse() * gt[j];
+    const Rigid3d est_motion = est[i].Inverse() * est[j];
+    const Rigid3d error = gt_motion.Inverse() * est_motion;
+    translation.push_back(error.translation.norm());
+    rotation.push_back(RotationAngleDeg(error.rotation));
+  }
+  return {ComputeErrorStats(translation), ComputeErrorStats(rotation)};
+}
+
+}  // namespace
+
+TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
+                                        const EvalOptions& options) {
+  options.Check();
+  TrajectoryEvaluation result;
+  result.gt_poses = gt.size();
+  result.est_poses = est.size();
+  const auto pairs = AssociateByTime(gt, est, options.max_time_diff_s);
+  result.matched_poses = pairs.size();
+  result.coverage = gt.empty() ? 0.0 : static_cast<double>(pairs.size()) / gt.size();
+
+  std::vector<int64_t> times_ns;
+  std::vector<Rigid3d> gt_poses, est_poses;
+  std::vector<Eigen::Vector3d> gt_positions, est_positions;
+  for (const auto& [g, e] : pairs) {
+    times_ns.push_back(gt[g].timestamp_ns);
+    gt_poses.push_back(gt[g].pose);
+    est_poses.push_back(est[e].pose);
+    gt_positions.push_back(gt[g].pose.translation);
+    est_positions.push_back(est[e].pose.translation);
+  }
+  result.ate = AbsoluteErrors(gt_poses, est_poses, Rigid3d::Identity());
+  if (options.align) {
+    if (pairs.size() >= 3) result.gt_from_est = AlignRigid(est_positions, gt_positions);
+    result.ate_aligned = AbsoluteErrors(gt_poses, est_poses, result.gt_from_est);
+  }
+  result.rpe = RelativeErrors(times_ns, gt_poses, est_poses, options);
+  return result;
+}
+
+}  // namespace visloc

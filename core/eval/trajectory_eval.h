@@ -1,0 +1,70 @@
+#pragma once
+// Trajectory accuracy as in the TUM RGB-D benchmark (Sturm et al., IROS 2012) and the evo tool:
+//
+// - Association: each estimated pose is paired with the ground-truth pose nearest in time,
+//   at most `max_time_diff_s` apart, greedily by smallest difference, each pose used once.
+// - ATE (absolute trajectory error): for each pair, the translation error ||t_gt - t_est|| in
+//   metres and the rotation error angle(R_gt^T R_est) in degrees. Without alignment the
+//   estimate is compared in the map frame as is (what a robot would act on); with alignment it
+//   is first moved by the SE(3) transform that best fits its positions to the ground truth
+//   (Umeyama, no scale), which isolates the trajectory's shape from a frame offset.
+// - RPE (relative pose error) over a time delta: for pairs i, j with t_j - t_i ~ delta,
+//   E = (gt_i^-1 gt_j)^-1 (est_i^-1 est_j); translation ||t_E|| m and rotation angle(E) deg.
+//   RPE measures drift and does not depend on the frame the estimate is expressed in.
+// - Coverage: the share of ground-truth poses that have an associated estimate, i.e. the
+//   share of frames localized when the ground truth has one pose per frame.
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "core/geometry/trajectory.h"
+
+namespace visloc {
+
+struct EvalOptions {
+  double max_time_diff_s = 0.02;  // Association tolerance (TUM associate.py default).
+  bool align = false;             // Also report ATE after SE(3) alignment.
+  double rpe_delta_s = 1.0;       // RPE interval (TUM evaluate_rpe.py default).
+  void Check() const;
+};
+
+struct ErrorStats {
+  size_t count = 0;
+  double rmse = 0.0;
+  double mean = 0.0;
+  double median = 0.0;
+  double std_dev = 0.0;
+  double min = 0.0;
+  double max = 0.0;
+};
+
+// Statistics of a list of non-negative errors (all zero for an empty list).
+ErrorStats ComputeErrorStats(std::vector<double> errors);
+
+struct PoseErrors {
+  ErrorStats translation_m;
+  ErrorStats rotation_deg;
+};
+
+struct TrajectoryEvaluation {
+  size_t gt_poses = 0;
+  size_t est_poses = 0;
+  size_t matched_poses = 0;
+  double coverage = 0.0;  // matched_poses / gt_poses, in [0, 1].
+  PoseErrors ate;                       // In the map frame, no alignment.
+  std::optional<PoseErrors> ate_aligned;  // With EvalOptions::align.
+  Rigid3d gt_from_est;                  // The alignment used for ate_aligned.
+  PoseErrors rpe;
+};
+
+// Pairs (gt index, est index) per the association rule above, sorted by gt time.
+std::vector<std::pair<size_t, size_t>> AssociateByTime(const Trajectory& gt, const Trajectory& est,
+                                                       double max_time_diff_s);
+
+// Both trajectories must be sorted by time. Fewer than 3 associated poses leave the alignment
+// at identity (and ate_aligned equal to ate).
+TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
+                                        const EvalOptions& options);
+
+}  // namespace visloc

@@ -1,0 +1,65 @@
+#pragma once
+// A small command-line parser for the `visloc` subcommands and `visloc-server`: flags are
+// declared with their target variable and help text, so `--help` is generated and every
+// parse error names the offending flag.
+
+#include <cstdint>
+#include <optional>
+#include <ostream>
+#include <stdexcept>
+#include <string>
+#include <variant>
+#include <vector>
+
+namespace visloc {
+
+// Thrown for malformed command lines; the CLI prints it with a pointer to --help.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class ArgParser {
+ public:
+  // `command` is e.g. "visloc eval"; `summary` is the one-line description shown by --help.
+  ArgParser(std::string command, std::string summary);
+
+  // Flags take a value ("--out DIR" or "--out=DIR"); the target keeps its default when absent.
+  void AddFlag(const std::string& name, std::string* target, const std::string& help,
+               bool required = false);
+  void AddFlag(const std::string& name, int* target, const std::string& help);
+  void AddFlag(const std::string& name, int64_t* target, const std::string& help);
+  void AddFlag(const std::string& name, double* target, const std::string& help);
+  // A switch: present means true ("--json").
+  void AddSwitch(const std::string& name, bool* target, const std::string& help);
+  // Positional arguments are filled in declaration order.
+  void AddPositional(const std::string& name, std::string* target, const std::string& help,
+                     bool required = true);
+
+  // Parses `args` (without the program and subcommand names). Returns false when --help was
+  // given, after writing the help text to `help_out`. Throws UsageError on bad input.
+  bool Parse(const std::vector<std::string>& args, std::ostream& help_out);
+  std::string Help() const;
+
+ private:
+  using Target = std::variant<std::string*, int*, int64_t*, double*, bool*>;
+  struct Option {
+    std::string name;
+    Target target;
+    std::string help;
+    bool required = false;
+    bool positional = false;
+    bool seen = false;
+    std::string default_text;
+  };
+  Option* Find(const std::string& name);
+  void Assign(Option& option, const std::string& value);
+  void Add(const std::string& name, Target target, const std::string& help, bool required,
+           bool positional);
+
+  std::string command_;
+  std::string summary_;
+  std::vector<Option> options_;
+};
+
+}  // namespace visloc

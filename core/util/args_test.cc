@@ -1,0 +1,62 @@
+#include "core/util/args.h"
+
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+namespace visloc {
+namespace {
+
+TEST(ArgParserTest, ParsesFlagsSwitchesAndPositionals) {
+  std::string out, map;
+  int frames = 10;
+  double rate = 15.0;
+  bool json = false;
+  ArgParser parser("visloc test", "A test.");
+  parser.AddPositional("MAP", &map, "the map");
+  parser.AddFlag("out", &out, "output", /*required=*/true);
+  parser.AddFlag("frames", &frames, "frames");
+  parser.AddFlag("rate", &rate, "rate");
+  parser.AddSwitch("json", &json, "json");
+  std::ostringstream help;
+  ASSERT_TRUE(parser.Parse({"m.db", "--out", "x", "--frames=42", "--json"}, help));
+  EXPECT_EQ(map, "m.db");
+  EXPECT_EQ(out, "x");
+  EXPECT_EQ(frames, 42);
+  EXPECT_DOUBLE_EQ(rate, 15.0);
+  EXPECT_TRUE(json);
+}
+
+TEST(ArgParserTest, ReportsBadInputByName) {
+  std::string out;
+  int frames = 0;
+  ArgParser parser("visloc test", "A test.");
+  parser.AddFlag("out", &out, "output", /*required=*/true);
+  parser.AddFlag("frames", &frames, "frames");
+  std::ostringstream help;
+  EXPECT_THROW(parser.Parse({"--out", "x", "--bogus"}, help), UsageError);
+  EXPECT_THROW(parser.Parse({"--frames", "ten", "--out", "x"}, help), UsageError);
+  EXPECT_THROW(parser.Parse({"--out"}, help), UsageError);
+  try {
+    ArgParser fresh("visloc test", "A test.");
+    fresh.AddFlag("out", &out, "output", /*required=*/true);
+    fresh.Parse({}, help);
+    FAIL() << "expected UsageError";
+  } catch (const UsageError& e) {
+    EXPECT_STREQ(e.what(), "missing --out");
+  }
+}
+
+TEST(ArgParserTest, HelpListsEveryOptionAndStopsParsing) {
+  std::string out = "default-dir";
+  ArgParser parser("visloc test", "Does a test.");
+  parser.AddFlag("out", &out, "where to write");
+  std::ostringstream help;
+  EXPECT_FALSE(parser.Parse({"--help"}, help));
+  EXPECT_NE(help.str().find("usage: visloc test"), std::string::npos);
+  EXPECT_NE(help.str().find("--out VALUE"), std::string::npos);
+  EXPECT_NE(help.str().find("[default: default-dir]"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace visloc

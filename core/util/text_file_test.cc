@@ -1,0 +1,54 @@
+#include "core/util/text_file.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/util/check.h"
+
+namespace visloc {
+namespace {
+
+std::string WriteTemp(const std::string& name, const std::string& contents) {
+  const auto path = std::filesystem::temp_directory_path() /
+                    (std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + name);
+  std::ofstream(path) << contents;
+  return path.string();
+}
+
+TEST(TextFileTest, SkipsCommentsAndBlankLinesKeepingLineNumbers) {
+  const std::string path = WriteTemp("rows.csv", "#header\n\n1,2\r\n3, x\n");
+  const auto rows = ReadDataRows(path, ',');
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].line, 3);
+  EXPECT_EQ(rows[1].line, 4);
+  EXPECT_DOUBLE_EQ(FieldAsDouble(path, rows[0], 1), 2.0);
+  try {
+    FieldAsDouble(path, rows[1], 1);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), path + ":4: field 2 is not a number: 'x'");
+  }
+}
+
+TEST(TextFileTest, MissingFileIsNamed) {
+  try {
+    ReadTextLines("/nonexistent/file.csv");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "/nonexistent/file.csv: cannot open file");
+  }
+}
+
+TEST(TextFileTest, AtomicWriteReplacesContents) {
+  const std::string path = WriteTemp("atomic.txt", "old");
+  WriteFileAtomically(path, "new contents\n");
+  const auto lines = ReadTextLines(path);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0].text, "new contents");
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+}
+
+}  // namespace
+}  // namespace visloc
