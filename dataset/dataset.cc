@@ -59,8 +59,9 @@ Dataset ReadDataset(const std::string& dir, std::optional<DatasetFormat> format)
     } else if (fs::is_directory(fs::path(dir) / "image_0")) {
       format = DatasetFormat::kKitti;
     } else {
-      throw InputError(StrCat(dir, ": neither an EuRoC dataset (mav0/) nor a KITTI sequence "
-                                   "(image_0/)"));
+      throw InputError(StrCat(dir,
+                              ": neither an EuRoC dataset (mav0/) nor a KITTI sequence "
+                              "(image_0/)"));
     }
   }
   return *format == DatasetFormat::kEuroc ? ReadEuroc(dir) : ReadKitti(dir);

@@ -3,8 +3,8 @@
 #include <cstdio>
 #include <filesystem>
 
-#include <opencv2/imgcodecs.hpp>
 #include <yaml-cpp/yaml.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
@@ -26,7 +26,8 @@ std::vector<double> ReadNumbers(const std::string& path, const YAML::Node& paren
   std::vector<double> values;
   for (const YAML::Node& item : node) {
     const auto value = ParseDouble(item.Scalar());
-    if (!value) ThrowAtLine(path, line, StrCat("'", key, "' has a non-number '", item.Scalar(), "'"));
+    if (!value)
+      ThrowAtLine(path, line, StrCat("'", key, "' has a non-number '", item.Scalar(), "'"));
     values.push_back(*value);
   }
   return values;
@@ -105,8 +106,8 @@ CameraInfo ReadCameraYaml(const std::string& path) {
 void RequireIncreasing(const std::string& path, const DataRow& row, int64_t previous,
                        int64_t current, bool first) {
   if (!first && current <= previous) {
-    ThrowAtLine(path, row.line, StrCat("timestamp ", current, " does not increase (previous ",
-                                       previous, ")"));
+    ThrowAtLine(path, row.line,
+                StrCat("timestamp ", current, " does not increase (previous ", previous, ")"));
   }
 }
 
@@ -117,8 +118,8 @@ std::vector<std::pair<int64_t, std::string>> ReadCameraCsv(const std::string& ca
   std::vector<std::pair<int64_t, std::string>> images;
   for (const DataRow& row : ReadDataRows(path, ',')) {
     if (row.fields.size() != 2) {
-      ThrowAtLine(path, row.line, StrCat("expected 2 fields (timestamp,filename), found ",
-                                         row.fields.size()));
+      ThrowAtLine(path, row.line,
+                  StrCat("expected 2 fields (timestamp,filename), found ", row.fields.size()));
     }
     const int64_t timestamp = FieldAsInt64(path, row, 0);
     RequireIncreasing(path, row, images.empty() ? 0 : images.back().first, timestamp,
@@ -159,8 +160,8 @@ Trajectory ReadPoseCsv(const std::string& path, bool quaternion_w_first) {
       ThrowAtLine(path, row.line, StrCat("expected at least 8 fields, found ", row.fields.size()));
     }
     const int64_t timestamp = FieldAsInt64(path, row, 0);
-    RequireIncreasing(path, row, trajectory.empty() ? 0 : trajectory.back().timestamp_ns,
-                      timestamp, trajectory.empty());
+    RequireIncreasing(path, row, trajectory.empty() ? 0 : trajectory.back().timestamp_ns, timestamp,
+                      trajectory.empty());
     double v[7];
     for (int i = 0; i < 7; ++i) v[i] = FieldAsDouble(path, row, i + 1);
     const Eigen::Quaterniond q = quaternion_w_first ? Eigen::Quaterniond(v[3], v[4], v[5], v[6])
@@ -209,12 +210,14 @@ Dataset ReadEuroc(const std::string& dir) {
     }
     dataset.frames.push_back(std::move(frame));
   }
-  if (fs::is_regular_file(mav0 + "/imu0/data.csv")) dataset.imu = ReadImuCsv(mav0 + "/imu0/data.csv");
+  if (fs::is_regular_file(mav0 + "/imu0/data.csv"))
+    dataset.imu = ReadImuCsv(mav0 + "/imu0/data.csv");
   if (fs::is_regular_file(mav0 + "/odometry0/data.csv")) {
     dataset.odom_from_cam = ReadPoseCsv(mav0 + "/odometry0/data.csv", /*quaternion_w_first=*/false);
   }
   const std::string gt = mav0 + "/state_groundtruth_estimate0/data.csv";
-  if (fs::is_regular_file(gt)) dataset.world_from_body = ReadPoseCsv(gt, /*quaternion_w_first=*/true);
+  if (fs::is_regular_file(gt))
+    dataset.world_from_body = ReadPoseCsv(gt, /*quaternion_w_first=*/true);
   return dataset;
 }
 
@@ -237,18 +240,20 @@ void WriteCameraYaml(const std::string& path, const CameraInfo& info, const std:
     for (int c = 0; c < 4; ++c) data[r * 4 + c] = t_bs(r, c);
   }
   const PinholeCamera& cam = info.camera;
-  const double resolution[2] = {static_cast<double>(cam.width()), static_cast<double>(cam.height())};
+  const double resolution[2] = {static_cast<double>(cam.width()),
+                                static_cast<double>(cam.height())};
   const double intrinsics[4] = {cam.fx(), cam.fy(), cam.cx(), cam.cy()};
   const RadTanDistortion& d = cam.distortion();
   const double distortion[4] = {d.k1, d.k2, d.p1, d.p2};
-  std::string out = "# General sensor definitions.\nsensor_type: camera\ncomment: " + comment +
-                    "\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n  cols: 4\n  rows: 4\n"
-                    "  data: " + FormatNumbers(data, 16) + "\n\n# Camera specific definitions.\n" +
-                    "rate_hz: " + StrCat(info.rate_hz) + "\nresolution: " +
-                    FormatNumbers(resolution, 2) + "\ncamera_model: pinhole\nintrinsics: " +
-                    FormatNumbers(intrinsics, 4) + " #fu, fv, cu, cv\n" +
-                    "distortion_model: radial-tangential\ndistortion_coefficients: " +
-                    FormatNumbers(distortion, 4) + "\n";
+  std::string out =
+      "# General sensor definitions.\nsensor_type: camera\ncomment: " + comment +
+      "\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n  cols: 4\n  rows: 4\n"
+      "  data: " +
+      FormatNumbers(data, 16) + "\n\n# Camera specific definitions.\n" +
+      "rate_hz: " + StrCat(info.rate_hz) + "\nresolution: " + FormatNumbers(resolution, 2) +
+      "\ncamera_model: pinhole\nintrinsics: " + FormatNumbers(intrinsics, 4) +
+      " #fu, fv, cu, cv\n" + "distortion_model: radial-tangential\ndistortion_coefficients: " +
+      FormatNumbers(distortion, 4) + "\n";
   WriteFileAtomically(path, out);
 }
 

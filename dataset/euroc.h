@@ -26,7 +26,8 @@ Dataset ReadEuroc(const std::string& dir);
 class EurocWriter {
  public:
   // Creates the folder layout; `right` may be empty for a monocular sequence.
-  EurocWriter(const std::string& dir, const CameraInfo& left, const std::optional<CameraInfo>& right);
+  EurocWriter(const std::string& dir, const CameraInfo& left,
+              const std::optional<CameraInfo>& right);
 
   // `left` (and `right` when stereo) are 8-bit grey images of the calibrated size.
   void AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right);

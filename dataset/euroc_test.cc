@@ -21,8 +21,8 @@ using ::testing::HasSubstr;
 CameraInfo LeftCamera() {
   CameraInfo info;
   info.camera = PinholeCamera(64, 48, 40.5, 40.25, 31.5, 23.5, {-0.1, 0.01, 0.001, -0.002});
-  info.body_from_cam = Rigid3d(RotationFromRollPitchYaw(-M_PI / 2, 0, -M_PI / 2),
-                               Eigen::Vector3d(0.0, 0.072, 0.0));
+  info.body_from_cam =
+      Rigid3d(RotationFromRollPitchYaw(-M_PI / 2, 0, -M_PI / 2), Eigen::Vector3d(0.0, 0.072, 0.0));
   info.rate_hz = 15;
   return info;
 }
@@ -36,7 +36,8 @@ CameraInfo RightCamera() {
 cv::Mat Pattern(int seed) {
   cv::Mat image(48, 64, CV_8UC1);
   for (int r = 0; r < image.rows; ++r) {
-    for (int c = 0; c < image.cols; ++c) image.at<uint8_t>(r, c) = (r * 7 + c * 3 + seed * 11) % 256;
+    for (int c = 0; c < image.cols; ++c)
+      image.at<uint8_t>(r, c) = (r * 7 + c * 3 + seed * 11) % 256;
   }
   return image;
 }
@@ -49,8 +50,10 @@ void WriteSequence(const std::string& dir) {
   for (int i = 0; i < 5; ++i) {
     const int64_t t = 1'000'000'000 + i * 66'666'667LL;
     writer.AddFrame(t, Pattern(i), Pattern(i + 100));
-    odom.push_back({t, Rigid3d(RotationFromRollPitchYaw(0, 0, 0.1 * i), Eigen::Vector3d(0.01 * i, 0, 0))});
-    gt.push_back({t, Rigid3d(RotationFromRollPitchYaw(0.01, 0.02, 0.1 * i), Eigen::Vector3d(0.011 * i, 0.002, 1.45))});
+    odom.push_back(
+        {t, Rigid3d(RotationFromRollPitchYaw(0, 0, 0.1 * i), Eigen::Vector3d(0.01 * i, 0, 0))});
+    gt.push_back({t, Rigid3d(RotationFromRollPitchYaw(0.01, 0.02, 0.1 * i),
+                             Eigen::Vector3d(0.011 * i, 0.002, 1.45))});
   }
   for (int k = 0; k < 60; ++k) {
     imu.push_back({1'000'000'000 + k * 5'000'000LL, Eigen::Vector3d(0.01, -0.02, 0.3),
@@ -101,11 +104,12 @@ TEST(EurocTest, WrittenDatasetReadsBackIdentically) {
                           Rigid3d(RotationFromRollPitchYaw(0, 0, 0.4), Eigen::Vector3d(0.04, 0, 0)),
                           1e-11, 1e-9));
   ASSERT_EQ(dataset.world_from_body.size(), 5u);
-  EXPECT_TRUE(dataset.world_from_body[2].pose.translation.isApprox(Eigen::Vector3d(0.022, 0.002, 1.45), 1e-11));
+  EXPECT_TRUE(dataset.world_from_body[2].pose.translation.isApprox(
+      Eigen::Vector3d(0.022, 0.002, 1.45), 1e-11));
   const Trajectory gt_cam = dataset.GroundTruthLeftCam();
   ASSERT_EQ(gt_cam.size(), 5u);
-  EXPECT_TRUE(ApproxEqual(gt_cam[1].pose, dataset.world_from_body[1].pose * LeftCamera().body_from_cam,
-                          1e-12, 1e-9));
+  EXPECT_TRUE(ApproxEqual(
+      gt_cam[1].pose, dataset.world_from_body[1].pose * LeftCamera().body_from_cam, 1e-12, 1e-9));
 }
 
 TEST(EurocTest, MissingFolderIsNamed) {
@@ -142,7 +146,8 @@ TEST(EurocTest, NonMonotonicTimestampsNameTheLine) {
   WriteSequence(dir.path());
   const std::string gt = dir.path() + "/mav0/state_groundtruth_estimate0/data.csv";
   ReplaceLine(gt, 3, "900000000,0,0,1.45,1,0,0,0");
-  EXPECT_THAT(ExpectReadError(dir.path()), HasSubstr(gt + ":3: timestamp 900000000 does not increase"));
+  EXPECT_THAT(ExpectReadError(dir.path()),
+              HasSubstr(gt + ":3: timestamp 900000000 does not increase"));
 }
 
 TEST(EurocTest, MissingAndUnreadableImagesAreNamed) {
@@ -158,7 +163,8 @@ TEST(EurocTest, MissingAndUnreadableImagesAreNamed) {
     EXPECT_EQ(std::string(e.what()), dataset.frames[2].left_path + ": cannot decode image");
   }
   EXPECT_THAT([&] { LoadGreyImage(dataset.frames[1].left_path, 640, 480); },
-              ::testing::ThrowsMessage<InputError>(HasSubstr("image is 64x48 but the calibration says 640x480")));
+              ::testing::ThrowsMessage<InputError>(
+                  HasSubstr("image is 64x48 but the calibration says 640x480")));
   fs::remove(dataset.frames[4].right_path);
   EXPECT_THAT(ExpectReadError(dir.path()), HasSubstr("cam1/data.csv:6: missing image"));
 }

@@ -39,8 +39,8 @@ std::vector<std::optional<Eigen::Matrix<double, 3, 4>>> ReadProjections(const st
 std::string FindPosesFile(const fs::path& dir) {
   if (fs::is_regular_file(dir / "poses.txt")) return (dir / "poses.txt").string();
   const fs::path canonical = fs::weakly_canonical(dir);
-  const fs::path shared = canonical.parent_path().parent_path() / "poses" /
-                          (canonical.filename().string() + ".txt");
+  const fs::path shared =
+      canonical.parent_path().parent_path() / "poses" / (canonical.filename().string() + ".txt");
   return fs::is_regular_file(shared) ? shared.string() : "";
 }
 
@@ -50,7 +50,8 @@ Dataset ReadKitti(const std::string& dir) {
   const fs::path root(dir);
   const std::string calib_path = (root / "calib.txt").string();
   const std::string times_path = (root / "times.txt").string();
-  if (!fs::is_directory(root / "image_0")) throw InputError(StrCat(dir, "/image_0: no such folder"));
+  if (!fs::is_directory(root / "image_0"))
+    throw InputError(StrCat(dir, "/image_0: no such folder"));
   if (!fs::is_regular_file(calib_path)) throw InputError(StrCat(calib_path, ": no such file"));
   if (!fs::is_regular_file(times_path)) throw InputError(StrCat(times_path, ": no such file"));
 
@@ -94,14 +95,16 @@ Dataset ReadKitti(const std::string& dir) {
   for (size_t i = 0; i < timestamps.size(); ++i) {
     const std::string name = ImageName(static_cast<int>(i));
     FrameRecord frame{timestamps[i], (root / "image_0" / name).string(), ""};
-    if (!fs::is_regular_file(frame.left_path)) throw InputError(StrCat(frame.left_path, ": missing image"));
+    if (!fs::is_regular_file(frame.left_path))
+      throw InputError(StrCat(frame.left_path, ": missing image"));
     if (stereo) frame.right_path = (root / "image_1" / name).string();
     dataset.frames.push_back(std::move(frame));
   }
   // KITTI has no resolution in calib.txt: take it from the first image.
   const cv::Mat first = cv::imread(dataset.frames[0].left_path, cv::IMREAD_GRAYSCALE);
   if (first.empty()) throw InputError(StrCat(dataset.frames[0].left_path, ": cannot decode image"));
-  dataset.left.camera = PinholeCamera(first.cols, first.rows, p0(0, 0), p0(1, 1), p0(0, 2), p0(1, 2));
+  dataset.left.camera =
+      PinholeCamera(first.cols, first.rows, p0(0, 0), p0(1, 1), p0(0, 2), p0(1, 2));
   if (timestamps.size() > 1) {
     dataset.left.rate_hz = (timestamps.size() - 1) / NsToSeconds(timestamps.back() - timestamps[0]);
   }
@@ -117,12 +120,13 @@ Dataset ReadKitti(const std::string& dir) {
   if (!poses_path.empty()) {
     const auto rows = ReadDataRows(poses_path, ' ');
     if (rows.size() != timestamps.size()) {
-      throw InputError(StrCat(poses_path, ": ", rows.size(), " poses but ", timestamps.size(),
-                              " frames"));
+      throw InputError(
+          StrCat(poses_path, ": ", rows.size(), " poses but ", timestamps.size(), " frames"));
     }
     for (size_t i = 0; i < rows.size(); ++i) {
       if (rows[i].fields.size() != 12) {
-        ThrowAtLine(poses_path, rows[i].line, StrCat("expected 12 numbers, found ", rows[i].fields.size()));
+        ThrowAtLine(poses_path, rows[i].line,
+                    StrCat("expected 12 numbers, found ", rows[i].fields.size()));
       }
       Eigen::Matrix<double, 3, 4> m;
       for (int k = 0; k < 12; ++k) m(k / 4, k % 4) = FieldAsDouble(poses_path, rows[i], k);
@@ -139,9 +143,8 @@ void WriteKittiCalibration(const std::string& dir, const PinholeCamera& camera, 
   char buffer[256];
   for (int k = 0; k < 4; ++k) {
     const double tx = k == 1 ? -camera.fx() * baseline_m : 0.0;
-    std::snprintf(buffer, sizeof(buffer),
-                  "P%d: %.12e 0 %.12e %.12e 0 %.12e %.12e 0 0 0 1 0\n", k, camera.fx(),
-                  camera.cx(), tx, camera.fy(), camera.cy());
+    std::snprintf(buffer, sizeof(buffer), "P%d: %.12e 0 %.12e %.12e 0 %.12e %.12e 0 0 0 1 0\n", k,
+                  camera.fx(), camera.cx(), tx, camera.fy(), camera.cy());
     out += buffer;
   }
   WriteFileAtomically(dir + "/calib.txt", out);

@@ -20,9 +20,11 @@ void WriteSequence(const std::string& dir, int frames) {
   std::vector<int64_t> times;
   Trajectory poses;
   for (int i = 0; i < frames; ++i) {
-    WriteKittiFrame(dir, i, cv::Mat(48, 64, CV_8UC1, cv::Scalar(i)), cv::Mat(48, 64, CV_8UC1, cv::Scalar(200)));
+    WriteKittiFrame(dir, i, cv::Mat(48, 64, CV_8UC1, cv::Scalar(i)),
+                    cv::Mat(48, 64, CV_8UC1, cv::Scalar(200)));
     times.push_back(i * 100'000'000LL);
-    poses.push_back({times.back(), Rigid3d(RotationFromRollPitchYaw(0, 0.05 * i, 0), Eigen::Vector3d(0, 0, 0.3 * i))});
+    poses.push_back({times.back(), Rigid3d(RotationFromRollPitchYaw(0, 0.05 * i, 0),
+                                           Eigen::Vector3d(0, 0, 0.3 * i))});
   }
   WriteKittiTimesAndPoses(dir, times, poses);
 }
@@ -48,14 +50,16 @@ TEST(KittiTest, CountMismatchAndBadCalibrationAreNamed) {
   WriteSequence(dir.path(), 3);
   std::ofstream(dir.File("times.txt"), std::ios::app) << "0.9\n";
   EXPECT_THAT([&] { ReadDataset(dir.path()); },
-              ::testing::ThrowsMessage<InputError>(HasSubstr("image_0: 3 images but times.txt has 4 timestamps")));
+              ::testing::ThrowsMessage<InputError>(
+                  HasSubstr("image_0: 3 images but times.txt has 4 timestamps")));
   std::ofstream(dir.File("times.txt"), std::ios::trunc) << "0.0\n0.2\n0.1\n";
-  EXPECT_THAT([&] { ReadDataset(dir.path()); },
-              ::testing::ThrowsMessage<InputError>(HasSubstr("times.txt:3: timestamps must increase")));
+  EXPECT_THAT(
+      [&] { ReadDataset(dir.path()); },
+      ::testing::ThrowsMessage<InputError>(HasSubstr("times.txt:3: timestamps must increase")));
   std::ofstream(dir.File("times.txt"), std::ios::trunc) << "0.0\n0.1\n0.2\n";
   std::ofstream(dir.File("calib.txt"), std::ios::trunc) << "P0: 1 2 3\n";
-  EXPECT_THAT([&] { ReadDataset(dir.path()); },
-              ::testing::ThrowsMessage<InputError>(HasSubstr("calib.txt:1: P0: needs 12 numbers, found 3")));
+  EXPECT_THAT([&] { ReadDataset(dir.path()); }, ::testing::ThrowsMessage<InputError>(HasSubstr(
+                                                    "calib.txt:1: P0: needs 12 numbers, found 3")));
 }
 
 }  // namespace

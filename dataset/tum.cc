@@ -42,8 +42,10 @@ Trajectory ReadTum(const std::string& path) {
   Trajectory trajectory;
   for (const DataRow& row : ReadDataRows(path, ' ')) {
     if (row.fields.size() != 8) {
-      ThrowAtLine(path, row.line, StrCat("expected 8 fields (timestamp tx ty tz qx qy qz qw), "
-                                         "found ", row.fields.size()));
+      ThrowAtLine(path, row.line,
+                  StrCat("expected 8 fields (timestamp tx ty tz qx qy qz qw), "
+                         "found ",
+                         row.fields.size()));
     }
     const auto timestamp_ns = ParseSecondsToNs(row.fields[0]);
     if (!timestamp_ns) ThrowAtLine(path, row.line, "bad timestamp '" + row.fields[0] + "'");
@@ -56,7 +58,8 @@ Trajectory ReadTum(const std::string& path) {
     if (!trajectory.empty() && *timestamp_ns <= trajectory.back().timestamp_ns) {
       ThrowAtLine(path, row.line, "timestamps must increase");
     }
-    trajectory.push_back({*timestamp_ns, Rigid3d(q.normalized(), Eigen::Vector3d(v[0], v[1], v[2]))});
+    trajectory.push_back(
+        {*timestamp_ns, Rigid3d(q.normalized(), Eigen::Vector3d(v[0], v[1], v[2]))});
   }
   return trajectory;
 }

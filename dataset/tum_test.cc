@@ -14,8 +14,10 @@ namespace {
 TEST(TumTest, RoundTripKeepsNanosecondTimestamps) {
   TempDir dir;
   const Trajectory trajectory = {
-      {1403636579763555584LL, Rigid3d(RotationFromRollPitchYaw(0.1, 0.2, 0.3), Eigen::Vector3d(1, 2, 3))},
-      {1403636579813555456LL, Rigid3d(RotationFromRollPitchYaw(-0.1, 0.0, 2.9), Eigen::Vector3d(-1, 0.5, 0))},
+      {1403636579763555584LL,
+       Rigid3d(RotationFromRollPitchYaw(0.1, 0.2, 0.3), Eigen::Vector3d(1, 2, 3))},
+      {1403636579813555456LL,
+       Rigid3d(RotationFromRollPitchYaw(-0.1, 0.0, 2.9), Eigen::Vector3d(-1, 0.5, 0))},
   };
   WriteTum(dir.File("t.tum"), trajectory);
   const Trajectory back = ReadTum(dir.File("t.tum"));
@@ -39,11 +41,12 @@ TEST(TumTest, MalformedLinesAreNamed) {
   TempDir dir;
   const std::string path = dir.File("bad.tum");
   std::ofstream(path) << "# comment\n1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0\n";
-  EXPECT_THAT([&] { ReadTum(path); }, ::testing::ThrowsMessage<InputError>(
-                                          path + ":3: expected 8 fields (timestamp tx ty tz qx qy qz qw), found 7"));
-  std::ofstream(path, std::ios::trunc) << "1.0 0 0 0 0 0 0 2\n";
   EXPECT_THAT([&] { ReadTum(path); },
-              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(":1: quaternion is not unit")));
+              ::testing::ThrowsMessage<InputError>(
+                  path + ":3: expected 8 fields (timestamp tx ty tz qx qy qz qw), found 7"));
+  std::ofstream(path, std::ios::trunc) << "1.0 0 0 0 0 0 0 2\n";
+  EXPECT_THAT([&] { ReadTum(path); }, ::testing::ThrowsMessage<InputError>(
+                                          ::testing::HasSubstr(":1: quaternion is not unit")));
   std::ofstream(path, std::ios::trunc) << "2.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1\n";
   EXPECT_THAT([&] { ReadTum(path); },
               ::testing::ThrowsMessage<InputError>(path + ":2: timestamps must increase"));

@@ -10,8 +10,7 @@ namespace visloc {
 
 PinholeCamera::PinholeCamera(int width, int height, double fx, double fy, double cx, double cy,
                              const RadTanDistortion& distortion)
-    : width_(width), height_(height), fx_(fx), fy_(fy), cx_(cx), cy_(cy),
-      distortion_(distortion) {
+    : width_(width), height_(height), fx_(fx), fy_(fy), cx_(cx), cy_(cy), distortion_(distortion) {
   VISLOC_CHECK(width > 0 && height > 0, "image size ", width, "x", height);
   VISLOC_CHECK(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy), "focal length ", fx,
                ", ", fy);
@@ -91,9 +90,8 @@ PinholeCamera PinholeCamera::Scaled(double factor) const {
   VISLOC_CHECK(factor > 0, "scale factor ", factor);
   // Pixel centres: the continuous coordinate u + 0.5 scales, so cx' = (cx + 0.5) f - 0.5.
   return PinholeCamera(static_cast<int>(std::lround(width_ * factor)),
-                       static_cast<int>(std::lround(height_ * factor)), fx_ * factor,
-                       fy_ * factor, (cx_ + 0.5) * factor - 0.5, (cy_ + 0.5) * factor - 0.5,
-                       distortion_);
+                       static_cast<int>(std::lround(height_ * factor)), fx_ * factor, fy_ * factor,
+                       (cx_ + 0.5) * factor - 0.5, (cy_ + 0.5) * factor - 0.5, distortion_);
 }
 
 }  // namespace visloc

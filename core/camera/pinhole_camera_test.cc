@@ -46,8 +46,9 @@ TEST(PinholeCameraTest, DistortionRoundTripWithinHundredthOfPixel) {
       const Eigen::Vector2d distorted((u - camera.cx()) / camera.fx(),
                                       (v - camera.cy()) / camera.fy());
       const Eigen::Vector2d back = camera.Distort(camera.Undistort(distorted));
-      worst_px = std::max(worst_px, ((back - distorted).array() *
-                                     Eigen::Array2d(camera.fx(), camera.fy())).matrix().norm());
+      worst_px = std::max(
+          worst_px,
+          ((back - distorted).array() * Eigen::Array2d(camera.fx(), camera.fy())).matrix().norm());
     }
   }
   EXPECT_LT(worst_px, 0.01);

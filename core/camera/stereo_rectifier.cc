@@ -59,8 +59,8 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
                               CV_32FC1, right_map_x_, right_map_y_);
 }
 
-void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
-                              cv::Mat* left_rect, cv::Mat* right_rect) const {
+void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect,
+                              cv::Mat* right_rect) const {
   const cv::Size expected(left_.width(), left_.height());
   VISLOC_CHECK(left_raw.size() == expected && right_raw.size() == expected,
                "stereo images must be ", expected.width, "x", expected.height);

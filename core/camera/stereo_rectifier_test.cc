@@ -44,8 +44,8 @@ TEST(StereoRectifierTest, CorrespondingPointsShareARow) {
     const double depth_rect = (rectifier.rect_from_left() * point_in_left).z();
     const double depth_from_disparity =
         rectifier.rectified_camera().fx() * rectifier.baseline_m() / disparity;
-    worst_depth_rel = std::max(worst_depth_rel,
-                               std::abs(depth_from_disparity - depth_rect) / depth_rect);
+    worst_depth_rel =
+        std::max(worst_depth_rel, std::abs(depth_from_disparity - depth_rect) / depth_rect);
     ++checked;
   }
   EXPECT_GT(checked, 200);

@@ -51,10 +51,10 @@ struct TrajectoryEvaluation {
   size_t gt_poses = 0;
   size_t est_poses = 0;
   size_t matched_poses = 0;
-  double coverage = 0.0;  // matched_poses / gt_poses, in [0, 1].
-  PoseErrors ate;                       // In the map frame, no alignment.
+  double coverage = 0.0;                  // matched_poses / gt_poses, in [0, 1].
+  PoseErrors ate;                         // In the map frame, no alignment.
   std::optional<PoseErrors> ate_aligned;  // With EvalOptions::align.
-  Rigid3d gt_from_est;                  // The alignment used for ate_aligned.
+  Rigid3d gt_from_est;                    // The alignment used for ate_aligned.
   PoseErrors rpe;
 };
 

@@ -53,8 +53,9 @@ TEST(TrajectoryEvalTest, KnownOffsetComesOutExactly) {
 TEST(TrajectoryEvalTest, KnownRotationComesOutExactly) {
   const Trajectory gt = MakeGroundTruth();
   // Each camera rotated by 2 degrees about its own optical axis: positions unchanged.
-  const Rigid3d cam_twist(Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d::UnitZ())),
-                          Eigen::Vector3d::Zero());
+  const Rigid3d cam_twist(
+      Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d::UnitZ())),
+      Eigen::Vector3d::Zero());
   Trajectory est;
   for (const StampedPose& p : gt) est.push_back({p.timestamp_ns, p.pose * cam_twist});
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, EvalOptions{});

@@ -22,13 +22,14 @@ TEST(Rigid3dTest, CompositionMatchesMatrices) {
   const Rigid3d b_from_c(RotationFromRollPitchYaw(-0.3, 0.05, 2.0), Eigen::Vector3d(0, 1, 2));
   const Eigen::Matrix4d expected = a_from_b.ToMatrix4() * b_from_c.ToMatrix4();
   EXPECT_TRUE((a_from_b * b_from_c).ToMatrix4().isApprox(expected, 1e-12));
-  EXPECT_TRUE(ApproxEqual(Rigid3d::FromMatrix(expected.topRows<3>()), a_from_b * b_from_c,
-                          1e-12, 1e-9));
+  EXPECT_TRUE(
+      ApproxEqual(Rigid3d::FromMatrix(expected.topRows<3>()), a_from_b * b_from_c, 1e-12, 1e-9));
 }
 
 TEST(Rigid3dTest, RollPitchYawConvention) {
   // Yaw of 90 degrees turns the x axis onto the y axis (z up).
-  const Eigen::Vector3d x_rotated = RotationFromRollPitchYaw(0, 0, M_PI / 2) * Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d x_rotated =
+      RotationFromRollPitchYaw(0, 0, M_PI / 2) * Eigen::Vector3d::UnitX();
   EXPECT_TRUE(x_rotated.isApprox(Eigen::Vector3d::UnitY(), 1e-12));
   EXPECT_NEAR(RotationAngleDeg(RotationFromRollPitchYaw(0, 0, 0.5)), 0.5 * 180 / M_PI, 1e-9);
 }

@@ -30,8 +30,8 @@ std::string DefaultText(const std::variant<std::string*, int*, int64_t*, double*
 ArgParser::ArgParser(std::string command, std::string summary)
     : command_(std::move(command)), summary_(std::move(summary)) {}
 
-void ArgParser::Add(const std::string& name, Target target, const std::string& help,
-                    bool required, bool positional) {
+void ArgParser::Add(const std::string& name, Target target, const std::string& help, bool required,
+                    bool positional) {
   VISLOC_CHECK(Find(name) == nullptr, "duplicate option ", name);
   Option option;
   option.name = name;
@@ -59,8 +59,8 @@ void ArgParser::AddFlag(const std::string& name, double* target, const std::stri
 void ArgParser::AddSwitch(const std::string& name, bool* target, const std::string& help) {
   Add(name, target, help, /*required=*/false, /*positional=*/false);
 }
-void ArgParser::AddPositional(const std::string& name, std::string* target,
-                              const std::string& help, bool required) {
+void ArgParser::AddPositional(const std::string& name, std::string* target, const std::string& help,
+                              bool required) {
   Add(name, target, help, required, /*positional=*/true);
 }
 
@@ -147,8 +147,8 @@ std::string ArgParser::Help() const {
   std::ostringstream out;
   out << "usage: " << command_;
   for (const Option& option : options_) {
-    if (option.positional) out << (option.required ? " " : " [") << option.name
-                               << (option.required ? "" : "]");
+    if (option.positional)
+      out << (option.required ? " " : " [") << option.name << (option.required ? "" : "]");
   }
   out << " [options]\n\n" << summary_ << "\n\noptions:\n";
   for (const Option& option : options_) {

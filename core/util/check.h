@@ -40,10 +40,10 @@ namespace internal {
 // VISLOC_CHECK(cond, "message parts", value, ...) throws visloc::CheckError naming the
 // condition, the source location and the message. The message is required: it should name
 // the offending value.
-#define VISLOC_CHECK(cond, ...)                                                         \
-  do {                                                                                  \
-    if (!(cond)) {                                                                      \
-      ::visloc::internal::ThrowCheckFailure(__FILE__, __LINE__, #cond,                  \
-                                            ::visloc::StrCat(__VA_ARGS__));                       \
-    }                                                                                   \
+#define VISLOC_CHECK(cond, ...)                                             \
+  do {                                                                      \
+    if (!(cond)) {                                                          \
+      ::visloc::internal::ThrowCheckFailure(__FILE__, __LINE__, #cond,      \
+                                            ::visloc::StrCat(__VA_ARGS__)); \
+    }                                                                       \
   } while (false)

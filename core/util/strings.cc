@@ -21,7 +21,8 @@ std::vector<std::string> Split(std::string_view text, char delimiter) {
   size_t start = 0;
   while (true) {
     const size_t pos = text.find(delimiter, start);
-    fields.emplace_back(Trim(text.substr(start, pos == std::string_view::npos ? pos : pos - start)));
+    fields.emplace_back(
+        Trim(text.substr(start, pos == std::string_view::npos ? pos : pos - start)));
     if (pos == std::string_view::npos) break;
     start = pos + 1;
   }

@@ -28,8 +28,8 @@ std::vector<DataRow> ReadDataRows(const std::string& path, char delimiter) {
   for (const TextLine& line : ReadTextLines(path)) {
     const std::string_view trimmed = Trim(line.text);
     if (trimmed.empty() || trimmed.front() == '#') continue;
-    rows.push_back({line.number, delimiter == ' ' ? SplitWhitespace(trimmed)
-                                                  : Split(trimmed, delimiter)});
+    rows.push_back(
+        {line.number, delimiter == ' ' ? SplitWhitespace(trimmed) : Split(trimmed, delimiter)});
   }
   return rows;
 }
@@ -40,8 +40,7 @@ void ThrowAtLine(const std::string& path, int line, const std::string& message) 
 
 void RequireFieldCount(const std::string& path, const DataRow& row, size_t count) {
   if (row.fields.size() < count) {
-    ThrowAtLine(path, row.line,
-                StrCat("expected ", count, " fields, found ", row.fields.size()));
+    ThrowAtLine(path, row.line, StrCat("expected ", count, " fields, found ", row.fields.size()));
   }
 }
 
@@ -49,8 +48,8 @@ double FieldAsDouble(const std::string& path, const DataRow& row, size_t index) 
   RequireFieldCount(path, row, index + 1);
   const auto value = ParseDouble(row.fields[index]);
   if (!value) {
-    ThrowAtLine(path, row.line, StrCat("field ", index + 1, " is not a number: '",
-                                       row.fields[index], "'"));
+    ThrowAtLine(path, row.line,
+                StrCat("field ", index + 1, " is not a number: '", row.fields[index], "'"));
   }
   return *value;
 }
@@ -59,8 +58,8 @@ int64_t FieldAsInt64(const std::string& path, const DataRow& row, size_t index) 
   RequireFieldCount(path, row, index + 1);
   const auto value = ParseInt64(row.fields[index]);
   if (!value) {
-    ThrowAtLine(path, row.line, StrCat("field ", index + 1, " is not an integer: '",
-                                       row.fields[index], "'"));
+    ThrowAtLine(path, row.line,
+                StrCat("field ", index + 1, " is not an integer: '", row.fields[index], "'"));
   }
   return *value;
 }

@@ -1,0 +1,19 @@
+#pragma once
+// The `visloc` subcommands. Each RunX parses and validates its arguments, calls the library
+// that does the work, prints results (human-readable, or JSON with --json) and returns the
+// process exit code. Failures print one line "visloc X: reason" to stderr and return non-zero.
+
+#include <string>
+#include <vector>
+
+namespace visloc::cli {
+
+using Args = std::vector<std::string>;
+
+int RunSim(const Args& args);
+int RunEval(const Args& args);
+
+// True when stderr is a terminal, so progress lines with carriage returns make sense.
+bool ShowProgress();
+
+}  // namespace visloc::cli

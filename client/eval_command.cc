@@ -1,0 +1,116 @@
+#include <cstdio>
+#include <iostream>
+
+#include "client/commands.h"
+#include "core/eval/trajectory_eval.h"
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "dataset/tum.h"
+
+namespace visloc::cli {
+namespace {
+
+void WriteStats(JsonWriter& json, const std::string& key, const ErrorStats& stats) {
+  json.Key(key)
+      .BeginObject()
+      .Field("count", static_cast<int64_t>(stats.count))
+      .Field("rmse", stats.rmse)
+      .Field("mean", stats.mean)
+      .Field("median", stats.median)
+      .Field("std", stats.std_dev)
+      .Field("min", stats.min)
+      .Field("max", stats.max)
+      .EndObject();
+}
+
+void WritePoseErrors(JsonWriter& json, const std::string& key, const PoseErrors& errors) {
+  json.Key(key).BeginObject();
+  WriteStats(json, "translation_m", errors.translation_m);
+  WriteStats(json, "rotation_deg", errors.rotation_deg);
+  json.EndObject();
+}
+
+std::string ToJson(const TrajectoryEvaluation& eval, const EvalOptions& options) {
+  JsonWriter json;
+  json.BeginObject()
+      .Field("gt_poses", static_cast<int64_t>(eval.gt_poses))
+      .Field("est_poses", static_cast<int64_t>(eval.est_poses))
+      .Field("matched_poses", static_cast<int64_t>(eval.matched_poses))
+      .Field("coverage", eval.coverage);
+  WritePoseErrors(json, "ate", eval.ate);
+  if (eval.ate_aligned) {
+    WritePoseErrors(json, "ate_aligned", *eval.ate_aligned);
+    const Eigen::Vector3d& t = eval.gt_from_est.translation;
+    const Eigen::Quaterniond& q = eval.gt_from_est.rotation;
+    json.Key("gt_from_est")
+        .BeginObject()
+        .Field("x", t.x())
+        .Field("y", t.y())
+        .Field("z", t.z())
+        .Field("qw", q.w())
+        .Field("qx", q.x())
+        .Field("qy", q.y())
+        .Field("qz", q.z())
+        .EndObject();
+  }
+  json.Field("rpe_delta_s", options.rpe_delta_s);
+  WritePoseErrors(json, "rpe", eval.rpe);
+  json.EndObject();
+  return json.str();
+}
+
+void PrintRow(const std::string& label, const ErrorStats& stats, double scale, const char* unit) {
+  std::printf("  %-22s rmse %8.4f  median %8.4f  max %8.4f %s  (n=%zu)\n", label.c_str(),
+              stats.rmse * scale, stats.median * scale, stats.max * scale, unit, stats.count);
+}
+
+void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options) {
+  std::printf("poses: %zu ground truth, %zu estimated, %zu associated (coverage %.1f%%)\n",
+              eval.gt_poses, eval.est_poses, eval.matched_poses, 100.0 * eval.coverage);
+  std::printf("ATE in the map frame (no alignment):\n");
+  PrintRow("translation", eval.ate.translation_m, 100.0, "cm");
+  PrintRow("rotation", eval.ate.rotation_deg, 1.0, "deg");
+  if (eval.ate_aligned) {
+    std::printf("ATE after SE(3) alignment:\n");
+    PrintRow("translation", eval.ate_aligned->translation_m, 100.0, "cm");
+    PrintRow("rotation", eval.ate_aligned->rotation_deg, 1.0, "deg");
+  }
+  std::printf("RPE over %.3g s:\n", options.rpe_delta_s);
+  PrintRow("translation", eval.rpe.translation_m, 100.0, "cm");
+  PrintRow("rotation", eval.rpe.rotation_deg, 1.0, "deg");
+}
+
+}  // namespace
+
+int RunEval(const Args& args) {
+  std::string gt_path, est_path;
+  EvalOptions options;
+  bool json = false;
+  ArgParser parser("visloc eval",
+                   "Compares an estimated TUM trajectory with ground truth: ATE (no alignment, and "
+                   "with --align after SE(3) Umeyama alignment), RPE over --delta seconds, and "
+                   "coverage (share of ground-truth poses with an estimate).");
+  parser.AddFlag("gt", &gt_path, "ground-truth TUM file", /*required=*/true);
+  parser.AddFlag("est", &est_path, "estimated TUM file", /*required=*/true);
+  parser.AddSwitch("align", &options.align, "also report ATE after SE(3) alignment");
+  parser.AddFlag("delta", &options.rpe_delta_s, "RPE interval in seconds");
+  parser.AddFlag("max-dt", &options.max_time_diff_s, "association tolerance in seconds");
+  parser.AddSwitch("json", &json, "print one JSON object");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (options.rpe_delta_s <= 0) throw UsageError("--delta must be positive");
+  if (options.max_time_diff_s < 0) throw UsageError("--max-dt must not be negative");
+  const Trajectory gt = ReadTum(gt_path);
+  const Trajectory est = ReadTum(est_path);
+  if (gt.empty()) throw InputError(gt_path + ": no poses");
+  const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, options);
+  if (json) {
+    std::cout << ToJson(eval, options) << "\n";
+  } else {
+    PrintHuman(eval, options);
+  }
+  return 0;
+}
+
+}  // namespace visloc::cli

@@ -1,0 +1,201 @@
+#include "sim/generate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "core/util/text_file.h"
+#include "core/util/timer.h"
+#include "dataset/euroc.h"
+#include "dataset/kitti.h"
+#include "dataset/tum.h"
+#include "sim/renderer.h"
+#include "sim/sensors.h"
+
+namespace visloc::sim {
+namespace fs = std::filesystem;
+namespace {
+
+std::string WorldKey(const RoomOptions& room) {
+  return StrCat(room.seed, "/", static_cast<int>(room.layout), "/", room.people, "/", room.width_m,
+                "x", room.depth_m, "x", room.height_m, "/", room.texel_m);
+}
+
+bool IsCovered(const SequenceSpec& spec, double t) {
+  for (const auto& [start, end] : spec.covered_s) {
+    if (t >= start && t < end) return true;
+  }
+  return false;
+}
+
+// Six frames spread over the sequence; where the camera gets covered, the middle covered frame
+// and the first frame after the cover replace two of them, so a look shows the event.
+std::set<int> ContactSheetFrames(const SequenceSpec& spec, int frame_count, double fps) {
+  std::vector<int> frames;
+  for (int i = 0; i < 6; ++i) frames.push_back(i * (frame_count - 1) / 5);
+  if (!spec.covered_s.empty()) {
+    const auto [start, end] = spec.covered_s.front();
+    const int covered = static_cast<int>(std::ceil(0.5 * (start + end) * fps));
+    const int after = static_cast<int>(std::ceil(end * fps));
+    if (after < frame_count) {
+      frames[2] = covered;
+      frames[3] = after;
+    }
+  }
+  return std::set<int>(frames.begin(), frames.end());
+}
+
+cv::Mat MakeContactSheet(const std::vector<std::pair<std::string, cv::Mat>>& tiles) {
+  VISLOC_CHECK(!tiles.empty(), "no tiles");
+  const int cols = 3, rows = static_cast<int>((tiles.size() + cols - 1) / cols);
+  const int w = tiles[0].second.cols, h = tiles[0].second.rows;
+  cv::Mat sheet(rows * (h + 4), cols * (w + 4), CV_8UC1, cv::Scalar(255));
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    const cv::Rect where((i % cols) * (w + 4) + 2, (i / cols) * (h + 4) + 2, w, h);
+    tiles[i].second.copyTo(sheet(where));
+    const double scale = std::max(0.35, w / 900.0);
+    cv::putText(sheet, tiles[i].first,
+                where.tl() + cv::Point(4, static_cast<int>(18 * scale / 0.45)),
+                cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0), 3, cv::LINE_AA);
+    cv::putText(sheet, tiles[i].first,
+                where.tl() + cv::Point(4, static_cast<int>(18 * scale / 0.45)),
+                cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255), 1, cv::LINE_AA);
+  }
+  return sheet;
+}
+
+}  // namespace
+
+SequenceGenerator::SequenceGenerator(const GenerateOptions& options) : options_(options) {
+  VISLOC_CHECK(options.max_frames >= 0, "max_frames ", options.max_frames);
+}
+
+const World& SequenceGenerator::WorldFor(const RoomOptions& room) {
+  auto& slot = worlds_[WorldKey(room)];
+  if (!slot) slot = std::make_unique<World>(MakeRoom(room));
+  return *slot;
+}
+
+GenerateStats SequenceGenerator::Generate(const std::string& name, const std::string& out_dir,
+                                          const std::function<void(int, int)>& progress) {
+  const SequenceSpec spec = MakeSequenceSpec(name, options_.seed);
+  const StereoRig rig = MakeRig(options_.rig);
+  const World& world = WorldFor(spec.room);
+  const Rigid3d map_from_world = WorldFromMap(options_.rig).Inverse();
+
+  GenerateStats stats;
+  stats.name = name;
+  stats.dir = (fs::path(out_dir) / name).string();
+  stats.duration_s = spec.path.duration_s();
+  stats.path_length_m = spec.path.length_m();
+  int frame_count = static_cast<int>(std::floor(spec.path.duration_s() * options_.rig.fps)) + 1;
+  if (options_.max_frames > 0) frame_count = std::min(frame_count, options_.max_frames);
+  stats.frames = frame_count;
+  fs::remove_all(stats.dir);
+  fs::create_directories(stats.dir);
+
+  std::unique_ptr<EurocWriter> euroc;
+  if (options_.format == DatasetFormat::kEuroc) {
+    euroc = std::make_unique<EurocWriter>(stats.dir, rig.left, rig.right);
+  } else {
+    VISLOC_CHECK(!options_.rig.distortion, "KITTI sequences are rectified: no distortion");
+    WriteKittiCalibration(stats.dir, rig.left.camera, options_.rig.baseline_m);
+  }
+
+  const Renderer left_renderer(rig.left.camera, options_.supersample);
+  const Renderer right_renderer(rig.right.camera, options_.supersample);
+  Rng noise(options_.seed * 1000003 + std::hash<std::string>{}(name) % 1000);
+  std::vector<double> times_s;
+  std::vector<int64_t> stamps_ns;
+  Trajectory world_from_body, map_from_cam;
+  std::vector<int> covered_frames;
+  std::vector<std::pair<std::string, cv::Mat>> sheet;
+  const std::set<int> sheet_frames = ContactSheetFrames(spec, frame_count, options_.rig.fps);
+  Timer render_timer;
+  double render_ms = 0;
+  for (int k = 0; k < frame_count; ++k) {
+    const double t = k / options_.rig.fps;
+    const int64_t stamp = options_.start_ns + static_cast<int64_t>(std::llround(t * 1e9));
+    const Rigid3d body = spec.path.WorldFromBody(t);
+    const Rigid3d world_from_left = body * rig.left.body_from_cam;
+    const Rigid3d world_from_right = body * rig.right.body_from_cam;
+    cv::Mat left_radiance, right_radiance;
+    render_timer.Restart();
+    if (IsCovered(spec, t)) {
+      // A hand over the lens lets a little light through: dark, flat, noisy.
+      left_radiance =
+          cv::Mat(rig.left.camera.height(), rig.left.camera.width(), CV_32FC1, cv::Scalar(0.015));
+      right_radiance = left_radiance.clone();
+      covered_frames.push_back(k);
+    } else {
+      left_radiance = left_renderer.RenderRadiance(world, world_from_left, t);
+      right_radiance = right_renderer.RenderRadiance(world, world_from_right, t);
+    }
+    render_ms += render_timer.ElapsedMs();
+    const cv::Mat left = spec.sensor.Capture(left_radiance, &noise);
+    const cv::Mat right = spec.sensor.Capture(right_radiance, &noise);
+    if (euroc) {
+      euroc->AddFrame(stamp, left, right);
+    } else {
+      WriteKittiFrame(stats.dir, k, left, right);
+    }
+    if (options_.contact_sheet && sheet_frames.count(k)) {
+      sheet.emplace_back(StrCat(name, " #", k, " t=", FormatFixed(t, 1), "s"), left);
+    }
+    times_s.push_back(t);
+    stamps_ns.push_back(stamp);
+    world_from_body.push_back({stamp, body});
+    map_from_cam.push_back({stamp, map_from_world * world_from_left});
+    if (progress) progress(k + 1, frame_count);
+  }
+  stats.covered_frames = static_cast<int>(covered_frames.size());
+  stats.render_ms_per_frame = render_ms / std::max(1, frame_count);
+
+  const Trajectory odom_from_cam =
+      SynthesizeOdometry(spec.path, rig.left.body_from_cam, times_s, options_.start_ns,
+                         OdometryDrift{}, options_.seed);
+  if (euroc) {
+    std::vector<ImuSample> imu =
+        SynthesizeImu(spec.path, options_.start_ns, ImuNoise{}, options_.seed);
+    const int64_t last = stamps_ns.back();
+    imu.erase(std::remove_if(imu.begin(), imu.end(),
+                             [&](const ImuSample& s) { return s.timestamp_ns > last; }),
+              imu.end());
+    euroc->Finish(imu, odom_from_cam, world_from_body);
+  } else {
+    WriteKittiTimesAndPoses(stats.dir, stamps_ns,
+                            RelativeTo(map_from_cam, map_from_cam.front().pose));
+  }
+  WriteTum(stats.dir + "/groundtruth_map.tum", map_from_cam);
+  WriteTum(stats.dir + "/odometry.tum", odom_from_cam);
+
+  JsonWriter json;
+  json.BeginObject()
+      .Field("name", name)
+      .Field("description", spec.description)
+      .Field("format", ToString(options_.format))
+      .Field("frames", frame_count)
+      .Field("fps", options_.rig.fps)
+      .Field("width", options_.rig.width)
+      .Field("height", options_.rig.height)
+      .Field("distortion", options_.rig.distortion)
+      .Field("seed", static_cast<int64_t>(options_.seed))
+      .Field("duration_s", times_s.back())
+      .Field("path_length_m", stats.path_length_m)
+      .Key("covered_frames")
+      .BeginArray();
+  for (int k : covered_frames) json.Value(k);
+  json.EndArray().EndObject();
+  WriteFileAtomically(stats.dir + "/sequence.json", json.str() + "\n");
+  if (!sheet.empty()) cv::imwrite(stats.dir + "/contact_sheet.png", MakeContactSheet(sheet));
+  return stats;
+}
+
+}  // namespace visloc::sim

@@ -1,0 +1,55 @@
+#pragma once
+// Renders catalogue sequences to disk.
+//
+// Each sequence folder holds the dataset (EuRoC layout by default, or KITTI), plus:
+//   groundtruth_map.tum   the left camera's true pose in the map frame, one line per frame
+//   odometry.tum          the odometry's left camera poses (its own frame), for `visloc eval`
+//   sequence.json         what was generated: name, description, frames, covered frames, ...
+//   contact_sheet.png     six left frames spread over the sequence, for a quick look
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "dataset/dataset.h"
+#include "sim/sequences.h"
+
+namespace visloc::sim {
+
+struct GenerateOptions {
+  RigOptions rig;
+  int supersample = 2;  // Samples per pixel side.
+  int max_frames = 0;   // 0: the whole sequence.
+  uint64_t seed = 1;    // Textures, noise and drift.
+  DatasetFormat format = DatasetFormat::kEuroc;
+  bool contact_sheet = true;
+  int64_t start_ns = 1'700'000'000'000'000'000;  // Timestamp of the first frame.
+};
+
+struct GenerateStats {
+  std::string name;
+  std::string dir;
+  int frames = 0;
+  int covered_frames = 0;
+  double duration_s = 0;
+  double path_length_m = 0;
+  double render_ms_per_frame = 0;  // Both cameras.
+};
+
+// Builds each distinct world once and reuses it across sequences.
+class SequenceGenerator {
+ public:
+  explicit SequenceGenerator(const GenerateOptions& options);
+  // Writes sequence `name` into `out_dir`/`name`. `progress(done, total)` is called per frame.
+  GenerateStats Generate(const std::string& name, const std::string& out_dir,
+                         const std::function<void(int, int)>& progress = nullptr);
+
+ private:
+  const World& WorldFor(const RoomOptions& room);
+  GenerateOptions options_;
+  std::map<std::string, std::unique_ptr<World>> worlds_;
+};
+
+}  // namespace visloc::sim

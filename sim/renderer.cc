@@ -1,0 +1,215 @@
+#include "sim/renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <opencv2/core/utility.hpp>
+
+#include "core/util/check.h"
+
+namespace visloc::sim {
+namespace {
+
+constexpr double kNearPlaneM = 0.02;
+
+// A surface transformed into the camera frame, with what the inner loop needs precomputed.
+struct CamSurface {
+  Eigen::Vector3f origin, u_axis, v_axis, normal;
+  float plane_d;  // normal . X = plane_d for points X on the plane.
+  float origin_dot_u, origin_dot_v;
+  float size_u, size_v;
+  const Texture* texture;
+  float shade;
+};
+
+}  // namespace
+
+Renderer::Renderer(const PinholeCamera& camera, int supersample)
+    : camera_(camera), supersample_(supersample) {
+  VISLOC_CHECK(supersample >= 1 && supersample <= 8, "supersample ", supersample);
+  samples_x_ = camera.width() * supersample;
+  samples_y_ = camera.height() * supersample;
+  ray_x_.resize(static_cast<size_t>(samples_x_) * samples_y_);
+  ray_y_.resize(ray_x_.size());
+  for (int sy = 0; sy < samples_y_; ++sy) {
+    for (int sx = 0; sx < samples_x_; ++sx) {
+      // Sample centres evenly spread inside pixel (px, py) = [px - 0.5, px + 0.5].
+      const Eigen::Vector2d pixel(-0.5 + (sx + 0.5) / supersample, -0.5 + (sy + 0.5) / supersample);
+      const Eigen::Vector3d ray = camera.Unproject(pixel);
+      ray_x_[sy * samples_x_ + sx] = static_cast<float>(ray.x());
+      ray_y_[sy * samples_x_ + sx] = static_cast<float>(ray.y());
+    }
+  }
+  sample_spacing_ = static_cast<float>(1.0 / (std::min(camera.fx(), camera.fy()) * supersample));
+}
+
+bool Renderer::SurfaceRange(const Surface& s, SampleRange* range) const {
+  // Outline of the rectangle in the camera frame, densely sampled along its edges so that the
+  // bounds hold under lens distortion too, clipped against the near plane.
+  std::vector<Eigen::Vector3d> outline;
+  constexpr int kPerEdge = 8;
+  const Eigen::Vector3d corners[5] = {s.origin, s.PointAt(s.size_u_m, 0),
+                                      s.PointAt(s.size_u_m, s.size_v_m), s.PointAt(0, s.size_v_m),
+                                      s.origin};
+  for (int e = 0; e < 4; ++e) {
+    for (int k = 0; k < kPerEdge; ++k) {
+      outline.push_back(corners[e] + (corners[e + 1] - corners[e]) * (double(k) / kPerEdge));
+    }
+  }
+  double min_x = std::numeric_limits<double>::max(), min_y = min_x;
+  double max_x = std::numeric_limits<double>::lowest(), max_y = max_x;
+  bool any_in_front = false;
+  const size_t n = outline.size();
+  auto add = [&](const Eigen::Vector3d& p) {
+    Eigen::Vector2d pixel;
+    if (!camera_.Project(p, &pixel)) return;
+    any_in_front = true;
+    min_x = std::min(min_x, pixel.x());
+    max_x = std::max(max_x, pixel.x());
+    min_y = std::min(min_y, pixel.y());
+    max_y = std::max(max_y, pixel.y());
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& a = outline[i];
+    const Eigen::Vector3d& b = outline[(i + 1) % n];
+    const bool a_in = a.z() >= kNearPlaneM, b_in = b.z() >= kNearPlaneM;
+    if (a_in) add(a);
+    if (a_in != b_in) {
+      const double t = (kNearPlaneM - a.z()) / (b.z() - a.z());
+      add(a + t * (b - a));
+    }
+  }
+  if (!any_in_front) return false;
+  // Distortion can bend the outline between samples; a margin of a few pixels covers it.
+  const double margin = camera_.distortion().IsZero() ? 1.0 : 4.0;
+  const int s_factor = supersample_;
+  range->x0 =
+      std::clamp(static_cast<int>(std::floor((min_x - margin + 0.5) * s_factor)), 0, samples_x_);
+  range->x1 =
+      std::clamp(static_cast<int>(std::ceil((max_x + margin + 0.5) * s_factor)), 0, samples_x_);
+  range->y0 =
+      std::clamp(static_cast<int>(std::floor((min_y - margin + 0.5) * s_factor)), 0, samples_y_);
+  range->y1 =
+      std::clamp(static_cast<int>(std::ceil((max_y + margin + 0.5) * s_factor)), 0, samples_y_);
+  return range->x0 < range->x1 && range->y0 < range->y1;
+}
+
+cv::Mat Renderer::RenderRadiance(const World& world, const Rigid3d& world_from_cam, double time_s,
+                                 cv::Mat* depth) const {
+  const Rigid3d cam_from_world = world_from_cam.Inverse();
+  const std::vector<Surface> surfaces = world.SurfacesAt(time_s);
+  std::vector<CamSurface> cam_surfaces;
+  std::vector<SampleRange> ranges;
+  for (const Surface& s : surfaces) {
+    Surface in_cam = s;
+    in_cam.origin = cam_from_world * s.origin;
+    in_cam.u_axis = cam_from_world.rotation * s.u_axis;
+    in_cam.v_axis = cam_from_world.rotation * s.v_axis;
+    SampleRange range;
+    if (!SurfaceRange(in_cam, &range)) continue;
+    CamSurface c;
+    c.origin = in_cam.origin.cast<float>();
+    c.u_axis = in_cam.u_axis.cast<float>();
+    c.v_axis = in_cam.v_axis.cast<float>();
+    c.normal = c.u_axis.cross(c.v_axis);
+    c.plane_d = c.normal.dot(c.origin);
+    c.origin_dot_u = c.origin.dot(c.u_axis);
+    c.origin_dot_v = c.origin.dot(c.v_axis);
+    c.size_u = static_cast<float>(s.size_u_m);
+    c.size_v = static_cast<float>(s.size_v_m);
+    c.texture = world.textures.at(s.texture).get();
+    c.shade = s.shade;
+    cam_surfaces.push_back(c);
+    ranges.push_back(range);
+  }
+
+  // Pass 1: visibility. Per sample, the nearest surface hit (z-buffer on depth along z).
+  const size_t sample_count = ray_x_.size();
+  std::vector<float> zbuffer(sample_count, std::numeric_limits<float>::infinity());
+  std::vector<int16_t> hit(sample_count, -1);
+  for (size_t k = 0; k < cam_surfaces.size(); ++k) {
+    const CamSurface& c = cam_surfaces[k];
+    const SampleRange& r = ranges[k];
+    for (int sy = r.y0; sy < r.y1; ++sy) {
+      const size_t row = static_cast<size_t>(sy) * samples_x_;
+      for (int sx = r.x0; sx < r.x1; ++sx) {
+        const size_t i = row + sx;
+        const float rx = ray_x_[i], ry = ray_y_[i];
+        const float denom = c.normal.x() * rx + c.normal.y() * ry + c.normal.z();
+        if (std::abs(denom) < 1e-7f) continue;
+        const float z = c.plane_d / denom;
+        if (z <= kNearPlaneM || z >= zbuffer[i]) continue;
+        const float a = z * (rx * c.u_axis.x() + ry * c.u_axis.y() + c.u_axis.z()) - c.origin_dot_u;
+        const float b = z * (rx * c.v_axis.x() + ry * c.v_axis.y() + c.v_axis.z()) - c.origin_dot_v;
+        if (a < 0.0f || b < 0.0f || a > c.size_u || b > c.size_v) continue;
+        zbuffer[i] = z;
+        hit[i] = static_cast<int16_t>(k);
+      }
+    }
+  }
+
+  // Pass 2: shading, parallel over pixel rows (deterministic: no shared random state).
+  cv::Mat radiance(camera_.height(), camera_.width(), CV_32FC1);
+  const int s = supersample_;
+  const float inv_samples = 1.0f / (s * s);
+  cv::parallel_for_(cv::Range(0, camera_.height()), [&](const cv::Range& rows) {
+    for (int py = rows.start; py < rows.end; ++py) {
+      float* out = radiance.ptr<float>(py);
+      for (int px = 0; px < camera_.width(); ++px) {
+        float sum = 0.0f;
+        for (int sy = py * s; sy < (py + 1) * s; ++sy) {
+          for (int sx = px * s; sx < (px + 1) * s; ++sx) {
+            const size_t i = static_cast<size_t>(sy) * samples_x_ + sx;
+            if (hit[i] < 0) continue;
+            const CamSurface& c = cam_surfaces[hit[i]];
+            const float rx = ray_x_[i], ry = ray_y_[i], z = zbuffer[i];
+            const float a =
+                z * (rx * c.u_axis.x() + ry * c.u_axis.y() + c.u_axis.z()) - c.origin_dot_u;
+            const float b =
+                z * (rx * c.v_axis.x() + ry * c.v_axis.y() + c.v_axis.z()) - c.origin_dot_v;
+            // Footprint of one sample on the surface: distance * angular spacing, stretched by
+            // the obliqueness (geometric mean of the two axes' stretch).
+            const float ray_norm = std::sqrt(rx * rx + ry * ry + 1.0f);
+            const float cos_incidence = std::max(
+                std::abs(c.normal.x() * rx + c.normal.y() * ry + c.normal.z()) / ray_norm, 0.05f);
+            const float footprint = z * sample_spacing_ / ray_norm / std::sqrt(cos_incidence);
+            sum += c.shade * c.texture->Sample(a, b, footprint);
+          }
+        }
+        out[px] = sum * inv_samples;
+      }
+    }
+  });
+
+  if (depth != nullptr) {
+    *depth = cv::Mat(camera_.height(), camera_.width(), CV_32FC1);
+    for (int py = 0; py < camera_.height(); ++py) {
+      for (int px = 0; px < camera_.width(); ++px) {
+        const size_t i = static_cast<size_t>(py * s + s / 2) * samples_x_ + px * s + s / 2;
+        depth->at<float>(py, px) = hit[i] < 0 ? 0.0f : zbuffer[i];
+      }
+    }
+  }
+  return radiance;
+}
+
+cv::Mat SensorModel::Capture(const cv::Mat& radiance, Rng* rng) const {
+  VISLOC_CHECK(radiance.type() == CV_32FC1, "radiance must be CV_32FC1");
+  VISLOC_CHECK(exposure > 0 && gamma > 0, "exposure ", exposure, " gamma ", gamma);
+  cv::Mat image(radiance.size(), CV_8UC1);
+  const double inv_gamma = 1.0 / gamma;
+  for (int r = 0; r < radiance.rows; ++r) {
+    const float* in = radiance.ptr<float>(r);
+    uint8_t* out = image.ptr<uint8_t>(r);
+    for (int c = 0; c < radiance.cols; ++c) {
+      const double signal = 255.0 * std::pow(std::clamp(exposure * in[c], 0.0, 1.0), inv_gamma);
+      const double sigma = std::sqrt(read_noise_dn * read_noise_dn + shot_noise_gain * signal);
+      const double value = signal + (sigma > 0 ? rng->Normal(0.0, sigma) : 0.0);
+      out[c] = static_cast<uint8_t>(std::clamp(std::lround(value), 0L, 255L));
+    }
+  }
+  return image;
+}
+
+}  // namespace visloc::sim

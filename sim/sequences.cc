@@ -1,0 +1,124 @@
+#include "sim/sequences.h"
+
+#include <cmath>
+
+#include "core/util/check.h"
+
+namespace visloc::sim {
+
+StereoRig MakeRig(const RigOptions& options) {
+  VISLOC_CHECK(options.width >= 16 && options.height >= 16, "resolution ", options.width, "x",
+               options.height);
+  VISLOC_CHECK(options.fps > 0 && options.baseline_m > 0, "fps ", options.fps, " baseline ",
+               options.baseline_m);
+  const PinholeCamera ideal =
+      PinholeCamera::FromHorizontalFov(options.width, options.height, options.horizontal_fov_deg);
+  RadTanDistortion left_distortion, right_distortion;
+  if (options.distortion) {
+    left_distortion = {-0.12, 0.018, 4e-4, -3e-4};
+    right_distortion = {-0.11, 0.016, -2e-4, 5e-4};
+  }
+  Eigen::Matrix3d body_from_cam_rotation;
+  // Columns: the camera's x, y, z axes in the body frame.
+  body_from_cam_rotation << 0, 0, 1,  //
+      -1, 0, 0,                       //
+      0, -1, 0;
+  StereoRig rig;
+  rig.left.camera = PinholeCamera(options.width, options.height, ideal.fx(), ideal.fy(), ideal.cx(),
+                                  ideal.cy(), left_distortion);
+  rig.left.body_from_cam =
+      Rigid3d(body_from_cam_rotation, Eigen::Vector3d(0, options.baseline_m / 2, 0));
+  rig.left.rate_hz = options.fps;
+  rig.right = rig.left;
+  rig.right.camera = PinholeCamera(options.width, options.height, ideal.fx(), ideal.fy(),
+                                   ideal.cx(), ideal.cy(), right_distortion);
+  rig.right.body_from_cam.translation = Eigen::Vector3d(0, -options.baseline_m / 2, 0);
+  return rig;
+}
+
+const std::vector<std::string>& SequenceNames() {
+  static const std::vector<std::string> names = {"map_square", "query_square", "straight",
+                                                 "circle",     "kidnap",       "lowlight",
+                                                 "occluders",  "changed",      "outofmap"};
+  return names;
+}
+
+namespace {
+
+// The 2 m square, walked counter-clockwise from its south-west corner facing east, turning
+// in place at the corners and closing the loop facing east again.
+WalkingPath SquarePath(double x0, double y0, const GaitOptions& gait) {
+  WalkingPath path({x0, y0, 0.0}, gait);
+  for (int side = 0; side < 4; ++side) path.Walk(2.0).Turn(M_PI / 2);
+  return path;
+}
+
+}  // namespace
+
+SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
+  const GaitOptions gait;
+  SequenceSpec spec{name, "", RoomOptions{}, WalkingPath({}, gait), SensorModel{}, {}};
+  spec.room.seed = seed;
+  if (name == "map_square") {
+    spec.description = "mapping run: 2 m square loop, back to the start";
+    spec.path = SquarePath(-1.0, -1.0, gait);
+  } else if (name == "query_square") {
+    spec.description = "2 m square offset by (0.3, 0.2) m from the mapping square";
+    spec.path = SquarePath(-0.7, -0.8, gait);
+  } else if (name == "straight") {
+    spec.description = "3 m straight line; the last metre leaves the mapped area";
+    spec.path = WalkingPath({-1.0, 0.0, 0.0}, gait);
+    spec.path.Walk(3.0);
+  } else if (name == "circle") {
+    spec.description = "3 m diameter circle: viewing directions the map never saw";
+    spec.path = WalkingPath({0.0, -1.5, 0.0}, gait);
+    spec.path.Arc(1.5, 2 * M_PI);
+  } else if (name == "kidnap") {
+    spec.description = "walks, camera covered ~1.2 s while carried 1.4 m left, walks on";
+    spec.path = WalkingPath({-1.0, -1.0, 0.0}, gait);
+    spec.path.Walk(1.2)
+        .Stand(0.3)
+        .Carry(0.0, 1.4, 0.0, 1.0)
+        .Stand(0.3)
+        .Walk(1.0)
+        .Turn(M_PI / 2)
+        .Walk(1.0);
+    const auto carried = spec.path.CarriedIntervals().front();
+    spec.covered_s.emplace_back(carried.first - 0.1, carried.second + 0.1);
+  } else if (name == "lowlight") {
+    spec.description = "offset square in low light: darker, gamma-changed, noisier";
+    spec.path = SquarePath(-0.7, -0.8, gait);
+    spec.sensor.exposure = 0.3;
+    spec.sensor.gamma = 1.6;
+    spec.sensor.read_noise_dn = 2.0;
+  } else if (name == "occluders") {
+    spec.description = "offset square while people cross the room";
+    spec.path = SquarePath(-0.7, -0.8, gait);
+    spec.room.people = true;
+  } else if (name == "changed") {
+    spec.description = "offset square after the boxes were moved";
+    spec.path = SquarePath(-0.7, -0.8, gait);
+    spec.room.layout = RoomOptions::Layout::kBoxesMoved;
+  } else if (name == "outofmap") {
+    spec.description = "a different room: nothing here is in the map";
+    spec.room.seed = seed + 1000;
+    spec.room.layout = RoomOptions::Layout::kRandom;
+    spec.room.width_m = 6.5;
+    spec.room.depth_m = 10.0;
+    spec.room.height_m = 2.7;
+    spec.path = WalkingPath({0.0, -1.0, M_PI / 2}, gait);
+    spec.path.Walk(2.0).Turn(-M_PI / 2).Walk(1.0);
+  } else {
+    std::string known;
+    for (const std::string& n : SequenceNames()) known += (known.empty() ? "" : ", ") + n;
+    throw InputError("unknown sequence '" + name + "' (known: " + known + ")");
+  }
+  return spec;
+}
+
+Rigid3d WorldFromMap(const RigOptions& rig) {
+  const SequenceSpec map = MakeSequenceSpec("map_square", 1);
+  return map.path.WorldFromBody(0.0) * MakeRig(rig).left.body_from_cam;
+}
+
+}  // namespace visloc::sim

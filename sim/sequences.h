@@ -1,0 +1,56 @@
+#pragma once
+// The catalogue of synthetic sequences and the stereo rig that films them.
+//
+// Every sequence lives in the same world frame; the *map frame* (product.md) is the left
+// camera frame of the first frame of `map_square`, so ground truth of every sequence can be
+// given in the map frame, as the localization tests need.
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dataset/dataset.h"
+#include "sim/renderer.h"
+#include "sim/walking_path.h"
+#include "sim/world.h"
+
+namespace visloc::sim {
+
+struct RigOptions {
+  int width = 320;
+  int height = 240;
+  double horizontal_fov_deg = 90.0;  // The paper's HRP-2 cameras.
+  double baseline_m = 0.144;
+  bool distortion = false;  // Mild barrel distortion with small tangential terms.
+  double fps = 15.0;
+};
+
+struct StereoRig {
+  CameraInfo left;
+  CameraInfo right;
+};
+
+// Cameras mounted on the head: the left camera 0.072 m left of the body origin, the right one
+// 0.072 m right, both looking along the body's x axis (camera z = body x, camera x = -body y).
+StereoRig MakeRig(const RigOptions& options);
+
+struct SequenceSpec {
+  std::string name;
+  std::string description;
+  RoomOptions room;
+  WalkingPath path;
+  SensorModel sensor;
+  std::vector<std::pair<double, double>> covered_s;  // Camera covered during these intervals.
+};
+
+// Names in catalogue order: map_square, query_square, straight, circle, kidnap, lowlight,
+// occluders, changed, outofmap.
+const std::vector<std::string>& SequenceNames();
+
+// Throws InputError for an unknown name (listing the known ones).
+SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed);
+
+// The map frame in the world: the left camera's pose at the first frame of map_square.
+Rigid3d WorldFromMap(const RigOptions& rig);
+
+}  // namespace visloc::sim

@@ -1,0 +1,86 @@
+#pragma once
+// The synthetic world: textured planar rectangles (room walls, floor, ceiling, box faces) and
+// box-shaped occluders that move on straight lines ("people").
+//
+// World frame: origin on the floor at the room's centre, z up, metres. The room spans
+// x in [-width/2, width/2], y in [-depth/2, depth/2], z in [0, height].
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "sim/texture.h"
+
+namespace visloc::sim {
+
+// A textured rectangle: the points origin + a * u_axis + b * v_axis for a in [0, size_u_m],
+// b in [0, size_v_m]. Texture coordinates are (a, b) in metres. Axes are unit and orthogonal.
+struct Surface {
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d u_axis = Eigen::Vector3d::UnitX();
+  Eigen::Vector3d v_axis = Eigen::Vector3d::UnitY();
+  double size_u_m = 1.0;
+  double size_v_m = 1.0;
+  int texture = 0;     // Index into World::textures.
+  float shade = 1.0f;  // Lighting factor in (0, 1]: radiance = albedo * shade.
+  Eigen::Vector3d Normal() const { return u_axis.cross(v_axis); }
+  Eigen::Vector3d PointAt(double a_m, double b_m) const {
+    return origin + a_m * u_axis + b_m * v_axis;
+  }
+};
+
+// An axis-aligned box standing on the floor.
+struct Box {
+  Eigen::Vector2d center_xy = Eigen::Vector2d::Zero();
+  Eigen::Vector3d size_m = Eigen::Vector3d::Ones();  // x, y extent and height.
+  int texture = 0;
+};
+
+// A box that walks back and forth between two floor points at constant speed.
+struct Mover {
+  Box box;
+  Eigen::Vector2d start_xy = Eigen::Vector2d::Zero();
+  Eigen::Vector2d end_xy = Eigen::Vector2d::Zero();
+  double speed_mps = 1.0;
+  double phase_s = 0.0;  // Time offset along its round trip.
+  Eigen::Vector2d PositionAt(double time_s) const;
+};
+
+struct World {
+  double width_m = 8.0;
+  double depth_m = 8.0;
+  double height_m = 3.0;
+  std::vector<Surface> surfaces;  // Static geometry.
+  std::vector<Mover> movers;
+  std::vector<std::shared_ptr<const Texture>> textures;
+
+  // Static surfaces plus the movers' faces at `time_s`.
+  std::vector<Surface> SurfacesAt(double time_s) const;
+};
+
+struct RoomOptions {
+  double width_m = 8.0;
+  double depth_m = 8.0;
+  double height_m = 3.0;
+  double texel_m = 0.004;  // Texture resolution: finer than a 640x480 pixel at 1 m.
+  uint64_t seed = 1;       // Textures and, for a random layout, the boxes.
+  enum class Layout { kReference, kBoxesMoved, kRandom } layout = Layout::kReference;
+  bool people = false;  // Add people walking across the room.
+};
+
+// The default room: rich poster walls with a plain, low-texture stretch on the north wall,
+// tiled floor, panel ceiling, and boxes around the walking area (which is the disc of radius
+// ~2.2 m around the centre, kept free for the robot).
+World MakeRoom(const RoomOptions& options);
+
+// Appends the 5 visible faces (4 sides and the top) of `box` to `surfaces`.
+void AppendBoxFaces(const Box& box, std::vector<Surface>* surfaces);
+
+// Lambertian shading with a fixed light from above: faces differ in brightness, so box edges
+// stay visible where the albedo alone would not show them.
+float ShadeForNormal(const Eigen::Vector3d& normal);
+
+}  // namespace visloc::sim
