@@ -46,7 +46,8 @@ int RunSim(const Args& args) {
       "Renders synthetic stereo sequences of an indoor room with exact ground truth, "
       "IMU and walking-planner odometry (EuRoC layout by default). Each sequence "
       "folder also holds groundtruth_map.tum (left camera in the map frame, i.e. the "
-      "first frame of map_square), odometry.tum, sequence.json and contact_sheet.png.");
+      "first frame of map_square), odometry_map.tum (dead reckoning from the true start pose), "
+      "sequence.json and contact_sheet.png.");
   parser.AddFlag("out", &out_dir, "output folder (one sub-folder per sequence)");
   parser.AddFlag("sequence", &sequences, "'all' or a comma-separated list of names (see --list)");
   parser.AddFlag("resolution", &resolution, "image size WIDTHxHEIGHT");

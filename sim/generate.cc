@@ -174,7 +174,13 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
                             RelativeTo(map_from_cam, map_from_cam.front().pose));
   }
   WriteTum(stats.dir + "/groundtruth_map.tum", map_from_cam);
-  WriteTum(stats.dir + "/odometry.tum", odom_from_cam);
+  // Dead reckoning from the true start: the odometry's motion applied to the first frame's
+  // true pose, in the map frame. The baseline a localizer must beat.
+  const Rigid3d map_from_odom = map_from_cam.front().pose * odom_from_cam.front().pose.Inverse();
+  Trajectory odometry_in_map;
+  for (const StampedPose& p : odom_from_cam)
+    odometry_in_map.push_back({p.timestamp_ns, map_from_odom * p.pose});
+  WriteTum(stats.dir + "/odometry_map.tum", odometry_in_map);
 
   JsonWriter json;
   json.BeginObject()

@@ -3,7 +3,8 @@
 //
 // Each sequence folder holds the dataset (EuRoC layout by default, or KITTI), plus:
 //   groundtruth_map.tum   the left camera's true pose in the map frame, one line per frame
-//   odometry.tum          the odometry's left camera poses (its own frame), for `visloc eval`
+//   odometry_map.tum      dead reckoning: the odometry's motion started from the first frame's
+//                         true pose, in the map frame (the baseline a localizer must beat)
 //   sequence.json         what was generated: name, description, frames, covered frames, ...
 //   contact_sheet.png     six left frames spread over the sequence, for a quick look
 

@@ -51,6 +51,11 @@ TEST(GenerateTest, WrittenSequenceReadsBackWithItsGroundTruth) {
     EXPECT_TRUE(ApproxEqual(map_from_cam[i].pose, expected, 1e-8, 1e-6)) << i;
   }
   EXPECT_TRUE(std::filesystem::exists(stats.dir + "/contact_sheet.png"));
+  // Dead reckoning starts at the true first pose.
+  const Trajectory odometry_in_map = ReadTum(stats.dir + "/odometry_map.tum");
+  ASSERT_EQ(odometry_in_map.size(), 6u);
+  EXPECT_TRUE(ApproxEqual(odometry_in_map[0].pose, map_from_cam[0].pose, 1e-8, 1e-6));
+  EXPECT_TRUE(ApproxEqual(odometry_in_map[5].pose, map_from_cam[5].pose, 0.05, 2.0));
 }
 
 TEST(GenerateTest, KidnapFramesAreCoveredAndListed) {
