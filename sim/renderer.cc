@@ -42,56 +42,73 @@ Renderer::Renderer(const PinholeCamera& camera, int supersample)
     }
   }
   sample_spacing_ = static_cast<float>(1.0 / (std::min(camera.fx(), camera.fy()) * supersample));
+  const auto [min_x, max_x] = std::minmax_element(ray_x_.begin(), ray_x_.end());
+  const auto [min_y, max_y] = std::minmax_element(ray_y_.begin(), ray_y_.end());
+  fov_min_x_ = *min_x;
+  fov_max_x_ = *max_x;
+  fov_min_y_ = *min_y;
+  fov_max_y_ = *max_y;
 }
 
 bool Renderer::SurfaceRange(const Surface& s, SampleRange* range) const {
-  // Outline of the rectangle in the camera frame, densely sampled along its edges so that the
-  // bounds hold under lens distortion too, clipped against the near plane.
-  std::vector<Eigen::Vector3d> outline;
-  constexpr int kPerEdge = 8;
-  const Eigen::Vector3d corners[5] = {s.origin, s.PointAt(s.size_u_m, 0),
-                                      s.PointAt(s.size_u_m, s.size_v_m), s.PointAt(0, s.size_v_m),
-                                      s.origin};
-  for (int e = 0; e < 4; ++e) {
-    for (int k = 0; k < kPerEdge; ++k) {
-      outline.push_back(corners[e] + (corners[e + 1] - corners[e]) * (double(k) / kPerEdge));
-    }
-  }
+  // Bounds are found in undistorted normalized coordinates (x/z, y/z), where a planar polygon in
+  // front of the camera stays a convex polygon, then clipped to the field of view, and only
+  // then mapped to pixels. Mapping points far outside the field of view through the distortion
+  // polynomial would be wrong: radial-tangential distortion is not monotonic there and folds
+  // such points back into the image.
+  const Eigen::Vector3d corners[4] = {s.origin, s.PointAt(s.size_u_m, 0),
+                                      s.PointAt(s.size_u_m, s.size_v_m), s.PointAt(0, s.size_v_m)};
   double min_x = std::numeric_limits<double>::max(), min_y = min_x;
   double max_x = std::numeric_limits<double>::lowest(), max_y = max_x;
   bool any_in_front = false;
-  const size_t n = outline.size();
   auto add = [&](const Eigen::Vector3d& p) {
-    Eigen::Vector2d pixel;
-    if (!camera_.Project(p, &pixel)) return;
     any_in_front = true;
-    min_x = std::min(min_x, pixel.x());
-    max_x = std::max(max_x, pixel.x());
-    min_y = std::min(min_y, pixel.y());
-    max_y = std::max(max_y, pixel.y());
+    min_x = std::min(min_x, p.x() / p.z());
+    max_x = std::max(max_x, p.x() / p.z());
+    min_y = std::min(min_y, p.y() / p.z());
+    max_y = std::max(max_y, p.y() / p.z());
   };
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d& a = outline[i];
-    const Eigen::Vector3d& b = outline[(i + 1) % n];
+  // Clip the rectangle against the near plane (Sutherland-Hodgman, one plane).
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d& a = corners[i];
+    const Eigen::Vector3d& b = corners[(i + 1) % 4];
     const bool a_in = a.z() >= kNearPlaneM, b_in = b.z() >= kNearPlaneM;
     if (a_in) add(a);
-    if (a_in != b_in) {
-      const double t = (kNearPlaneM - a.z()) / (b.z() - a.z());
-      add(a + t * (b - a));
-    }
+    if (a_in != b_in) add(a + (kNearPlaneM - a.z()) / (b.z() - a.z()) * (b - a));
   }
   if (!any_in_front) return false;
-  // Distortion can bend the outline between samples; a margin of a few pixels covers it.
-  const double margin = camera_.distortion().IsZero() ? 1.0 : 4.0;
-  const int s_factor = supersample_;
+  min_x = std::max(min_x, fov_min_x_);
+  max_x = std::min(max_x, fov_max_x_);
+  min_y = std::max(min_y, fov_min_y_);
+  max_y = std::min(max_y, fov_max_y_);
+  if (min_x > max_x || min_y > max_y) return false;
+  // Within the field of view the lens mapping is monotonic, so the pixel bounds of the clipped
+  // box's boundary bound its interior; the boundary is sampled densely because distortion
+  // bends straight edges.
+  double px_min_x = std::numeric_limits<double>::max(), px_min_y = px_min_x;
+  double px_max_x = std::numeric_limits<double>::lowest(), px_max_y = px_max_x;
+  constexpr int kPerEdge = 16;
+  for (int k = 0; k <= kPerEdge; ++k) {
+    const double fx = min_x + (max_x - min_x) * k / kPerEdge;
+    const double fy = min_y + (max_y - min_y) * k / kPerEdge;
+    for (const Eigen::Vector2d& n : {Eigen::Vector2d(fx, min_y), Eigen::Vector2d(fx, max_y),
+                                     Eigen::Vector2d(min_x, fy), Eigen::Vector2d(max_x, fy)}) {
+      Eigen::Vector2d pixel;
+      camera_.Project(Eigen::Vector3d(n.x(), n.y(), 1.0), &pixel);
+      px_min_x = std::min(px_min_x, pixel.x());
+      px_max_x = std::max(px_max_x, pixel.x());
+      px_min_y = std::min(px_min_y, pixel.y());
+      px_max_y = std::max(px_max_y, pixel.y());
+    }
+  }
+  const double margin = 1.0;
+  const int f = supersample_;
   range->x0 =
-      std::clamp(static_cast<int>(std::floor((min_x - margin + 0.5) * s_factor)), 0, samples_x_);
-  range->x1 =
-      std::clamp(static_cast<int>(std::ceil((max_x + margin + 0.5) * s_factor)), 0, samples_x_);
+      std::clamp(static_cast<int>(std::floor((px_min_x - margin + 0.5) * f)), 0, samples_x_);
+  range->x1 = std::clamp(static_cast<int>(std::ceil((px_max_x + margin + 0.5) * f)), 0, samples_x_);
   range->y0 =
-      std::clamp(static_cast<int>(std::floor((min_y - margin + 0.5) * s_factor)), 0, samples_y_);
-  range->y1 =
-      std::clamp(static_cast<int>(std::ceil((max_y + margin + 0.5) * s_factor)), 0, samples_y_);
+      std::clamp(static_cast<int>(std::floor((px_min_y - margin + 0.5) * f)), 0, samples_y_);
+  range->y1 = std::clamp(static_cast<int>(std::ceil((px_max_y + margin + 0.5) * f)), 0, samples_y_);
   return range->x0 < range->x1 && range->y0 < range->y1;
 }
 

@@ -43,7 +43,9 @@ class Renderer {
   int supersample_;
   int samples_x_, samples_y_;
   std::vector<float> ray_x_, ray_y_;  // Viewing ray (x, y, 1) per sample, row-major.
-  float sample_spacing_;              // Sample spacing in normalized image units (1 / (f s)).
+  // The field of view in normalized coordinates: the range of ray_x_ and ray_y_.
+  double fov_min_x_, fov_max_x_, fov_min_y_, fov_max_y_;
+  float sample_spacing_;  // Sample spacing in normalized image units (1 / (f s)).
 };
 
 // The image sensor: radiance -> 8-bit grey.

@@ -137,6 +137,28 @@ TEST(RendererTest, DepthBufferKeepsTheNearestSurface) {
   EXPECT_EQ(depth.at<float>(120, 5), 0.0f);           // past the wall's edge: nothing
 }
 
+TEST_P(RendererProjectionTest, InsideAClosedRoomEveryPixelSeesASurface) {
+  // Surfaces that reach far outside the field of view (floor, ceiling, side walls) must still
+  // be drawn: a regression test for bounds computed through the distortion polynomial, which
+  // folds points far outside the image back into it.
+  RigOptions rig_options;
+  rig_options.width = 160;
+  rig_options.height = 120;
+  rig_options.distortion = GetParam();
+  RoomOptions room;
+  room.texel_m = 0.02;
+  const World world = MakeRoom(room);
+  const StereoRig rig = MakeRig(rig_options);
+  const Renderer renderer(rig.left.camera, 1);
+  for (double yaw : {0.0, 0.8, 2.0, -2.5}) {
+    const Rigid3d world_from_body(RotationFromRollPitchYaw(0.02, -0.05, yaw),
+                                  Eigen::Vector3d(0.5, -0.3, 1.45));
+    cv::Mat depth;
+    renderer.RenderRadiance(world, world_from_body * rig.left.body_from_cam, 0.0, &depth);
+    EXPECT_EQ(cv::countNonZero(depth > 0), depth.rows * depth.cols) << "yaw " << yaw;
+  }
+}
+
 TEST(SensorModelTest, LowLightIsDarkerAndNoiseIsDeterministic) {
   const cv::Mat radiance(40, 40, CV_32FC1, cv::Scalar(0.5));
   SensorModel normal, dark;
