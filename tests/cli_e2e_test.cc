@@ -16,9 +16,9 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
-using ::testing::StartsWith;
 using testing::ProcessResult;
 using testing::RunProcess;
+using ::testing::StartsWith;
 
 ProcessResult Visloc(std::vector<std::string> args) {
   args.insert(args.begin(), VISLOC_CLI_PATH);
@@ -51,9 +51,9 @@ TEST(CliTest, EveryCommandHasHelpAndUnknownCommandsFail) {
 
 TEST(CliTest, SimWritesSequencesThatEvalScoresExactly) {
   TempDir dir;
-  const ProcessResult sim = Visloc({"sim", "--out", dir.path(), "--sequence", "kidnap,straight",
-                                    "--frames", "12", "--resolution", "160x120", "--supersample", "1",
-                                    "--json"});
+  const ProcessResult sim =
+      Visloc({"sim", "--out", dir.path(), "--sequence", "kidnap,straight", "--frames", "12",
+              "--resolution", "160x120", "--supersample", "1", "--json"});
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   EXPECT_THAT(sim.out, HasSubstr("\"name\":\"kidnap\""));
   EXPECT_THAT(sim.out, HasSubstr("\"frames\":12"));
@@ -74,7 +74,8 @@ TEST(CliTest, SimWritesSequencesThatEvalScoresExactly) {
   for (StampedPose& pose : shifted) pose.pose.translation += Eigen::Vector3d(0.0, 0.03, 0.0);
   shifted.erase(shifted.begin() + 6, shifted.end());  // half the frames "not localized"
   WriteTum(dir.File("shifted.tum"), shifted);
-  const ProcessResult offset = Visloc({"eval", "--gt", gt, "--est", dir.File("shifted.tum"), "--align", "--json"});
+  const ProcessResult offset =
+      Visloc({"eval", "--gt", gt, "--est", dir.File("shifted.tum"), "--align", "--json"});
   ASSERT_EQ(offset.exit_code, 0) << offset.err;
   EXPECT_NEAR(JsonNumber(offset.out, "ate", "rmse"), 0.03, 1e-8);
   EXPECT_NEAR(JsonNumber(offset.out, "ate", "max"), 0.03, 1e-8);
@@ -97,17 +98,24 @@ TEST(CliTest, BadInputGetsOneLineErrorsAndNonZeroExit) {
     std::string error;
   } cases[] = {
       {{"eval", "--est", "x.tum"}, 2, "visloc eval: missing --gt (see 'visloc eval --help')\n"},
-      {{"eval", "--gt", dir.File("missing.tum"), "--est", dir.File("good.tum")}, 1,
+      {{"eval", "--gt", dir.File("missing.tum"), "--est", dir.File("good.tum")},
+       1,
        "visloc eval: " + dir.File("missing.tum") + ": cannot open file\n"},
-      {{"eval", "--gt", dir.File("good.tum"), "--est", dir.File("bad.tum")}, 1,
+      {{"eval", "--gt", dir.File("good.tum"), "--est", dir.File("bad.tum")},
+       1,
        "visloc eval: " + dir.File("bad.tum") + ":2: field 2 is not a number: 'zero'\n"},
-      {{"sim", "--out", dir.path(), "--sequence", "moon"}, 1,
+      {{"sim", "--out", dir.path(), "--sequence", "moon"},
+       1,
        "visloc sim: unknown sequence 'moon' (known: map_square, query_square, straight, circle, "
        "kidnap, lowlight, occluders, changed, outofmap)\n"},
-      {{"sim", "--out", dir.path(), "--resolution", "big"}, 2,
-       "visloc sim: --resolution expects WIDTHxHEIGHT between 16 and 4096, got 'big' (see 'visloc sim --help')\n"},
-      {{"sim", "--out", dir.path(), "--format", "kitti", "--distortion"}, 2,
-       "visloc sim: KITTI sequences are rectified: --distortion needs --format euroc (see 'visloc sim --help')\n"},
+      {{"sim", "--out", dir.path(), "--resolution", "big"},
+       2,
+       "visloc sim: --resolution expects WIDTHxHEIGHT between 16 and 4096, got 'big' (see 'visloc "
+       "sim --help')\n"},
+      {{"sim", "--out", dir.path(), "--format", "kitti", "--distortion"},
+       2,
+       "visloc sim: KITTI sequences are rectified: --distortion needs --format euroc (see 'visloc "
+       "sim --help')\n"},
   };
   for (const auto& c : cases) {
     const ProcessResult result = Visloc(c.args);

@@ -1,6 +1,7 @@
 #include "tests/support/process.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -20,12 +21,14 @@ std::string ReadAll(const std::string& path) {
   return text.str();
 }
 
-}  // namespace
+int ExitCode(int status) {
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
 
-ProcessResult RunProcess(const std::vector<std::string>& argv) {
+// Forks and executes argv with stdin from /dev/null and stdout/stderr to the given files.
+pid_t Start(const std::vector<std::string>& argv, const std::string& out_path,
+            const std::string& err_path) {
   VISLOC_CHECK(!argv.empty(), "no program given");
-  TempDir capture("visloc-proc");
-  const std::string out_path = capture.File("stdout"), err_path = capture.File("stderr");
   std::vector<char*> args;
   for (const std::string& arg : argv) args.push_back(const_cast<char*>(arg.c_str()));
   args.push_back(nullptr);
@@ -42,11 +45,34 @@ ProcessResult RunProcess(const std::vector<std::string>& argv) {
     execv(args[0], args.data());
     _exit(127);
   }
+  return pid;
+}
+
+}  // namespace
+
+int SpawnProcess(const std::vector<std::string>& argv) {
+  return Start(argv, "/dev/null", "/dev/null");
+}
+
+int WaitProcess(int pid) {
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
   }
+  return ExitCode(status);
+}
+
+int KillProcess(int pid, int signal) {
+  kill(pid, signal);
+  return WaitProcess(pid);
+}
+
+ProcessResult RunProcess(const std::vector<std::string>& argv) {
+  VISLOC_CHECK(!argv.empty(), "no program given");
+  TempDir capture("visloc-proc");
+  const std::string out_path = capture.File("stdout"), err_path = capture.File("stderr");
+  const int exit_code = WaitProcess(Start(argv, out_path, err_path));
   ProcessResult result;
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  result.exit_code = exit_code;
   result.out = ReadAll(out_path);
   result.err = ReadAll(err_path);
   return result;

@@ -1,0 +1,44 @@
+#include "core/map/localization_map.h"
+
+#include "core/util/check.h"
+
+namespace visloc {
+
+LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
+  const auto problems = FindMapProblems(map_, 1);
+  VISLOC_CHECK(problems.empty(), "inconsistent map: ", problems.empty() ? "" : problems[0]);
+  // Observations are sorted by (keyframe, point), so the CSR arrays fill in one pass.
+  visible_offsets_.assign(map_.keyframes.size() + 1, 0);
+  visible_points_.reserve(map_.observations.size());
+  for (const Observation& o : map_.observations) {
+    ++visible_offsets_[o.keyframe + 1];
+    visible_points_.push_back(o.point);
+  }
+  for (size_t k = 1; k < visible_offsets_.size(); ++k)
+    visible_offsets_[k] += visible_offsets_[k - 1];
+  for (const Keyframe& keyframe : map_.keyframes) {
+    keyframe_centers_.push_back(keyframe.map_from_cam.translation);
+    keyframe_view_dirs_.push_back(keyframe.map_from_cam.rotation * Eigen::Vector3d::UnitZ());
+  }
+}
+
+LocalizationMap::PointRange LocalizationMap::VisiblePoints(size_t keyframe) const {
+  VISLOC_CHECK(keyframe < keyframe_count(), "keyframe ", keyframe, " of ", keyframe_count());
+  const uint32_t* base = visible_points_.data();
+  return {base + visible_offsets_[keyframe], base + visible_offsets_[keyframe + 1]};
+}
+
+size_t LocalizationMap::MemoryBytes() const {
+  size_t bytes = map_.keyframes.size() * sizeof(Keyframe) + map_.points.size() * sizeof(MapPoint) +
+                 map_.descriptors.total() * map_.descriptors.elemSize() +
+                 map_.observations.size() * sizeof(Observation) +
+                 (visible_offsets_.size() + visible_points_.size()) * sizeof(uint32_t) +
+                 2 * keyframe_centers_.size() * sizeof(Eigen::Vector3d);
+  const AppearanceIndex& appearance = map_.appearance;
+  bytes += appearance.vocabulary.centroids.total() * appearance.vocabulary.centroids.elemSize() +
+           appearance.vocabulary.word_weights.size() * sizeof(float);
+  for (const BowVector& v : appearance.keyframe_vectors) bytes += v.size() * sizeof(v[0]);
+  return bytes;
+}
+
+}  // namespace visloc

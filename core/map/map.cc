@@ -1,0 +1,217 @@
+#include "core/map/map.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "core/util/check.h"
+
+namespace visloc {
+
+std::string ToString(DescriptorType type) {
+  return type == DescriptorType::kFloat32 ? "float32" : "binary";
+}
+
+DescriptorType ParseDescriptorType(const std::string& text) {
+  if (text == "float32") return DescriptorType::kFloat32;
+  if (text == "binary") return DescriptorType::kBinary;
+  throw InputError(StrCat("unknown descriptor type '", text, "' (expected float32 or binary)"));
+}
+
+namespace {
+
+bool Finite(const Eigen::Vector3d& v) { return v.allFinite(); }
+
+bool PoseIsSound(const Rigid3d& pose) {
+  return Finite(pose.translation) && pose.rotation.coeffs().allFinite() &&
+         std::abs(pose.rotation.norm() - 1.0) < 1e-6;
+}
+
+class ProblemList {
+ public:
+  explicit ProblemList(size_t max) : max_(max) {}
+  template <typename... Args>
+  void Add(Args&&... args) {
+    if (problems_.size() < max_) problems_.push_back(StrCat(std::forward<Args>(args)...));
+  }
+  bool full() const { return problems_.size() >= max_; }
+  std::vector<std::string> Take() { return std::move(problems_); }
+
+ private:
+  size_t max_;
+  std::vector<std::string> problems_;
+};
+
+void CheckDescriptors(const Map& map, ProblemList& problems) {
+  const FeatureSettings& f = map.features;
+  if (f.kind.empty()) problems.Add("feature kind is empty");
+  if (f.descriptor_dim <= 0) problems.Add("descriptor dimension ", f.descriptor_dim);
+  if (map.descriptors.rows != static_cast<int>(map.points.size())) {
+    problems.Add(map.points.size(), " points but ", map.descriptors.rows, " descriptors");
+  } else if (!map.points.empty() &&
+             (map.descriptors.cols != f.descriptor_dim || map.descriptors.type() != f.cv_type())) {
+    problems.Add("descriptors are ", map.descriptors.cols, " wide of type ", map.descriptors.type(),
+                 ", settings say ", f.descriptor_dim, " of type ", f.cv_type());
+  } else if (f.descriptor_type == DescriptorType::kFloat32 && !map.descriptors.empty() &&
+             !cv::checkRange(map.descriptors)) {
+    problems.Add("descriptors contain non-finite values");
+  }
+}
+
+void CheckObservations(const Map& map, ProblemList& problems) {
+  std::vector<uint32_t> counted(map.points.size(), 0);
+  for (size_t i = 0; i < map.observations.size() && !problems.full(); ++i) {
+    const Observation& o = map.observations[i];
+    if (o.keyframe >= map.keyframes.size() || o.point >= map.points.size()) {
+      problems.Add("observation ", i, " refers to keyframe ", o.keyframe, " and point ", o.point,
+                   " but the map has ", map.keyframes.size(), " keyframes and ", map.points.size(),
+                   " points");
+      continue;
+    }
+    if (!o.pixel.allFinite()) problems.Add("observation ", i, " has a non-finite pixel");
+    if (i > 0) {
+      const Observation& p = map.observations[i - 1];
+      if (std::make_pair(p.keyframe, p.point) >= std::make_pair(o.keyframe, o.point)) {
+        problems.Add("observations are not sorted by (keyframe, point) at ", i);
+      }
+    }
+    ++counted[o.point];
+  }
+  for (size_t j = 0; j < map.points.size() && !problems.full(); ++j) {
+    if (counted[j] != map.points[j].observation_count) {
+      problems.Add("point ", j, " claims ", map.points[j].observation_count,
+                   " observations but has ", counted[j]);
+    }
+  }
+}
+
+void CheckAppearance(const Map& map, ProblemList& problems) {
+  const Vocabulary& v = map.appearance.vocabulary;
+  if (!v.empty()) {
+    size_t nodes = 0, level = 1;
+    for (int d = 0; d < v.depth; ++d) nodes += (level *= v.branching);
+    if (v.branching < 2 || v.depth < 1 || static_cast<size_t>(v.centroids.rows) != nodes ||
+        v.word_count() != level) {
+      problems.Add("vocabulary of branching ", v.branching, " and depth ", v.depth, " has ",
+                   v.centroids.rows, " nodes and ", v.word_count(), " word weights");
+    }
+  }
+  const auto& vectors = map.appearance.keyframe_vectors;
+  if (!vectors.empty() && vectors.size() != map.keyframes.size()) {
+    problems.Add(vectors.size(), " appearance vectors for ", map.keyframes.size(), " keyframes");
+  }
+  for (size_t k = 0; k < vectors.size() && !problems.full(); ++k) {
+    for (size_t w = 0; w < vectors[k].size(); ++w) {
+      if (vectors[k][w].first >= v.word_count() || !std::isfinite(vectors[k][w].second) ||
+          (w > 0 && vectors[k][w - 1].first >= vectors[k][w].first)) {
+        problems.Add("appearance vector of keyframe ", k, " has a bad entry at ", w);
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
+  ProblemList problems(max_problems);
+  if (map.metadata.name.empty()) problems.Add("map name is empty");
+  if (map.camera.width() <= 0) problems.Add("map camera is not set");
+  for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
+    if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
+      problems.Add("keyframe ", i, " has a non-finite pose or a non-unit quaternion");
+    }
+  }
+  for (size_t j = 0; j < map.points.size() && !problems.full(); ++j) {
+    if (!Finite(map.points[j].position_in_map) ||
+        !std::isfinite(map.points[j].mean_reproj_error_px)) {
+      problems.Add("point ", j, " has a non-finite position or error");
+    }
+  }
+  CheckDescriptors(map, problems);
+  CheckObservations(map, problems);
+  const VisibilityKernel& kernel = map.kernel;
+  const auto cues = static_cast<Eigen::Index>(kernel.cues.size());
+  if (kernel.metric.size() > 0 && (kernel.metric.rows() != cues || kernel.metric.cols() != cues ||
+                                   !kernel.metric.allFinite())) {
+    problems.Add("visibility kernel metric is ", kernel.metric.rows(), "x", kernel.metric.cols(),
+                 " for ", cues, " cues");
+  }
+  if (kernel.default_k < 1 || !(kernel.default_probability_threshold >= 0.0 &&
+                                kernel.default_probability_threshold <= 1.0)) {
+    problems.Add("visibility defaults K = ", kernel.default_k,
+                 ", P_t = ", kernel.default_probability_threshold);
+  }
+  CheckAppearance(map, problems);
+  return problems.Take();
+}
+
+namespace {
+
+bool SameMat(const cv::Mat& a, const cv::Mat& b) {
+  if (a.empty() && b.empty()) return true;
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int r = 0; r < a.rows; ++r) {
+    if (std::memcmp(a.ptr(r), b.ptr(r), a.cols * a.elemSize()) != 0) return false;
+  }
+  return true;
+}
+
+bool SamePose(const Rigid3d& a, const Rigid3d& b) {
+  return a.translation == b.translation && a.rotation.coeffs() == b.rotation.coeffs();
+}
+
+}  // namespace
+
+bool MapsEqual(const Map& a, const Map& b) {
+  if (a.metadata.name != b.metadata.name ||
+      a.metadata.created_unix_s != b.metadata.created_unix_s ||
+      a.metadata.source_dataset != b.metadata.source_dataset ||
+      a.metadata.builder != b.metadata.builder) {
+    return false;
+  }
+  if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||
+      a.camera.Params() != b.camera.Params()) {
+    return false;
+  }
+  if (a.features.kind != b.features.kind ||
+      a.features.descriptor_type != b.features.descriptor_type ||
+      a.features.descriptor_dim != b.features.descriptor_dim ||
+      a.features.params != b.features.params) {
+    return false;
+  }
+  if (a.keyframes.size() != b.keyframes.size() || a.points.size() != b.points.size() ||
+      a.observations.size() != b.observations.size()) {
+    return false;
+  }
+  for (size_t i = 0; i < a.keyframes.size(); ++i) {
+    if (a.keyframes[i].timestamp_ns != b.keyframes[i].timestamp_ns ||
+        !SamePose(a.keyframes[i].map_from_cam, b.keyframes[i].map_from_cam)) {
+      return false;
+    }
+  }
+  for (size_t j = 0; j < a.points.size(); ++j) {
+    const MapPoint &p = a.points[j], &q = b.points[j];
+    if (p.position_in_map != q.position_in_map || p.observation_count != q.observation_count ||
+        p.mean_reproj_error_px != q.mean_reproj_error_px) {
+      return false;
+    }
+  }
+  for (size_t i = 0; i < a.observations.size(); ++i) {
+    const Observation &o = a.observations[i], &p = b.observations[i];
+    if (o.keyframe != p.keyframe || o.point != p.point || o.pixel != p.pixel) return false;
+  }
+  const VisibilityKernel &ka = a.kernel, &kb = b.kernel;
+  if (ka.cues != kb.cues || ka.metric.rows() != kb.metric.rows() ||
+      ka.metric.cols() != kb.metric.cols() || ka.metric != kb.metric ||
+      ka.default_k != kb.default_k ||
+      ka.default_probability_threshold != kb.default_probability_threshold) {
+    return false;
+  }
+  const Vocabulary &va = a.appearance.vocabulary, &vb = b.appearance.vocabulary;
+  return SameMat(a.descriptors, b.descriptors) && va.branching == vb.branching &&
+         va.depth == vb.depth && SameMat(va.centroids, vb.centroids) &&
+         va.word_weights == vb.word_weights &&
+         a.appearance.keyframe_vectors == b.appearance.keyframe_vectors;
+}
+
+}  // namespace visloc

@@ -1,0 +1,112 @@
+#pragma once
+// The in-memory map model: what a map built from a stereo sequence contains, independent of how
+// it is stored (mapstore owns the SQLite format) or used (LocalizationMap).
+//
+// Frames and units: the map frame is the left camera frame of the mapping sequence's first frame
+// (product.md), metres. Keyframe poses are `map_from_cam` of the raw (unrectified) left camera.
+// Pixels are in the map camera's raw, distorted image (PinholeCamera's convention).
+
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/camera/pinhole_camera.h"
+#include "core/geometry/rigid3.h"
+
+namespace visloc {
+
+// How descriptors are compared: float vectors by L2 distance, bit strings by Hamming distance.
+enum class DescriptorType { kFloat32, kBinary };
+std::string ToString(DescriptorType type);
+// "float32" or "binary"; throws InputError otherwise.
+DescriptorType ParseDescriptorType(const std::string& text);
+
+// The detector/descriptor a map was built with. Localization must use the same settings.
+struct FeatureSettings {
+  std::string kind;  // e.g. "harris_surf16" (the paper's) or "orb"
+  DescriptorType descriptor_type = DescriptorType::kFloat32;
+  int descriptor_dim = 0;  // Floats (kFloat32) or bytes (kBinary) per descriptor.
+  std::vector<std::pair<std::string, double>> params;  // Detector/descriptor parameters.
+  // The OpenCV type of one descriptor row: CV_32F or CV_8U.
+  int cv_type() const { return descriptor_type == DescriptorType::kFloat32 ? CV_32F : CV_8U; }
+};
+
+struct MapMetadata {
+  std::string name;
+  int64_t created_unix_s = 0;
+  std::string source_dataset;  // Where the mapping sequence came from.
+  std::string builder;         // Which program built it, e.g. "visloc 0.1.0".
+};
+
+struct Keyframe {
+  int64_t timestamp_ns = 0;
+  Rigid3d map_from_cam;
+};
+
+struct MapPoint {
+  Eigen::Vector3d position_in_map = Eigen::Vector3d::Zero();
+  uint32_t observation_count = 0;  // Keyframes that see the point (rows in observations).
+  float mean_reproj_error_px = 0;  // Over those observations, after global bundle adjustment.
+};
+
+// Keyframe `keyframe` sees point `point` at `pixel`: the precomputed visibility.
+struct Observation {
+  uint32_t keyframe = 0;  // Index into Map::keyframes.
+  uint32_t point = 0;     // Index into Map::points.
+  Eigen::Vector2f pixel = Eigen::Vector2f::Zero();
+};
+
+// The learned visibility kernel of seed paper 000, eq. 7: for camera poses i and j with cue
+// differences d_ij (one entry per cue), k_ij = exp(-|| metric * d_ij ||_2).
+struct VisibilityKernel {
+  std::vector<std::string> cues;               // e.g. {"translation_m", "view_direction"}
+  Eigen::MatrixXd metric;                      // cues.size() x cues.size(); empty when not learned.
+  int default_k = 10;                          // Nearest keyframes (paper: K = 10).
+  double default_probability_threshold = 0.2;  // Paper: P_t = 0.2.
+};
+
+// A hierarchical k-means vocabulary for appearance retrieval (bag of words). Node rows are
+// stored level by level below the root: level 1 holds `branching` rows, level 2 branching^2, ...
+// The leaves (the last level) are the words.
+struct Vocabulary {
+  int branching = 0;
+  int depth = 0;
+  cv::Mat centroids;                // One row per node, the descriptors' type and width.
+  std::vector<float> word_weights;  // IDF weight per word (leaf).
+  bool empty() const { return centroids.empty(); }
+  size_t word_count() const { return word_weights.size(); }
+};
+
+// A sparse bag-of-words vector: (word id, weight), sorted by word id.
+using BowVector = std::vector<std::pair<uint32_t, float>>;
+
+struct AppearanceIndex {
+  Vocabulary vocabulary;
+  std::vector<BowVector> keyframe_vectors;  // One per keyframe, or none.
+};
+
+struct Map {
+  MapMetadata metadata;
+  PinholeCamera camera;  // The map (left) camera.
+  FeatureSettings features;
+  std::vector<Keyframe> keyframes;
+  std::vector<MapPoint> points;
+  cv::Mat descriptors;  // points.size() rows of features.descriptor_dim, features.cv_type().
+  std::vector<Observation> observations;  // Sorted by (keyframe, point).
+  VisibilityKernel kernel;
+  AppearanceIndex appearance;
+};
+
+// Checks what any consumer relies on: sizes agree, indices are in range, values are finite,
+// quaternions unit, observations sorted and counted. Returns one message per problem (empty
+// when sound); at most `max_problems` messages.
+std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems = 20);
+
+// True when the two maps hold the same content, bit for bit.
+bool MapsEqual(const Map& a, const Map& b);
+
+}  // namespace visloc

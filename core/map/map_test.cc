@@ -1,0 +1,84 @@
+#include "core/map/map.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "core/map/localization_map.h"
+#include "core/map/synthetic_map.h"
+#include "core/util/check.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+
+TEST(MapTest, SyntheticMapIsConsistent) {
+  for (DescriptorType type : {DescriptorType::kFloat32, DescriptorType::kBinary}) {
+    SyntheticMapOptions options;
+    options.descriptor_type = type;
+    options.descriptor_dim = type == DescriptorType::kFloat32 ? 16 : 32;
+    const Map map = MakeSyntheticMap(options);
+    EXPECT_THAT(FindMapProblems(map), ::testing::IsEmpty());
+    EXPECT_EQ(map.observations.size(), 40000u);
+    EXPECT_TRUE(MapsEqual(map, MakeSyntheticMap(options)));
+  }
+}
+
+TEST(MapTest, FindsEachKindOfProblem) {
+  SyntheticMapOptions options;
+  options.keyframes = 10;
+  options.points = 50;
+  const Map good = MakeSyntheticMap(options);
+
+  Map nan_pose = good;
+  nan_pose.keyframes[3].map_from_cam.translation.x() = std::nan("");
+  EXPECT_THAT(FindMapProblems(nan_pose),
+              ElementsAre("keyframe 3 has a non-finite pose or a non-unit quaternion"));
+
+  Map dangling = good;
+  dangling.observations.back().point = 999;
+  EXPECT_THAT(FindMapProblems(dangling),
+              ::testing::Contains(HasSubstr("refers to keyframe 9 and point 999")));
+
+  Map short_descriptors = good;
+  short_descriptors.descriptors = good.descriptors.rowRange(0, 10).clone();
+  EXPECT_THAT(FindMapProblems(short_descriptors), ElementsAre("50 points but 10 descriptors"));
+
+  Map miscounted = good;
+  miscounted.points[7].observation_count = 9;
+  EXPECT_THAT(FindMapProblems(miscounted), ElementsAre("point 7 claims 9 observations but has 4"));
+
+  Map bad_kernel = good;
+  bad_kernel.kernel.metric = Eigen::Matrix3d::Identity();
+  EXPECT_THAT(FindMapProblems(bad_kernel),
+              ElementsAre("visibility kernel metric is 3x3 for 2 cues"));
+  EXPECT_FALSE(MapsEqual(good, bad_kernel));
+}
+
+TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
+  SyntheticMapOptions options;
+  options.keyframes = 20;
+  options.points = 300;
+  const Map map = MakeSyntheticMap(options);
+  const LocalizationMap localization(map);
+  size_t total = 0;
+  for (size_t k = 0; k < localization.keyframe_count(); ++k) {
+    std::vector<uint32_t> expected;
+    for (const Observation& o : map.observations) {
+      if (o.keyframe == k) expected.push_back(o.point);
+    }
+    const auto visible = localization.VisiblePoints(k);
+    EXPECT_EQ(std::vector<uint32_t>(visible.begin(), visible.end()), expected);
+    total += visible.size();
+  }
+  EXPECT_EQ(total, map.observations.size());
+  EXPECT_TRUE(localization.keyframe_view_dirs()[0].isApprox(Eigen::Vector3d(1, 0, 0)));
+  EXPECT_GT(localization.MemoryBytes(), 300u * (32 + 64));
+  Map broken = map;
+  broken.points.pop_back();
+  EXPECT_THROW(LocalizationMap{broken}, CheckError);
+}
+
+}  // namespace
+}  // namespace visloc

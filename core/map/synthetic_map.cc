@@ -1,0 +1,107 @@
+#include "core/map/synthetic_map.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/util/check.h"
+#include "core/util/random.h"
+
+namespace visloc {
+
+namespace {
+
+// Deterministic in `rng` (cv::randu would draw from OpenCV's global generator).
+cv::Mat RandomDescriptors(int rows, const SyntheticMapOptions& options, Rng& rng) {
+  if (options.descriptor_type == DescriptorType::kFloat32) {
+    cv::Mat descriptors(rows, options.descriptor_dim, CV_32F);
+    for (int j = 0; j < rows; ++j) {
+      for (int d = 0; d < options.descriptor_dim; ++d) {
+        descriptors.at<float>(j, d) = static_cast<float>(rng.Uniform(-1, 1));
+      }
+    }
+    return descriptors;
+  }
+  cv::Mat descriptors(rows, options.descriptor_dim, CV_8U);
+  for (int j = 0; j < rows; ++j) {
+    for (int d = 0; d < options.descriptor_dim; ++d) {
+      descriptors.at<uint8_t>(j, d) = static_cast<uint8_t>(rng.NextU64());
+    }
+  }
+  return descriptors;
+}
+
+}  // namespace
+
+Map MakeSyntheticMap(const SyntheticMapOptions& options) {
+  VISLOC_CHECK(options.keyframes >= 1 && options.points >= 0 && options.observations_per_point >= 1,
+               "synthetic map of ", options.keyframes, " keyframes, ", options.points, " points");
+  VISLOC_CHECK(options.observations_per_point <= options.keyframes,
+               "more observations per point than keyframes");
+  Rng rng(options.seed);
+  Map map;
+  map.metadata = {"synthetic", 1'700'000'000, "synthetic", "visloc synthetic map"};
+  map.camera = PinholeCamera(320, 240, 160.0, 160.0, 159.5, 119.5, {-0.1, 0.01, 1e-4, -2e-4});
+  map.features.kind = options.descriptor_type == DescriptorType::kFloat32 ? "harris_surf16" : "orb";
+  map.features.descriptor_type = options.descriptor_type;
+  map.features.descriptor_dim = options.descriptor_dim;
+  map.features.params = {{"max_features", 500}, {"threshold", 1e-4}};
+
+  // Keyframes on a loop of ~0.15 m spacing, looking outwards, as a robot walking a circle.
+  const double radius = std::max(0.5, options.keyframes * 0.15 / (2 * M_PI));
+  for (int k = 0; k < options.keyframes; ++k) {
+    const double angle = 2 * M_PI * k / options.keyframes;
+    // Camera z (forward) points radially out, camera y down (world -z), x completes it.
+    const Eigen::Vector3d forward(std::cos(angle), std::sin(angle), 0);
+    const Eigen::Vector3d down(0, 0, -1);
+    Eigen::Matrix3d map_from_cam_rotation;
+    map_from_cam_rotation.col(0) = down.cross(forward);
+    map_from_cam_rotation.col(1) = down;
+    map_from_cam_rotation.col(2) = forward;
+    map.keyframes.push_back({1'700'000'000'000'000'000 + k * 500'000'000LL,
+                             Rigid3d(map_from_cam_rotation, radius * forward)});
+  }
+  // Each point sits 1-6 m in front of its first keyframe; the next keyframes see it too.
+  std::vector<std::vector<uint32_t>> seen_by(options.keyframes);
+  map.points.resize(options.points);
+  for (int j = 0; j < options.points; ++j) {
+    const int first = rng.UniformInt(0, options.keyframes - 1);
+    const Rigid3d& pose = map.keyframes[first].map_from_cam;
+    const Eigen::Vector3d in_cam(rng.Uniform(-1.5, 1.5), rng.Uniform(-1.0, 1.0), 1.0);
+    map.points[j].position_in_map = pose * (in_cam * rng.Uniform(1.0, 6.0));
+    map.points[j].observation_count = options.observations_per_point;
+    map.points[j].mean_reproj_error_px = static_cast<float>(rng.Uniform(0.1, 1.0));
+    for (int o = 0; o < options.observations_per_point; ++o) {
+      seen_by[(first + o) % options.keyframes].push_back(static_cast<uint32_t>(j));
+    }
+  }
+  for (int k = 0; k < options.keyframes; ++k) {
+    std::sort(seen_by[k].begin(), seen_by[k].end());
+    const Rigid3d cam_from_map = map.keyframes[k].map_from_cam.Inverse();
+    for (uint32_t j : seen_by[k]) {
+      Eigen::Vector2d pixel(-1, -1);
+      map.camera.Project(cam_from_map * map.points[j].position_in_map, &pixel);
+      map.observations.push_back({static_cast<uint32_t>(k), j, pixel.cast<float>()});
+    }
+  }
+  map.descriptors = RandomDescriptors(options.points, options, rng);
+  map.kernel.cues = {"translation_m", "view_direction"};
+  map.kernel.metric = Eigen::Matrix2d{{2.0, 0.1}, {0.1, 3.0}};
+  if (options.appearance) {
+    Vocabulary& vocabulary = map.appearance.vocabulary;
+    vocabulary.branching = 8;
+    vocabulary.depth = 2;
+    vocabulary.centroids = RandomDescriptors(8 + 64, options, rng);
+    for (int w = 0; w < 64; ++w)
+      vocabulary.word_weights.push_back(static_cast<float>(rng.Uniform(0.1, 3)));
+    for (int k = 0; k < options.keyframes; ++k) {
+      BowVector vector;
+      for (uint32_t w = 0; w < 64; ++w) {
+        if (rng.Uniform01() < 0.3) vector.emplace_back(w, static_cast<float>(rng.Uniform01()));
+      }
+      map.appearance.keyframe_vectors.push_back(std::move(vector));
+    }
+  }
+  return map;
+}
+
+}  // namespace visloc

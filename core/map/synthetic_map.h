@@ -1,0 +1,24 @@
+#pragma once
+// Synthetic maps of any size with consistent structure (keyframes on a loop, points in front
+// of the keyframes that see them, projected pixels, random descriptors, a vocabulary), for
+// tests and benchmarks of storage and scaling. They are not built from images.
+
+#include <cstdint>
+
+#include "core/map/map.h"
+
+namespace visloc {
+
+struct SyntheticMapOptions {
+  int keyframes = 100;
+  int points = 10000;
+  int observations_per_point = 4;  // Consecutive keyframes that see each point.
+  DescriptorType descriptor_type = DescriptorType::kFloat32;
+  int descriptor_dim = 16;
+  bool appearance = true;  // Add a vocabulary (branching 8, depth 2) and keyframe vectors.
+  uint64_t seed = 1;
+};
+
+Map MakeSyntheticMap(const SyntheticMapOptions& options);
+
+}  // namespace visloc

@@ -1,0 +1,67 @@
+#pragma once
+// The map file: one SQLite database per map (schema below, in map_store.cc and
+// docs/map_format.md). This is the only place that knows the format.
+//
+// Durability: SaveMap writes a complete new file beside the target inside one transaction,
+// syncs it, renames it over the target and syncs the folder, so a crash or kill at any moment
+// leaves either the old map or the new one, never a half-written one. Reads open the file
+// read-only; since files are only ever replaced by rename, never modified in place, any number
+// of readers may load a map while it is being replaced (they keep the version they opened).
+//
+// Integrity: every load checks the schema, the structure (FindMapProblems) and a CRC-32 of the
+// whole content stored at write time, so a flipped byte anywhere in the map's data is reported,
+// not silently loaded.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "core/map/map.h"
+
+namespace visloc::mapstore {
+
+// The schema this visloc writes and reads. Files with a higher version are refused with a
+// message saying a newer visloc wrote them.
+constexpr int kMapSchemaVersion = 1;
+
+// Throws CheckError for an inconsistent map (nothing is written), InputError when the file
+// cannot be written (the previous file, if any, is left untouched).
+void SaveMap(const Map& map, const std::string& path);
+
+// Throws InputError "<path>: <problem>" naming the first problem: a missing, empty or
+// non-SQLite file, a foreign database, missing tables, a newer schema, malformed rows,
+// dangling references, non-finite values, or a checksum mismatch.
+Map LoadMap(const std::string& path);
+
+struct MapInfo {
+  std::string path;
+  uint64_t file_bytes = 0;
+  int schema_version = kMapSchemaVersion;
+  MapMetadata metadata;
+  PinholeCamera camera;
+  FeatureSettings features;
+  size_t keyframes = 0;
+  size_t points = 0;
+  size_t observations = 0;
+  double mean_reproj_error_px = 0.0;    // Mean over points.
+  Eigen::AlignedBox3d point_extent;     // Map frame, metres (empty for no points).
+  Eigen::AlignedBox3d keyframe_extent;  // Keyframe camera centres.
+  bool kernel_learned = false;
+  VisibilityKernel kernel;
+  size_t vocabulary_words = 0;
+  size_t memory_bytes = 0;  // When loaded for localization (LocalizationMap::MemoryBytes).
+};
+
+MapInfo SummarizeMap(const Map& map, const std::string& path);
+
+struct VerifyReport {
+  std::vector<std::string> problems;  // Empty when the file is sound.
+  bool ok() const { return problems.empty(); }
+};
+
+// Everything LoadMap checks, plus SQLite's page-level integrity check and foreign keys.
+VerifyReport VerifyMapFile(const std::string& path);
+
+}  // namespace visloc::mapstore

@@ -1,0 +1,253 @@
+#include "mapstore/map_store.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/check.h"
+#include "core/util/random.h"
+#include "core/util/temp_dir.h"
+#include "mapstore/sqlite.h"
+
+namespace visloc::mapstore {
+namespace {
+
+namespace fs = std::filesystem;
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+Map SmallMap(uint64_t seed = 1) {
+  SyntheticMapOptions options;
+  options.keyframes = 12;
+  options.points = 300;
+  options.seed = seed;
+  Map map = MakeSyntheticMap(options);
+  map.metadata.name = "small";
+  return map;
+}
+
+std::string LoadError(const std::string& path) {
+  try {
+    LoadMap(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+std::vector<std::string> FilesIn(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(dir))
+    names.push_back(entry.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+TEST(MapStoreTest, RoundTripIsExactAtRealisticSize) {
+  TempDir dir;
+  for (DescriptorType type : {DescriptorType::kFloat32, DescriptorType::kBinary}) {
+    SyntheticMapOptions options;
+    options.keyframes = 400;
+    options.points = 40000;  // Several point chunks.
+    options.descriptor_type = type;
+    options.descriptor_dim = type == DescriptorType::kFloat32 ? 16 : 32;
+    Map map = MakeSyntheticMap(options);
+    map.metadata.name = "lab";
+    const std::string path = dir.File("lab.db");
+    SaveMap(map, path);
+    EXPECT_TRUE(MapsEqual(LoadMap(path), map)) << ToString(type);
+  }
+  EXPECT_THAT(FilesIn(dir.path()), ::testing::ElementsAre("lab.db"));  // no temporary left
+}
+
+TEST(MapStoreTest, SavingReplacesTheFileAndRefusesInconsistentMaps) {
+  TempDir dir;
+  const std::string path = dir.File("m.db");
+  SaveMap(SmallMap(1), path);
+  SaveMap(SmallMap(2), path);
+  EXPECT_TRUE(MapsEqual(LoadMap(path), SmallMap(2)));
+  Map broken = SmallMap(3);
+  broken.points[4].observation_count = 77;
+  EXPECT_THROW(SaveMap(broken, path), CheckError);
+  EXPECT_TRUE(MapsEqual(LoadMap(path), SmallMap(2)));  // the old map is untouched
+  EXPECT_THAT(FilesIn(dir.path()), ::testing::ElementsAre("m.db"));
+}
+
+TEST(MapStoreTest, SummaryAndVerifyOfASoundMap) {
+  TempDir dir;
+  const std::string path = dir.File("m.db");
+  SaveMap(SmallMap(), path);
+  const MapInfo info = SummarizeMap(LoadMap(path), path);
+  EXPECT_EQ(info.keyframes, 12u);
+  EXPECT_EQ(info.points, 300u);
+  EXPECT_EQ(info.observations, 1200u);
+  EXPECT_EQ(info.file_bytes, fs::file_size(path));
+  EXPECT_TRUE(info.kernel_learned);
+  EXPECT_EQ(info.vocabulary_words, 64u);
+  EXPECT_FALSE(info.point_extent.isEmpty());
+  EXPECT_TRUE(VerifyMapFile(path).ok());
+}
+
+// Each kind of bad file gets its own clear message.
+class BadMapFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    path_ = dir_.File("m.db");
+    SaveMap(SmallMap(), path_);
+  }
+  void Sql(const std::string& sql) {
+    Database db = Database::OpenForWriting(path_);
+    db.Exec(sql);
+  }
+  TempDir dir_;
+  std::string path_;
+};
+
+TEST_F(BadMapFileTest, MissingEmptyAndForeignFiles) {
+  EXPECT_EQ(LoadError(dir_.File("none.db")), dir_.File("none.db") + ": no such map file");
+  WriteBytes(dir_.File("empty.db"), "");
+  EXPECT_EQ(LoadError(dir_.File("empty.db")),
+            dir_.File("empty.db") + ": empty file, not a visloc map");
+  WriteBytes(dir_.File("text.db"), std::string(5000, 'x'));
+  EXPECT_EQ(LoadError(dir_.File("text.db")), dir_.File("text.db") + ": not an SQLite database");
+  {
+    Database foreign = Database::OpenForWriting(dir_.File("foreign.db"));
+    foreign.Exec("CREATE TABLE songs (title TEXT); INSERT INTO songs VALUES ('x');");
+  }
+  EXPECT_EQ(LoadError(dir_.File("foreign.db")),
+            dir_.File("foreign.db") + ": not a visloc map (no 'meta' table)");
+}
+
+TEST_F(BadMapFileTest, TruncatedFile) {
+  const std::string bytes = ReadBytes(path_);
+  WriteBytes(path_, bytes.substr(0, bytes.size() / 2));
+  EXPECT_THAT(LoadError(path_), StartsWith(path_ + ": "));
+  EXPECT_NE(LoadError(path_), "(loaded)");
+  EXPECT_FALSE(VerifyMapFile(path_).ok());
+}
+
+TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
+  Sql("DROP TABLE vocabulary");
+  EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
+  Sql("UPDATE meta SET value = '2' WHERE key = 'schema_version'");
+  EXPECT_EQ(
+      LoadError(path_),
+      path_ +
+          ": written by a newer visloc (map schema 2; this visloc reads up to 1): upgrade visloc");
+}
+
+TEST_F(BadMapFileTest, DanglingObservation) {
+  {
+    Database db = Database::OpenForWriting(path_);
+    const uint32_t points[2] = {5, 999999};
+    const float pixels[4] = {1, 2, 3, 4};
+    db.Prepare(
+          "UPDATE keyframe_observations SET observation_count = 2, points = ?, pixels = ? WHERE "
+          "keyframe_id = 11")
+        .BindBlob(1, points, sizeof(points))
+        .BindBlob(2, pixels, sizeof(pixels))
+        .Run();
+  }
+  EXPECT_THAT(
+      LoadError(path_),
+      HasSubstr(
+          "refers to keyframe 11 and point 999999 but the map has 12 keyframes and 300 points"));
+}
+
+TEST_F(BadMapFileTest, NonFinitePoseAndNonUnitQuaternion) {
+  Sql("UPDATE keyframes SET tx = 1e999 WHERE id = 3");  // SQLite stores +inf
+  EXPECT_EQ(LoadError(path_),
+            path_ + ": keyframe 3 has a non-finite pose or a non-unit quaternion");
+  SaveMap(SmallMap(), path_);
+  Sql("UPDATE keyframes SET qw = 2 WHERE id = 5");
+  EXPECT_EQ(LoadError(path_),
+            path_ + ": keyframe 5 has a non-finite pose or a non-unit quaternion");
+}
+
+TEST_F(BadMapFileTest, ChangedValuesAndWrongBlobSizes) {
+  Sql("UPDATE keyframes SET tx = tx + 0.001 WHERE id = 2");
+  EXPECT_EQ(LoadError(path_),
+            path_ + ": content checksum mismatch: the file is corrupt or was modified");
+  SaveMap(SmallMap(), path_);
+  Sql("UPDATE point_chunks SET positions = substr(positions, 1, 100)");
+  EXPECT_EQ(LoadError(path_), path_ + ": point chunk 0 positions has 100 bytes, expected 7200");
+  const VerifyReport report = VerifyMapFile(path_);
+  ASSERT_EQ(report.problems.size(), 1u);
+  EXPECT_EQ(report.problems[0], path_ + ": point chunk 0 positions has 100 bytes, expected 7200");
+}
+
+// Damage at random places never crashes and never loads as a different map: the file is either
+// rejected with an InputError or (damage in unused space) loads identical to the original.
+TEST(MapStoreFuzzTest, RandomTruncationsAndByteFlips) {
+  TempDir dir;
+  const std::string good = dir.File("good.db"), bad = dir.File("bad.db");
+  const Map original = SmallMap();
+  SaveMap(original, good);
+  const std::string bytes = ReadBytes(good);
+  Rng rng(42);
+  int rejected = 0, intact = 0;
+  for (int trial = 0; trial < 160; ++trial) {
+    std::string damaged = bytes;
+    if (trial % 4 == 0) {
+      damaged.resize(static_cast<size_t>(rng.Uniform(0, bytes.size() - 1)));
+    } else {
+      for (int flips = rng.UniformInt(1, 3); flips > 0; --flips) {
+        damaged[static_cast<size_t>(rng.Uniform(0, bytes.size() - 1))] ^=
+            static_cast<char>(1 << rng.UniformInt(0, 7));
+      }
+    }
+    WriteBytes(bad, damaged);
+    try {
+      const Map loaded = LoadMap(bad);
+      EXPECT_TRUE(MapsEqual(loaded, original)) << "trial " << trial << " loaded a different map";
+      ++intact;
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), StartsWith(bad + ": ")) << "trial " << trial;
+      EXPECT_FALSE(VerifyMapFile(bad).ok()) << "trial " << trial;
+      ++rejected;
+    }
+  }
+  EXPECT_GT(rejected, 40);
+  RecordProperty("rejected", rejected);
+  RecordProperty("intact", intact);
+}
+
+TEST(MapStoreConcurrencyTest, ReadersWhileAWriterReplacesTheMap) {
+  TempDir dir;
+  const std::string path = dir.File("m.db");
+  const Map a = SmallMap(1), b = SmallMap(2);
+  SaveMap(a, path);
+  std::atomic<bool> stop{false};
+  std::atomic<int> loads{0}, bad_loads{0};
+  std::vector<std::thread> readers;
+  for (int r = 0; r < 3; ++r) {
+    readers.emplace_back([&] {
+      while (!stop) {
+        const Map loaded = LoadMap(path);
+        if (!MapsEqual(loaded, a) && !MapsEqual(loaded, b)) ++bad_loads;
+        ++loads;
+      }
+    });
+  }
+  for (int i = 0; i < 20; ++i) SaveMap(i % 2 ? a : b, path);
+  stop = true;
+  for (auto& reader : readers) reader.join();
+  EXPECT_GT(loads.load(), 10);
+  EXPECT_EQ(bad_loads.load(), 0);
+}
+
+}  // namespace
+}  // namespace visloc::mapstore
