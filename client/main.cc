@@ -25,6 +25,7 @@ struct Command {
 const Command kCommands[] = {
     {"sim", "render synthetic stereo sequences with exact ground truth", RunSim},
     {"eval", "accuracy of a trajectory against ground truth (ATE, RPE, coverage)", RunEval},
+    {"map", "manage map files: info, verify, export, list, delete, rename", RunMap},
 };
 
 void PrintUsage(std::ostream& out) {

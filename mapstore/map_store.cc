@@ -517,6 +517,12 @@ void ReadPoints(Database& db, Map* map) {
 }
 
 void ReadObservations(Database& db, Map* map) {
+  Statement total =
+      db.Prepare("SELECT COALESCE(SUM(observation_count), 0) FROM keyframe_observations");
+  total.Step();
+  if (total.ColumnInt64(0) > 0 && total.ColumnInt64(0) < (int64_t{1} << 32)) {
+    map->observations.reserve(static_cast<size_t>(total.ColumnInt64(0)));
+  }
   Statement query = db.Prepare(
       "SELECT keyframe_id, observation_count, points, pixels FROM keyframe_observations ORDER BY "
       "keyframe_id");

@@ -1,0 +1,318 @@
+// visloc map info|verify|export|list|delete|rename: offline management of map files and of a
+// maps folder. (The --server forms arrive with the gRPC service.)
+
+#include <cstdio>
+#include <ctime>
+#include <iostream>
+
+#include "client/commands.h"
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "dataset/ply.h"
+#include "dataset/tum.h"
+#include "mapstore/map_directory.h"
+#include "mapstore/map_store.h"
+
+namespace visloc::cli {
+namespace {
+
+using mapstore::MapInfo;
+
+// MAP.db, or NAME in --maps DIR.
+std::string ResolveMap(const std::string& map_or_name, const std::string& maps_dir) {
+  if (!maps_dir.empty() && mapstore::IsValidMapName(map_or_name) && !EndsWith(map_or_name, ".db")) {
+    return mapstore::MapDirectory(maps_dir).PathOf(map_or_name);
+  }
+  return map_or_name;
+}
+
+std::string FormatTime(int64_t unix_s) {
+  const std::time_t t = static_cast<std::time_t>(unix_s);
+  std::tm utc{};
+  gmtime_r(&t, &utc);
+  char buffer[32];
+  std::strftime(buffer, sizeof(buffer), "%Y-%m-%d %H:%M:%S UTC", &utc);
+  return buffer;
+}
+
+std::string FormatBytes(uint64_t bytes) {
+  if (bytes >= (1u << 20)) return FormatFixed(bytes / 1048576.0, 1) + " MiB";
+  if (bytes >= (1u << 10)) return FormatFixed(bytes / 1024.0, 1) + " KiB";
+  return StrCat(bytes, " B");
+}
+
+std::string FormatBox(const Eigen::AlignedBox3d& box) {
+  if (box.isEmpty()) return "(none)";
+  return StrCat("x [", FormatFixed(box.min().x(), 2), ", ", FormatFixed(box.max().x(), 2), "] y [",
+                FormatFixed(box.min().y(), 2), ", ", FormatFixed(box.max().y(), 2), "] z [",
+                FormatFixed(box.min().z(), 2), ", ", FormatFixed(box.max().z(), 2), "] m");
+}
+
+void WriteBox(JsonWriter& json, const std::string& key, const Eigen::AlignedBox3d& box) {
+  json.Key(key);
+  if (box.isEmpty()) {
+    json.Null();
+    return;
+  }
+  json.BeginObject().Key("min").BeginArray();
+  for (int i = 0; i < 3; ++i) json.Value(box.min()[i]);
+  json.EndArray().Key("max").BeginArray();
+  for (int i = 0; i < 3; ++i) json.Value(box.max()[i]);
+  json.EndArray().EndObject();
+}
+
+void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
+  const PinholeCamera& c = info.camera;
+  json.BeginObject()
+      .Field("name", info.metadata.name)
+      .Field("path", info.path)
+      .Field("schema_version", info.schema_version)
+      .Field("file_bytes", static_cast<int64_t>(info.file_bytes))
+      .Field("created_unix_s", info.metadata.created_unix_s)
+      .Field("source_dataset", info.metadata.source_dataset)
+      .Field("builder", info.metadata.builder)
+      .Key("camera")
+      .BeginObject()
+      .Field("model", "pinhole-radtan")
+      .Field("width", c.width())
+      .Field("height", c.height());
+  const char* names[8] = {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"};
+  const auto params = c.Params();
+  for (int i = 0; i < 8; ++i) json.Field(names[i], params[i]);
+  json.EndObject()
+      .Key("features")
+      .BeginObject()
+      .Field("kind", info.features.kind)
+      .Field("descriptor_type", ToString(info.features.descriptor_type))
+      .Field("descriptor_dim", info.features.descriptor_dim)
+      .EndObject()
+      .Field("keyframes", static_cast<int64_t>(info.keyframes))
+      .Field("points", static_cast<int64_t>(info.points))
+      .Field("observations", static_cast<int64_t>(info.observations))
+      .Field("mean_reproj_error_px", info.mean_reproj_error_px);
+  WriteBox(json, "point_extent_m", info.point_extent);
+  WriteBox(json, "keyframe_extent_m", info.keyframe_extent);
+  json.Key("visibility_kernel")
+      .BeginObject()
+      .Field("learned", info.kernel_learned)
+      .Field("default_k", info.kernel.default_k)
+      .Field("default_probability_threshold", info.kernel.default_probability_threshold)
+      .EndObject()
+      .Field("vocabulary_words", static_cast<int64_t>(info.vocabulary_words))
+      .Field("memory_bytes", static_cast<int64_t>(info.memory_bytes))
+      .EndObject();
+}
+
+void PrintInfo(const MapInfo& info) {
+  const PinholeCamera& c = info.camera;
+  const RadTanDistortion& d = c.distortion();
+  std::printf("map           %s (schema %d, %s, %s)\n", info.metadata.name.c_str(),
+              info.schema_version, FormatBytes(info.file_bytes).c_str(), info.path.c_str());
+  std::printf("created       %s from %s by %s\n", FormatTime(info.metadata.created_unix_s).c_str(),
+              info.metadata.source_dataset.c_str(), info.metadata.builder.c_str());
+  std::printf(
+      "camera        %dx%d pinhole fx %.2f fy %.2f cx %.2f cy %.2f, radtan %.4g %.4g %.4g %.4g\n",
+      c.width(), c.height(), c.fx(), c.fy(), c.cx(), c.cy(), d.k1, d.k2, d.p1, d.p2);
+  std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
+              ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);
+  std::printf("keyframes     %zu, centres %s\n", info.keyframes,
+              FormatBox(info.keyframe_extent).c_str());
+  std::printf("points        %zu, %s, mean reprojection error %.2f px\n", info.points,
+              FormatBox(info.point_extent).c_str(), info.mean_reproj_error_px);
+  std::printf("observations  %zu (%.1f per point)\n", info.observations,
+              info.points ? static_cast<double>(info.observations) / info.points : 0.0);
+  std::printf("visibility    %s; K = %d, P_t = %.2f\n",
+              info.kernel_learned ? "learned kernel" : "no learned kernel", info.kernel.default_k,
+              info.kernel.default_probability_threshold);
+  std::printf("vocabulary    %zu words\n", info.vocabulary_words);
+  std::printf("memory        %s when loaded for localization\n",
+              FormatBytes(info.memory_bytes).c_str());
+}
+
+int RunInfo(const Args& args) {
+  std::string map, maps_dir;
+  bool json = false;
+  ArgParser parser("visloc map info",
+                   "Counts, extent, camera, features, size and schema of a map.");
+  parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
+  parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
+  parser.AddSwitch("json", &json, "print one JSON object");
+  if (!parser.Parse(args, std::cout)) return 0;
+  const std::string path = ResolveMap(map, maps_dir);
+  const MapInfo info = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
+  if (json) {
+    JsonWriter writer;
+    WriteInfoJson(writer, info);
+    std::cout << writer.str() << "\n";
+  } else {
+    PrintInfo(info);
+  }
+  return 0;
+}
+
+int RunVerify(const Args& args) {
+  std::string map, maps_dir;
+  bool json = false;
+  ArgParser parser("visloc map verify",
+                   "Checks a map file: SQLite integrity, schema, references, value sanity and the "
+                   "content checksum. Exits 0 when sound, 1 with the problems otherwise.");
+  parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
+  parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
+  parser.AddSwitch("json", &json, "print one JSON object");
+  if (!parser.Parse(args, std::cout)) return 0;
+  const std::string path = ResolveMap(map, maps_dir);
+  const mapstore::VerifyReport report = mapstore::VerifyMapFile(path);
+  if (json) {
+    JsonWriter writer;
+    writer.BeginObject().Field("path", path).Field("ok", report.ok()).Key("problems").BeginArray();
+    for (const std::string& problem : report.problems) writer.Value(problem);
+    writer.EndArray().EndObject();
+    std::cout << writer.str() << "\n";
+  } else if (report.ok()) {
+    std::printf("%s: ok\n", path.c_str());
+  }
+  if (!report.ok() && !json) {
+    for (const std::string& problem : report.problems)
+      std::cerr << "visloc map verify: " << problem << "\n";
+  }
+  return report.ok() ? 0 : 1;
+}
+
+int RunExport(const Args& args) {
+  std::string map, maps_dir, keyframes_path, ply_path;
+  ArgParser parser(
+      "visloc map export",
+      "Writes a map's keyframe poses (TUM, map_from_cam) and/or a PLY point cloud with "
+      "the points (grey) and keyframe positions (red) for MeshLab or CloudCompare.");
+  parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
+  parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
+  parser.AddFlag("keyframes", &keyframes_path, "TUM file of keyframe poses to write");
+  parser.AddFlag("ply", &ply_path, "PLY file to write");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (keyframes_path.empty() && ply_path.empty())
+    throw UsageError("nothing to export: give --keyframes and/or --ply");
+  const Map loaded = mapstore::LoadMap(ResolveMap(map, maps_dir));
+  if (!keyframes_path.empty()) {
+    Trajectory keyframes;
+    for (const Keyframe& k : loaded.keyframes)
+      keyframes.push_back({k.timestamp_ns, k.map_from_cam});
+    WriteTum(keyframes_path, keyframes);
+    std::printf("%zu keyframe poses -> %s\n", keyframes.size(), keyframes_path.c_str());
+  }
+  if (!ply_path.empty()) {
+    std::vector<ColoredPoint> cloud;
+    cloud.reserve(loaded.points.size() + loaded.keyframes.size());
+    for (const MapPoint& p : loaded.points) cloud.push_back({p.position_in_map, {200, 200, 200}});
+    for (const Keyframe& k : loaded.keyframes)
+      cloud.push_back({k.map_from_cam.translation, {255, 0, 0}});
+    WritePly(ply_path, cloud,
+             StrCat("visloc map ", loaded.metadata.name, ": ", loaded.points.size(),
+                    " points (grey), ", loaded.keyframes.size(), " keyframes (red)"));
+    std::printf("%zu points and %zu keyframes -> %s\n", loaded.points.size(),
+                loaded.keyframes.size(), ply_path.c_str());
+  }
+  return 0;
+}
+
+int RunList(const Args& args) {
+  std::string maps_dir;
+  bool json = false;
+  ArgParser parser("visloc map list", "Lists the maps in a maps folder, with broken ones and why.");
+  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  parser.AddSwitch("json", &json, "print a JSON array");
+  if (!parser.Parse(args, std::cout)) return 0;
+  const auto entries = mapstore::MapDirectory(maps_dir).List();
+  if (json) {
+    JsonWriter writer;
+    writer.BeginArray();
+    for (const auto& entry : entries) {
+      if (entry.info) {
+        WriteInfoJson(writer, *entry.info);
+      } else {
+        writer.BeginObject()
+            .Field("name", entry.name)
+            .Field("path", entry.path)
+            .Field("error", entry.error)
+            .EndObject();
+      }
+    }
+    writer.EndArray();
+    std::cout << writer.str() << "\n";
+    return 0;
+  }
+  std::printf("%-24s %10s %10s %12s %10s\n", "NAME", "KEYFRAMES", "POINTS", "SIZE", "CREATED");
+  for (const auto& entry : entries) {
+    if (entry.info) {
+      std::printf("%-24s %10zu %10zu %12s %10s\n", entry.name.c_str(), entry.info->keyframes,
+                  entry.info->points, FormatBytes(entry.file_bytes).c_str(),
+                  FormatTime(entry.info->metadata.created_unix_s).substr(0, 10).c_str());
+    } else {
+      std::printf("%-24s unavailable: %s\n", entry.name.c_str(), entry.error.c_str());
+    }
+  }
+  std::printf("%zu maps in %s\n", entries.size(), maps_dir.c_str());
+  return 0;
+}
+
+int RunDelete(const Args& args) {
+  std::string name, maps_dir;
+  ArgParser parser("visloc map delete", "Deletes a map from a maps folder.");
+  parser.AddPositional("NAME", &name, "the map's name");
+  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  if (!parser.Parse(args, std::cout)) return 0;
+  mapstore::MapDirectory(maps_dir).Remove(name);
+  std::printf("deleted %s\n", name.c_str());
+  return 0;
+}
+
+int RunRename(const Args& args) {
+  std::string from, to, maps_dir;
+  ArgParser parser("visloc map rename",
+                   "Renames a map in a maps folder (its file and its own name).");
+  parser.AddPositional("OLD", &from, "the current name");
+  parser.AddPositional("NEW", &to, "the new name");
+  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  if (!parser.Parse(args, std::cout)) return 0;
+  mapstore::MapDirectory(maps_dir).Rename(from, to);
+  std::printf("renamed %s -> %s\n", from.c_str(), to.c_str());
+  return 0;
+}
+
+struct MapVerb {
+  const char* name;
+  const char* summary;
+  int (*run)(const Args&);
+};
+
+const MapVerb kVerbs[] = {
+    {"info", "counts, extent, camera, features, size and schema", RunInfo},
+    {"verify", "check a map file; exit 0 when sound", RunVerify},
+    {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
+    {"list", "the maps in a maps folder", RunList},
+    {"delete", "delete a map from a maps folder", RunDelete},
+    {"rename", "rename a map in a maps folder", RunRename},
+};
+
+}  // namespace
+
+int RunMap(const Args& args) {
+  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
+    std::ostream& out = args.empty() ? std::cerr : std::cout;
+    out << "usage: visloc map VERB [options]\n\nManage map files. Verbs:\n";
+    for (const MapVerb& verb : kVerbs) {
+      std::string name = verb.name;
+      name.resize(10, ' ');
+      out << "  " << name << verb.summary << "\n";
+    }
+    out << "\n'visloc map VERB --help' describes a verb's options.\n";
+    return args.empty() ? 2 : 0;
+  }
+  for (const MapVerb& verb : kVerbs) {
+    if (args[0] == verb.name) return verb.run(Args(args.begin() + 1, args.end()));
+  }
+  throw UsageError("unknown map verb '" + args[0] + "'");
+}
+
+}  // namespace visloc::cli

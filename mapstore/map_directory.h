@@ -1,0 +1,54 @@
+#pragma once
+// A folder of maps, one file per map: DIR/NAME.db. The offline `visloc map list/delete/rename`
+// verbs and the server's map registry both work through it.
+//
+// Map names are 1-64 characters of letters, digits, '.', '_' and '-', not starting with '.' or
+// '-': a name can never reach outside the folder ("../x", "/etc/passwd") or hide a file.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mapstore/map_store.h"
+
+namespace visloc::mapstore {
+
+bool IsValidMapName(const std::string& name);
+// Throws InputError naming the name and the rule.
+void CheckMapName(const std::string& name);
+
+class MapDirectory {
+ public:
+  // Throws InputError when `dir` is not a folder.
+  explicit MapDirectory(std::string dir);
+
+  const std::string& dir() const { return dir_; }
+  // DIR/NAME.db for a valid name (whether or not it exists).
+  std::string PathOf(const std::string& name) const;
+  bool Contains(const std::string& name) const;
+
+  struct Entry {
+    std::string name;
+    std::string path;
+    uint64_t file_bytes = 0;
+    std::optional<MapInfo> info;  // Set when the map loads.
+    std::string error;            // Why it does not, otherwise.
+  };
+  // Every *.db file with a valid name, sorted by name; broken maps are listed with their error.
+  std::vector<Entry> List() const;
+
+  // Throws InputError "no map named NAME in DIR" when absent.
+  void Remove(const std::string& name);
+  // Renames the file and the map's own name (a durable rewrite, then the old file is removed).
+  // Throws InputError when `from` is absent, `to` exists, or either name is invalid.
+  void Rename(const std::string& from, const std::string& to);
+  // Removes temporary files of writers that are no longer running (left by a crash).
+  // Returns how many were removed.
+  int RemoveStaleTemporaries();
+
+ private:
+  std::string dir_;
+};
+
+}  // namespace visloc::mapstore
