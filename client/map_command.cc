@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/subcommands.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
@@ -280,39 +281,18 @@ int RunRename(const Args& args) {
   return 0;
 }
 
-struct MapVerb {
-  const char* name;
-  const char* summary;
-  int (*run)(const Args&);
-};
-
-const MapVerb kVerbs[] = {
-    {"info", "counts, extent, camera, features, size and schema", RunInfo},
-    {"verify", "check a map file; exit 0 when sound", RunVerify},
-    {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
-    {"list", "the maps in a maps folder", RunList},
-    {"delete", "delete a map from a maps folder", RunDelete},
-    {"rename", "rename a map in a maps folder", RunRename},
-};
-
 }  // namespace
 
 int RunMap(const Args& args) {
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    std::ostream& out = args.empty() ? std::cerr : std::cout;
-    out << "usage: visloc map VERB [options]\n\nManage map files. Verbs:\n";
-    for (const MapVerb& verb : kVerbs) {
-      std::string name = verb.name;
-      name.resize(10, ' ');
-      out << "  " << name << verb.summary << "\n";
-    }
-    out << "\n'visloc map VERB --help' describes a verb's options.\n";
-    return args.empty() ? 2 : 0;
-  }
-  for (const MapVerb& verb : kVerbs) {
-    if (args[0] == verb.name) return verb.run(Args(args.begin() + 1, args.end()));
-  }
-  throw UsageError("unknown map verb '" + args[0] + "'");
+  static const std::vector<Subcommand> kVerbs = {
+      {"info", "counts, extent, camera, features, size and schema", RunInfo},
+      {"verify", "check a map file; exit 0 when sound", RunVerify},
+      {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
+      {"list", "the maps in a maps folder", RunList},
+      {"delete", "delete a map from a maps folder", RunDelete},
+      {"rename", "rename a map in a maps folder", RunRename},
+  };
+  return DispatchSubcommand("visloc map VERB [options]", "Manage map files. Verbs:", kVerbs, args);
 }
 
 }  // namespace visloc::cli
