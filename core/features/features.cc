@@ -1,0 +1,165 @@
+#include "core/features/features.h"
+
+#include <map>
+
+#include <opencv2/features2d.hpp>
+
+#include "core/features/harris_surf16.h"
+#include "core/util/check.h"
+#include "core/util/timer.h"
+
+namespace visloc {
+namespace {
+
+struct OrbOptions {
+  int max_features = 600;
+  double scale_factor = 1.2;
+  int levels = 4;
+  int fast_threshold = 12;
+  int grid_cols = 8;
+  int grid_rows = 6;
+};
+
+class OrbExtractor final : public FeatureExtractor {
+ public:
+  explicit OrbExtractor(const OrbOptions& options) : options_(options) {
+    VISLOC_CHECK(options.max_features > 0 && options.levels >= 1 && options.scale_factor > 1.0,
+                 "ORB options");
+    // Detect twice the quota, then keep an even spread of the strongest.
+    orb_ = cv::ORB::create(2 * options.max_features, static_cast<float>(options.scale_factor),
+                           options.levels, 19, 0, 2, cv::ORB::HARRIS_SCORE, 31,
+                           options.fast_threshold);
+    settings_.kind = "orb";
+    settings_.descriptor_type = DescriptorType::kBinary;
+    settings_.descriptor_dim = 32;
+    settings_.params = {{"max_features", options.max_features},
+                        {"scale_factor", options.scale_factor},
+                        {"levels", options.levels},
+                        {"fast_threshold", options.fast_threshold},
+                        {"grid_cols", options.grid_cols},
+                        {"grid_rows", options.grid_rows}};
+  }
+
+  FeatureSet Extract(const cv::Mat& grey, ExtractStats* stats) const override {
+    VISLOC_CHECK(grey.type() == CV_8UC1 && !grey.empty(), "features need an 8-bit grey image");
+    Timer timer;
+    std::vector<cv::KeyPoint> detected;
+    orb_->detect(grey, detected);
+    std::vector<Keypoint> keypoints;
+    for (const cv::KeyPoint& k : detected) {
+      keypoints.push_back({Eigen::Vector2f(k.pt.x, k.pt.y), k.size / 2, k.response});
+    }
+    // compute() needs ORB's own keypoints (pyramid level, angle): select by index.
+    std::vector<cv::KeyPoint> selected;
+    for (int i : SelectEvenlyIndices(keypoints, grey.size(), options_.grid_cols, options_.grid_rows,
+                                     options_.max_features)) {
+      selected.push_back(detected[i]);
+    }
+    const double detect_ms = timer.ElapsedMs();
+    timer.Restart();
+    FeatureSet features;
+    orb_->compute(grey, selected, features.descriptors);  // may drop border keypoints
+    for (const cv::KeyPoint& k : selected) {
+      features.keypoints.push_back({Eigen::Vector2f(k.pt.x, k.pt.y), k.size / 2, k.response});
+    }
+    if (stats) {
+      stats->detect_ms = detect_ms;
+      stats->describe_ms = timer.ElapsedMs();
+      stats->detected = static_cast<int>(detected.size());
+    }
+    return features;
+  }
+  const FeatureSettings& settings() const override { return settings_; }
+
+ private:
+  OrbOptions options_;
+  cv::Ptr<cv::ORB> orb_;
+  FeatureSettings settings_;
+};
+
+// Reads parameters by name; any parameter the kind does not know is an error, so a map built
+// with settings this visloc cannot honour is refused rather than silently misread.
+class ParamReader {
+ public:
+  explicit ParamReader(const FeatureSettings& settings) : kind_(settings.kind) {
+    for (const auto& [name, value] : settings.params) values_[name] = value;
+  }
+  template <typename T>
+  void Read(const std::string& name, T* target) {
+    const auto it = values_.find(name);
+    if (it == values_.end()) return;
+    *target = static_cast<T>(it->second);
+    values_.erase(it);
+  }
+  void RequireAllRead() const {
+    if (!values_.empty()) {
+      throw InputError(
+          StrCat("unknown ", kind_, " feature parameter '", values_.begin()->first, "'"));
+    }
+  }
+  bool Has(const std::string& name) const { return values_.count(name) > 0; }
+
+ private:
+  std::string kind_;
+  std::map<std::string, double> values_;
+};
+
+}  // namespace
+
+FeatureSettings DefaultFeatureSettings(const std::string& kind) {
+  FeatureSettings settings;
+  settings.kind = kind;
+  return CreateFeatureExtractor(settings)->settings();
+}
+
+std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& settings) {
+  ParamReader params(settings);
+  if (settings.kind == "harris_surf16") {
+    HarrisSurf16Options options;
+    if (params.Has("scale_0")) {
+      options.scales_px.clear();
+      for (int i = 0; params.Has("scale_" + std::to_string(i)); ++i) {
+        double scale = 0;
+        params.Read("scale_" + std::to_string(i), &scale);
+        options.scales_px.push_back(scale);
+      }
+    }
+    params.Read("harris_k", &options.harris_k);
+    params.Read("relative_threshold", &options.relative_threshold);
+    params.Read("max_features", &options.max_features);
+    params.Read("grid_cols", &options.grid_cols);
+    params.Read("grid_rows", &options.grid_rows);
+    params.Read("border_px", &options.border_px);
+    params.RequireAllRead();
+    return std::make_unique<HarrisSurf16Extractor>(options);
+  }
+  if (settings.kind == "orb") {
+    OrbOptions options;
+    params.Read("max_features", &options.max_features);
+    params.Read("scale_factor", &options.scale_factor);
+    params.Read("levels", &options.levels);
+    params.Read("fast_threshold", &options.fast_threshold);
+    params.Read("grid_cols", &options.grid_cols);
+    params.Read("grid_rows", &options.grid_rows);
+    params.RequireAllRead();
+    return std::make_unique<OrbExtractor>(options);
+  }
+  throw InputError(
+      StrCat("unknown feature kind '", settings.kind, "' (expected harris_surf16 or orb)"));
+}
+
+float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
+  if (a.type() == CV_8U) {
+    return static_cast<float>(cv::norm(a.row(row_a), b.row(row_b), cv::NORM_HAMMING));
+  }
+  const float* x = a.ptr<float>(row_a);
+  const float* y = b.ptr<float>(row_b);
+  float sum = 0;
+  for (int i = 0; i < a.cols; ++i) {
+    const float d = x[i] - y[i];
+    sum += d * d;
+  }
+  return std::sqrt(sum);
+}
+
+}  // namespace visloc

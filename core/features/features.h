@@ -1,0 +1,59 @@
+#pragma once
+// Image features: keypoints with descriptors, produced by an extractor chosen by the map's
+// FeatureSettings, so mapping and localization always use the same detector and descriptor.
+//
+// Kinds:
+//   "harris_surf16"  the paper's choice: Harris corners over a small scale space (same image
+//                    resolution, increasing Gaussian scale), upright 16-D SURF-like float
+//                    descriptors (harris_surf16.h). Compared by L2 distance.
+//   "orb"            OpenCV ORB (oriented FAST + rotated BRIEF), 32-byte binary descriptors,
+//                    compared by Hamming distance.
+// Both spread features evenly over the image (per-cell quotas), as the paper's "intelligent
+// management" of features does.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/map/map.h"
+
+namespace visloc {
+
+struct Keypoint {
+  Eigen::Vector2f pixel = Eigen::Vector2f::Zero();  // Sub-pixel position, image pixels.
+  float scale_px = 1.0f;  // Detection scale (Gaussian sigma for Harris, size/2 for ORB).
+  float response = 0.0f;  // Detector response: larger is stronger.
+};
+
+struct FeatureSet {
+  std::vector<Keypoint> keypoints;
+  cv::Mat descriptors;  // One row per keypoint: CV_32F (float32) or CV_8U (binary).
+  size_t size() const { return keypoints.size(); }
+};
+
+struct ExtractStats {
+  double detect_ms = 0.0;
+  double describe_ms = 0.0;
+  int detected = 0;  // Before the per-cell selection.
+};
+
+class FeatureExtractor {
+ public:
+  virtual ~FeatureExtractor() = default;
+  // `grey` is 8-bit single channel. Throws CheckError otherwise.
+  virtual FeatureSet Extract(const cv::Mat& grey, ExtractStats* stats = nullptr) const = 0;
+  virtual const FeatureSettings& settings() const = 0;
+};
+
+// The default settings of a kind ("harris_surf16" or "orb"); throws InputError otherwise.
+FeatureSettings DefaultFeatureSettings(const std::string& kind);
+// Creates the extractor for settings read from a map (unknown parameters are an InputError).
+std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& settings);
+
+// Descriptor distance: L2 for float rows, Hamming for binary rows.
+float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b);
+
+}  // namespace visloc

@@ -1,0 +1,239 @@
+#include "core/features/harris_surf16.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/util/check.h"
+#include "core/util/timer.h"
+
+namespace visloc {
+
+void HarrisSurf16Options::Check() const {
+  VISLOC_CHECK(!scales_px.empty(), "no scales");
+  for (double s : scales_px) VISLOC_CHECK(s > 0.3 && s < 20, "scale ", s);
+  VISLOC_CHECK(max_features > 0 && grid_cols > 0 && grid_rows > 0, "feature quotas");
+  VISLOC_CHECK(relative_threshold >= 0 && relative_threshold < 1, "threshold ", relative_threshold);
+}
+
+HarrisSurf16Extractor::HarrisSurf16Extractor(const HarrisSurf16Options& options)
+    : options_(options) {
+  options_.Check();
+  settings_.kind = "harris_surf16";
+  settings_.descriptor_type = DescriptorType::kFloat32;
+  settings_.descriptor_dim = 16;
+  for (size_t i = 0; i < options_.scales_px.size(); ++i) {
+    settings_.params.emplace_back("scale_" + std::to_string(i), options_.scales_px[i]);
+  }
+  settings_.params.emplace_back("harris_k", options_.harris_k);
+  settings_.params.emplace_back("relative_threshold", options_.relative_threshold);
+  settings_.params.emplace_back("max_features", options_.max_features);
+  settings_.params.emplace_back("grid_cols", options_.grid_cols);
+  settings_.params.emplace_back("grid_rows", options_.grid_rows);
+  settings_.params.emplace_back("border_px", options_.border_px);
+}
+
+namespace {
+
+// Harris response at one scale (CV_32F).
+cv::Mat HarrisResponse(const cv::Mat& image_f, double sigma, double k) {
+  cv::Mat smoothed, ix, iy;
+  cv::GaussianBlur(image_f, smoothed, cv::Size(), 0.7 * sigma);
+  cv::Sobel(smoothed, ix, CV_32F, 1, 0, 3, 1.0 / 8.0);
+  cv::Sobel(smoothed, iy, CV_32F, 0, 1, 3, 1.0 / 8.0);
+  cv::Mat ixx = ix.mul(ix), iyy = iy.mul(iy), ixy = ix.mul(iy);
+  cv::GaussianBlur(ixx, ixx, cv::Size(), sigma);
+  cv::GaussianBlur(iyy, iyy, cv::Size(), sigma);
+  cv::GaussianBlur(ixy, ixy, cv::Size(), sigma);
+  cv::Mat response = ixx.mul(iyy) - ixy.mul(ixy);
+  cv::Mat trace = ixx + iyy;
+  response -= k * trace.mul(trace);
+  // Scale normalization (sigma^4 for a product of two squared first derivatives) makes
+  // responses comparable across scales.
+  response *= static_cast<float>(std::pow(sigma, 4));
+  return response;
+}
+
+// Local maxima above `threshold`, refined to sub-pixel by a separable quadratic fit.
+void FindMaxima(const cv::Mat& response, float threshold, double sigma, int border,
+                std::vector<Keypoint>* out) {
+  cv::Mat dilated;
+  cv::dilate(response, dilated, cv::Mat());
+  for (int y = border; y < response.rows - border; ++y) {
+    const float* r = response.ptr<float>(y);
+    const float* d = dilated.ptr<float>(y);
+    const float* up = response.ptr<float>(y - 1);
+    const float* down = response.ptr<float>(y + 1);
+    for (int x = border; x < response.cols - border; ++x) {
+      if (r[x] < threshold || r[x] < d[x]) continue;
+      const float dx = 0.5f * (r[x + 1] - r[x - 1]), dxx = r[x + 1] - 2 * r[x] + r[x - 1];
+      const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * r[x] + up[x];
+      const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
+      const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
+      Keypoint keypoint;
+      keypoint.pixel = Eigen::Vector2f(x + ox, y + oy);
+      keypoint.scale_px = static_cast<float>(sigma);
+      keypoint.response = r[x];
+      out->push_back(keypoint);
+    }
+  }
+}
+
+// Removes corners that a stronger corner (at another scale) already covers.
+std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
+  std::sort(keypoints.begin(), keypoints.end(),
+            [](const Keypoint& a, const Keypoint& b) { return a.response > b.response; });
+  cv::Mat taken(size, CV_8UC1, cv::Scalar(0));
+  std::vector<Keypoint> kept;
+  for (const Keypoint& k : keypoints) {
+    const int x = static_cast<int>(std::lround(k.pixel.x())),
+              y = static_cast<int>(std::lround(k.pixel.y()));
+    if (taken.at<uint8_t>(y, x)) continue;
+    kept.push_back(k);
+    cv::circle(taken, cv::Point(x, y), 2, cv::Scalar(1), cv::FILLED);
+  }
+  return kept;
+}
+
+}  // namespace
+
+std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
+                                     const cv::Size& image_size, int grid_cols, int grid_rows,
+                                     int max_features) {
+  std::vector<int> order(keypoints.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  if (static_cast<int>(keypoints.size()) <= max_features) return order;
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return keypoints[a].response > keypoints[b].response; });
+  const int cells = grid_cols * grid_rows;
+  const int quota = std::max(1, max_features / cells);
+  std::vector<int> used(cells, 0);
+  std::vector<int> selected, rest;
+  for (int i : order) {
+    const Keypoint& k = keypoints[i];
+    const int cx =
+        std::clamp(static_cast<int>(k.pixel.x() * grid_cols / image_size.width), 0, grid_cols - 1);
+    const int cy =
+        std::clamp(static_cast<int>(k.pixel.y() * grid_rows / image_size.height), 0, grid_rows - 1);
+    int& count = used[cy * grid_cols + cx];
+    if (count < quota) {
+      ++count;
+      selected.push_back(i);
+    } else {
+      rest.push_back(i);
+    }
+  }
+  for (size_t i = 0; i < rest.size() && static_cast<int>(selected.size()) < max_features; ++i) {
+    selected.push_back(rest[i]);
+  }
+  return selected;
+}
+
+std::vector<Keypoint> SelectEvenly(std::vector<Keypoint> keypoints, const cv::Size& image_size,
+                                   int grid_cols, int grid_rows, int max_features) {
+  std::vector<Keypoint> selected;
+  for (int i : SelectEvenlyIndices(keypoints, image_size, grid_cols, grid_rows, max_features)) {
+    selected.push_back(keypoints[i]);
+  }
+  return selected;
+}
+
+std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* detected) const {
+  cv::Mat image_f;
+  grey.convertTo(image_f, CV_32F, 1.0 / 255.0);
+  std::vector<cv::Mat> responses;
+  float strongest = 0.0f;
+  for (double sigma : options_.scales_px) {
+    responses.push_back(HarrisResponse(image_f, sigma, options_.harris_k));
+    double max_value = 0;
+    cv::minMaxLoc(responses.back(), nullptr, &max_value);
+    strongest = std::max(strongest, static_cast<float>(max_value));
+  }
+  const float threshold =
+      std::max(1e-12f, static_cast<float>(options_.relative_threshold) * strongest);
+  std::vector<Keypoint> keypoints;
+  const int border = std::max(options_.border_px, 2);
+  for (size_t i = 0; i < responses.size(); ++i) {
+    FindMaxima(responses[i], threshold, options_.scales_px[i], border, &keypoints);
+  }
+  keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
+  if (detected) *detected = static_cast<int>(keypoints.size());
+  return SelectEvenly(std::move(keypoints), grey.size(), options_.grid_cols, options_.grid_rows,
+                      options_.max_features);
+}
+
+namespace {
+
+// Sum of the integral image `ii` (CV_64F, (h+1)x(w+1)) over [x0, x1) x [y0, y1), clamped.
+inline double BoxSum(const cv::Mat& ii, int x0, int y0, int x1, int y1) {
+  x0 = std::clamp(x0, 0, ii.cols - 1);
+  x1 = std::clamp(x1, 0, ii.cols - 1);
+  y0 = std::clamp(y0, 0, ii.rows - 1);
+  y1 = std::clamp(y1, 0, ii.rows - 1);
+  return ii.at<double>(y1, x1) - ii.at<double>(y0, x1) - ii.at<double>(y1, x0) +
+         ii.at<double>(y0, x0);
+}
+
+}  // namespace
+
+cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
+                                        const std::vector<Keypoint>& keypoints) const {
+  cv::Mat integral;
+  cv::integral(grey, integral, CV_64F);
+  cv::Mat descriptors(static_cast<int>(keypoints.size()), 16, CV_32F);
+  constexpr int kSamplesPerSide = 12;  // 6 per sub-region, 2 sub-regions per side.
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    const Keypoint& k = keypoints[i];
+    const double s = k.scale_px;
+    const int haar = std::max(2, static_cast<int>(std::lround(2 * s)) & ~1);  // even size
+    const int half = haar / 2;
+    float* d = descriptors.ptr<float>(static_cast<int>(i));
+    std::fill(d, d + 16, 0.0f);
+    const double gauss = 1.0 / (2.0 * (3.3 * s) * (3.3 * s));
+    for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+      for (int sx = 0; sx < kSamplesPerSide; ++sx) {
+        // Sample centres at (index - 5.5) * s around the corner: a 12 s square.
+        const double ox = (sx - 5.5) * s, oy = (sy - 5.5) * s;
+        const int x = static_cast<int>(std::lround(k.pixel.x() + ox));
+        const int y = static_cast<int>(std::lround(k.pixel.y() + oy));
+        const double dx = BoxSum(integral, x, y - half, x + half, y + half) -
+                          BoxSum(integral, x - half, y - half, x, y + half);
+        const double dy = BoxSum(integral, x - half, y, x + half, y + half) -
+                          BoxSum(integral, x - half, y - half, x + half, y);
+        const double w = std::exp(-(ox * ox + oy * oy) * gauss);
+        float* cell = d + 4 * ((sy / 6) * 2 + (sx / 6));
+        cell[0] += static_cast<float>(w * dx);
+        cell[1] += static_cast<float>(w * dy);
+        cell[2] += static_cast<float>(w * std::abs(dx));
+        cell[3] += static_cast<float>(w * std::abs(dy));
+      }
+    }
+    double norm = 0;
+    for (int j = 0; j < 16; ++j) norm += d[j] * d[j];
+    norm = std::sqrt(norm);
+    if (norm > 1e-12) {
+      for (int j = 0; j < 16; ++j) d[j] = static_cast<float>(d[j] / norm);
+    }
+  }
+  return descriptors;
+}
+
+FeatureSet HarrisSurf16Extractor::Extract(const cv::Mat& grey, ExtractStats* stats) const {
+  VISLOC_CHECK(grey.type() == CV_8UC1 && !grey.empty(), "features need an 8-bit grey image");
+  Timer timer;
+  FeatureSet features;
+  int detected = 0;
+  features.keypoints = Detect(grey, &detected);
+  const double detect_ms = timer.ElapsedMs();
+  timer.Restart();
+  features.descriptors = Describe(grey, features.keypoints);
+  if (stats) {
+    stats->detect_ms = detect_ms;
+    stats->describe_ms = timer.ElapsedMs();
+    stats->detected = detected;
+  }
+  return features;
+}
+
+}  // namespace visloc

@@ -1,0 +1,61 @@
+#pragma once
+// Multi-scale Harris corners with upright 16-D SURF-like descriptors (seed paper 000, sec. 3.2).
+//
+// Detection: for each scale sigma_i of a small scale space at full resolution, the Harris
+// response R = det(M) - k tr(M)^2 of the structure tensor M (gradients at 0.7 sigma_i, window
+// sigma_i), non-maximum suppression in 3x3, a quadratic fit for the sub-pixel position, and a
+// threshold relative to the strongest response. Corners found at several scales are merged
+// (strongest kept). An even spread is enforced by per-cell quotas on a grid.
+//
+// Description (Bay et al., "SURF", CVIU 2008, reduced to 2x2 sub-regions): a square of side
+// 12 sigma around the corner, not rotated (upright), split into 2x2 sub-regions; in each,
+// Haar wavelet responses dx, dy of size 2 sigma at a 6x6 sample grid, Gaussian weighted, give
+// (sum dx, sum dy, sum |dx|, sum |dy|). The 16 values are normalized to unit length, which
+// makes the descriptor invariant to contrast changes. Haar responses come from an integral
+// image in constant time per sample.
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/features/features.h"
+
+namespace visloc {
+
+struct HarrisSurf16Options {
+  std::vector<double> scales_px = {1.2, 2.0, 3.2};  // Gaussian sigmas of the scale space.
+  double harris_k = 0.04;
+  double relative_threshold = 0.005;  // Of the strongest response in the image.
+  int max_features = 600;
+  int grid_cols = 8;  // Quota cells across the image.
+  int grid_rows = 6;
+  int border_px = 8;  // No corners this close to the border (the descriptor needs room).
+  void Check() const;
+};
+
+class HarrisSurf16Extractor final : public FeatureExtractor {
+ public:
+  explicit HarrisSurf16Extractor(const HarrisSurf16Options& options);
+  FeatureSet Extract(const cv::Mat& grey, ExtractStats* stats = nullptr) const override;
+  const FeatureSettings& settings() const override { return settings_; }
+
+  std::vector<Keypoint> Detect(const cv::Mat& grey, int* detected = nullptr) const;
+  // Descriptors for the keypoints (CV_32F, 16 columns). Keypoints too close to the border for
+  // their scale are described from a clamped region.
+  cv::Mat Describe(const cv::Mat& grey, const std::vector<Keypoint>& keypoints) const;
+
+ private:
+  HarrisSurf16Options options_;
+  FeatureSettings settings_;
+};
+
+// Indices of at most `max_features` keypoints: the strongest of each grid cell up to an equal
+// quota, then the strongest of the rest.
+std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
+                                     const cv::Size& image_size, int grid_cols, int grid_rows,
+                                     int max_features);
+// The keypoints SelectEvenlyIndices chooses.
+std::vector<Keypoint> SelectEvenly(std::vector<Keypoint> keypoints, const cv::Size& image_size,
+                                   int grid_cols, int grid_rows, int max_features);
+
+}  // namespace visloc
