@@ -1,0 +1,111 @@
+#include <gtest/gtest.h>
+
+#include "core/estimators/p3p.h"
+#include "core/estimators/pnp_ransac.h"
+#include "core/estimators/pose_refinement.h"
+#include "core/util/random.h"
+
+namespace visloc {
+namespace {
+
+constexpr double kFocal = 160.0;
+
+// Points 1-6 m in front of a camera at `cam_from_world`, observed with pixel noise and a share
+// of gross outliers.
+std::vector<PoseObservation> MakeObservations(const Rigid3d& cam_from_world, int count,
+                                              double noise_px, double outlier_share, bool stereo,
+                                              Rng& rng) {
+  std::vector<PoseObservation> observations;
+  const Rigid3d world_from_cam = cam_from_world.Inverse();
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d in_cam(rng.Uniform(-1, 1), rng.Uniform(-0.75, 0.75), 1.0);
+    const Eigen::Vector3d p = in_cam * rng.Uniform(1.0, 6.0);
+    PoseObservation o;
+    o.point_in_world = world_from_cam * p;
+    o.normalized =
+        p.head<2>() / p.z() + Eigen::Vector2d(rng.Normal(), rng.Normal()) * noise_px / kFocal;
+    if (stereo) {
+      o.has_right = true;
+      o.right_x_normalized = (p.x() - 0.144) / p.z() + rng.Normal() * noise_px / kFocal;
+    }
+    if (rng.Uniform01() < outlier_share)
+      o.normalized += Eigen::Vector2d(rng.Uniform(-0.5, 0.5), rng.Uniform(-0.5, 0.5));
+    observations.push_back(o);
+  }
+  return observations;
+}
+
+const Rigid3d kTruth(RotationFromRollPitchYaw(0.1, -0.3, 1.2), Eigen::Vector3d(0.4, -0.2, 1.5));
+
+TEST(P3PTest, ExactCorrespondencesGiveTheTruthAmongTheSolutions) {
+  Rng rng(1);
+  const auto observations = MakeObservations(kTruth, 3, 0.0, 0.0, false, rng);
+  const auto solutions = SolveP3P(
+      {observations[0].point_in_world, observations[1].point_in_world,
+       observations[2].point_in_world},
+      {observations[0].normalized, observations[1].normalized, observations[2].normalized});
+  ASSERT_FALSE(solutions.empty());
+  bool found = false;
+  for (const Rigid3d& s : solutions) found |= ApproxEqual(s, kTruth, 1e-6, 1e-4);
+  EXPECT_TRUE(found);
+}
+
+TEST(PoseRefinementTest, ConvergesFromAPerturbedPoseAndGivesACovariance) {
+  Rng rng(2);
+  const auto observations = MakeObservations(kTruth, 150, 0.5, 0.0, false, rng);
+  const Rigid3d start =
+      Rigid3d(RotationFromRollPitchYaw(0.02, -0.01, 0.03), Eigen::Vector3d(0.05, -0.04, 0.1)) *
+      kTruth;
+  PoseRefineOptions options;
+  options.focal_px = kFocal;
+  PoseRefineStats stats;
+  Eigen::Matrix<double, 6, 6> covariance;
+  const Rigid3d refined = RefinePose(start, observations, options, &stats, &covariance);
+  EXPECT_TRUE(ApproxEqual(refined, kTruth, 0.01, 0.1));
+  EXPECT_GT(stats.initial_rmse_px, 5.0);
+  EXPECT_NEAR(stats.final_rmse_px, 0.5, 0.1);
+  EXPECT_TRUE(covariance.allFinite());
+  EXPECT_GT(covariance.diagonal().minCoeff(), 0.0);
+  // The translation standard deviation for 150 points at 0.5 px is millimetres, not metres.
+  EXPECT_LT(std::sqrt(covariance(2, 2)), 0.05);
+}
+
+TEST(PoseRefinementTest, StereoResidualsTightenDepth) {
+  Rng rng_mono(3), rng_stereo(3);
+  const auto mono = MakeObservations(kTruth, 40, 0.5, 0.0, false, rng_mono);
+  const auto stereo = MakeObservations(kTruth, 40, 0.5, 0.0, true, rng_stereo);
+  PoseRefineOptions options;
+  options.focal_px = kFocal;
+  options.baseline_m = 0.144;
+  Eigen::Matrix<double, 6, 6> mono_cov, stereo_cov;
+  RefinePose(kTruth, mono, options, nullptr, &mono_cov);
+  RefinePose(kTruth, stereo, options, nullptr, &stereo_cov);
+  EXPECT_LT(stereo_cov.trace(), mono_cov.trace());
+}
+
+TEST(PnpRansacTest, FindsThePoseAmongOutliers) {
+  Rng rng(4);
+  const auto observations = MakeObservations(kTruth, 200, 0.5, 0.4, false, rng);
+  PnpRansacOptions options;
+  options.refine.focal_px = kFocal;
+  const PnpResult result = SolvePnpRansac(observations, options);
+  ASSERT_TRUE(result.success);
+  EXPECT_TRUE(ApproxEqual(result.cam_from_world, kTruth, 0.01, 0.1));
+  EXPECT_NEAR(result.stats.inlier_ratio, 0.6, 0.08);
+  EXPECT_LT(result.stats.iterations, 100);
+  // Deterministic given the seed.
+  EXPECT_TRUE(ApproxEqual(SolvePnpRansac(observations, options).cam_from_world,
+                          result.cam_from_world, 0, 0));
+}
+
+TEST(PnpRansacTest, FailsCleanlyWithoutEnoughSupport) {
+  Rng rng(5);
+  PnpRansacOptions options;
+  options.refine.focal_px = kFocal;
+  EXPECT_FALSE(SolvePnpRansac(MakeObservations(kTruth, 3, 0.0, 0.0, false, rng), options).success);
+  EXPECT_FALSE(
+      SolvePnpRansac(MakeObservations(kTruth, 100, 0.5, 1.0, false, rng), options).success);
+}
+
+}  // namespace
+}  // namespace visloc

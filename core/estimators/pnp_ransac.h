@@ -1,0 +1,44 @@
+#pragma once
+// Robust camera pose from 3D-2D correspondences: RANSAC over the P3P minimal solver, then
+// Levenberg-Marquardt on the inliers (seed paper 000, sec. 5). The iteration count adapts to
+// the inlier ratio found so far (stop when a better model is unlikely at `confidence`).
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/estimators/pose_refinement.h"
+
+namespace visloc {
+
+struct PnpRansacOptions {
+  double max_error_px = 2.0;  // Inlier threshold (paper: 2 px).
+  int max_iterations = 500;
+  int min_iterations = 5;
+  double confidence = 0.999;
+  int min_inliers = 8;
+  uint64_t seed = 1;  // Sampling is deterministic given the seed.
+  PoseRefineOptions refine;
+  void Check() const;
+};
+
+struct PnpStats {
+  int iterations = 0;  // RANSAC hypotheses tried.
+  int inliers = 0;
+  double inlier_ratio = 0.0;
+  PoseRefineStats refine;
+};
+
+struct PnpResult {
+  bool success = false;
+  Rigid3d cam_from_world;
+  std::vector<char> inlier_mask;  // One per observation.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  PnpStats stats;
+};
+
+PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
+                         const PnpRansacOptions& options);
+
+}  // namespace visloc

@@ -1,0 +1,52 @@
+#pragma once
+// Levenberg-Marquardt refinement of a camera pose from 3D-2D correspondences (seed paper 000,
+// eq. 9): minimizes sum_i rho(|| pi(cam_from_world * X_i) - x_i ||^2) over cam_from_world,
+// with pi the projection to normalized coordinates and rho the Huber loss. With a rectified
+// stereo observation, the right camera's x residual (x_i - B) / z_i - x_right is added.
+//
+// Residuals are in normalized units internally; thresholds and reported errors are in pixels
+// (normalized * focal_px). The update is a left perturbation T <- exp(delta) T with
+// delta = (translation, rotation) in the camera frame; the covariance is in that order too.
+
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/geometry/rigid3.h"
+
+namespace visloc {
+
+struct PoseObservation {
+  Eigen::Vector3d point_in_world = Eigen::Vector3d::Zero();
+  Eigen::Vector2d normalized = Eigen::Vector2d::Zero();  // Left camera, undistorted (x/z, y/z).
+  bool has_right = false;
+  double right_x_normalized = 0.0;  // Rectified right camera's x/z (baseline along +x).
+};
+
+struct PoseRefineOptions {
+  double focal_px = 1.0;        // Converts normalized residuals to pixels.
+  double baseline_m = 0.0;      // Rectified stereo baseline, for right observations.
+  double huber_px = 2.0;        // Huber threshold.
+  double pixel_sigma_px = 1.0;  // Measurement noise, for the covariance.
+  int max_iterations = 10;
+  void Check() const;
+};
+
+struct PoseRefineStats {
+  int iterations = 0;
+  double initial_rmse_px = 0.0;
+  double final_rmse_px = 0.0;
+  bool converged = false;
+};
+
+// Returns the refined cam_from_world. `covariance` (6x6, translation m then rotation rad) is
+// sigma^2 (J^T J)^-1 at the optimum. Needs at least 3 observations (else returns the input).
+Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservation>& observations,
+                   const PoseRefineOptions& options, PoseRefineStats* stats = nullptr,
+                   Eigen::Matrix<double, 6, 6>* covariance = nullptr);
+
+// Squared reprojection error in pixels^2 of one observation (left and, if present, right).
+double SquaredReprojectionErrorPx(const Rigid3d& cam_from_world, const PoseObservation& observation,
+                                  double focal_px, double baseline_m);
+
+}  // namespace visloc
