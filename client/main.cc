@@ -19,7 +19,7 @@ namespace {
 const std::vector<Subcommand> kCommands = {
     {"sim", "render synthetic stereo sequences with exact ground truth", RunSim},
     {"eval", "accuracy of a trajectory against ground truth (ATE, RPE, coverage)", RunEval},
-    {"map", "manage map files: info, verify, export, list, delete, rename", RunMap},
+    {"map", "build and manage maps: build, info, verify, export, list, delete, rename", RunMap},
 };
 
 }  // namespace

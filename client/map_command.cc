@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <ctime>
+#include <filesystem>
 #include <iostream>
 
 #include "client/commands.h"
@@ -11,8 +12,10 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "dataset/dataset.h"
 #include "dataset/ply.h"
 #include "dataset/tum.h"
+#include "mapping/map_builder.h"
 #include "mapstore/map_directory.h"
 #include "mapstore/map_store.h"
 
@@ -20,6 +23,7 @@ namespace visloc::cli {
 namespace {
 
 using mapstore::MapInfo;
+namespace fs = std::filesystem;
 
 // MAP.db, or NAME in --maps DIR.
 std::string ResolveMap(const std::string& map_or_name, const std::string& maps_dir) {
@@ -217,6 +221,89 @@ int RunExport(const Args& args) {
   return 0;
 }
 
+int RunBuild(const Args& args) {
+  std::string dataset_dir, format, out, name, features = "harris_surf16", trajectory;
+  int frames = 0;
+  bool json = false;
+  ArgParser parser("visloc map build",
+                   "Builds a map from a stereo sequence (EuRoC or KITTI): stereo visual odometry, "
+                   "keyframes, local and global bundle adjustment with loop closure, visibility "
+                   "learning and the relocalization vocabulary.");
+  parser.AddFlag("dataset", &dataset_dir, "stereo dataset folder", /*required=*/true);
+  parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
+  parser.AddFlag("out", &out, "map file to write", /*required=*/true);
+  parser.AddFlag("name", &name, "the map's name (default: the file name without .db)");
+  parser.AddFlag("features", &features, "harris_surf16 (the paper's) or orb");
+  parser.AddFlag("frames", &frames, "use only the first N frames (0: all)");
+  parser.AddFlag("trajectory", &trajectory,
+                 "also write the estimated frame poses (TUM, map frame)");
+  parser.AddSwitch("json", &json, "print the summary as JSON");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (frames < 0) throw UsageError("--frames must not be negative");
+  if (name.empty()) name = fs::path(out).stem().string();
+  mapstore::CheckMapName(name);
+  Dataset dataset = ReadDataset(
+      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  if (frames > 0 && frames < static_cast<int>(dataset.frames.size())) dataset.frames.resize(frames);
+  mapping::MapBuilderOptions options;
+  options.features = DefaultFeatureSettings(features);
+  MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
+                       fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build"};
+  mapping::MapBuildStats stats;
+  Trajectory frame_trajectory;
+  const bool progress = ShowProgress() && !json;
+  const Map map = mapping::BuildMap(dataset, options, metadata, &stats, &frame_trajectory,
+                                    [&](int done, int total, const std::string& status) {
+                                      if (progress)
+                                        std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done,
+                                                     total, status.c_str());
+                                    });
+  if (progress) std::fprintf(stderr, "\r\33[K");
+  mapstore::SaveMap(map, out);
+  if (!trajectory.empty()) WriteTum(trajectory, frame_trajectory);
+  if (json) {
+    JsonWriter writer;
+    writer.BeginObject()
+        .Field("map", out)
+        .Field("frames", stats.frames)
+        .Field("keyframes", stats.keyframes)
+        .Field("points", stats.points)
+        .Field("observations", stats.observations)
+        .Field("loop_closures", stats.loop_closures)
+        .Field("tracking_failures", stats.tracking_failures)
+        .Field("reprojection_rmse_px", stats.reprojection_rmse_px)
+        .Field("visibility_fit_rmse", stats.visibility.final_rmse)
+        .Field("features_ms", stats.features_ms)
+        .Field("tracking_ms", stats.tracking_ms)
+        .Field("local_ba_ms", stats.local_ba_ms)
+        .Field("loop_closure_ms", stats.loop_ms)
+        .Field("global_ba_ms", stats.global_ba_ms)
+        .Field("learning_ms", stats.learning_ms)
+        .Field("total_s", stats.total_ms / 1000)
+        .Field("fps", stats.frames / (stats.total_ms / 1000))
+        .EndObject();
+    std::cout << writer.str() << "\n";
+    return 0;
+  }
+  std::printf("map %s -> %s\n", name.c_str(), out.c_str());
+  std::printf("  %d frames, %d keyframes, %d points, %d observations (%.1f per point)\n",
+              stats.frames, stats.keyframes, stats.points, stats.observations,
+              stats.points ? static_cast<double>(stats.observations) / stats.points : 0.0);
+  std::printf(
+      "  loop closures %d, tracking failures %d, reprojection RMSE %.3f px, visibility fit RMSE "
+      "%.3f (%d pairs)\n",
+      stats.loop_closures, stats.tracking_failures, stats.reprojection_rmse_px,
+      stats.visibility.final_rmse, stats.visibility.pairs);
+  std::printf(
+      "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
+      "%.1f s, "
+      "learning %.1f s; total %.1f s (%.1f frames/s)\n",
+      stats.features_ms / 1000, stats.tracking_ms / 1000, stats.local_ba_ms / 1000,
+      stats.loop_ms / 1000, stats.global_ba_ms / 1000, stats.learning_ms / 1000,
+      stats.total_ms / 1000, stats.frames / (stats.total_ms / 1000));
+  return 0;
+}
+
 int RunList(const Args& args) {
   std::string maps_dir;
   bool json = false;
@@ -285,6 +372,7 @@ int RunRename(const Args& args) {
 
 int RunMap(const Args& args) {
   static const std::vector<Subcommand> kVerbs = {
+      {"build", "build a map from a stereo sequence", RunBuild},
       {"info", "counts, extent, camera, features, size and schema", RunInfo},
       {"verify", "check a map file; exit 0 when sound", RunVerify},
       {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},

@@ -620,6 +620,10 @@ void SaveMap(const Map& map, const std::string& path) {
   const auto problems = FindMapProblems(map, 1);
   VISLOC_CHECK(problems.empty(),
                "refusing to write an inconsistent map: ", problems.empty() ? "" : problems[0]);
+  const fs::path folder =
+      fs::path(path).has_parent_path() ? fs::path(path).parent_path() : fs::path(".");
+  if (!fs::is_directory(folder))
+    throw InputError(StrCat(path, ": folder ", folder.string(), " does not exist"));
   const std::string temp = TemporaryPathBeside(path);
   try {
     {

@@ -84,6 +84,9 @@ TEST(MapStoreTest, SavingReplacesTheFileAndRefusesInconsistentMaps) {
   EXPECT_THROW(SaveMap(broken, path), CheckError);
   EXPECT_TRUE(MapsEqual(LoadMap(path), SmallMap(2)));  // the old map is untouched
   EXPECT_THAT(FilesIn(dir.path()), ::testing::ElementsAre("m.db"));
+  EXPECT_THAT([&] { SaveMap(SmallMap(), dir.File("no/such/folder/m.db")); },
+              ::testing::ThrowsMessage<InputError>(
+                  HasSubstr("folder " + dir.File("no/such/folder") + " does not exist")));
 }
 
 TEST(MapStoreTest, SummaryAndVerifyOfASoundMap) {

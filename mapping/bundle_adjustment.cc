@@ -1,0 +1,122 @@
+#include "mapping/bundle_adjustment.h"
+
+#include <cmath>
+#include <map>
+#include <set>
+
+#include "core/util/timer.h"
+
+namespace visloc::mapping {
+
+double ObservationErrorPx(const SlamState& state, int l, int k, int i,
+                          const RectifiedIntrinsics& intrinsics) {
+  const SlamKeyframe& keyframe = state.keyframes[k];
+  const Eigen::Vector3d p = keyframe.cam_from_world * state.landmarks[l].position_in_world;
+  if (p.z() <= 1e-6) return 1e9;
+  const Eigen::Vector2d projected(intrinsics.f * p.x() / p.z() + intrinsics.cx,
+                                  intrinsics.f * p.y() / p.z() + intrinsics.cy);
+  double error = (projected - keyframe.left_rect[i]).norm();
+  if (std::isfinite(keyframe.right_x_rect[i])) {
+    const double right = intrinsics.f * (p.x() - intrinsics.baseline_m) / p.z() + intrinsics.cx;
+    error = std::max(error, std::abs(right - keyframe.right_x_rect[i]));
+  }
+  return error;
+}
+
+BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& free_keyframes,
+                                     const std::vector<int>& fixed_keyframes,
+                                     const RectifiedIntrinsics& intrinsics,
+                                     const BundleAdjustmentOptions& options) {
+  Timer timer;
+  BundleAdjustmentSummary summary;
+  const std::set<int> free(free_keyframes.begin(), free_keyframes.end());
+  std::set<int> window(free);
+  window.insert(fixed_keyframes.begin(), fixed_keyframes.end());
+  std::set<int> landmarks;
+  for (int k : free) {
+    for (int l : state->keyframes[k].landmark) {
+      if (l >= 0 && !state->landmarks[l].culled) landmarks.insert(l);
+    }
+  }
+  // Pose parameters: contiguous copies, written back afterwards.
+  std::map<int, std::array<double, 7>> poses;  // qx qy qz qw tx ty tz
+  for (int k : window) {
+    const Rigid3d& pose = state->keyframes[k].cam_from_world;
+    poses[k] = {pose.rotation.x(),    pose.rotation.y(),    pose.rotation.z(),   pose.rotation.w(),
+                pose.translation.x(), pose.translation.y(), pose.translation.z()};
+  }
+  ceres::Problem problem;
+  ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_px);  // shared, owned by problem
+  double initial_sq = 0;
+  int residual_count = 0;
+  for (int l : landmarks) {
+    Landmark& landmark = state->landmarks[l];
+    for (const auto& [k, i] : landmark.observations) {
+      if (!window.count(k)) continue;
+      const SlamKeyframe& keyframe = state->keyframes[k];
+      double* pose = poses[k].data();
+      const double right_x = keyframe.right_x_rect[i];
+      ceres::CostFunction* cost =
+          std::isfinite(right_x)
+              ? StereoReprojectionCost::Create(keyframe.left_rect[i], right_x, intrinsics)
+              : MonoReprojectionCost::Create(keyframe.left_rect[i], intrinsics);
+      problem.AddResidualBlock(cost, loss, pose, pose + 4, landmark.position_in_world.data());
+      const double e = ObservationErrorPx(*state, l, k, i, intrinsics);
+      initial_sq += e * e;
+      ++residual_count;
+    }
+  }
+  summary.keyframes = static_cast<int>(window.size());
+  summary.landmarks = static_cast<int>(landmarks.size());
+  summary.residual_blocks = residual_count;
+  if (residual_count == 0) return summary;
+  for (auto& [k, pose] : poses) {
+    if (!problem.HasParameterBlock(pose.data())) continue;
+    problem.SetManifold(pose.data(), new ceres::EigenQuaternionManifold());
+    if (!free.count(k)) {
+      problem.SetParameterBlockConstant(pose.data());
+      problem.SetParameterBlockConstant(pose.data() + 4);
+    }
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary solver_summary;
+  ceres::Solve(solver_options, &problem, &solver_summary);
+  summary.iterations = static_cast<int>(solver_summary.iterations.size());
+  for (auto& [k, pose] : poses) {
+    state->keyframes[k].cam_from_world =
+        Rigid3d(Eigen::Quaterniond(pose[3], pose[0], pose[1], pose[2]),
+                Eigen::Vector3d(pose[4], pose[5], pose[6]));
+  }
+  // Cull: observations above the error threshold, then landmarks seen fewer than twice.
+  double final_sq = 0;
+  int final_count = 0;
+  for (int l : landmarks) {
+    Landmark& landmark = state->landmarks[l];
+    std::vector<std::pair<int, int>> kept;
+    for (const auto& [k, i] : landmark.observations) {
+      const double e = ObservationErrorPx(*state, l, k, i, intrinsics);
+      if (window.count(k)) {
+        final_sq += std::min(e * e, 100.0);
+        ++final_count;
+      }
+      if (e <= options.cull_error_px) {
+        kept.emplace_back(k, i);
+      } else {
+        state->keyframes[k].landmark[i] = -1;
+        ++summary.culled_observations;
+      }
+    }
+    landmark.observations = std::move(kept);
+    if (landmark.observations.empty()) landmark.culled = true;
+  }
+  summary.initial_rmse_px = std::sqrt(initial_sq / residual_count);
+  summary.final_rmse_px = final_count ? std::sqrt(final_sq / final_count) : 0.0;
+  summary.time_ms = timer.ElapsedMs();
+  return summary;
+}
+
+}  // namespace visloc::mapping

@@ -1,0 +1,41 @@
+#pragma once
+// Bundle adjustment over a SlamState with Ceres (seed paper 000, sec. 3.3): the poses of the
+// `free` keyframes and the landmarks they observe are optimized against every observation of
+// those landmarks by free and `fixed` keyframes, with a Huber loss. Local BA passes the last
+// n_k keyframes as free and the rest of the window as fixed; global BA frees all but the first.
+
+#include <vector>
+
+#include "mapping/reprojection_cost.h"
+#include "mapping/slam_state.h"
+
+namespace visloc::mapping {
+
+struct BundleAdjustmentOptions {
+  double huber_px = 2.0;
+  int max_iterations = 15;
+  double cull_error_px = 3.0;  // Afterwards: drop observations above this; paper: 3 px.
+};
+
+struct BundleAdjustmentSummary {
+  int keyframes = 0;
+  int landmarks = 0;
+  int residual_blocks = 0;
+  int iterations = 0;
+  double initial_rmse_px = 0.0;
+  double final_rmse_px = 0.0;
+  int culled_observations = 0;
+  double time_ms = 0.0;
+};
+
+BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& free_keyframes,
+                                     const std::vector<int>& fixed_keyframes,
+                                     const RectifiedIntrinsics& intrinsics,
+                                     const BundleAdjustmentOptions& options);
+
+// Reprojection error (px) of landmark `l` in keyframe `k`'s keypoint `i`: the larger of the
+// left and right image errors.
+double ObservationErrorPx(const SlamState& state, int l, int k, int i,
+                          const RectifiedIntrinsics& intrinsics);
+
+}  // namespace visloc::mapping

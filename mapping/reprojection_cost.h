@@ -1,0 +1,86 @@
+#pragma once
+// Ceres cost functors for bundle adjustment in the rectified stereo camera (pixels).
+//
+// Parameter blocks, in order: [0] rotation cam_from_world as an Eigen quaternion (x, y, z, w;
+// EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3).
+// With p = R X + t in the rectified left camera:
+//   mono:   r = (f p.x / p.z + cx - u, f p.y / p.z + cy - v)
+//   stereo: the mono residual plus f (p.x - B) / p.z + cx - u_right (right camera at +B on x).
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Core>
+
+namespace visloc::mapping {
+
+struct RectifiedIntrinsics {
+  double f = 1.0;   // Focal length, px (fx = fy after rectification).
+  double cx = 0.0;  // Principal point, px.
+  double cy = 0.0;
+  double baseline_m = 0.0;
+};
+
+class StereoReprojectionCost {
+ public:
+  StereoReprojectionCost(const Eigen::Vector2d& left_px, double right_x_px,
+                         const RectifiedIntrinsics& k)
+      : left_px_(left_px), right_x_px_(right_x_px), k_(k) {}
+
+  template <typename T>
+  bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
+    T p[3];
+    // ceres::QuaternionRotatePoint expects (w, x, y, z); Eigen stores (x, y, z, w).
+    const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
+    ceres::QuaternionRotatePoint(q, point, p);
+    p[0] += translation[0];
+    p[1] += translation[1];
+    p[2] += translation[2];
+    const T inverse_z = T(1.0) / p[2];
+    residuals[0] = T(k_.f) * p[0] * inverse_z + T(k_.cx) - T(left_px_.x());
+    residuals[1] = T(k_.f) * p[1] * inverse_z + T(k_.cy) - T(left_px_.y());
+    residuals[2] = T(k_.f) * (p[0] - T(k_.baseline_m)) * inverse_z + T(k_.cx) - T(right_x_px_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Vector2d& left_px, double right_x_px,
+                                     const RectifiedIntrinsics& k) {
+    return new ceres::AutoDiffCostFunction<StereoReprojectionCost, 3, 4, 3, 3>(
+        new StereoReprojectionCost(left_px, right_x_px, k));
+  }
+
+ private:
+  Eigen::Vector2d left_px_;
+  double right_x_px_;
+  RectifiedIntrinsics k_;
+};
+
+class MonoReprojectionCost {
+ public:
+  MonoReprojectionCost(const Eigen::Vector2d& left_px, const RectifiedIntrinsics& k)
+      : left_px_(left_px), k_(k) {}
+
+  template <typename T>
+  bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
+    T p[3];
+    const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
+    ceres::QuaternionRotatePoint(q, point, p);
+    p[0] += translation[0];
+    p[1] += translation[1];
+    p[2] += translation[2];
+    residuals[0] = T(k_.f) * p[0] / p[2] + T(k_.cx) - T(left_px_.x());
+    residuals[1] = T(k_.f) * p[1] / p[2] + T(k_.cy) - T(left_px_.y());
+    return true;
+  }
+
+  static ceres::CostFunction* Create(const Eigen::Vector2d& left_px, const RectifiedIntrinsics& k) {
+    return new ceres::AutoDiffCostFunction<MonoReprojectionCost, 2, 4, 3, 3>(
+        new MonoReprojectionCost(left_px, k));
+  }
+
+ private:
+  Eigen::Vector2d left_px_;
+  RectifiedIntrinsics k_;
+};
+
+}  // namespace visloc::mapping

@@ -1,0 +1,89 @@
+#include "mapping/stereo_frame.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace visloc::mapping {
+
+StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                             const FeatureExtractor& extractor, const StereoRectifier& rectifier,
+                             const StereoMatchOptions& options) {
+  StereoFrame frame;
+  frame.left = extractor.Extract(left_raw);
+  const FeatureSet right = extractor.Extract(right_raw);
+  const PinholeCamera& rect = rectifier.rectified_camera();
+  const double f = rect.fx(), baseline = rectifier.baseline_m();
+  const double min_disparity = f * baseline / options.max_depth_m;
+  const double max_disparity = f * baseline / options.min_depth_m;
+  const float max_distance = extractor.settings().descriptor_type == DescriptorType::kBinary
+                                 ? options.max_descriptor_distance * 256.0f * 0.25f / 0.6f
+                                 : options.max_descriptor_distance;
+
+  const size_t n = frame.left.size();
+  frame.left_rect.resize(n);
+  for (size_t i = 0; i < n; ++i)
+    frame.left_rect[i] = rectifier.RectifyLeftPixel(frame.left.keypoints[i].pixel.cast<double>());
+  // Right keypoints sorted by rectified row for a band search.
+  std::vector<std::pair<double, int>> right_rows;
+  std::vector<Eigen::Vector2d> right_rect(right.size());
+  for (size_t j = 0; j < right.size(); ++j) {
+    right_rect[j] = rectifier.RectifyRightPixel(right.keypoints[j].pixel.cast<double>());
+    right_rows.emplace_back(right_rect[j].y(), static_cast<int>(j));
+  }
+  std::sort(right_rows.begin(), right_rows.end());
+
+  // Best right candidate per left keypoint (ratio test), then a mutual check.
+  std::vector<int> left_to_right(n, -1);
+  std::vector<float> best_distance(n, 0.0f);
+  std::vector<int> right_best_left(right.size(), -1);
+  std::vector<float> right_best_distance(right.size(), std::numeric_limits<float>::max());
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d& l = frame.left_rect[i];
+    auto it = std::lower_bound(right_rows.begin(), right_rows.end(),
+                               std::make_pair(l.y() - options.max_row_difference_px, -1));
+    float best = std::numeric_limits<float>::max(), second = best;
+    int best_j = -1;
+    for (; it != right_rows.end() && it->first <= l.y() + options.max_row_difference_px; ++it) {
+      const int j = it->second;
+      const double disparity = l.x() - right_rect[j].x();
+      if (disparity < min_disparity || disparity > max_disparity) continue;
+      const float d =
+          DescriptorDistance(frame.left.descriptors, static_cast<int>(i), right.descriptors, j);
+      if (d < best) {
+        second = best;
+        best = d;
+        best_j = j;
+      } else if (d < second) {
+        second = d;
+      }
+    }
+    if (best_j < 0 || best > max_distance || best > options.ratio * second) continue;
+    left_to_right[i] = best_j;
+    best_distance[i] = best;
+    if (best < right_best_distance[best_j]) {
+      right_best_distance[best_j] = best;
+      right_best_left[best_j] = static_cast<int>(i);
+    }
+  }
+
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  frame.right_x_rect.assign(n, nan);
+  frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
+  for (size_t i = 0; i < n; ++i) {
+    const int j = left_to_right[i];
+    if (j < 0 || right_best_left[j] != static_cast<int>(i)) continue;
+    const Eigen::Vector2d& l = frame.left_rect[i];
+    // Use the mean row of both views: the rectification residual splits evenly.
+    const double v = 0.5 * (l.y() + right_rect[j].y());
+    const double disparity = l.x() - right_rect[j].x();
+    const double z = f * baseline / disparity;
+    frame.right_x_rect[i] = right_rect[j].x();
+    frame.point_in_rect[i] =
+        Eigen::Vector3d((l.x() - rect.cx()) * z / f, (v - rect.cy()) * z / rect.fy(), z);
+    ++frame.stereo_matches;
+  }
+  return frame;
+}
+
+}  // namespace visloc::mapping

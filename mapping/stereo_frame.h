@@ -1,0 +1,41 @@
+#pragma once
+// One stereo frame prepared for mapping: features of the raw left and right images, their
+// rectified positions, stereo matches along rectified rows and the triangulated points.
+//
+// Descriptors are computed on the raw images (as localization will see them); geometry uses
+// rectified coordinates, in which the right camera is the left one shifted by the baseline
+// along +x (seed paper 000, eqs. 1-3):
+//   Z = f B / d,  X = (u - cx) Z / f,  Y = (v - cy) Z / f,  d = u_left - u_right.
+
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/camera/stereo_rectifier.h"
+#include "core/features/features.h"
+
+namespace visloc::mapping {
+
+struct StereoMatchOptions {
+  double max_row_difference_px = 1.0;    // Rectified rows must agree (calibration residual).
+  double min_depth_m = 0.3;              // Nearer points are out of range.
+  double max_depth_m = 12.0;             // Farther points have too little disparity to triangulate.
+  float ratio = 0.8f;                    // Best / second-best descriptor distance.
+  float max_descriptor_distance = 0.6f;  // For unit float descriptors; binary: bits * 0.25.
+};
+
+struct StereoFrame {
+  FeatureSet left;                             // Raw left image features.
+  std::vector<Eigen::Vector2d> left_rect;      // Rectified positions of left keypoints.
+  std::vector<double> right_x_rect;            // Matched right rectified x, or NaN.
+  std::vector<Eigen::Vector3d> point_in_rect;  // Triangulated point (rectified left frame), or NaN.
+  int stereo_matches = 0;
+  bool HasDepth(size_t i) const { return point_in_rect[i].allFinite(); }
+};
+
+StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                             const FeatureExtractor& extractor, const StereoRectifier& rectifier,
+                             const StereoMatchOptions& options);
+
+}  // namespace visloc::mapping
