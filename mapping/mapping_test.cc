@@ -1,1 +1,185 @@
 #include <gtest/gtest.h>
+
+#include "core/geometry/trajectory.h"
+#include "core/map/synthetic_map.h"
+#include "core/map/visibility_kernel.h"
+#include "core/util/random.h"
+#include "core/util/temp_dir.h"
+#include "dataset/tum.h"
+#include "mapping/map_builder.h"
+#include "mapping/reprojection_cost.h"
+#include "mapping/stereo_frame.h"
+#include "mapping/visibility_learning.h"
+#include "sim/generate.h"
+#include "sim/renderer.h"
+#include "sim/sequences.h"
+
+namespace visloc::mapping {
+namespace {
+
+const RectifiedIntrinsics kIntrinsics{160.0, 159.5, 119.5, 0.144};
+
+// Compares a cost function's Jacobians with central numeric differences of the same functor.
+template <typename Functor, int kResiduals>
+void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor) {
+  std::unique_ptr<ceres::CostFunction> autodiff(analytic);
+  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kResiduals, 4, 3, 3> numeric(functor);
+  const Eigen::Quaterniond q = RotationFromRollPitchYaw(0.1, -0.2, 0.3);
+  double rotation[4] = {q.x(), q.y(), q.z(), q.w()};
+  double translation[3] = {0.1, -0.05, 0.2};
+  double point[3] = {0.4, -0.3, 3.0};
+  const double* parameters[3] = {rotation, translation, point};
+  double residual_a[3], residual_n[3];
+  double ja[3][kResiduals * 4], jn[3][kResiduals * 4];
+  double* jacobians_a[3] = {ja[0], ja[1], ja[2]};
+  double* jacobians_n[3] = {jn[0], jn[1], jn[2]};
+  ASSERT_TRUE(autodiff->Evaluate(parameters, residual_a, jacobians_a));
+  ASSERT_TRUE(numeric.Evaluate(parameters, residual_n, jacobians_n));
+  const int sizes[3] = {4, 3, 3};
+  for (int block = 0; block < 3; ++block) {
+    for (int i = 0; i < kResiduals * sizes[block]; ++i) {
+      EXPECT_NEAR(ja[block][i], jn[block][i], 1e-5 * (1 + std::abs(jn[block][i])))
+          << "block " << block << " entry " << i;
+    }
+  }
+  for (int r = 0; r < kResiduals; ++r) EXPECT_DOUBLE_EQ(residual_a[r], residual_n[r]);
+}
+
+TEST(ReprojectionCostTest, StereoJacobiansMatchNumericDerivatives) {
+  const Eigen::Vector2d left(170.0, 100.0);
+  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3>(
+      StereoReprojectionCost::Create(left, 160.0, kIntrinsics),
+      new StereoReprojectionCost(left, 160.0, kIntrinsics));
+}
+
+TEST(ReprojectionCostTest, MonoJacobiansMatchNumericDerivatives) {
+  const Eigen::Vector2d left(170.0, 100.0);
+  ExpectJacobiansMatchNumeric<MonoReprojectionCost, 2>(
+      MonoReprojectionCost::Create(left, kIntrinsics), new MonoReprojectionCost(left, kIntrinsics));
+}
+
+TEST(ReprojectionCostTest, ZeroAtTheTruePose) {
+  const Eigen::Vector3d point(0.3, -0.2, 2.5);
+  const Eigen::Vector2d left(kIntrinsics.f * 0.3 / 2.5 + kIntrinsics.cx,
+                             kIntrinsics.f * -0.2 / 2.5 + kIntrinsics.cy);
+  const double right_x = kIntrinsics.f * (0.3 - 0.144) / 2.5 + kIntrinsics.cx;
+  StereoReprojectionCost cost(left, right_x, kIntrinsics);
+  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0};
+  double residuals[3];
+  cost(rotation, translation, point.data(), residuals);
+  for (double r : residuals) EXPECT_NEAR(r, 0.0, 1e-12);
+}
+
+TEST(StereoFrameTest, TriangulatedDepthMatchesTheRenderedDepth) {
+  const sim::StereoRig rig = sim::MakeRig(sim::RigOptions{});
+  sim::RoomOptions room;
+  room.texel_m = 0.006;
+  const sim::World world = sim::MakeRoom(room);
+  const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
+  const sim::Renderer left_renderer(rig.left.camera, 2), right_renderer(rig.right.camera, 2);
+  cv::Mat depth;
+  sim::SensorModel sensor;
+  Rng noise(1);
+  const cv::Mat left = sensor.Capture(
+      left_renderer.RenderRadiance(world, body * rig.left.body_from_cam, 0, &depth), &noise);
+  const cv::Mat right = sensor.Capture(
+      right_renderer.RenderRadiance(world, body * rig.right.body_from_cam, 0), &noise);
+  const StereoRectifier rectifier(rig.left.camera, rig.right.camera,
+                                  rig.right.body_from_cam.Inverse() * rig.left.body_from_cam);
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  const StereoFrame frame =
+      BuildStereoFrame(left, right, *extractor, rectifier, StereoMatchOptions{});
+  // Disparity errors in pixels against the rendered depth. A corner on a depth edge belongs to
+  // either surface, so the truth is the closest of the 3x3 neighbourhood's disparities.
+  const double fb = rectifier.rectified_camera().fx() * rectifier.baseline_m();
+  std::vector<double> errors_px;
+  for (size_t i = 0; i < frame.left.size(); ++i) {
+    if (!frame.HasDepth(i)) continue;
+    const Eigen::Vector2f& px = frame.left.keypoints[i].pixel;
+    const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
+    const double estimated = fb / frame.point_in_rect[i].z();
+    double best = 1e9;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const float z = depth.at<float>(y + dy, x + dx);
+        if (z > 0) best = std::min(best, std::abs(estimated - fb / z));
+      }
+    }
+    if (best < 1e9) errors_px.push_back(best);
+  }
+  std::sort(errors_px.begin(), errors_px.end());
+  const size_t wrong =
+      std::count_if(errors_px.begin(), errors_px.end(), [](double e) { return e > 1.0; });
+  std::printf(
+      "%d stereo matches of %zu features; median disparity error %.3f px, %zu beyond 1 px\n",
+      frame.stereo_matches, frame.left.size(), errors_px[errors_px.size() / 2], wrong);
+  EXPECT_GT(frame.stereo_matches, 200);
+  EXPECT_LT(errors_px[errors_px.size() / 2], 0.15);
+  EXPECT_LT(static_cast<double>(wrong) / errors_px.size(), 0.03);
+}
+
+TEST(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
+  TempDir dir;
+  sim::GenerateOptions options;
+  options.max_frames = 45;  // 3 s of walking, ~0.6 m
+  options.contact_sheet = false;
+  const sim::GenerateStats generated =
+      sim::SequenceGenerator(options).Generate("map_square", dir.path());
+  const Dataset dataset = ReadDataset(generated.dir);
+  MapBuilderOptions builder_options;
+  builder_options.loop_closure = false;
+  MapBuildStats stats;
+  Trajectory estimate;
+  const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test"}, &stats, &estimate);
+  const Trajectory truth = ReadTum(generated.dir + "/groundtruth_map.tum");
+  ASSERT_EQ(estimate.size(), truth.size());
+  double worst_m = 0;
+  for (size_t i = 0; i < truth.size(); ++i) {
+    worst_m = std::max(worst_m, (estimate[i].pose.translation - truth[i].pose.translation).norm());
+  }
+  std::printf("VO over %zu frames: worst position error %.2f cm, %d keyframes, %d points\n",
+              truth.size(), 100 * worst_m, stats.keyframes, stats.points);
+  EXPECT_LT(worst_m, 0.02);
+  EXPECT_EQ(stats.tracking_failures, 0);
+  EXPECT_GE(stats.keyframes, 3);  // ~0.6 m at one keyframe per 0.15 m
+  EXPECT_LT(stats.reprojection_rmse_px, 0.6);
+  EXPECT_TRUE(FindMapProblems(map).empty());
+}
+
+TEST(VisibilityLearningTest, KernelRanksKeyframePairsByOverlap) {
+  SyntheticMapOptions options;
+  options.keyframes = 60;
+  options.points = 6000;
+  options.observations_per_point = 6;  // Neighbouring keyframes share points; far ones none.
+  const Map map = MakeSyntheticMap(options);
+  VisibilityLearningStats stats;
+  const VisibilityKernel kernel = LearnVisibilityKernel(map, VisibilityLearningOptions{}, &stats);
+  EXPECT_LT(stats.final_rmse, stats.initial_rmse);
+  const Eigen::MatrixXd overlap = VisibilityOverlap(map);
+  // For every keyframe, the kernel's nearest neighbours are the ones with the most overlap.
+  int agree = 0, total = 0;
+  for (int i = 0; i < options.keyframes; ++i) {
+    const Keyframe& a = map.keyframes[i];
+    std::vector<std::pair<double, int>> by_kernel;
+    for (int j = 0; j < options.keyframes; ++j) {
+      if (j == i) continue;
+      const Keyframe& b = map.keyframes[j];
+      by_kernel.emplace_back(
+          -EvaluateKernel(kernel.metric,
+                          KernelCues(a.map_from_cam.translation,
+                                     a.map_from_cam.rotation * Eigen::Vector3d::UnitZ(),
+                                     b.map_from_cam.translation,
+                                     b.map_from_cam.rotation * Eigen::Vector3d::UnitZ())),
+          j);
+    }
+    std::sort(by_kernel.begin(), by_kernel.end());
+    for (int rank = 0; rank < 4; ++rank) {  // the 4 best by kernel all overlap
+      agree += overlap(i, by_kernel[rank].second) > 0.2;
+      ++total;
+    }
+  }
+  EXPECT_EQ(agree, total);
+}
+
+}  // namespace
+}  // namespace visloc::mapping

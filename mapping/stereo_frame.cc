@@ -6,6 +6,69 @@
 
 namespace visloc::mapping {
 
+namespace {
+
+inline float Bilinear(const cv::Mat& image, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* r0 = image.ptr<float>(y0);
+  const float* r1 = image.ptr<float>(y0 + 1);
+  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
+         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
+}
+
+}  // namespace
+
+bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, double x, double y, int radius,
+                     double* d) {
+  const int margin = radius + 2;
+  if (x < margin || y < margin || x >= left.cols - margin || y >= left.rows - margin) return false;
+  const int n = (2 * radius + 1) * (2 * radius + 1);
+  std::vector<float> template_values(n);
+  double template_mean = 0;
+  int k = 0;
+  for (int v = -radius; v <= radius; ++v) {
+    for (int u = -radius; u <= radius; ++u, ++k) {
+      template_values[k] = Bilinear(left, x + u, y + v);
+      template_mean += template_values[k];
+    }
+  }
+  template_mean /= n;
+  double disparity = *d;
+  std::vector<float> values(n), gradients(n);
+  for (int iteration = 0; iteration < 8; ++iteration) {
+    const double xr = x - disparity;
+    if (xr < margin || xr >= right.cols - margin) return false;
+    double mean = 0;
+    k = 0;
+    for (int v = -radius; v <= radius; ++v) {
+      for (int u = -radius; u <= radius; ++u, ++k) {
+        values[k] = Bilinear(right, xr + u, y + v);
+        gradients[k] =
+            0.5f * (Bilinear(right, xr + u + 1, y + v) - Bilinear(right, xr + u - 1, y + v));
+        mean += values[k];
+      }
+    }
+    mean /= n;
+    // r_k = (I_r(x - d + u) - mean_r) - (I_l(x + u) - mean_l); dr/dd = -g_k.
+    double jtj = 0, jtr = 0;
+    for (k = 0; k < n; ++k) {
+      const double r = (values[k] - mean) - (template_values[k] - template_mean);
+      jtj += gradients[k] * gradients[k];
+      jtr += -gradients[k] * r;
+    }
+    if (jtj < 1e-9) return false;
+    const double step = -jtr / jtj;
+    disparity += step;
+    if (std::abs(step) < 1e-3) {
+      *d = disparity;
+      return true;
+    }
+  }
+  *d = disparity;
+  return true;
+}
+
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options) {
@@ -67,6 +130,13 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     }
   }
 
+  cv::Mat left_rect_image, right_rect_image;
+  if (options.refine_patch_radius_px > 0) {
+    cv::Mat left_8u, right_8u;
+    rectifier.Rectify(left_raw, right_raw, &left_8u, &right_8u);
+    left_8u.convertTo(left_rect_image, CV_32F);
+    right_8u.convertTo(right_rect_image, CV_32F);
+  }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   frame.right_x_rect.assign(n, nan);
   frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
@@ -74,11 +144,20 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     const int j = left_to_right[i];
     if (j < 0 || right_best_left[j] != static_cast<int>(i)) continue;
     const Eigen::Vector2d& l = frame.left_rect[i];
-    // Use the mean row of both views: the rectification residual splits evenly.
-    const double v = 0.5 * (l.y() + right_rect[j].y());
-    const double disparity = l.x() - right_rect[j].x();
+    double disparity = l.x() - right_rect[j].x();
+    if (options.refine_patch_radius_px > 0) {
+      double refined = disparity;
+      if (!RefineDisparity(left_rect_image, right_rect_image, l.x(), l.y(),
+                           options.refine_patch_radius_px, &refined) ||
+          std::abs(refined - disparity) > options.refine_max_shift_px || refined < min_disparity ||
+          refined > max_disparity) {
+        continue;
+      }
+      disparity = refined;
+    }
+    const double v = l.y();
     const double z = f * baseline / disparity;
-    frame.right_x_rect[i] = right_rect[j].x();
+    frame.right_x_rect[i] = l.x() - disparity;
     frame.point_in_rect[i] =
         Eigen::Vector3d((l.x() - rect.cx()) * z / f, (v - rect.cy()) * z / rect.fy(), z);
     ++frame.stereo_matches;

@@ -21,6 +21,10 @@ Texture::Texture(const cv::Mat& albedo, double texel_size_m) : texel_size_m_(tex
                cv::INTER_AREA);
     levels_.push_back(next);
   }
+  for (const cv::Mat& level : levels_) {
+    texel_u_m_.push_back(texel_size_m * levels_[0].cols / level.cols);
+    texel_v_m_.push_back(texel_size_m * levels_[0].rows / level.rows);
+  }
 }
 
 float Texture::Bilinear(int level, double u_texels, double v_texels) const {
@@ -47,10 +51,9 @@ float Texture::Sample(double u_m, double v_m, double footprint_m) const {
   const int l0 = std::min(static_cast<int>(level), max_level);
   const int l1 = std::min(l0 + 1, max_level);
   const float blend = static_cast<float>(std::min(level - l0, 1.0));
-  const double scale0 = 1.0 / (texel_size_m_ * (1 << l0));
-  const float a = Bilinear(l0, u_m * scale0, v_m * scale0);
+  const float a = Bilinear(l0, u_m / texel_u_m_[l0], v_m / texel_v_m_[l0]);
   if (blend <= 0.0f || l1 == l0) return a;
-  const float b = Bilinear(l1, u_m * scale0 * 0.5, v_m * scale0 * 0.5);
+  const float b = Bilinear(l1, u_m / texel_u_m_[l1], v_m / texel_v_m_[l1]);
   return a + blend * (b - a);
 }
 

@@ -28,7 +28,10 @@ class Texture {
 
  private:
   float Bilinear(int level, double u_texels, double v_texels) const;
-  std::vector<cv::Mat> levels_;  // CV_8UC1, each half the previous size.
+  std::vector<cv::Mat> levels_;  // CV_8UC1, each about half the previous size.
+  // Each level's own texel size along u and v: sizes do not halve exactly when odd, and the
+  // texture must stay in place on the surface at every level.
+  std::vector<double> texel_u_m_, texel_v_m_;
   double texel_size_m_;
 };
 

@@ -34,5 +34,24 @@ TEST(TextureTest, LargeFootprintAveragesFineDetail) {
   EXPECT_NEAR(texture.Sample(0.3, 0.3, 0.16), 0.5, 0.02);
 }
 
+TEST(TextureTest, DetailStaysInPlaceAtEveryMipLevel) {
+  // Odd sizes do not halve exactly (750 -> 375 -> 187 -> 93): a regression test for features
+  // that slid across coarse mip levels, which made a camera walking closer see apparent motion.
+  constexpr double kTexel = 0.004;
+  cv::Mat albedo(750, 101, CV_8UC1, cv::Scalar(220));
+  albedo.rowRange(598, 602).setTo(cv::Scalar(20));  // a dark line centred at v = 600 texels
+  const Texture texture(albedo, kTexel);
+  const double expected_v = 600.0 * kTexel;
+  for (double footprint : {0.001, 0.009, 0.017, 0.033, 0.065}) {
+    double sum = 0, weighted = 0;
+    for (double v = expected_v - 0.3; v <= expected_v + 0.3; v += 0.0005) {
+      const double darkness = 1.0 - texture.Sample(0.2, v, footprint);
+      sum += darkness;
+      weighted += darkness * v;
+    }
+    EXPECT_NEAR(weighted / sum, expected_v, 0.25 * kTexel) << "footprint " << footprint;
+  }
+}
+
 }  // namespace
 }  // namespace visloc::sim

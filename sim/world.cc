@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/util/check.h"
 #include "core/util/random.h"
@@ -95,6 +96,17 @@ void AppendBoxFaces(const Box& box, std::vector<Surface>* surfaces) {
   surfaces->push_back(
       MakeSurface(corner + top + Eigen::Vector3d(sx, 0, 0), y, down, sy, sz, box.texture));  // +x
   surfaces->push_back(MakeSurface(corner + top, x, y, sx, sy, box.texture));                 // top
+}
+
+double DistanceToNearestSurface(const World& world, const Eigen::Vector3d& point_in_world) {
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const Surface& s : world.surfaces) {
+    const Eigen::Vector3d offset = point_in_world - s.origin;
+    const double a = std::clamp(offset.dot(s.u_axis), 0.0, s.size_u_m);
+    const double b = std::clamp(offset.dot(s.v_axis), 0.0, s.size_v_m);
+    nearest = std::min(nearest, (point_in_world - s.PointAt(a, b)).norm());
+  }
+  return nearest;
 }
 
 std::vector<Surface> World::SurfacesAt(double time_s) const {

@@ -79,6 +79,10 @@ World MakeRoom(const RoomOptions& options);
 // Appends the 5 visible faces (4 sides and the top) of `box` to `surfaces`.
 void AppendBoxFaces(const Box& box, std::vector<Surface>* surfaces);
 
+// Distance (metres) from `point_in_world` to the nearest static surface: the true scene
+// geometry that map points are checked against.
+double DistanceToNearestSurface(const World& world, const Eigen::Vector3d& point_in_world);
+
 // Lambertian shading with a fixed light from above: faces differ in brightness, so box edges
 // stay visible where the albedo alone would not show them.
 float ShadeForNormal(const Eigen::Vector3d& normal);

@@ -80,6 +80,56 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
   }
 }
 
+// Moves corners found at coarser scales to the nearest maximum of the finest scale's response
+// within their scale (with its sub-pixel fit): a blurred corner's response peak is displaced
+// from the physical corner by an amount that depends on the view, so coarse positions would
+// slide as the camera approaches. Corners without a fine maximum nearby keep their position.
+void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* keypoints,
+                           double finest_scale) {
+  const int rows = fine_response.rows, cols = fine_response.cols;
+  for (Keypoint& k : *keypoints) {
+    if (k.scale_px <= finest_scale) continue;
+    const int radius = std::max(1, static_cast<int>(std::lround(k.scale_px)));
+    const int cx = static_cast<int>(std::lround(k.pixel.x())),
+              cy = static_cast<int>(std::lround(k.pixel.y()));
+    int best_x = -1, best_y = -1;
+    float best = 0.0f;
+    double best_distance = 1e9;
+    for (int y = std::max(1, cy - radius); y <= std::min(rows - 2, cy + radius); ++y) {
+      for (int x = std::max(1, cx - radius); x <= std::min(cols - 2, cx + radius); ++x) {
+        const float r = fine_response.at<float>(y, x);
+        if (r <= 0) continue;
+        bool is_max = true;
+        for (int dy = -1; dy <= 1 && is_max; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            if ((dx || dy) && fine_response.at<float>(y + dy, x + dx) > r) {
+              is_max = false;
+              break;
+            }
+          }
+        }
+        const double distance = std::hypot(x - k.pixel.x(), y - k.pixel.y());
+        if (is_max && distance < best_distance) {
+          best_distance = distance;
+          best = r;
+          best_x = x;
+          best_y = y;
+        }
+      }
+    }
+    if (best_x < 0 || best <= 0) continue;
+    const float* up = fine_response.ptr<float>(best_y - 1);
+    const float* mid = fine_response.ptr<float>(best_y);
+    const float* down = fine_response.ptr<float>(best_y + 1);
+    const float dx = 0.5f * (mid[best_x + 1] - mid[best_x - 1]),
+                dxx = mid[best_x + 1] - 2 * mid[best_x] + mid[best_x - 1];
+    const float dy = 0.5f * (down[best_x] - up[best_x]),
+                dyy = down[best_x] - 2 * mid[best_x] + up[best_x];
+    k.pixel = Eigen::Vector2f(best_x + (dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f),
+                              best_y + (dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f));
+  }
+}
+
 // Removes corners that a stronger corner (at another scale) already covers.
 std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
   std::sort(keypoints.begin(), keypoints.end(),
@@ -157,6 +207,9 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   for (size_t i = 0; i < responses.size(); ++i) {
     FindMaxima(responses[i], threshold, options_.scales_px[i], border, &keypoints);
   }
+  const size_t finest = std::min_element(options_.scales_px.begin(), options_.scales_px.end()) -
+                        options_.scales_px.begin();
+  LocalizeAtFinestScale(responses[finest], &keypoints, options_.scales_px[finest]);
   keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
   if (detected) *detected = static_cast<int>(keypoints.size());
   return SelectEvenly(std::move(keypoints), grey.size(), options_.grid_cols, options_.grid_rows,
