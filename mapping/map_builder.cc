@@ -90,26 +90,20 @@ std::vector<MapBuilder::Match> MapBuilder::MatchLandmarks(const StereoFrame& fra
     if (!rect.IsInImage(projected)) continue;
     const auto& [ref_k, ref_i] = landmark.observations.back();
     const cv::Mat& ref_descriptors = state_.keyframes[ref_k].features.descriptors;
-    float best = std::numeric_limits<float>::max(), second = best;
-    int best_i = -1;
+    NearestTwo nearest;
     const int gx = static_cast<int>(projected.x() / cell),
               gy = static_cast<int>(projected.y() / cell);
     for (int y = std::max(0, gy - 1); y <= std::min(rows - 1, gy + 1); ++y) {
       for (int x = std::max(0, gx - 1); x <= std::min(cols - 1, gx + 1); ++x) {
         for (int i : grid[y * cols + x]) {
           if ((frame.left_rect[i] - projected).squaredNorm() > radius_px * radius_px) continue;
-          const float d = DescriptorDistance(ref_descriptors, ref_i, frame.left.descriptors, i);
-          if (d < best) {
-            second = best;
-            best = d;
-            best_i = i;
-          } else if (d < second) {
-            second = d;
-          }
+          nearest.Offer(DescriptorDistance(ref_descriptors, ref_i, frame.left.descriptors, i), i);
         }
       }
     }
-    if (best_i < 0 || best > max_distance || best > options_.match_ratio * second) continue;
+    if (!nearest.Distinctive(options_.match_ratio, max_distance)) continue;
+    const int best_i = nearest.best_index;
+    const float best = nearest.best;
     if (best < best_for_feature[best_i].second) best_for_feature[best_i] = {l, best};
   }
   std::vector<Match> matches;

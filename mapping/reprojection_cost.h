@@ -21,6 +21,17 @@ struct RectifiedIntrinsics {
   double baseline_m = 0.0;
 };
 
+// p = R X + t for the parameter layout above.
+template <typename T>
+void TransformToCamera(const T* rotation, const T* translation, const T* point, T* p) {
+  // ceres::QuaternionRotatePoint expects (w, x, y, z); Eigen stores (x, y, z, w).
+  const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
+  ceres::QuaternionRotatePoint(q, point, p);
+  p[0] += translation[0];
+  p[1] += translation[1];
+  p[2] += translation[2];
+}
+
 class StereoReprojectionCost {
  public:
   StereoReprojectionCost(const Eigen::Vector2d& left_px, double right_x_px,
@@ -30,12 +41,7 @@ class StereoReprojectionCost {
   template <typename T>
   bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
     T p[3];
-    // ceres::QuaternionRotatePoint expects (w, x, y, z); Eigen stores (x, y, z, w).
-    const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
-    ceres::QuaternionRotatePoint(q, point, p);
-    p[0] += translation[0];
-    p[1] += translation[1];
-    p[2] += translation[2];
+    TransformToCamera(rotation, translation, point, p);
     const T inverse_z = T(1.0) / p[2];
     residuals[0] = T(k_.f) * p[0] * inverse_z + T(k_.cx) - T(left_px_.x());
     residuals[1] = T(k_.f) * p[1] * inverse_z + T(k_.cy) - T(left_px_.y());
@@ -63,11 +69,7 @@ class MonoReprojectionCost {
   template <typename T>
   bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
     T p[3];
-    const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
-    ceres::QuaternionRotatePoint(q, point, p);
-    p[0] += translation[0];
-    p[1] += translation[1];
-    p[2] += translation[2];
+    TransformToCamera(rotation, translation, point, p);
     residuals[0] = T(k_.f) * p[0] / p[2] + T(k_.cx) - T(left_px_.x());
     residuals[1] = T(k_.f) * p[1] / p[2] + T(k_.cy) - T(left_px_.y());
     return true;

@@ -105,23 +105,17 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     const Eigen::Vector2d& l = frame.left_rect[i];
     auto it = std::lower_bound(right_rows.begin(), right_rows.end(),
                                std::make_pair(l.y() - options.max_row_difference_px, -1));
-    float best = std::numeric_limits<float>::max(), second = best;
-    int best_j = -1;
+    NearestTwo nearest;
     for (; it != right_rows.end() && it->first <= l.y() + options.max_row_difference_px; ++it) {
       const int j = it->second;
       const double disparity = l.x() - right_rect[j].x();
       if (disparity < min_disparity || disparity > max_disparity) continue;
-      const float d =
-          DescriptorDistance(frame.left.descriptors, static_cast<int>(i), right.descriptors, j);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = j;
-      } else if (d < second) {
-        second = d;
-      }
+      nearest.Offer(
+          DescriptorDistance(frame.left.descriptors, static_cast<int>(i), right.descriptors, j), j);
     }
-    if (best_j < 0 || best > max_distance || best > options.ratio * second) continue;
+    if (!nearest.Distinctive(options.ratio, max_distance)) continue;
+    const int best_j = nearest.best_index;
+    const float best = nearest.best;
     left_to_right[i] = best_j;
     best_distance[i] = best;
     if (best < right_best_distance[best_j]) {

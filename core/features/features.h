@@ -11,6 +11,7 @@
 // Both spread features evenly over the image (per-cell quotas), as the paper's "intelligent
 // management" of features does.
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -55,5 +56,26 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
 
 // Descriptor distance: L2 for float rows, Hamming for binary rows.
 float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b);
+
+// Keeps the nearest and second-nearest candidates of a descriptor search, for Lowe's ratio test
+// (a match is distinctive when best < ratio * second).
+struct NearestTwo {
+  float best = std::numeric_limits<float>::max();
+  float second = std::numeric_limits<float>::max();
+  int best_index = -1;
+  void Offer(float distance, int index) {
+    if (distance < best) {
+      second = best;
+      best = distance;
+      best_index = index;
+    } else if (distance < second) {
+      second = distance;
+    }
+  }
+  // True when there is a best candidate within `max_distance` that passes the ratio test.
+  bool Distinctive(float ratio, float max_distance) const {
+    return best_index >= 0 && best <= max_distance && best <= ratio * second;
+  }
+};
 
 }  // namespace visloc

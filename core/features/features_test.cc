@@ -85,20 +85,13 @@ TEST_P(FeatureKindTest, EvenlySpreadRepeatableAndMatchable) {
       ++repeated;
       errors.push_back(nearest);
     }
-    float best = 1e9, second = 1e9;
-    int best_j = -1;
+    NearestTwo candidates;
     for (int j = 0; j < static_cast<int>(b.size()); ++j) {
       if ((b.keypoints[j].pixel.cast<double>() - expected).norm() > 30) continue;  // search window
-      const float d = DescriptorDistance(a.descriptors, static_cast<int>(i), b.descriptors, j);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_j = j;
-      } else if (d < second) {
-        second = d;
-      }
+      candidates.Offer(DescriptorDistance(a.descriptors, static_cast<int>(i), b.descriptors, j), j);
     }
-    if (best_j >= 0 && best < 0.8f * second) {
+    const int best_j = candidates.best_index;
+    if (candidates.Distinctive(0.8f, std::numeric_limits<float>::max())) {
       ++matched;
       if ((b.keypoints[best_j].pixel.cast<double>() - expected).norm() < 2.0) ++correct;
     }
