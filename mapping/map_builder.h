@@ -34,9 +34,10 @@ struct MapBuilderOptions {
   float match_ratio = 0.85f;
   double keyframe_translation_m = 0.15;
   double keyframe_rotation_deg = 5.0;
-  int keyframe_min_tracked = 60;  // Fewer tracked inliers also make a keyframe.
-  int local_window = 10;          // N_k
-  int local_free = 3;             // n_k
+  int keyframe_min_tracked = 60;    // Fewer tracked inliers also make a keyframe.
+  double track_max_error_px = 2.0;  // A landmark match must reproject this close to be tracked.
+  int local_window = 10;            // N_k
+  int local_free = 3;               // n_k
   BundleAdjustmentOptions local_ba;
   bool loop_closure = true;
   double loop_radius_m = 0.7;

@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Dense>
+#include <opencv2/imgproc.hpp>
+
 namespace visloc::mapping {
 
 namespace {
@@ -19,8 +22,8 @@ inline float Bilinear(const cv::Mat& image, double x, double y) {
 
 }  // namespace
 
-bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, double x, double y, int radius,
-                     double* d) {
+bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& right_gradient_x,
+                     double x, double y, int radius, double* d) {
   const int margin = radius + 2;
   if (x < margin || y < margin || x >= left.cols - margin || y >= left.rows - margin) return false;
   const int n = (2 * radius + 1) * (2 * radius + 1);
@@ -34,38 +37,46 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, double x, double
     }
   }
   template_mean /= n;
-  double disparity = *d;
+  // Disparity varies across the patch on slanted surfaces (the floor, the ceiling), so it is
+  // modelled as d(u, v) = d0 + gu u + gv v over patch offsets (u, v); d0 is the disparity at the
+  // patch centre. A pure shift would absorb the gradient as a bias.
+  Eigen::Vector3d params(*d, 0.0, 0.0);
   std::vector<float> values(n), gradients(n);
-  for (int iteration = 0; iteration < 8; ++iteration) {
-    const double xr = x - disparity;
-    if (xr < margin || xr >= right.cols - margin) return false;
+  for (int iteration = 0; iteration < 10; ++iteration) {
     double mean = 0;
     k = 0;
     for (int v = -radius; v <= radius; ++v) {
       for (int u = -radius; u <= radius; ++u, ++k) {
-        values[k] = Bilinear(right, xr + u, y + v);
-        gradients[k] =
-            0.5f * (Bilinear(right, xr + u + 1, y + v) - Bilinear(right, xr + u - 1, y + v));
+        const double xr = x + u - (params[0] + params[1] * u + params[2] * v);
+        if (xr < 1 || xr >= right.cols - 2) return false;
+        values[k] = Bilinear(right, xr, y + v);
+        gradients[k] = Bilinear(right_gradient_x, xr, y + v);
         mean += values[k];
       }
     }
     mean /= n;
-    // r_k = (I_r(x - d + u) - mean_r) - (I_l(x + u) - mean_l); dr/dd = -g_k.
-    double jtj = 0, jtr = 0;
-    for (k = 0; k < n; ++k) {
-      const double r = (values[k] - mean) - (template_values[k] - template_mean);
-      jtj += gradients[k] * gradients[k];
-      jtr += -gradients[k] * r;
+    // r_k = (I_r(x + u - d(u, v)) - mean_r) - (I_l(x + u) - mean_l); dr/dparams = -g_k (1, u, v).
+    Eigen::Matrix3d jtj = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d jtr = Eigen::Vector3d::Zero();
+    k = 0;
+    for (int v = -radius; v <= radius; ++v) {
+      for (int u = -radius; u <= radius; ++u, ++k) {
+        const double r = (values[k] - mean) - (template_values[k] - template_mean);
+        const Eigen::Vector3d j = -gradients[k] * Eigen::Vector3d(1.0, u, v);
+        jtj += j * j.transpose();
+        jtr += j * r;
+      }
     }
-    if (jtj < 1e-9) return false;
-    const double step = -jtr / jtj;
-    disparity += step;
-    if (std::abs(step) < 1e-3) {
-      *d = disparity;
-      return true;
-    }
+    if (jtj(0, 0) < 1e-9) return false;
+    jtj.diagonal() +=
+        Eigen::Vector3d(0, 1e-3, 1e-3) * jtj(0, 0);  // keep gradients small unless needed
+    const Eigen::Vector3d step = jtj.ldlt().solve(-jtr);
+    if (!step.allFinite()) return false;
+    params += step;
+    if (std::abs(step[0]) < 1e-3) break;
   }
-  *d = disparity;
+  if (std::abs(params[1]) > 0.5 || std::abs(params[2]) > 0.5) return false;  // not a surface
+  *d = params[0];
   return true;
 }
 
@@ -124,12 +135,16 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     }
   }
 
-  cv::Mat left_rect_image, right_rect_image;
+  cv::Mat left_rect_image, right_rect_image, right_gradient_x;
   if (options.refine_patch_radius_px > 0) {
     cv::Mat left_8u, right_8u;
     rectifier.Rectify(left_raw, right_raw, &left_8u, &right_8u);
     left_8u.convertTo(left_rect_image, CV_32F);
     right_8u.convertTo(right_rect_image, CV_32F);
+    // Central difference, as the alignment's linearization assumes.
+    const cv::Mat kernel = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
+    cv::filter2D(right_rect_image, right_gradient_x, CV_32F, kernel, cv::Point(-1, -1), 0,
+                 cv::BORDER_REPLICATE);
   }
   const double nan = std::numeric_limits<double>::quiet_NaN();
   frame.right_x_rect.assign(n, nan);
@@ -141,7 +156,7 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     double disparity = l.x() - right_rect[j].x();
     if (options.refine_patch_radius_px > 0) {
       double refined = disparity;
-      if (!RefineDisparity(left_rect_image, right_rect_image, l.x(), l.y(),
+      if (!RefineDisparity(left_rect_image, right_rect_image, right_gradient_x, l.x(), l.y(),
                            options.refine_patch_radius_px, &refined) ||
           std::abs(refined - disparity) > options.refine_max_shift_px || refined < min_disparity ||
           refined > max_disparity) {

@@ -23,10 +23,11 @@ struct StereoMatchOptions {
   double max_depth_m = 12.0;             // Farther points have too little disparity to triangulate.
   float ratio = 0.8f;                    // Best / second-best descriptor distance.
   float max_descriptor_distance = 0.6f;  // For unit float descriptors; binary: bits * 0.25.
-  // Disparity refinement: the left patch is aligned along the right image's row by 1-D
-  // Gauss-Newton on the zero-mean SSD, which measures disparity to a few hundredths of a
-  // pixel where independent corner positions disagree by a tenth. 0 disables it.
-  int refine_patch_radius_px = 5;
+  // Disparity refinement: the left patch is aligned along the right image's row by Gauss-Newton
+  // on the zero-mean SSD, with the disparity allowed to vary linearly across the patch (slanted
+  // surfaces); this measures disparity to a few hundredths of a pixel where independent corner
+  // positions disagree by a tenth. 0 disables it.
+  int refine_patch_radius_px = 7;
   double refine_max_shift_px = 1.0;  // Larger corrections mean a wrong match: rejected.
 };
 
