@@ -3,6 +3,7 @@
 #include "core/geometry/trajectory.h"
 #include "core/map/synthetic_map.h"
 #include "core/map/visibility_kernel.h"
+#include "core/util/check.h"
 #include "core/util/random.h"
 #include "core/util/temp_dir.h"
 #include "dataset/tum.h"
@@ -118,9 +119,13 @@ TEST(StereoFrameTest, TriangulatedDepthMatchesTheRenderedDepth) {
   EXPECT_LT(static_cast<double>(wrong) / errors_px.size(), 0.03);
 }
 
-TEST(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
+class MapBuilderTest : public ::testing::TestWithParam<bool> {};
+
+// With and without lens distortion: rectification and raw-pixel observations must agree.
+TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
   TempDir dir;
   sim::GenerateOptions options;
+  options.rig.distortion = GetParam();
   options.max_frames = 45;  // 3 s of walking, ~0.6 m
   options.contact_sheet = false;
   const sim::GenerateStats generated =
@@ -144,6 +149,20 @@ TEST(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
   EXPECT_GE(stats.keyframes, 3);  // ~0.6 m at one keyframe per 0.15 m
   EXPECT_LT(stats.reprojection_rmse_px, 0.6);
   EXPECT_TRUE(FindMapProblems(map).empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(PinholeAndDistorted, MapBuilderTest, ::testing::Bool());
+
+TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
+  TempDir dir;
+  sim::GenerateOptions options;
+  options.max_frames = 2;
+  options.contact_sheet = false;
+  const sim::GenerateStats generated =
+      sim::SequenceGenerator(options).Generate("straight", dir.path());
+  Dataset dataset = ReadDataset(generated.dir);
+  dataset.right.reset();
+  EXPECT_THROW(BuildMap(dataset, MapBuilderOptions{}, {"m", 0, "", ""}, nullptr), InputError);
 }
 
 TEST(VisibilityLearningTest, KernelRanksKeyframePairsByOverlap) {
