@@ -1,6 +1,7 @@
 #include "mapping/bundle_adjustment.h"
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 
@@ -8,20 +9,34 @@
 
 namespace visloc::mapping {
 
-double ObservationErrorPx(const SlamState& state, int l, int k, int i,
-                          const RectifiedIntrinsics& intrinsics) {
+ObservationError ObservationErrors(const SlamState& state, int l, int k, int i,
+                                   const RectifiedIntrinsics& intrinsics) {
   const SlamKeyframe& keyframe = state.keyframes[k];
   const Eigen::Vector3d p = keyframe.cam_from_world * state.landmarks[l].position_in_world;
-  if (p.z() <= 1e-6) return 1e9;
+  ObservationError error;
+  if (p.z() <= 1e-6) return {1e9, 1e9};
   const Eigen::Vector2d projected(intrinsics.f * p.x() / p.z() + intrinsics.cx,
                                   intrinsics.f * p.y() / p.z() + intrinsics.cy);
-  double error = (projected - keyframe.left_rect[i]).norm();
+  error.left_px = (projected - keyframe.left_rect[i]).norm();
+  error.disparity_px = std::numeric_limits<double>::quiet_NaN();
   if (std::isfinite(keyframe.right_x_rect[i])) {
-    const double right = intrinsics.f * (p.x() - intrinsics.baseline_m) / p.z() + intrinsics.cx;
-    error = std::max(error, std::abs(right - keyframe.right_x_rect[i]));
+    const double measured = keyframe.left_rect[i].x() - keyframe.right_x_rect[i];
+    error.disparity_px = std::abs(intrinsics.f * intrinsics.baseline_m / p.z() - measured);
   }
   return error;
 }
+
+namespace {
+
+// An observation stays when both errors, in the units bundle adjustment weighs them in, are
+// within the threshold.
+bool WithinThreshold(const ObservationError& e, const BundleAdjustmentOptions& options) {
+  return e.left_px <= options.cull_error_px &&
+         (!std::isfinite(e.disparity_px) ||
+          options.disparity_weight * e.disparity_px <= options.cull_error_px);
+}
+
+}  // namespace
 
 BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& free_keyframes,
                                      const std::vector<int>& fixed_keyframes,
@@ -58,10 +73,11 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       const double right_x = keyframe.right_x_rect[i];
       ceres::CostFunction* cost =
           std::isfinite(right_x)
-              ? StereoReprojectionCost::Create(keyframe.left_rect[i], right_x, intrinsics)
+              ? StereoReprojectionCost::Create(keyframe.left_rect[i], right_x, intrinsics,
+                                               options.disparity_weight)
               : MonoReprojectionCost::Create(keyframe.left_rect[i], intrinsics);
       problem.AddResidualBlock(cost, loss, pose, pose + 4, landmark.position_in_world.data());
-      const double e = ObservationErrorPx(*state, l, k, i, intrinsics);
+      const double e = ObservationErrors(*state, l, k, i, intrinsics).left_px;
       initial_sq += e * e;
       ++residual_count;
     }
@@ -98,12 +114,12 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
     Landmark& landmark = state->landmarks[l];
     std::vector<std::pair<int, int>> kept;
     for (const auto& [k, i] : landmark.observations) {
-      const double e = ObservationErrorPx(*state, l, k, i, intrinsics);
+      const ObservationError e = ObservationErrors(*state, l, k, i, intrinsics);
       if (window.count(k)) {
-        final_sq += std::min(e * e, 100.0);
+        final_sq += std::min(e.left_px * e.left_px, 100.0);
         ++final_count;
       }
-      if (e <= options.cull_error_px) {
+      if (WithinThreshold(e, options)) {
         kept.emplace_back(k, i);
       } else {
         state->keyframes[k].landmark[i] = -1;

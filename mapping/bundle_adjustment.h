@@ -13,6 +13,7 @@ namespace visloc::mapping {
 
 struct BundleAdjustmentOptions {
   double huber_px = 2.0;
+  double disparity_weight = 8.0;  // sigma_keypoint / sigma_disparity (see reprojection_cost.h).
   int max_iterations = 15;
   double cull_error_px = 3.0;  // Afterwards: drop observations above this; paper: 3 px.
 };
@@ -22,7 +23,7 @@ struct BundleAdjustmentSummary {
   int landmarks = 0;
   int residual_blocks = 0;
   int iterations = 0;
-  double initial_rmse_px = 0.0;
+  double initial_rmse_px = 0.0;  // Left image reprojection error.
   double final_rmse_px = 0.0;
   int culled_observations = 0;
   double time_ms = 0.0;
@@ -33,9 +34,13 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
                                      const RectifiedIntrinsics& intrinsics,
                                      const BundleAdjustmentOptions& options);
 
-// Reprojection error (px) of landmark `l` in keyframe `k`'s keypoint `i`: the larger of the
-// left and right image errors.
-double ObservationErrorPx(const SlamState& state, int l, int k, int i,
-                          const RectifiedIntrinsics& intrinsics);
+struct ObservationError {
+  double left_px = 0.0;       // Reprojection error in the (rectified) left image.
+  double disparity_px = 0.0;  // |predicted - measured disparity|; NaN for a mono observation.
+};
+
+// Errors of landmark `l` as observed by keyframe `k`'s keypoint `i`.
+ObservationError ObservationErrors(const SlamState& state, int l, int k, int i,
+                                   const RectifiedIntrinsics& intrinsics);
 
 }  // namespace visloc::mapping

@@ -163,6 +163,7 @@ void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const c
   pnp.seed = static_cast<uint64_t>(stats_.frames);
   pnp.refine.focal_px = intrinsics_.f;
   pnp.refine.baseline_m = intrinsics_.baseline_m;
+  pnp.refine.disparity_weight = options_.local_ba.disparity_weight;
   const PnpResult result = SolvePnpRansac(ToObservations(state_, frame, pairs, intrinsics_), pnp);
   Rigid3d pose = predicted;
   std::vector<Match> tracked;
@@ -175,8 +176,7 @@ void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const c
         ToObservations(state_, frame, pairs, intrinsics_);
     pose = RefinePose(result.cam_from_world, observations, pnp.refine);
     for (size_t j = 0; j < matches.size(); ++j) {
-      if (SquaredReprojectionErrorPx(pose, observations[j], intrinsics_.f,
-                                     intrinsics_.baseline_m) <= 4.0) {
+      if (SquaredReprojectionErrorPx(pose, observations[j], pnp.refine) <= 4.0) {  // within 2 px
         tracked.push_back(matches[j]);
       }
     }
@@ -284,6 +284,7 @@ void MapBuilder::TryLoopClosure() {
     pnp.min_inliers = options_.loop_min_inliers;
     pnp.refine.focal_px = intrinsics_.f;
     pnp.refine.baseline_m = intrinsics_.baseline_m;
+    pnp.refine.disparity_weight = options_.local_ba.disparity_weight;
     const PnpResult result = SolvePnpRansac(ToObservations(state_, view, pairs, intrinsics_), pnp);
     if (!result.success) continue;
     // Geometrically verified: the current keypoints are the old landmarks. Merge tracks.
@@ -390,8 +391,8 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
   }
   std::vector<int> point_of_landmark(state_.landmarks.size(), -1);
   std::vector<int> descriptor_source;
-  double error_sq = 0;
-  int error_count = 0;
+  double error_sq = 0, disparity_sq = 0;
+  int error_count = 0, disparity_count = 0;
   for (size_t l = 0; l < state_.landmarks.size(); ++l) {
     const Landmark& landmark = state_.landmarks[l];
     if (landmark.culled ||
@@ -403,16 +404,21 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
     point.observation_count = static_cast<uint32_t>(landmark.observations.size());
     double sum = 0;
     for (const auto& [k, i] : landmark.observations) {
-      const double e = ObservationErrorPx(state_, static_cast<int>(l), k, i, intrinsics_);
-      sum += e;
-      error_sq += e * e;
+      const ObservationError e = ObservationErrors(state_, static_cast<int>(l), k, i, intrinsics_);
+      sum += e.left_px;
+      error_sq += e.left_px * e.left_px;
       ++error_count;
+      if (std::isfinite(e.disparity_px)) {
+        disparity_sq += e.disparity_px * e.disparity_px;
+        ++disparity_count;
+      }
     }
     point.mean_reproj_error_px = static_cast<float>(sum / landmark.observations.size());
     map.points.push_back(point);
     descriptor_source.push_back(static_cast<int>(l));
   }
   stats_.reprojection_rmse_px = error_count ? std::sqrt(error_sq / error_count) : 0.0;
+  stats_.disparity_rmse_px = disparity_count ? std::sqrt(disparity_sq / disparity_count) : 0.0;
   const cv::Mat& any = state_.keyframes[0].features.descriptors;
   map.descriptors = cv::Mat(static_cast<int>(map.points.size()), any.cols, any.type());
   for (size_t p = 0; p < descriptor_source.size(); ++p) {

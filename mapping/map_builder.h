@@ -59,7 +59,8 @@ struct MapBuildStats {
   int points = 0;
   int observations = 0;
   int loop_closures = 0;
-  double reprojection_rmse_px = 0.0;  // After global BA.
+  double reprojection_rmse_px = 0.0;  // Left image, after global BA.
+  double disparity_rmse_px = 0.0;     // Predicted vs measured disparity, after global BA.
   VisibilityLearningStats visibility;
   double features_ms = 0, tracking_ms = 0, local_ba_ms = 0, loop_ms = 0, global_ba_ms = 0,
          learning_ms = 0, total_ms = 0;

@@ -49,8 +49,8 @@ void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor
 TEST(ReprojectionCostTest, StereoJacobiansMatchNumericDerivatives) {
   const Eigen::Vector2d left(170.0, 100.0);
   ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3>(
-      StereoReprojectionCost::Create(left, 160.0, kIntrinsics),
-      new StereoReprojectionCost(left, 160.0, kIntrinsics));
+      StereoReprojectionCost::Create(left, 160.0, kIntrinsics, 8.0),
+      new StereoReprojectionCost(left, 160.0, kIntrinsics, 8.0));
 }
 
 TEST(ReprojectionCostTest, MonoJacobiansMatchNumericDerivatives) {
@@ -64,7 +64,7 @@ TEST(ReprojectionCostTest, ZeroAtTheTruePose) {
   const Eigen::Vector2d left(kIntrinsics.f * 0.3 / 2.5 + kIntrinsics.cx,
                              kIntrinsics.f * -0.2 / 2.5 + kIntrinsics.cy);
   const double right_x = kIntrinsics.f * (0.3 - 0.144) / 2.5 + kIntrinsics.cx;
-  StereoReprojectionCost cost(left, right_x, kIntrinsics);
+  StereoReprojectionCost cost(left, right_x, kIntrinsics, 8.0);
   const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0};
   double residuals[3];
   cost(rotation, translation, point.data(), residuals);

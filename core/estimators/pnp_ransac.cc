@@ -23,8 +23,7 @@ int CountInliers(const Rigid3d& pose, const std::vector<PoseObservation>& observ
   int count = 0;
   if (mask) mask->assign(observations.size(), 0);
   for (size_t i = 0; i < observations.size(); ++i) {
-    if (SquaredReprojectionErrorPx(pose, observations[i], options.refine.focal_px,
-                                   options.refine.baseline_m) <= threshold_sq) {
+    if (SquaredReprojectionErrorPx(pose, observations[i], options.refine) <= threshold_sq) {
       ++count;
       if (mask) (*mask)[i] = 1;
     }

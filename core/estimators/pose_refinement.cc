@@ -87,16 +87,17 @@ double Rmse(const NormalEquations& ne) {
 }  // namespace
 
 double SquaredReprojectionErrorPx(const Rigid3d& cam_from_world, const PoseObservation& o,
-                                  double focal_px, double baseline_m) {
+                                  const PoseRefineOptions& options) {
   const Eigen::Vector3d p = cam_from_world * o.point_in_world;
   if (p.z() <= 1e-6) return std::numeric_limits<double>::infinity();
   const Eigen::Vector2d e = p.head<2>() / p.z() - o.normalized;
   double squared = e.squaredNorm();
   if (o.has_right) {
-    const double er = (p.x() - baseline_m) / p.z() - o.right_x_normalized;
-    squared = std::max(squared, er * er);
+    const double ed = options.disparity_weight *
+                      (options.baseline_m / p.z() - (o.normalized.x() - o.right_x_normalized));
+    squared = std::max(squared, ed * ed);
   }
-  return squared * focal_px * focal_px;
+  return squared * options.focal_px * options.focal_px;
 }
 
 Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservation>& observations,

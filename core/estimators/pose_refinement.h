@@ -2,7 +2,9 @@
 // Levenberg-Marquardt refinement of a camera pose from 3D-2D correspondences (seed paper 000,
 // eq. 9): minimizes sum_i rho(|| pi(cam_from_world * X_i) - x_i ||^2) over cam_from_world,
 // with pi the projection to normalized coordinates and rho the Huber loss. With a rectified
-// stereo observation, the right camera's x residual (x_i - B) / z_i - x_right is added.
+// stereo observation the disparity residual w (B / z_i - (x_left - x_right)) is added, weighted
+// by w = sigma_keypoint / sigma_disparity since disparity is measured more precisely than a
+// keypoint's position.
 //
 // Residuals are in normalized units internally; thresholds and reported errors are in pixels
 // (normalized * focal_px). The update is a left perturbation T <- exp(delta) T with
@@ -24,10 +26,11 @@ struct PoseObservation {
 };
 
 struct PoseRefineOptions {
-  double focal_px = 1.0;        // Converts normalized residuals to pixels.
-  double baseline_m = 0.0;      // Rectified stereo baseline, for right observations.
-  double huber_px = 2.0;        // Huber threshold.
-  double pixel_sigma_px = 1.0;  // Measurement noise, for the covariance.
+  double focal_px = 1.0;          // Converts normalized residuals to pixels.
+  double baseline_m = 0.0;        // Rectified stereo baseline, for right observations.
+  double disparity_weight = 1.0;  // Weight of the disparity residual (see above).
+  double huber_px = 2.0;          // Huber threshold.
+  double pixel_sigma_px = 1.0;    // Measurement noise, for the covariance.
   int max_iterations = 10;
   void Check() const;
 };
@@ -45,8 +48,9 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
                    const PoseRefineOptions& options, PoseRefineStats* stats = nullptr,
                    Eigen::Matrix<double, 6, 6>* covariance = nullptr);
 
-// Squared reprojection error in pixels^2 of one observation (left and, if present, right).
+// Squared error in pixels^2 of one observation: the larger of the left image reprojection error
+// and the weighted disparity error.
 double SquaredReprojectionErrorPx(const Rigid3d& cam_from_world, const PoseObservation& observation,
-                                  double focal_px, double baseline_m);
+                                  const PoseRefineOptions& options);
 
 }  // namespace visloc
