@@ -237,15 +237,25 @@ int RunBuild(const Args& args) {
   parser.AddFlag("frames", &frames, "use only the first N frames (0: all)");
   parser.AddFlag("trajectory", &trajectory,
                  "also write the estimated frame poses (TUM, map frame)");
+  mapping::MapBuilderOptions options;
+  parser.AddFlag("keyframe-translation", &options.keyframe_translation_m,
+                 "new keyframe after this many metres");
+  parser.AddFlag("keyframe-rotation", &options.keyframe_rotation_deg,
+                 "new keyframe after this many degrees");
+  int loop_closure = 1;
+  parser.AddFlag("loop-closure", &loop_closure, "1 to close loops, 0 not to");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
   if (frames < 0) throw UsageError("--frames must not be negative");
+  if (!(options.keyframe_translation_m > 0) || !(options.keyframe_rotation_deg > 0)) {
+    throw UsageError("keyframe thresholds must be positive");
+  }
+  options.loop_closure = loop_closure != 0;
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   Dataset dataset = ReadDataset(
       dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
   if (frames > 0 && frames < static_cast<int>(dataset.frames.size())) dataset.frames.resize(frames);
-  mapping::MapBuilderOptions options;
   options.features = DefaultFeatureSettings(features);
   MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
                        fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build"};
