@@ -109,7 +109,6 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
 
   // Best right candidate per left keypoint (ratio test), then a mutual check.
   std::vector<int> left_to_right(n, -1);
-  std::vector<float> best_distance(n, 0.0f);
   std::vector<int> right_best_left(right.size(), -1);
   std::vector<float> right_best_distance(right.size(), std::numeric_limits<float>::max());
   for (size_t i = 0; i < n; ++i) {
@@ -128,7 +127,6 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     const int best_j = nearest.best_index;
     const float best = nearest.best;
     left_to_right[i] = best_j;
-    best_distance[i] = best;
     if (best < right_best_distance[best_j]) {
       right_best_distance[best_j] = best;
       right_best_left[best_j] = static_cast<int>(i);

@@ -699,7 +699,7 @@ MapInfo SummarizeMap(const Map& map, const std::string& path) {
   info.kernel_learned = map.kernel.metric.size() > 0;
   info.kernel = map.kernel;
   info.vocabulary_words = map.appearance.vocabulary.word_count();
-  info.memory_bytes = LocalizationMap(map).MemoryBytes();
+  info.memory_bytes = LocalizationMap::MemoryBytesFor(map);
   return info;
 }
 

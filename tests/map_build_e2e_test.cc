@@ -74,6 +74,10 @@ TEST(MapBuildE2eTest, MonocularOrMissingDatasetsAreRefusedClearly) {
       Visloc({"map", "build", "--dataset", dir.File("nope"), "--out", dir.File("m.db")});
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_THAT(missing.err, HasSubstr("no such dataset directory"));
+  const ProcessResult bad_threshold = Visloc({"map", "build", "--dataset", dir.path(), "--out",
+                                              dir.File("m.db"), "--keyframe-rotation", "0"});
+  EXPECT_EQ(bad_threshold.exit_code, 2);
+  EXPECT_THAT(bad_threshold.err, HasSubstr("keyframe thresholds must be positive"));
   const ProcessResult bad_name = Visloc(
       {"map", "build", "--dataset", dir.path(), "--out", dir.File("m.db"), "--name", "../x"});
   EXPECT_EQ(bad_name.exit_code, 1);

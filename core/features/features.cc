@@ -148,18 +148,4 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
       StrCat("unknown feature kind '", settings.kind, "' (expected harris_surf16 or orb)"));
 }
 
-float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
-  if (a.type() == CV_8U) {
-    return static_cast<float>(cv::norm(a.row(row_a), b.row(row_b), cv::NORM_HAMMING));
-  }
-  const float* x = a.ptr<float>(row_a);
-  const float* y = b.ptr<float>(row_b);
-  float sum = 0;
-  for (int i = 0; i < a.cols; ++i) {
-    const float d = x[i] - y[i];
-    sum += d * d;
-  }
-  return std::sqrt(sum);
-}
-
 }  // namespace visloc

@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "core/map/descriptor.h"  // DescriptorDistance
 #include "core/map/map.h"
 
 namespace visloc {
@@ -53,9 +54,6 @@ class FeatureExtractor {
 FeatureSettings DefaultFeatureSettings(const std::string& kind);
 // Creates the extractor for settings read from a map (unknown parameters are an InputError).
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& settings);
-
-// Descriptor distance: L2 for float rows, Hamming for binary rows.
-float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b);
 
 // Keeps the nearest and second-nearest candidates of a descriptor search, for Lowe's ratio test
 // (a match is distinctive when best < ratio * second).

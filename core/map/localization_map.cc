@@ -28,13 +28,15 @@ LocalizationMap::PointRange LocalizationMap::VisiblePoints(size_t keyframe) cons
   return {base + visible_offsets_[keyframe], base + visible_offsets_[keyframe + 1]};
 }
 
-size_t LocalizationMap::MemoryBytes() const {
-  size_t bytes = map_.keyframes.size() * sizeof(Keyframe) + map_.points.size() * sizeof(MapPoint) +
-                 map_.descriptors.total() * map_.descriptors.elemSize() +
-                 map_.observations.size() * sizeof(Observation) +
-                 (visible_offsets_.size() + visible_points_.size()) * sizeof(uint32_t) +
-                 2 * keyframe_centers_.size() * sizeof(Eigen::Vector3d);
-  const AppearanceIndex& appearance = map_.appearance;
+size_t LocalizationMap::MemoryBytesFor(const Map& map) {
+  size_t bytes = map.keyframes.size() * sizeof(Keyframe) + map.points.size() * sizeof(MapPoint) +
+                 map.descriptors.total() * map.descriptors.elemSize() +
+                 map.observations.size() * sizeof(Observation) +
+                 // CSR visibility: offsets per keyframe + one index per observation.
+                 (map.keyframes.size() + 1 + map.observations.size()) * sizeof(uint32_t) +
+                 // Keyframe centres and viewing directions.
+                 2 * map.keyframes.size() * sizeof(Eigen::Vector3d);
+  const AppearanceIndex& appearance = map.appearance;
   bytes += appearance.vocabulary.centroids.total() * appearance.vocabulary.centroids.elemSize() +
            appearance.vocabulary.word_weights.size() * sizeof(float);
   for (const BowVector& v : appearance.keyframe_vectors) bytes += v.size() * sizeof(v[0]);

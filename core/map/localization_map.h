@@ -39,7 +39,9 @@ class LocalizationMap {
   const std::vector<Eigen::Vector3d>& keyframe_view_dirs() const { return keyframe_view_dirs_; }
 
   // Bytes held, for capacity planning and the memory-per-point figure.
-  size_t MemoryBytes() const;
+  size_t MemoryBytes() const { return MemoryBytesFor(map_); }
+  // The same for a map not (yet) arranged for localization: it follows from the map's sizes.
+  static size_t MemoryBytesFor(const Map& map);
 
  private:
   Map map_;

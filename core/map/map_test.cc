@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "core/map/descriptor.h"
 #include "core/map/localization_map.h"
 #include "core/map/synthetic_map.h"
 #include "core/util/check.h"
@@ -56,6 +57,16 @@ TEST(MapTest, FindsEachKindOfProblem) {
   EXPECT_FALSE(MapsEqual(good, bad_kernel));
 }
 
+TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
+  cv::Mat bits(2, 32, CV_8U, cv::Scalar(0));
+  bits.at<uint8_t>(1, 0) = 0b1011;  // 3 bits differ
+  bits.at<uint8_t>(1, 31) = 0xFF;   // 8 more
+  EXPECT_FLOAT_EQ(DescriptorDistance(bits, 0, bits, 1), 11.0f);
+  cv::Mat floats = (cv::Mat_<float>(2, 2) << 0.0f, 0.0f, 3.0f, 4.0f);
+  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 0, floats, 1), 5.0f);
+  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 1, floats, 1), 0.0f);
+}
+
 TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
   SyntheticMapOptions options;
   options.keyframes = 20;
@@ -75,6 +86,7 @@ TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
   EXPECT_EQ(total, map.observations.size());
   EXPECT_TRUE(localization.keyframe_view_dirs()[0].isApprox(Eigen::Vector3d(1, 0, 0)));
   EXPECT_GT(localization.MemoryBytes(), 300u * (32 + 64));
+  EXPECT_EQ(LocalizationMap::MemoryBytesFor(map), localization.MemoryBytes());
   Map broken = map;
   broken.points.pop_back();
   EXPECT_THROW(LocalizationMap{broken}, CheckError);

@@ -4,23 +4,10 @@
 #include <cmath>
 #include <map>
 
+#include "core/map/descriptor.h"
 #include "core/util/check.h"
 
 namespace visloc {
-namespace {
-
-float RowDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
-  if (a.type() == CV_8U)
-    return static_cast<float>(cv::norm(a.row(row_a), b.row(row_b), cv::NORM_HAMMING));
-  const float* x = a.ptr<float>(row_a);
-  const float* y = b.ptr<float>(row_b);
-  float sum = 0;
-  for (int i = 0; i < a.cols; ++i) sum += (x[i] - y[i]) * (x[i] - y[i]);
-  return sum;
-}
-
-}  // namespace
-
 uint32_t LookupWord(const Vocabulary& vocabulary, const cv::Mat& descriptors, int row) {
   VISLOC_CHECK(!vocabulary.empty(), "empty vocabulary");
   // Node index within its level; the rows of level l start at sum_{m<l} b^m (level 1 at 0).
@@ -30,7 +17,7 @@ uint32_t LookupWord(const Vocabulary& vocabulary, const cv::Mat& descriptors, in
     float best_distance = std::numeric_limits<float>::max();
     for (int c = 0; c < vocabulary.branching; ++c) {
       const int node = level_start + index * vocabulary.branching + c;
-      const float d = RowDistance(descriptors, row, vocabulary.centroids, node);
+      const float d = DescriptorDistance(descriptors, row, vocabulary.centroids, node);
       if (d < best_distance) {
         best_distance = d;
         best = c;
