@@ -6,15 +6,17 @@
 #include <fstream>
 
 #include "core/util/check.h"
+#include "core/util/temp_dir.h"
 
 namespace visloc {
 namespace {
 
+// Files live in one scratch folder removed when the test binary exits.
 std::string WriteTemp(const std::string& name, const std::string& contents) {
-  const auto path = std::filesystem::temp_directory_path() /
-                    (std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + name);
+  static const TempDir dir("visloc_text_file_test");
+  const std::string path = dir.File(name);
   std::ofstream(path) << contents;
-  return path.string();
+  return path;
 }
 
 TEST(TextFileTest, SkipsCommentsAndBlankLinesKeepingLineNumbers) {
