@@ -13,6 +13,7 @@ using Args = std::vector<std::string>;
 int RunSim(const Args& args);
 int RunEval(const Args& args);
 int RunMap(const Args& args);
+int RunLocalize(const Args& args);
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

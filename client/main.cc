@@ -20,6 +20,7 @@ const std::vector<Subcommand> kCommands = {
     {"sim", "render synthetic stereo sequences with exact ground truth", RunSim},
     {"eval", "accuracy of a trajectory against ground truth (ATE, RPE, coverage)", RunEval},
     {"map", "build and manage maps: build, info, verify, export, list, delete, rename", RunMap},
+    {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},
 };
 
 }  // namespace

@@ -81,12 +81,27 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
       }
     }
   }
+  if (best_inliers < options.min_inliers) {
+    result.stats.iterations = iteration;
+    return result;
+  }
+  result = RefinePoseOnInliers(best_pose, observations, options);
   result.stats.iterations = iteration;
-  if (best_inliers < options.min_inliers) return result;
+  return result;
+}
+
+PnpResult RefinePoseOnInliers(const Rigid3d& cam_from_world,
+                              const std::vector<PoseObservation>& observations,
+                              const PnpRansacOptions& options) {
+  PnpResult result;
+  const int n = static_cast<int>(observations.size());
+  if (n < std::max(3, options.min_inliers)) return result;
   // Refine on the inliers, re-select with the refined pose, refine once more.
   std::vector<char> mask;
-  CountInliers(best_pose, observations, options, &mask);
-  Rigid3d pose = RefinePose(best_pose, Select(observations, mask), options.refine);
+  if (CountInliers(cam_from_world, observations, options, &mask) < options.min_inliers) {
+    return result;
+  }
+  Rigid3d pose = RefinePose(cam_from_world, Select(observations, mask), options.refine);
   const int inliers = CountInliers(pose, observations, options, &mask);
   if (inliers < options.min_inliers) return result;
   pose = RefinePose(pose, Select(observations, mask), options.refine, &result.stats.refine,

@@ -41,4 +41,11 @@ struct PnpResult {
 PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
                          const PnpRansacOptions& options);
 
+// The second half of SolvePnpRansac, for a pose from elsewhere (a prior, or a pose re-matched
+// with more correspondences): selects the observations within max_error_px, refines on them,
+// re-selects and refines again. `stats.iterations` is 0.
+PnpResult RefinePoseOnInliers(const Rigid3d& cam_from_world,
+                              const std::vector<PoseObservation>& observations,
+                              const PnpRansacOptions& options);
+
 }  // namespace visloc

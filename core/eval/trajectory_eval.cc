@@ -33,6 +33,8 @@ ErrorStats ComputeErrorStats(std::vector<double> errors) {
   stats.max = errors.back();
   const size_t mid = errors.size() / 2;
   stats.median = errors.size() % 2 ? errors[mid] : 0.5 * (errors[mid - 1] + errors[mid]);
+  const size_t rank = static_cast<size_t>(std::ceil(0.95 * n));
+  stats.p95 = errors[std::clamp<size_t>(rank, 1, errors.size()) - 1];
   return stats;
 }
 

@@ -37,6 +37,7 @@ struct ErrorStats {
   double std_dev = 0.0;
   double min = 0.0;
   double max = 0.0;
+  double p95 = 0.0;  // 95th percentile (nearest rank).
 };
 
 // Statistics of a list of non-negative errors (all zero for an empty list).

@@ -1,5 +1,7 @@
 #include "core/map/localization_map.h"
 
+#include <algorithm>
+
 #include "core/util/check.h"
 
 namespace visloc {
@@ -20,6 +22,28 @@ LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
     keyframe_centers_.push_back(keyframe.map_from_cam.translation);
     keyframe_view_dirs_.push_back(keyframe.map_from_cam.rotation * Eigen::Vector3d::UnitZ());
   }
+  const AppearanceIndex& appearance = map_.appearance;
+  if (!appearance.keyframe_vectors.empty()) {
+    keyframes_by_word_.resize(appearance.vocabulary.word_count());
+    for (size_t k = 0; k < appearance.keyframe_vectors.size(); ++k) {
+      for (const auto& [word, weight] : appearance.keyframe_vectors[k]) {
+        VISLOC_CHECK(word < keyframes_by_word_.size(), "keyframe ", k, " has word ", word, " of ",
+                     keyframes_by_word_.size());
+        keyframes_by_word_[word].push_back({static_cast<uint32_t>(k), weight});
+      }
+    }
+  }
+}
+
+std::vector<float> LocalizationMap::ScoreKeyframes(const BowVector& query) const {
+  std::vector<float> scores(keyframe_count(), 0.0f);
+  for (const auto& [word, weight] : query) {
+    if (word >= keyframes_by_word_.size()) continue;
+    for (const WordEntry& entry : keyframes_by_word_[word]) {
+      scores[entry.keyframe] += std::min(weight, entry.weight);
+    }
+  }
+  return scores;
 }
 
 LocalizationMap::PointRange LocalizationMap::VisiblePoints(size_t keyframe) const {
@@ -39,7 +63,10 @@ size_t LocalizationMap::MemoryBytesFor(const Map& map) {
   const AppearanceIndex& appearance = map.appearance;
   bytes += appearance.vocabulary.centroids.total() * appearance.vocabulary.centroids.elemSize() +
            appearance.vocabulary.word_weights.size() * sizeof(float);
-  for (const BowVector& v : appearance.keyframe_vectors) bytes += v.size() * sizeof(v[0]);
+  for (const BowVector& v : appearance.keyframe_vectors) {
+    bytes += v.size() * (sizeof(v[0]) + sizeof(WordEntry));  // Vector plus inverted index.
+  }
+  bytes += appearance.vocabulary.word_weights.size() * sizeof(std::vector<WordEntry>);
   return bytes;
 }
 

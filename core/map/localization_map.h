@@ -38,6 +38,20 @@ class LocalizationMap {
   const std::vector<Eigen::Vector3d>& keyframe_centers() const { return keyframe_centers_; }
   const std::vector<Eigen::Vector3d>& keyframe_view_dirs() const { return keyframe_view_dirs_; }
 
+  // The appearance index inverted: for each vocabulary word, the keyframes whose vectors hold
+  // it, with the keyframe's weight for the word. Empty when the map has no appearance index.
+  struct WordEntry {
+    uint32_t keyframe;
+    float weight;
+  };
+  const std::vector<std::vector<WordEntry>>& keyframes_by_word() const {
+    return keyframes_by_word_;
+  }
+  // The L1 score (vocabulary.h) of `query` against every keyframe, via the inverted index: for
+  // L1-normalized non-negative vectors, 1 - |a - b|_1 / 2 = sum over shared words of min(a, b),
+  // so only keyframes that share a word with the query are touched.
+  std::vector<float> ScoreKeyframes(const BowVector& query) const;
+
   // Bytes held, for capacity planning and the memory-per-point figure.
   size_t MemoryBytes() const { return MemoryBytesFor(map_); }
   // The same for a map not (yet) arranged for localization: it follows from the map's sizes.
@@ -49,6 +63,7 @@ class LocalizationMap {
   std::vector<uint32_t> visible_points_;
   std::vector<Eigen::Vector3d> keyframe_centers_;
   std::vector<Eigen::Vector3d> keyframe_view_dirs_;
+  std::vector<std::vector<WordEntry>> keyframes_by_word_;
 };
 
 }  // namespace visloc

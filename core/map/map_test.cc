@@ -6,6 +6,7 @@
 #include "core/map/descriptor.h"
 #include "core/map/localization_map.h"
 #include "core/map/synthetic_map.h"
+#include "core/map/vocabulary.h"
 #include "core/util/check.h"
 
 namespace visloc {
@@ -90,6 +91,24 @@ TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
   Map broken = map;
   broken.points.pop_back();
   EXPECT_THROW(LocalizationMap{broken}, CheckError);
+}
+
+TEST(LocalizationMapTest, InvertedIndexScoresEqualTheDirectScores) {
+  SyntheticMapOptions options;
+  options.keyframes = 30;
+  options.points = 600;
+  const Map map = MakeSyntheticMap(options);
+  const LocalizationMap localization(map);
+  ASSERT_FALSE(localization.keyframes_by_word().empty());
+  for (size_t q : {0u, 7u, 29u}) {
+    const BowVector& query = map.appearance.keyframe_vectors[q];
+    const std::vector<float> scores = localization.ScoreKeyframes(query);
+    ASSERT_EQ(scores.size(), map.keyframes.size());
+    for (size_t k = 0; k < scores.size(); ++k) {
+      EXPECT_NEAR(scores[k], BowScore(query, map.appearance.keyframe_vectors[k]), 1e-5) << k;
+    }
+    EXPECT_NEAR(scores[q], 1.0, 1e-5);
+  }
 }
 
 }  // namespace

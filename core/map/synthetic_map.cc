@@ -98,6 +98,10 @@ Map MakeSyntheticMap(const SyntheticMapOptions& options) {
       for (uint32_t w = 0; w < 64; ++w) {
         if (rng.Uniform01() < 0.3) vector.emplace_back(w, static_cast<float>(rng.Uniform01()));
       }
+      // L1-normalized, as ComputeBow makes them.
+      float total = 0.0f;
+      for (const auto& entry : vector) total += entry.second;
+      for (auto& entry : vector) entry.second /= total;
       map.appearance.keyframe_vectors.push_back(std::move(vector));
     }
   }

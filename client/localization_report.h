@@ -1,0 +1,42 @@
+#pragma once
+// What `visloc localize` (in-process) and `visloc stream` (through the server) write and print
+// about a run: the per-frame statistics CSV of product.md, the trajectory, and the summary.
+// Both feed it core LocalizationResults, so their outputs are identical in form.
+
+#include <cstdio>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/geometry/trajectory.h"
+#include "core/localization/localizer.h"
+#include "core/util/json.h"
+
+namespace visloc::cli {
+
+// The CSV header line (no newline) and one row per frame.
+std::string StatsCsvHeader();
+std::string StatsCsvRow(const LocalizationResult& result);
+
+// Accumulates a run's results for the summary, the trajectory and the stats file.
+class RunReport {
+ public:
+  void Add(const LocalizationResult& result);
+
+  const std::vector<LocalizationResult>& results() const { return results_; }
+  // Frames with a pose, as map_from_cam (the TUM output).
+  Trajectory PosedTrajectory() const;
+  void WriteStatsCsv(const std::string& path) const;
+
+  // One live line for a terminal: frame, status, inliers, time.
+  std::string ProgressLine(size_t frame_count) const;
+  // The summary: share per status, per-step medians, relocalizations; with ground truth (map
+  // frame), the position and rotation error of the posed frames.
+  void PrintSummary(std::FILE* out, const Trajectory* ground_truth) const;
+  void WriteSummaryJson(JsonWriter& json, const Trajectory* ground_truth) const;
+
+ private:
+  std::vector<LocalizationResult> results_;
+};
+
+}  // namespace visloc::cli

@@ -1,0 +1,362 @@
+#include "core/localization/localizer.h"
+
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include "core/util/check.h"
+#include "core/util/timer.h"
+
+namespace visloc {
+
+const char* TrackingStatusName(TrackingStatus status) {
+  switch (status) {
+    case TrackingStatus::kInitializing:
+      return "initializing";
+    case TrackingStatus::kTracking:
+      return "tracking";
+    case TrackingStatus::kLimited:
+      return "limited";
+    case TrackingStatus::kRelocalized:
+      return "relocalized";
+    case TrackingStatus::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+const char* PoseSourceName(PoseSource source) {
+  switch (source) {
+    case PoseSource::kNone:
+      return "none";
+    case PoseSource::kTracking:
+      return "tracking";
+    case PoseSource::kRelocalization:
+      return "relocalization";
+    case PoseSource::kMotion:
+      return "motion";
+  }
+  return "?";
+}
+
+const char* RelocalizationKindName(RelocalizationReport::Kind kind) {
+  switch (kind) {
+    case RelocalizationReport::Kind::kNone:
+      return "none";
+    case RelocalizationReport::Kind::kLocal:
+      return "local";
+    case RelocalizationReport::Kind::kGlobal:
+      return "global";
+  }
+  return "?";
+}
+
+void LocalizerOptions::Check() const {
+  tracker.Check();
+  relocalization.Check();
+  VISLOC_CHECK(min_limited_inliers >= tracker.ransac.min_inliers &&
+                   min_tracking_inliers >= min_limited_inliers,
+               "inlier thresholds: ransac ", tracker.ransac.min_inliers, ", limited ",
+               min_limited_inliers, ", tracking ", min_tracking_inliers);
+  VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0, "jump gate ", max_jump_m, " m ", max_jump_deg,
+               " deg");
+  VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
+}
+
+std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map) {
+  const auto& centers = map.keyframe_centers();
+  if (centers.size() < 6) return std::nullopt;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& c : centers) mean += c;
+  mean /= static_cast<double>(centers.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& c : centers) scatter += (c - mean) * (c - mean).transpose();
+  scatter /= static_cast<double>(centers.size());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
+  const Eigen::Vector3d sigmas = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // Ascending.
+  // Spread in two directions (at least 0.3 m) and flat compared with that.
+  if (sigmas(1) < 0.3 || sigmas(0) > 0.1 * sigmas(1)) return std::nullopt;
+  Eigen::Vector3d normal = solver.eigenvectors().col(0);
+  // Point the normal up: against the first keyframe camera's y axis (down in OpenCV).
+  const Eigen::Vector3d down =
+      map.map().keyframes[0].map_from_cam.rotation * Eigen::Vector3d::UnitY();
+  if (normal.dot(down) > 0) normal = -normal;
+  return std::make_pair(normal, normal.dot(mean));
+}
+
+Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+                     const LocalizerOptions& options, const std::optional<Rigid3d>& body_from_cam)
+    : map_(std::move(map)), camera_(camera), options_(options) {
+  VISLOC_CHECK(map_ != nullptr, "no map");
+  options_.Check();
+  if (options_.scale_radii_with_width) {
+    const double scale = camera_.width() / 320.0;
+    options_.tracker.matching.radius_px *= scale;
+    options_.tracker.refine_radius_px *= scale;
+    options_.relocalization.verify_radius_px *= scale;
+  }
+  if (body_from_cam) {
+    cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
+  }
+  extractor_ = CreateFeatureExtractor(map_->map().features);
+  tracker_ = std::make_unique<PoseTracker>(map_, camera_, options_.tracker);
+  relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
+  if (options_.motion.plane_sigma_m > 0) {
+    plane_ = FitKeyframePlane(*map_);
+    if (!plane_) {
+      throw InputError("planar motion needs a map whose keyframes span a plane");
+    }
+  }
+}
+
+Localizer::Motion Localizer::PredictMotion(const FrameInput& input, double dt_s) const {
+  Motion motion;
+  if (dt_s <= 0) return motion;
+  const MotionOptions& o = options_.motion;
+  double sigma_t = 0.0, sigma_r = 0.0;
+  if (input.odom_from_cam && last_odom_from_cam_) {
+    motion.cam_prev_from_cam_cur = last_odom_from_cam_->Inverse() * *input.odom_from_cam;
+    sigma_t = o.odometry_translation_fraction * motion.cam_prev_from_cam_cur.translation.norm() +
+              o.odometry_floor_m;
+    sigma_r = o.odometry_rotation_fraction *
+                  RotationAngleDeg(motion.cam_prev_from_cam_cur.rotation) * M_PI / 180.0 +
+              o.odometry_floor_deg * M_PI / 180.0;
+    motion.from_sensors = true;
+  } else {
+    if (velocity_valid_) motion.cam_prev_from_cam_cur = ExpSe3(velocity_ * dt_s);
+    const double inflate = velocity_valid_ ? 1.0 : 2.0;
+    sigma_t = inflate * o.velocity_sigma_mps * dt_s;
+    sigma_r = inflate * o.velocity_sigma_degps * M_PI / 180.0 * dt_s;
+  }
+  if (cam_from_body_rotation_ && !input.gyro.empty()) {
+    // body_prev_from_body_cur = prod Exp(w_i dt_i), rate held over each sample's interval.
+    Eigen::Quaterniond body_delta = Eigen::Quaterniond::Identity();
+    int64_t previous_ns = *last_timestamp_ns_;
+    for (const GyroSample& sample : input.gyro) {
+      const double dt = std::max<int64_t>(0, sample.timestamp_ns - previous_ns) * 1e-9;
+      previous_ns = std::max(previous_ns, sample.timestamp_ns);
+      const Eigen::Vector3d angle = sample.rate_radps * dt;
+      if (angle.norm() > 1e-15) {
+        body_delta =
+            body_delta * Eigen::Quaterniond(Eigen::AngleAxisd(angle.norm(), angle.normalized()));
+      }
+    }
+    const Eigen::Matrix3d& r_cb = *cam_from_body_rotation_;
+    motion.cam_prev_from_cam_cur.rotation =
+        Eigen::Quaterniond(r_cb * body_delta.toRotationMatrix() * r_cb.transpose()).normalized();
+    sigma_r = o.gyro_noise_rad_sqrt_s * std::sqrt(dt_s) + o.gyro_bias_radps * dt_s;
+    motion.from_sensors = true;
+  }
+  motion.noise.diagonal() << Eigen::Vector3d::Constant(sigma_t * sigma_t),
+      Eigen::Vector3d::Constant(sigma_r * sigma_r);
+  return motion;
+}
+
+bool Localizer::Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected,
+                           double sigma_m) const {
+  const double moved = (map_from_cam.translation - expected.translation).norm();
+  const double turned = RotationAngleDeg(expected.rotation.inverse() * map_from_cam.rotation);
+  return moved <= options_.max_jump_m + 3.0 * sigma_m && turned <= options_.max_jump_deg;
+}
+
+void Localizer::CopyFixStats(const PoseFix& fix, FrameStats* stats) {
+  stats->predicted = fix.predicted;
+  stats->putatives = fix.putatives;
+  stats->inliers = fix.inliers;
+  stats->inlier_ratio = fix.inlier_ratio;
+  stats->ransac_iterations = fix.ransac_iterations;
+  stats->reproj_rmse_px = fix.reproj_rmse_px;
+}
+
+void Localizer::ApplyPlane() {
+  if (!plane_ || options_.motion.plane_sigma_m <= 0 || !filter_.initialized()) return;
+  filter_.UpdateHeight(plane_->first, plane_->second, options_.motion.height_m,
+                       options_.motion.plane_sigma_m);
+}
+
+void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource source,
+                       int64_t timestamp_ns, LocalizationResult* result) {
+  const Rigid3d measured = fix.cam_from_map.Inverse();
+  // Floor the measurement noise: the refinement's covariance ignores map point errors.
+  Matrix6d noise = fix.covariance;
+  noise.diagonal() += (Vector6d() << Eigen::Vector3d::Constant(1e-6),
+                       Eigen::Vector3d::Constant(std::pow(0.05 * M_PI / 180.0, 2)))
+                          .finished();
+  const double since_fix_s = (timestamp_ns - last_fix_ns_) * 1e-9;
+  if (status == TrackingStatus::kRelocalized || !filter_.initialized()) {
+    filter_.Reset(measured, noise);
+    velocity_valid_ = false;
+  } else {
+    filter_.UpdatePose(measured, noise);
+    ApplyPlane();
+    if (ever_localized_ && since_fix_s > 0 && since_fix_s <= 0.5) {
+      velocity_ = LogSe3(last_fix_map_from_cam_.Inverse() * measured) / since_fix_s;
+      velocity_valid_ = true;
+    }
+  }
+  last_fix_ns_ = timestamp_ns;
+  last_fix_map_from_cam_ = measured;
+  ever_localized_ = true;
+  pending_.reset();
+  result->status = status;
+  result->source = source;
+  result->has_pose = true;
+  result->map_from_cam = filter_.map_from_cam();
+  result->covariance = filter_.covariance();
+}
+
+PoseFix Localizer::TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns,
+                                 LocalizationResult* result) {
+  RelocalizationReport& report = result->relocalization;
+  RelocalizationResult found;
+  const bool local =
+      ever_localized_ && (timestamp_ns - last_fix_ns_) * 1e-9 <= options_.local_relocalization_s;
+  if (local) {
+    const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
+                                                         : last_fix_map_from_cam_.translation;
+    found = relocalizer_->Relocalize(frame, RelocalizationScope{center, options_.local_radius_m});
+    report.kind = RelocalizationReport::Kind::kLocal;
+    report.ms += found.ms;
+    report.candidates += static_cast<int>(found.candidates.size());
+  }
+  if (!found.success) {
+    found = relocalizer_->Relocalize(frame);
+    report.kind = RelocalizationReport::Kind::kGlobal;
+    report.ms += found.ms;
+    report.candidates += static_cast<int>(found.candidates.size());
+  }
+  result->stats.times.relocalize_ms += found.ms;
+  report.found = found.success;
+  report.keyframe = found.keyframe;
+  if (found.success) CopyFixStats(found.fix, &result->stats);
+  return found.fix;
+}
+
+LocalizationResult Localizer::Process(const FrameInput& input) {
+  Timer total;
+  if (input.image.empty() || input.image.type() != CV_8UC1) {
+    throw InputError("the image must be 8-bit grey (got type " +
+                     std::to_string(input.image.type()) + (input.image.empty() ? ", empty)" : ")"));
+  }
+  if (input.image.cols != camera_.width() || input.image.rows != camera_.height()) {
+    throw InputError(StrCat("the image is ", input.image.cols, "x", input.image.rows,
+                            " but the session camera is ", camera_.width(), "x", camera_.height()));
+  }
+  if (last_timestamp_ns_ && input.timestamp_ns <= *last_timestamp_ns_) {
+    throw InputError(StrCat("frame timestamp ", input.timestamp_ns,
+                            " ns does not increase (previous ", *last_timestamp_ns_, " ns)"));
+  }
+  LocalizationResult result;
+  result.timestamp_ns = input.timestamp_ns;
+  FrameStats& stats = result.stats;
+  ExtractStats extract;
+  QueryFrame frame(extractor_->Extract(input.image, &extract), camera_);
+  stats.times.detect_ms = extract.detect_ms;
+  stats.times.describe_ms = extract.describe_ms;
+  stats.features = static_cast<int>(frame.size());
+
+  const double dt_s = last_timestamp_ns_ ? (input.timestamp_ns - *last_timestamp_ns_) * 1e-9 : 0.0;
+  const Motion motion = PredictMotion(input, dt_s);
+  last_timestamp_ns_ = input.timestamp_ns;
+  last_odom_from_cam_ = input.odom_from_cam;
+  if (filter_.initialized()) {
+    filter_.Predict(motion.cam_prev_from_cam_cur, motion.noise);
+    ApplyPlane();
+  }
+  const bool had_pending = pending_.has_value();
+  if (pending_) pending_->map_from_cam = pending_->map_from_cam * motion.cam_prev_from_cam_cur;
+
+  const auto add_times = [&stats](const PoseFix& fix) {
+    stats.times.predict_ms += fix.times.predict_ms;
+    stats.times.project_ms += fix.times.project_ms;
+    stats.times.match_ms += fix.times.match_ms;
+    stats.times.pose_ms += fix.times.pose_ms;
+  };
+  const auto strong = [this](const PoseFix& fix) {
+    return fix.inliers >= options_.min_tracking_inliers &&
+           fix.inlier_ratio >= options_.min_tracking_inlier_ratio;
+  };
+  bool accepted = false;
+  // 3. Guided tracking from the prior (or from an external hint when there is none).
+  const std::optional<Rigid3d> prior = filter_.initialized()
+                                           ? std::optional<Rigid3d>(filter_.map_from_cam())
+                                           : input.map_from_cam_hint;
+  if (prior) {
+    const PoseFix fix = tracker_->Track(frame, prior->Inverse());
+    add_times(fix);
+    CopyFixStats(fix, &stats);
+    if (fix.success && fix.inliers >= options_.min_limited_inliers) {
+      const double sigma = filter_.initialized() ? filter_.PositionSigmaM() : 0.0;
+      if (!filter_.initialized()) {
+        if (strong(fix)) {
+          Accept(fix, TrackingStatus::kRelocalized, PoseSource::kTracking, input.timestamp_ns,
+                 &result);
+          accepted = true;
+        }
+      } else if (Consistent(fix.cam_from_map.Inverse(), *prior, sigma)) {
+        Accept(fix, strong(fix) ? TrackingStatus::kTracking : TrackingStatus::kLimited,
+               PoseSource::kTracking, input.timestamp_ns, &result);
+        accepted = true;
+      } else {
+        pending_ = Pending{fix.cam_from_map.Inverse()};
+      }
+    }
+  }
+  // A jump or a weakly supported relocalization from the previous frame, confirmed by tracking
+  // from it now.
+  if (!accepted && had_pending && pending_) {
+    const Rigid3d expected = pending_->map_from_cam;
+    pending_.reset();
+    const PoseFix fix = tracker_->Track(frame, expected.Inverse());
+    add_times(fix);
+    if (fix.success && strong(fix) && Consistent(fix.cam_from_map.Inverse(), expected, 0.0)) {
+      CopyFixStats(fix, &stats);
+      Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
+             &result);
+      accepted = true;
+    }
+  }
+  // 4. Relocalization: local around the last pose, then global.
+  if (!accepted) {
+    const PoseFix fix = TryRelocalize(frame, input.timestamp_ns, &result);
+    if (fix.success) {
+      const Rigid3d found = fix.cam_from_map.Inverse();
+      const bool plausible =
+          filter_.initialized()
+              ? Consistent(found, filter_.map_from_cam(), filter_.PositionSigmaM())
+              : fix.inliers >= options_.relocalization.strong_inliers;
+      if (plausible) {
+        Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
+               &result);
+        accepted = true;
+      } else {
+        pending_ = Pending{found};
+        result.relocalization.awaiting_confirmation = true;
+      }
+    }
+  }
+  // 5. No visual fix: bridge with the motion prediction, or report no pose.
+  if (!accepted) {
+    const MotionOptions& o = options_.motion;
+    const bool bridge = filter_.initialized() &&
+                        (motion.from_sensors || o.bridge_with_constant_velocity) &&
+                        (input.timestamp_ns - last_fix_ns_) * 1e-9 <= o.max_bridge_s &&
+                        filter_.PositionSigmaM() <= o.max_bridge_sigma_m;
+    if (bridge) {
+      result.status = TrackingStatus::kLimited;
+      result.source = PoseSource::kMotion;
+      result.has_pose = true;
+      result.map_from_cam = filter_.map_from_cam();
+      result.covariance = filter_.covariance();
+    } else {
+      filter_ = MotionFilter();
+      velocity_valid_ = false;
+      result.status = ever_localized_ ? TrackingStatus::kLost : TrackingStatus::kInitializing;
+    }
+  }
+  stats.times.total_ms = total.ElapsedMs();
+  return result;
+}
+
+}  // namespace visloc

@@ -1,0 +1,205 @@
+#pragma once
+// One robot's localization session against a prior map: the per-frame loop of seed paper 000
+// (sec. 5) with the proprioceptive filter of seed paper 001. Knows nothing about transport or
+// storage: the server and `visloc localize` both drive it frame by frame.
+//
+// Per frame:
+//   1. Features with the map's detector and descriptor, on the raw (distorted) image.
+//   2. Prior: the filter's pose, moved by odometry (+ gyro) when the frame carries them, else by
+//      the constant-velocity model.
+//   3. Guided tracking from the prior (PoseTracker). A fix that jumps implausibly far from the
+//      prior is held back until the next frame confirms it (jump gating).
+//   4. Without a fix: local relocalization near the last pose, then global relocalization.
+//      After being lost (no prior), a relocalization is accepted at once only with strong
+//      support; otherwise the next frame must confirm it.
+//   5. Still without a fix: bridge with the motion prediction while the robot's own motion
+//      sensors are there and the uncertainty is small (status limited), else lost: no pose.
+// Statuses:
+//   initializing  no pose yet since the session started;
+//   tracking      a visual fix with strong support;
+//   limited       a pose with weak support: few inliers, a low inlier ratio, or motion only;
+//   relocalized   a visual fix from relocalization or a confirmed jump (the pose may jump);
+//   lost          no pose (e.g. camera covered, or out of the map).
+// The map is shared read-only; a session never modifies it.
+
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/camera/pinhole_camera.h"
+#include "core/features/features.h"
+#include "core/localization/motion_filter.h"
+#include "core/localization/pose_tracker.h"
+#include "core/localization/relocalizer.h"
+
+namespace visloc {
+
+enum class TrackingStatus { kInitializing, kTracking, kLimited, kRelocalized, kLost };
+const char* TrackingStatusName(TrackingStatus status);
+
+// Where a reported pose came from.
+enum class PoseSource { kNone, kTracking, kRelocalization, kMotion };
+const char* PoseSourceName(PoseSource source);
+
+// One gyro sample in the body (IMU) frame.
+struct GyroSample {
+  int64_t timestamp_ns = 0;
+  Eigen::Vector3d rate_radps = Eigen::Vector3d::Zero();
+};
+
+struct FrameInput {
+  int64_t timestamp_ns = 0;
+  cv::Mat image;  // 8-bit grey, raw (distorted), the session camera's size.
+  // The odometry's camera pose in its own frame (only its motion between frames is used).
+  std::optional<Rigid3d> odom_from_cam;
+  std::vector<GyroSample> gyro;              // Samples since the previous frame.
+  std::optional<Rigid3d> map_from_cam_hint;  // An external guess, used when there is no pose.
+};
+
+struct MotionOptions {
+  // Constant-velocity model: process noise per second (walking changes speed every step).
+  double velocity_sigma_mps = 0.3;
+  double velocity_sigma_degps = 15.0;
+  // Odometry: noise proportional to the motion, plus a floor per frame.
+  double odometry_translation_fraction = 0.08;
+  double odometry_rotation_fraction = 0.08;
+  double odometry_floor_m = 0.003;
+  double odometry_floor_deg = 0.3;
+  // Gyro: angle random walk (rad / sqrt(s)), plus bias uncertainty (rad / s).
+  double gyro_noise_rad_sqrt_s = 2e-3;
+  double gyro_bias_radps = 5e-3;
+  // Bridging frames without a visual fix.
+  double max_bridge_s = 3.0;
+  double max_bridge_sigma_m = 0.5;
+  bool bridge_with_constant_velocity = false;  // Only for comparison with vision alone.
+  // Planar motion: the camera stays `height_m` above the plane of the map's keyframes (a
+  // walking robot's head), with this standard deviation. 0 disables it.
+  double plane_sigma_m = 0.0;
+  double height_m = 0.0;
+};
+
+struct LocalizerOptions {
+  PoseTrackerOptions tracker;
+  RelocalizationOptions relocalization;
+  MotionOptions motion;
+  // Support needed for each status.
+  int min_tracking_inliers = 30;
+  double min_tracking_inlier_ratio = 0.4;
+  int min_limited_inliers = 12;
+  // Jump gate: a fix further than this (plus 3 sigma of the prior) from the prior needs
+  // confirmation.
+  double max_jump_m = 0.2;
+  double max_jump_deg = 10.0;
+  // Local relocalization searches keyframes within this of the last pose, while lost for less
+  // than local_relocalization_s.
+  double local_radius_m = 1.0;
+  double local_relocalization_s = 2.0;
+  // Radii given at 320 pixels of image width, scaled with the session camera's width.
+  bool scale_radii_with_width = true;
+  void Check() const;
+};
+
+struct StepTimings {
+  double detect_ms = 0.0;
+  double describe_ms = 0.0;
+  double predict_ms = 0.0;
+  double project_ms = 0.0;
+  double match_ms = 0.0;
+  double pose_ms = 0.0;
+  double relocalize_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct FrameStats {
+  int features = 0;
+  int predicted = 0;
+  int putatives = 0;
+  int inliers = 0;
+  double inlier_ratio = 0.0;
+  int ransac_iterations = 0;
+  double reproj_rmse_px = 0.0;
+  StepTimings times;
+};
+
+struct RelocalizationReport {
+  enum class Kind { kNone, kLocal, kGlobal };
+  Kind kind = Kind::kNone;             // The last search tried this frame.
+  bool found = false;                  // A verified pose was found.
+  bool awaiting_confirmation = false;  // Found, but must be confirmed by the next frame.
+  int keyframe = -1;
+  int candidates = 0;
+  double ms = 0.0;
+};
+const char* RelocalizationKindName(RelocalizationReport::Kind kind);
+
+struct LocalizationResult {
+  int64_t timestamp_ns = 0;
+  TrackingStatus status = TrackingStatus::kInitializing;
+  PoseSource source = PoseSource::kNone;
+  bool has_pose = false;
+  Rigid3d map_from_cam;
+  Matrix6d covariance = Matrix6d::Zero();  // Right perturbation of map_from_cam (m, rad).
+  FrameStats stats;
+  RelocalizationReport relocalization;
+};
+
+class Localizer {
+ public:
+  // `camera` is the query camera (it may differ from the map's). `body_from_cam` places the
+  // camera on the body whose gyro is given; without it gyro samples are ignored. Throws
+  // CheckError for a map without a visibility kernel or appearance index.
+  Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+            const LocalizerOptions& options,
+            const std::optional<Rigid3d>& body_from_cam = std::nullopt);
+
+  // Frames must come in increasing time. Throws InputError for an image of the wrong size or
+  // type, and for a timestamp that does not increase.
+  LocalizationResult Process(const FrameInput& input);
+
+  const LocalizerOptions& options() const { return options_; }
+
+ private:
+  struct Motion {
+    Rigid3d cam_prev_from_cam_cur;
+    Matrix6d noise = Matrix6d::Zero();
+    bool from_sensors = false;  // Odometry or gyro, not the constant-velocity model.
+  };
+  struct Pending {
+    Rigid3d map_from_cam;
+  };
+
+  Motion PredictMotion(const FrameInput& input, double dt_s) const;
+  bool Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected, double sigma_m) const;
+  PoseFix TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
+  void Accept(const PoseFix& fix, TrackingStatus status, PoseSource source, int64_t timestamp_ns,
+              LocalizationResult* result);
+  void ApplyPlane();
+  static void CopyFixStats(const PoseFix& fix, FrameStats* stats);
+
+  std::shared_ptr<const LocalizationMap> map_;
+  PinholeCamera camera_;
+  LocalizerOptions options_;
+  std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
+  std::unique_ptr<FeatureExtractor> extractor_;
+  std::unique_ptr<PoseTracker> tracker_;
+  std::unique_ptr<Relocalizer> relocalizer_;
+  std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
+
+  MotionFilter filter_;  // Valid while there is a pose (tracking, limited or bridging).
+  bool ever_localized_ = false;
+  std::optional<int64_t> last_timestamp_ns_;
+  std::optional<Rigid3d> last_odom_from_cam_;
+  int64_t last_fix_ns_ = 0;
+  Rigid3d last_fix_map_from_cam_;
+  Vector6d velocity_ = Vector6d::Zero();  // Twist per second, camera frame (constant velocity).
+  bool velocity_valid_ = false;
+  std::optional<Pending> pending_;
+};
+
+// The plane through the keyframe centres of a map made by a ground robot (unit normal and
+// offset, normal . x = offset), when they are spread in two directions and close to a plane.
+std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map);
+
+}  // namespace visloc

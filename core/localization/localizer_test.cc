@@ -1,0 +1,85 @@
+// Session-level behaviour that needs no rendered images: input validation and the statuses of
+// frames that cannot be localized. Localization accuracy on rendered sequences is tested end to
+// end in tests/localization_e2e_test.cc.
+
+#include "core/localization/localizer.h"
+
+#include <gtest/gtest.h>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/check.h"
+
+namespace visloc {
+namespace {
+
+std::shared_ptr<const LocalizationMap> TestMap() {
+  SyntheticMapOptions options;
+  options.keyframes = 20;
+  options.points = 1000;
+  Map map = MakeSyntheticMap(options);
+  map.features = DefaultFeatureSettings("harris_surf16");
+  return std::make_shared<const LocalizationMap>(std::move(map));
+}
+
+FrameInput Frame(int64_t timestamp_ns, cv::Mat image) {
+  FrameInput input;
+  input.timestamp_ns = timestamp_ns;
+  input.image = std::move(image);
+  return input;
+}
+
+TEST(LocalizerTest, RejectsImagesThatDoNotFitTheSessionAndGoesOn) {
+  const auto map = TestMap();
+  Localizer localizer(map, map->map().camera, LocalizerOptions{});
+  try {
+    localizer.Process(Frame(1, cv::Mat(100, 100, CV_8UC1, cv::Scalar(0))));
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "the image is 100x100 but the session camera is 320x240");
+  }
+  EXPECT_THROW(localizer.Process(Frame(1, cv::Mat(240, 320, CV_8UC3))), InputError);
+  EXPECT_THROW(localizer.Process(Frame(1, cv::Mat())), InputError);
+  // The session is still usable, and time must increase.
+  const LocalizationResult first =
+      localizer.Process(Frame(10, cv::Mat(240, 320, CV_8UC1, cv::Scalar(0))));
+  EXPECT_EQ(first.status, TrackingStatus::kInitializing);
+  EXPECT_THROW(localizer.Process(Frame(10, cv::Mat(240, 320, CV_8UC1, cv::Scalar(0)))), InputError);
+}
+
+TEST(LocalizerTest, ACoveredCameraGetsNoPose) {
+  const auto map = TestMap();
+  Localizer localizer(map, map->map().camera, LocalizerOptions{});
+  for (int i = 1; i <= 3; ++i) {
+    const LocalizationResult r =
+        localizer.Process(Frame(i * 66'000'000LL, cv::Mat(240, 320, CV_8UC1, cv::Scalar(3))));
+    EXPECT_EQ(r.status, TrackingStatus::kInitializing);
+    EXPECT_FALSE(r.has_pose);
+    EXPECT_EQ(r.source, PoseSource::kNone);
+    EXPECT_EQ(r.stats.features, 0);
+    EXPECT_EQ(r.relocalization.kind, RelocalizationReport::Kind::kGlobal);
+    EXPECT_FALSE(r.relocalization.found);
+    EXPECT_GT(r.stats.times.total_ms, 0.0);
+  }
+}
+
+TEST(LocalizerTest, OptionsAreChecked) {
+  const auto map = TestMap();
+  LocalizerOptions options;
+  options.min_tracking_inliers = 5;  // Below the limited threshold.
+  EXPECT_THROW(Localizer(map, map->map().camera, options), CheckError);
+  options = LocalizerOptions{};
+  options.motion.plane_sigma_m = 0.02;  // The synthetic keyframes lie on a circle: a plane.
+  EXPECT_NO_THROW(Localizer(map, map->map().camera, options));
+}
+
+TEST(LocalizerTest, KeyframePlaneOfARobotWalkingACircle) {
+  const auto map = TestMap();
+  const auto plane = FitKeyframePlane(*map);
+  ASSERT_TRUE(plane.has_value());
+  // Keyframes lie in z = 0 with cameras looking sideways, y down = -z: the normal is +z.
+  EXPECT_TRUE(plane->first.isApprox(Eigen::Vector3d::UnitZ(), 1e-9));
+  EXPECT_NEAR(plane->second, 0.0, 1e-9);
+}
+
+}  // namespace
+}  // namespace visloc

@@ -1,0 +1,155 @@
+#include "core/localization/pose_tracker.h"
+
+#include <cmath>
+#include <numeric>
+
+#include "core/util/check.h"
+#include "core/util/timer.h"
+
+namespace visloc {
+
+const char* PredictionModeName(PredictionMode mode) {
+  switch (mode) {
+    case PredictionMode::kVisibility:
+      return "visibility";
+    case PredictionMode::kTransparent:
+      return "transparent";
+    case PredictionMode::kBruteForce:
+      return "brute_force";
+  }
+  return "?";
+}
+
+PredictionMode ParsePredictionMode(const std::string& name) {
+  for (PredictionMode mode :
+       {PredictionMode::kVisibility, PredictionMode::kTransparent, PredictionMode::kBruteForce}) {
+    if (name == PredictionModeName(mode)) return mode;
+  }
+  throw InputError("unknown prediction mode '" + name +
+                   "' (known: visibility, transparent, brute_force)");
+}
+
+void PoseTrackerOptions::Check() const {
+  visibility.Check();
+  ransac.Check();
+  VISLOC_CHECK(matching.radius_px > 0 && refine_radius_px > 0, "search radii ", matching.radius_px,
+               " ", refine_radius_px);
+  VISLOC_CHECK(matching.ratio > 0 && matching.ratio <= 1, "ratio ", matching.ratio);
+}
+
+PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+                         const PoseTrackerOptions& options)
+    : map_(std::move(map)), camera_(camera), options_(options) {
+  VISLOC_CHECK(map_ != nullptr, "no map");
+  options_.Check();
+  options_.ransac.refine.focal_px = camera_.fx();
+  if (options_.prediction == PredictionMode::kVisibility) {
+    predictor_ = std::make_unique<VisibilityPredictor>(*map_, options_.visibility);
+  }
+  if (options_.prediction == PredictionMode::kBruteForce) {
+    all_points_.resize(map_->point_count());
+    std::iota(all_points_.begin(), all_points_.end(), 0u);
+  }
+}
+
+std::vector<PoseObservation> PoseTracker::Observations(
+    const QueryFrame& frame, const std::vector<PointMatch>& matches) const {
+  std::vector<PoseObservation> observations(matches.size());
+  for (size_t m = 0; m < matches.size(); ++m) {
+    observations[m].point_in_world = map_->map().points[matches[m].point].position_in_map;
+    observations[m].normalized = frame.normalized(matches[m].feature);
+  }
+  return observations;
+}
+
+std::vector<uint32_t> PoseTracker::PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const {
+  Timer timer;
+  std::vector<uint32_t> points;
+  if (predictor_) {
+    for (const PredictedPoint& p : predictor_->Predict(cam_from_map.Inverse())) {
+      points.push_back(p.point);
+    }
+  } else {
+    points = PredictTransparentWorld(*map_, camera_, cam_from_map.Inverse());
+  }
+  fix->predicted = static_cast<int>(points.size());
+  fix->times.predict_ms += timer.ElapsedMs();
+  return points;
+}
+
+void PoseTracker::RefineAround(const QueryFrame& frame, const std::vector<uint32_t>& points,
+                               const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const {
+  Timer timer;
+  const std::vector<ProjectedPoint> projected =
+      ProjectPoints(map_->map(), camera_, cam_from_map, points);
+  fix->times.project_ms += timer.ElapsedMs();
+  timer.Restart();
+  MatchOptions matching = options_.matching;
+  matching.radius_px = radius_px;
+  const std::vector<PointMatch> matches = MatchProjected(map_->map(), projected, frame, matching);
+  fix->times.match_ms += timer.ElapsedMs();
+  timer.Restart();
+  const std::vector<PoseObservation> observations = Observations(frame, matches);
+  const PnpResult refined = RefinePoseOnInliers(cam_from_map, observations, options_.ransac);
+  fix->times.pose_ms += timer.ElapsedMs();
+  fix->putatives = static_cast<int>(matches.size());
+  fix->success = refined.success;
+  if (!refined.success) {
+    fix->inliers = 0;
+    fix->inlier_ratio = 0.0;
+    return;
+  }
+  fix->cam_from_map = refined.cam_from_world;
+  fix->inliers = refined.stats.inliers;
+  fix->inlier_ratio = refined.stats.inlier_ratio;
+  fix->reproj_rmse_px = refined.stats.refine.final_rmse_px;
+  // A posteriori noise: scale the unit-pixel covariance by the measured residual (floored,
+  // since a handful of perfect synthetic matches would otherwise claim micrometres).
+  const double sigma_px = std::max(0.3, fix->reproj_rmse_px);
+  const double unit = options_.ransac.refine.pixel_sigma_px;
+  fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
+}
+
+PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const {
+  PoseFix fix;
+  std::vector<PointMatch> matches;
+  std::vector<uint32_t> points;
+  Timer timer;
+  if (options_.prediction == PredictionMode::kBruteForce) {
+    matches = MatchByDescriptor(map_->map(), all_points_, frame, options_.matching);
+    fix.times.match_ms += timer.ElapsedMs();
+  } else {
+    points = PredictPoints(prior_cam_from_map, &fix);
+    timer.Restart();
+    const std::vector<ProjectedPoint> projected =
+        ProjectPoints(map_->map(), camera_, prior_cam_from_map, points);
+    fix.times.project_ms += timer.ElapsedMs();
+    timer.Restart();
+    matches = MatchProjected(map_->map(), projected, frame, options_.matching);
+    fix.times.match_ms += timer.ElapsedMs();
+  }
+  timer.Restart();
+  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), options_.ransac);
+  fix.times.pose_ms += timer.ElapsedMs();
+  fix.ransac_iterations = ransac.stats.iterations;
+  fix.putatives = static_cast<int>(matches.size());
+  if (!ransac.success) return fix;
+  if (options_.prediction == PredictionMode::kBruteForce) {
+    points = PredictPoints(ransac.cam_from_world, &fix);
+  }
+  RefineAround(frame, points, ransac.cam_from_world, options_.refine_radius_px, &fix);
+  return fix;
+}
+
+PoseFix PoseTracker::Polish(const QueryFrame& frame, const Rigid3d& cam_from_map,
+                            double radius_px) const {
+  PoseFix fix;
+  const std::vector<uint32_t> points = PredictPoints(cam_from_map, &fix);
+  RefineAround(frame, points, cam_from_map, radius_px, &fix);
+  if (fix.success) {
+    RefineAround(frame, points, fix.cam_from_map, options_.refine_radius_px, &fix);
+  }
+  return fix;
+}
+
+}  // namespace visloc

@@ -1,0 +1,92 @@
+#pragma once
+// Visibility-guided pose estimation from a prior (seed paper 000, sec. 5): predict the map
+// points visible from the prior pose, project them, match descriptors in a radius around each
+// projection, solve PnP with RANSAC, then re-match in a tight radius around the projections of
+// the RANSAC pose and refine with Levenberg-Marquardt on the inliers (eq. 9).
+//
+// Not thread-safe (the visibility predictor keeps scratch space); one per session.
+
+#include <memory>
+#include <vector>
+
+#include "core/camera/pinhole_camera.h"
+#include "core/estimators/pnp_ransac.h"
+#include "core/localization/map_matching.h"
+#include "core/localization/query_frame.h"
+#include "core/localization/visibility_predictor.h"
+#include "core/map/localization_map.h"
+
+namespace visloc {
+
+// Which map points a prior pose predicts: the paper's learned visibility, or the baselines.
+enum class PredictionMode {
+  kVisibility,   // Learned visibility kernel (eq. 8).
+  kTransparent,  // Every point in front of the camera that projects into the image.
+  kBruteForce,   // No prior: all keypoints against all map descriptors.
+};
+const char* PredictionModeName(PredictionMode mode);
+// "visibility", "transparent" or "brute_force"; throws InputError otherwise.
+PredictionMode ParsePredictionMode(const std::string& name);
+
+struct PoseTrackerOptions {
+  PredictionMode prediction = PredictionMode::kVisibility;
+  VisibilityOptions visibility;
+  MatchOptions matching;          // radius_px: the guided search radius.
+  double refine_radius_px = 4.0;  // Tight re-matching radius around the RANSAC pose.
+  PnpRansacOptions ransac;        // max_error_px is also the inlier threshold of the refinement.
+  void Check() const;
+};
+
+struct PoseStepTimes {
+  double predict_ms = 0.0;
+  double project_ms = 0.0;
+  double match_ms = 0.0;
+  double pose_ms = 0.0;
+};
+
+struct PoseFix {
+  bool success = false;
+  Rigid3d cam_from_map;
+  Eigen::Matrix<double, 6, 6> covariance =
+      Eigen::Matrix<double, 6, 6>::Zero();  // Translation (m) then rotation (rad).
+  int predicted = 0;                        // Points predicted visible.
+  int putatives = 0;                        // Matches after the final (tight) association.
+  int inliers = 0;            // Putatives within the inlier threshold of the final pose.
+  double inlier_ratio = 0.0;  // inliers / putatives.
+  int ransac_iterations = 0;
+  double reproj_rmse_px = 0.0;  // Over the inliers.
+  PoseStepTimes times;
+};
+
+class PoseTracker {
+ public:
+  PoseTracker(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+              const PoseTrackerOptions& options);
+
+  // Full guided estimation from a prior pose.
+  PoseFix Track(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const;
+  // Verification and refinement of a pose from elsewhere (relocalization): predict from it,
+  // match within `radius_px`, refine on the inliers, then once more in the tight radius.
+  PoseFix Polish(const QueryFrame& frame, const Rigid3d& cam_from_map, double radius_px) const;
+
+  const PoseTrackerOptions& options() const { return options_; }
+  const PinholeCamera& camera() const { return camera_; }
+  const LocalizationMap& map() const { return *map_; }
+  // Undistorted normalized observations of matched points, for the pose solvers.
+  std::vector<PoseObservation> Observations(const QueryFrame& frame,
+                                            const std::vector<PointMatch>& matches) const;
+
+ private:
+  std::vector<uint32_t> PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const;
+  // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
+  void RefineAround(const QueryFrame& frame, const std::vector<uint32_t>& points,
+                    const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const;
+
+  std::shared_ptr<const LocalizationMap> map_;
+  PinholeCamera camera_;
+  PoseTrackerOptions options_;
+  std::unique_ptr<VisibilityPredictor> predictor_;
+  std::vector<uint32_t> all_points_;  // For the brute-force baseline.
+};
+
+}  // namespace visloc

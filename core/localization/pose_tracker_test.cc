@@ -1,0 +1,175 @@
+// The guided tracker, the matchers and the relocalizer on synthetic maps and synthetic views:
+// keypoints at the exact projections of map points (plus noise and clutter), with the points'
+// descriptors slightly perturbed, so every correct association is known.
+
+#include "core/localization/pose_tracker.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/localization/relocalizer.h"
+#include "core/map/synthetic_map.h"
+#include "core/map/vocabulary.h"
+#include "core/util/check.h"
+#include "core/util/random.h"
+
+namespace visloc {
+namespace {
+
+// A map whose keyframe appearance vectors come from the descriptors of the points they see, as
+// the map builder makes them (the synthetic map's own vectors are random).
+std::shared_ptr<const LocalizationMap> TestMap() {
+  SyntheticMapOptions options;
+  options.keyframes = 40;
+  options.points = 4000;
+  Map map = MakeSyntheticMap(options);
+  map.appearance.keyframe_vectors.clear();
+  for (size_t k = 0; k < map.keyframes.size(); ++k) {
+    cv::Mat seen;
+    for (const Observation& o : map.observations) {
+      if (o.keyframe == k) seen.push_back(map.descriptors.row(static_cast<int>(o.point)));
+    }
+    map.appearance.keyframe_vectors.push_back(ComputeBow(map.appearance.vocabulary, seen));
+  }
+  return std::make_shared<const LocalizationMap>(std::move(map));
+}
+
+struct View {
+  FeatureSet features;
+  std::vector<int> point_of_feature;  // -1 for clutter.
+};
+
+// What a camera at `cam_from_map` sees: the points seen by keyframes near it that project into
+// the image, with 0.3 px keypoint noise, plus `clutter` random keypoints.
+View RenderView(const LocalizationMap& map, const Rigid3d& cam_from_map, int clutter,
+                uint64_t seed) {
+  Rng rng(seed);
+  const Map& m = map.map();
+  View view;
+  for (uint32_t j : PredictTransparentWorld(map, m.camera, cam_from_map.Inverse())) {
+    Eigen::Vector2d pixel;
+    m.camera.Project(cam_from_map * m.points[j].position_in_map, &pixel);
+    pixel += Eigen::Vector2d(rng.Normal(0, 0.3), rng.Normal(0, 0.3));
+    if (!m.camera.IsInImage(pixel)) continue;
+    view.features.keypoints.push_back({pixel.cast<float>(), 1.2f, 1.0f});
+    cv::Mat descriptor = m.descriptors.row(static_cast<int>(j)).clone();
+    for (int d = 0; d < descriptor.cols; ++d) {
+      descriptor.at<float>(0, d) += static_cast<float>(rng.Normal(0, 0.02));
+    }
+    view.features.descriptors.push_back(descriptor);
+    view.point_of_feature.push_back(static_cast<int>(j));
+  }
+  for (int c = 0; c < clutter; ++c) {
+    const Eigen::Vector2d pixel(rng.Uniform(0, 319), rng.Uniform(0, 239));
+    view.features.keypoints.push_back({pixel.cast<float>(), 1.2f, 1.0f});
+    cv::Mat descriptor(1, m.descriptors.cols, CV_32F);
+    for (int d = 0; d < descriptor.cols; ++d) {
+      descriptor.at<float>(0, d) = static_cast<float>(rng.Uniform(-1, 1));
+    }
+    view.features.descriptors.push_back(descriptor);
+    view.point_of_feature.push_back(-1);
+  }
+  return view;
+}
+
+// A pose between keyframes 12 and 13, a little off their path.
+Rigid3d TruePose(const LocalizationMap& map) {
+  const Rigid3d between =
+      Interpolate(map.map().keyframes[12].map_from_cam, map.map().keyframes[13].map_from_cam, 0.4);
+  return (between *
+          Rigid3d(RotationFromRollPitchYaw(0.02, -0.03, 0.01), Eigen::Vector3d(0.03, -0.02, 0.05)))
+      .Inverse();
+}
+
+Rigid3d Perturbed(const Rigid3d& cam_from_map) {
+  return Rigid3d(RotationFromRollPitchYaw(0.02, -0.015, 0.01), Eigen::Vector3d(0.04, -0.03, 0.05)) *
+         cam_from_map;
+}
+
+TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
+  const auto map = TestMap();
+  const Rigid3d truth = TruePose(*map);
+  const View view = RenderView(*map, truth, 150, 1);
+  const QueryFrame frame(view.features, map->map().camera);
+  std::vector<uint32_t> all(map->point_count());
+  for (uint32_t j = 0; j < all.size(); ++j) all[j] = j;
+  const auto projected = ProjectPoints(map->map(), map->map().camera, truth, all);
+  const auto matches = MatchProjected(map->map(), projected, frame, MatchOptions{});
+  ASSERT_GT(matches.size(), 150u);
+  int correct = 0;
+  for (const PointMatch& m : matches)
+    correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);
+  EXPECT_GE(correct, static_cast<int>(0.99 * matches.size()));
+  const auto unguided = MatchByDescriptor(map->map(), all, frame, MatchOptions{});
+  int unguided_correct = 0;
+  for (const PointMatch& m : unguided) {
+    unguided_correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);
+  }
+  EXPECT_GE(unguided_correct, static_cast<int>(0.95 * unguided.size()));
+  EXPECT_GT(unguided.size(), 150u);
+}
+
+class PoseTrackerModeTest : public ::testing::TestWithParam<PredictionMode> {};
+
+TEST_P(PoseTrackerModeTest, RecoversThePoseFromAnOffPrior) {
+  const auto map = TestMap();
+  const Rigid3d truth = TruePose(*map);
+  const View view = RenderView(*map, truth, 150, 2);
+  const QueryFrame frame(view.features, map->map().camera);
+  PoseTrackerOptions options;
+  options.prediction = GetParam();
+  options.matching.radius_px = 25.0;
+  const PoseTracker tracker(map, map->map().camera, options);
+  const PoseFix fix = tracker.Track(frame, Perturbed(truth));
+  ASSERT_TRUE(fix.success) << PredictionModeName(GetParam());
+  EXPECT_TRUE(ApproxEqual(fix.cam_from_map, truth, 0.005, 0.1))
+      << (fix.cam_from_map.translation - truth.translation).norm();
+  EXPECT_GT(fix.inliers, 100);
+  EXPECT_GT(fix.inlier_ratio, 0.9);
+  EXPECT_LT(fix.reproj_rmse_px, 0.6);
+  EXPECT_GT(fix.ransac_iterations, 0);
+  // A covariance: symmetric positive definite, millimetre-level for this many inliers.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> solver(fix.covariance);
+  EXPECT_GT(solver.eigenvalues().minCoeff(), 0.0);
+  EXPECT_LT(std::sqrt(fix.covariance.topLeftCorner<3, 3>().trace()), 0.01);
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, PoseTrackerModeTest,
+                         ::testing::Values(PredictionMode::kVisibility,
+                                           PredictionMode::kTransparent,
+                                           PredictionMode::kBruteForce),
+                         [](const auto& info) { return PredictionModeName(info.param); });
+
+TEST(PoseTrackerTest, PredictionModesParseByName) {
+  EXPECT_EQ(ParsePredictionMode("brute_force"), PredictionMode::kBruteForce);
+  EXPECT_THROW(ParsePredictionMode("magic"), InputError);
+}
+
+TEST(RelocalizerTest, FindsTheCameraWithoutAPriorAndRefusesClutter) {
+  const auto map = TestMap();
+  const Rigid3d truth = TruePose(*map);
+  const PoseTracker tracker(map, map->map().camera, PoseTrackerOptions{});
+  const Relocalizer relocalizer(tracker, RelocalizationOptions{});
+  const View view = RenderView(*map, truth, 150, 3);
+  const RelocalizationResult found =
+      relocalizer.Relocalize(QueryFrame(view.features, map->map().camera));
+  ASSERT_TRUE(found.success);
+  EXPECT_TRUE(ApproxEqual(found.fix.cam_from_map, truth, 0.005, 0.1));
+  EXPECT_NEAR(found.keyframe, 12, 4);
+  ASSERT_FALSE(found.candidates.empty());
+  EXPECT_TRUE(found.candidates.front().score >= found.candidates.back().score);
+
+  // A local search far from the camera does not find it.
+  const RelocalizationScope elsewhere{map->keyframe_centers()[32], 0.3};
+  EXPECT_FALSE(
+      relocalizer.Relocalize(QueryFrame(view.features, map->map().camera), elsewhere).success);
+
+  const View clutter = RenderView(
+      *map, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -100)), 600, 4);
+  ASSERT_EQ(clutter.point_of_feature.size(), 600u);
+  EXPECT_FALSE(relocalizer.Relocalize(QueryFrame(clutter.features, map->map().camera)).success);
+}
+
+}  // namespace
+}  // namespace visloc

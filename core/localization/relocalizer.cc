@@ -1,0 +1,86 @@
+#include "core/localization/relocalizer.h"
+
+#include <algorithm>
+
+#include "core/map/vocabulary.h"
+#include "core/util/check.h"
+#include "core/util/timer.h"
+
+namespace visloc {
+
+void RelocalizationOptions::Check() const {
+  VISLOC_CHECK(max_candidates >= 1 && min_matches >= 4 && min_ransac_inliers >= 4 &&
+                   min_verified_inliers >= min_ransac_inliers && ransac_iterations >= 1,
+               "relocalization thresholds");
+  VISLOC_CHECK(min_verified_inlier_ratio >= 0 && min_verified_inlier_ratio <= 1,
+               "relocalization inlier ratio ", min_verified_inlier_ratio);
+  VISLOC_CHECK(verify_radius_px > 0, "verify radius ", verify_radius_px);
+}
+
+Relocalizer::Relocalizer(const PoseTracker& tracker, const RelocalizationOptions& options)
+    : tracker_(tracker), options_(options) {
+  options_.Check();
+  VISLOC_CHECK(!tracker.map().keyframes_by_word().empty(),
+               "the map has no appearance index (vocabulary and keyframe vectors)");
+}
+
+void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candidate,
+                         PoseFix* fix) const {
+  const LocalizationMap& map = tracker_.map();
+  const auto visible = map.VisiblePoints(candidate->keyframe);
+  const std::vector<uint32_t> points(visible.begin(), visible.end());
+  const std::vector<PointMatch> matches =
+      MatchByDescriptor(map.map(), points, frame, options_.matching);
+  candidate->matches = static_cast<int>(matches.size());
+  if (candidate->matches < options_.min_matches) return;
+  PnpRansacOptions ransac = tracker_.options().ransac;
+  ransac.min_inliers = options_.min_ransac_inliers;
+  ransac.max_iterations = options_.ransac_iterations;
+  ransac.seed = static_cast<uint64_t>(candidate->keyframe) + 1;
+  const PnpResult pnp = SolvePnpRansac(tracker_.Observations(frame, matches), ransac);
+  candidate->ransac_inliers = pnp.stats.inliers;
+  if (!pnp.success) return;
+  *fix = tracker_.Polish(frame, pnp.cam_from_world, options_.verify_radius_px);
+  fix->ransac_iterations = pnp.stats.iterations;
+  candidate->verified_inliers = fix->inliers;
+  candidate->accepted = fix->success && fix->inliers >= options_.min_verified_inliers &&
+                        fix->inlier_ratio >= options_.min_verified_inlier_ratio;
+}
+
+RelocalizationResult Relocalizer::Relocalize(
+    const QueryFrame& frame, const std::optional<RelocalizationScope>& scope) const {
+  Timer timer;
+  RelocalizationResult result;
+  const LocalizationMap& map = tracker_.map();
+  const BowVector query = ComputeBow(map.map().appearance.vocabulary, frame.features().descriptors);
+  const std::vector<float> scores = map.ScoreKeyframes(query);
+  std::vector<int> ranked;
+  for (size_t k = 0; k < scores.size(); ++k) {
+    const bool in_scope =
+        !scope || (map.keyframe_centers()[k] - scope->center_in_map).norm() <= scope->radius_m;
+    if (scores[k] > 0 && in_scope) ranked.push_back(static_cast<int>(k));
+  }
+  const size_t keep = std::min<size_t>(options_.max_candidates, ranked.size());
+  std::partial_sort(ranked.begin(), ranked.begin() + keep, ranked.end(), [&](int a, int b) {
+    return scores[a] > scores[b] || (scores[a] == scores[b] && a < b);
+  });
+  ranked.resize(keep);
+  for (int keyframe : ranked) {
+    RelocalizationCandidate candidate;
+    candidate.keyframe = keyframe;
+    candidate.score = scores[keyframe];
+    PoseFix fix;
+    Verify(frame, &candidate, &fix);
+    result.candidates.push_back(candidate);
+    if (candidate.accepted && (!result.success || fix.inliers > result.fix.inliers)) {
+      result.success = true;
+      result.fix = fix;
+      result.keyframe = keyframe;
+      if (fix.inliers >= options_.strong_inliers) break;
+    }
+  }
+  result.ms = timer.ElapsedMs();
+  return result;
+}
+
+}  // namespace visloc

@@ -1,0 +1,72 @@
+#pragma once
+// Finding the camera in the map from one image (seed paper 000, sec. 5.1), much faster than the
+// paper's exhaustive keyframe matching: the image's bag of words ranks the map's keyframes
+// (inverted index, so the cost grows with the keyframes that share words, not with the map),
+// and the best candidates are verified geometrically, most similar first:
+//   1. match the image's keypoints to the points the candidate keyframe sees (descriptors only),
+//   2. PnP with RANSAC on those matches,
+//   3. verify: predict the points visible from that pose, re-match them by projection, and
+//      refine. Accept only with enough inliers at a high enough inlier ratio, so an image from
+//      a place that is not in the map is refused rather than forced onto the best candidate.
+// A local search restricts the candidates to keyframes near a pose (fast relocalization around
+// the last known pose when tracking is briefly lost).
+
+#include <optional>
+#include <vector>
+
+#include "core/localization/pose_tracker.h"
+
+namespace visloc {
+
+struct RelocalizationOptions {
+  int max_candidates = 4;  // Keyframes verified, best appearance score first.
+  int min_matches = 20;    // Descriptor matches a candidate needs before RANSAC.
+  int min_ransac_inliers = 15;
+  int min_verified_inliers = 40;  // After re-matching by projection.
+  double min_verified_inlier_ratio = 0.5;
+  int strong_inliers = 80;        // Stop at the first candidate this well supported.
+  double verify_radius_px = 8.0;  // Re-matching radius around the RANSAC pose's projections.
+  MatchOptions matching;          // Descriptor thresholds for step 1 (radius unused).
+  int ransac_iterations = 300;
+  void Check() const;
+};
+
+// Where to look: all keyframes, or those whose centres lie within radius_m of center_in_map.
+struct RelocalizationScope {
+  Eigen::Vector3d center_in_map = Eigen::Vector3d::Zero();
+  double radius_m = 0.0;
+};
+
+struct RelocalizationCandidate {
+  int keyframe = -1;
+  float score = 0.0f;  // Appearance score in [0, 1].
+  int matches = 0;
+  int ransac_inliers = 0;
+  int verified_inliers = 0;
+  bool accepted = false;
+};
+
+struct RelocalizationResult {
+  bool success = false;
+  PoseFix fix;  // The verified pose and its statistics (when success).
+  int keyframe = -1;
+  std::vector<RelocalizationCandidate> candidates;  // As tried, best appearance first.
+  double ms = 0.0;
+};
+
+class Relocalizer {
+ public:
+  // `tracker` provides the map, the camera and the verification; it must outlive this.
+  Relocalizer(const PoseTracker& tracker, const RelocalizationOptions& options);
+
+  RelocalizationResult Relocalize(const QueryFrame& frame,
+                                  const std::optional<RelocalizationScope>& scope = {}) const;
+
+ private:
+  void Verify(const QueryFrame& frame, RelocalizationCandidate* candidate, PoseFix* fix) const;
+
+  const PoseTracker& tracker_;
+  RelocalizationOptions options_;
+};
+
+}  // namespace visloc
