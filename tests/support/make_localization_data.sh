@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Generates the data the localization end-to-end tests share (a CTest fixture):
+#   map.db        built from the 2 m square rendered at 5 fps (the whole loop, kept quick),
+#   <sequence>/   short query sequences at 15 fps with ground truth in the map frame.
+# Usage: make_localization_data.sh VISLOC_BINARY OUT_DIR. Skips the work when OUT_DIR is newer
+# than the binary (local re-runs); CI always starts from a fresh build folder.
+set -euo pipefail
+visloc=$1
+out=$2
+stamp=$out/ready
+if [[ -f $stamp && $stamp -nt $visloc ]]; then
+  echo "localization test data up to date in $out"
+  exit 0
+fi
+rm -rf "$out"
+mkdir -p "$out"
+sim() { "$visloc" sim --out "$out" --no-contact-sheet "$@" >/dev/null; }
+# name:frames (0: the whole sequence).
+queries=(query_square:120 straight:0 circle:120 kidnap:150 lowlight:90 occluders:90 outofmap:45)
+sim --sequence map_square --fps 5
+"$visloc" map build --dataset "$out/map_square" --out "$out/map.db" >/dev/null &
+build=$!
+pids=()
+for q in "${queries[@]}"; do
+  sim --sequence "${q%%:*}" --frames "${q##*:}" &
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid"; done
+wait "$build"
+touch "$stamp"
+echo "localization test data written to $out"
