@@ -1,13 +1,17 @@
 #include "mapstore/map_directory.h"
 
+#include <fcntl.h>
 #include <signal.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "mapstore/file_sync.h"
 
 namespace visloc::mapstore {
 namespace fs = std::filesystem;
@@ -81,6 +85,33 @@ void MapDirectory::Rename(const std::string& from, const std::string& to) {
   map.metadata.name = to;
   SaveMap(map, to_path);
   fs::remove(from_path);
+}
+
+std::string MapDirectory::StagingPathFor(const std::string& name) const {
+  return TemporaryPathBeside(PathOf(name));
+}
+
+MapInfo MapDirectory::Publish(const std::string& staged_path, const std::string& name,
+                              bool replace) {
+  try {
+    CheckMapName(name);
+    if (!replace && Contains(name)) {
+      throw InputError("a map named '" + name + "' already exists (replace it explicitly)");
+    }
+    const VerifyReport report = VerifyMapFile(staged_path);
+    if (!report.ok()) throw InputError("the uploaded map is not sound: " + report.problems[0]);
+    SyncPath(staged_path, O_RDONLY);
+    const std::string path = PathOf(name);
+    if (std::rename(staged_path.c_str(), path.c_str()) != 0) {
+      throw InputError(path + ": cannot move the map into place: " + std::strerror(errno));
+    }
+    SyncPath(dir_, O_RDONLY | O_DIRECTORY);
+    return SummarizeMap(LoadMap(path), path);
+  } catch (...) {
+    std::error_code ignored;
+    fs::remove(staged_path, ignored);
+    throw;
+  }
 }
 
 int MapDirectory::RemoveStaleTemporaries() {

@@ -43,6 +43,14 @@ class MapDirectory {
   // Renames the file and the map's own name (a durable rewrite, then the old file is removed).
   // Throws InputError when `from` is absent, `to` exists, or either name is invalid.
   void Rename(const std::string& from, const std::string& to);
+  // Where an incoming copy of NAME (an upload) is staged: a temporary file beside DIR/NAME.db,
+  // invisible to List and removed by RemoveStaleTemporaries if its writer dies.
+  std::string StagingPathFor(const std::string& name) const;
+  // Verifies the staged file (VerifyMapFile) and publishes it as NAME with one atomic, durable
+  // rename. An existing NAME is replaced only with `replace`. On any failure the staged file is
+  // removed and InputError names the problem; DIR/NAME.db is then untouched.
+  MapInfo Publish(const std::string& staged_path, const std::string& name, bool replace);
+
   // Removes temporary files of writers that are no longer running (left by a crash).
   // Returns how many were removed.
   int RemoveStaleTemporaries();

@@ -12,6 +12,7 @@
 #include "core/map/localization_map.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "mapstore/file_sync.h"
 #include "mapstore/sqlite.h"
 
 namespace visloc::mapstore {
@@ -354,22 +355,6 @@ void WriteKernelAndAppearance(Database& db, const Map& map) {
         .BindBlob(3, weights.data(), weights.size());
     insert.Run();
   }
-}
-
-void SyncPath(const std::string& path, int flags) {
-  const int fd = ::open(path.c_str(), flags);
-  if (fd < 0) throw InputError(StrCat(path, ": cannot open to sync"));
-  const int rc = ::fsync(fd);
-  ::close(fd);
-  if (rc != 0) throw InputError(StrCat(path, ": fsync failed"));
-}
-
-std::string TemporaryPathBeside(const std::string& path) {
-  static std::atomic<int> counter{0};
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  return (dir / StrCat(".", target.filename().string(), ".tmp-", ::getpid(), "-", counter++))
-      .string();
 }
 
 // ---- Reading ----------------------------------------------------------------------------
@@ -729,6 +714,22 @@ VerifyReport VerifyMapFile(const std::string& path) {
     report.problems.push_back(e.what());
   }
   return report;
+}
+
+void SyncPath(const std::string& path, int flags) {
+  const int fd = ::open(path.c_str(), flags);
+  if (fd < 0) throw InputError(StrCat(path, ": cannot open to sync"));
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  if (rc != 0) throw InputError(StrCat(path, ": fsync failed"));
+}
+
+std::string TemporaryPathBeside(const std::string& path) {
+  static std::atomic<int> counter{0};
+  const fs::path target(path);
+  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  return (dir / StrCat(".", target.filename().string(), ".tmp-", ::getpid(), "-", counter++))
+      .string();
 }
 
 }  // namespace visloc::mapstore

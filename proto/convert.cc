@@ -1,0 +1,276 @@
+#include "proto/convert.h"
+
+#include <cmath>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/util/check.h"
+
+namespace visloc::proto {
+namespace {
+
+bool HasPose(const v1::Pose& p) { return p.qw() != 0 || p.qx() != 0 || p.qy() != 0 || p.qz() != 0; }
+
+TrackingStatus StatusFromProto(v1::Status status) {
+  switch (status) {
+    case v1::STATUS_TRACKING:
+      return TrackingStatus::kTracking;
+    case v1::STATUS_LIMITED:
+      return TrackingStatus::kLimited;
+    case v1::STATUS_RELOCALIZED:
+      return TrackingStatus::kRelocalized;
+    case v1::STATUS_LOST:
+      return TrackingStatus::kLost;
+    default:
+      return TrackingStatus::kInitializing;
+  }
+}
+
+v1::Status StatusToProto(TrackingStatus status) {
+  switch (status) {
+    case TrackingStatus::kInitializing:
+      return v1::STATUS_INITIALIZING;
+    case TrackingStatus::kTracking:
+      return v1::STATUS_TRACKING;
+    case TrackingStatus::kLimited:
+      return v1::STATUS_LIMITED;
+    case TrackingStatus::kRelocalized:
+      return v1::STATUS_RELOCALIZED;
+    case TrackingStatus::kLost:
+      return v1::STATUS_LOST;
+  }
+  return v1::STATUS_UNSPECIFIED;
+}
+
+RelocalizationReport::Kind KindFromName(const std::string& name) {
+  if (name == "local") return RelocalizationReport::Kind::kLocal;
+  if (name == "global") return RelocalizationReport::Kind::kGlobal;
+  return RelocalizationReport::Kind::kNone;
+}
+
+}  // namespace
+
+void ToProto(const Rigid3d& pose, v1::Pose* out) {
+  out->set_tx(pose.translation.x());
+  out->set_ty(pose.translation.y());
+  out->set_tz(pose.translation.z());
+  out->set_qw(pose.rotation.w());
+  out->set_qx(pose.rotation.x());
+  out->set_qy(pose.rotation.y());
+  out->set_qz(pose.rotation.z());
+}
+
+Rigid3d FromProto(const v1::Pose& p, const char* field) {
+  const Eigen::Vector3d t(p.tx(), p.ty(), p.tz());
+  Eigen::Quaterniond q(p.qw(), p.qx(), p.qy(), p.qz());
+  if (!t.allFinite() || !q.coeffs().allFinite() || q.norm() < 1e-9) {
+    throw InputError(StrCat(field, ": not a valid pose (finite translation, non-zero quaternion)"));
+  }
+  q.normalize();
+  return Rigid3d(q, t);
+}
+
+void ToProto(const PinholeCamera& camera, v1::CameraModel* out) {
+  out->set_width(camera.width());
+  out->set_height(camera.height());
+  out->set_fx(camera.fx());
+  out->set_fy(camera.fy());
+  out->set_cx(camera.cx());
+  out->set_cy(camera.cy());
+  out->clear_distortion();
+  const RadTanDistortion& d = camera.distortion();
+  for (double v : {d.k1, d.k2, d.p1, d.p2}) out->add_distortion(v);
+}
+
+PinholeCamera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
+  if (c.width() == 0 || c.height() == 0 ||
+      c.width() > static_cast<uint32_t>(limits.max_image_width) ||
+      c.height() > static_cast<uint32_t>(limits.max_image_height)) {
+    throw InputError(StrCat("camera: size ", c.width(), "x", c.height(), " outside 1x1..",
+                            limits.max_image_width, "x", limits.max_image_height));
+  }
+  if (!(c.fx() > 0 && c.fy() > 0 && std::isfinite(c.fx()) && std::isfinite(c.fy()) &&
+        std::isfinite(c.cx()) && std::isfinite(c.cy()))) {
+    throw InputError(StrCat("camera: focal lengths must be positive and finite (fx ", c.fx(),
+                            ", fy ", c.fy(), ")"));
+  }
+  RadTanDistortion distortion;
+  if (c.distortion_size() == 4) {
+    distortion = {c.distortion(0), c.distortion(1), c.distortion(2), c.distortion(3)};
+  } else if (c.distortion_size() != 0) {
+    throw InputError(
+        StrCat("camera: distortion needs 0 or 4 values (k1 k2 p1 p2), got ", c.distortion_size()));
+  }
+  return PinholeCamera(static_cast<int>(c.width()), static_cast<int>(c.height()), c.fx(), c.fy(),
+                       c.cx(), c.cy(), distortion);
+}
+
+cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw,
+                    const PinholeCamera& camera) {
+  cv::Mat grey;
+  if (raw) {
+    const uint32_t stride = raw->stride() == 0 ? raw->width() : raw->stride();
+    if (raw->width() == 0 || raw->height() == 0 || stride < raw->width()) {
+      throw InputError(
+          StrCat("raw image: bad geometry ", raw->width(), "x", raw->height(), " stride ", stride));
+    }
+    if (raw->pixels().size() < static_cast<size_t>(stride) * (raw->height() - 1) + raw->width()) {
+      throw InputError(StrCat("raw image: ", raw->pixels().size(), " bytes is too few for ",
+                              raw->width(), "x", raw->height(), " with stride ", stride));
+    }
+    grey = cv::Mat(static_cast<int>(raw->height()), static_cast<int>(raw->width()), CV_8UC1,
+                   const_cast<char*>(raw->pixels().data()), stride)
+               .clone();
+  } else {
+    if (encoded.empty()) throw InputError("frame has no image");
+    const cv::Mat bytes(1, static_cast<int>(encoded.size()), CV_8UC1,
+                        const_cast<char*>(encoded.data()));
+    grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    if (grey.empty()) {
+      throw InputError(StrCat("image: ", encoded.size(), " bytes are not a decodable PNG or JPEG"));
+    }
+  }
+  if (grey.cols != camera.width() || grey.rows != camera.height()) {
+    throw InputError(StrCat("image is ", grey.cols, "x", grey.rows, " but the session camera is ",
+                            camera.width(), "x", camera.height()));
+  }
+  return grey;
+}
+
+FrameInput FromProto(const v1::Frame& frame, const PinholeCamera& camera) {
+  FrameInput input;
+  input.timestamp_ns = frame.timestamp_ns();
+  input.image = DecodeImage(frame.encoded(), frame.has_raw() ? &frame.raw() : nullptr, camera);
+  if (frame.has_odom_from_cam() && HasPose(frame.odom_from_cam())) {
+    input.odom_from_cam = FromProto(frame.odom_from_cam(), "odom_from_cam");
+  }
+  if (frame.has_map_from_cam_hint() && HasPose(frame.map_from_cam_hint())) {
+    input.map_from_cam_hint = FromProto(frame.map_from_cam_hint(), "map_from_cam_hint");
+  }
+  for (const v1::ImuSample& s : frame.imu()) {
+    const Eigen::Vector3d rate(s.gyro_x(), s.gyro_y(), s.gyro_z());
+    if (!rate.allFinite()) throw InputError("imu: non-finite gyro rate");
+    input.gyro.push_back({s.timestamp_ns(), rate});
+  }
+  return input;
+}
+
+void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Frame* out) {
+  out->set_timestamp_ns(frame.timestamp_ns);
+  out->set_encoded(encoded_image);
+  if (frame.odom_from_cam) ToProto(*frame.odom_from_cam, out->mutable_odom_from_cam());
+  if (frame.map_from_cam_hint) ToProto(*frame.map_from_cam_hint, out->mutable_map_from_cam_hint());
+  for (const GyroSample& g : frame.gyro) {
+    v1::ImuSample* s = out->add_imu();
+    s->set_timestamp_ns(g.timestamp_ns);
+    s->set_gyro_x(g.rate_radps.x());
+    s->set_gyro_y(g.rate_radps.y());
+    s->set_gyro_z(g.rate_radps.z());
+  }
+}
+
+LocalizerOptions FromProto(const v1::SessionOptions& o) {
+  LocalizerOptions options;
+  if (o.visibility_k() > 0) options.tracker.visibility.k = static_cast<int>(o.visibility_k());
+  if (o.has_probability_threshold()) {
+    options.tracker.visibility.probability_threshold = o.probability_threshold();
+  }
+  if (o.ransac_max_error_px() > 0) options.tracker.ransac.max_error_px = o.ransac_max_error_px();
+  if (o.ransac_max_iterations() > 0) {
+    options.tracker.ransac.max_iterations = static_cast<int>(o.ransac_max_iterations());
+  }
+  if (o.has_camera_height_m()) {
+    options.motion.plane_sigma_m = 0.02;
+    options.motion.height_m = o.camera_height_m();
+  }
+  switch (o.prediction()) {
+    case v1::PREDICTION_TRANSPARENT:
+      options.tracker.prediction = PredictionMode::kTransparent;
+      break;
+    case v1::PREDICTION_BRUTE_FORCE:
+      options.tracker.prediction = PredictionMode::kBruteForce;
+      break;
+    default:
+      options.tracker.prediction = PredictionMode::kVisibility;
+  }
+  try {
+    options.Check();
+  } catch (const CheckError& e) {
+    throw InputError(std::string("session options: ") + e.what());
+  }
+  return options;
+}
+
+void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResponse* out) {
+  out->set_timestamp_ns(r.timestamp_ns);
+  out->set_frame_index(frame_index);
+  out->set_status(StatusToProto(r.status));
+  out->set_source(static_cast<v1::PoseSource>(static_cast<int>(r.source)));
+  out->set_has_pose(r.has_pose);
+  if (r.has_pose) {
+    ToProto(r.map_from_cam, out->mutable_map_from_cam());
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) out->add_covariance(r.covariance(i, j));
+    }
+  }
+  v1::FrameStats* s = out->mutable_stats();
+  s->set_features(r.stats.features);
+  s->set_predicted(r.stats.predicted);
+  s->set_putatives(r.stats.putatives);
+  s->set_inliers(r.stats.inliers);
+  s->set_inlier_ratio(r.stats.inlier_ratio);
+  s->set_ransac_iterations(r.stats.ransac_iterations);
+  s->set_reproj_rmse_px(r.stats.reproj_rmse_px);
+  const StepTimings& t = r.stats.times;
+  v1::StepTimings* pt = out->mutable_timings();
+  pt->set_detect_ms(t.detect_ms);
+  pt->set_describe_ms(t.describe_ms);
+  pt->set_predict_ms(t.predict_ms);
+  pt->set_project_ms(t.project_ms);
+  pt->set_match_ms(t.match_ms);
+  pt->set_pose_ms(t.pose_ms);
+  pt->set_relocalize_ms(t.relocalize_ms);
+  pt->set_total_ms(t.total_ms);
+  v1::RelocalizationInfo* rel = out->mutable_relocalization();
+  rel->set_kind(RelocalizationKindName(r.relocalization.kind));
+  rel->set_found(r.relocalization.found);
+  rel->set_awaiting_confirmation(r.relocalization.awaiting_confirmation);
+  rel->set_keyframe(r.relocalization.keyframe);
+  rel->set_candidates(r.relocalization.candidates);
+  rel->set_ms(r.relocalization.ms);
+}
+
+LocalizationResult FromProto(const v1::LocalizeResponse& in) {
+  LocalizationResult r;
+  r.timestamp_ns = in.timestamp_ns();
+  r.status = StatusFromProto(in.status());
+  r.source = static_cast<PoseSource>(std::clamp(static_cast<int>(in.source()), 0, 3));
+  r.has_pose = in.has_pose() && in.has_map_from_cam();
+  if (r.has_pose) {
+    r.map_from_cam = FromProto(in.map_from_cam(), "map_from_cam");
+    if (in.covariance_size() == 36) {
+      for (int i = 0; i < 36; ++i) r.covariance(i / 6, i % 6) = in.covariance(i);
+    }
+  }
+  const v1::FrameStats& s = in.stats();
+  r.stats.features = static_cast<int>(s.features());
+  r.stats.predicted = static_cast<int>(s.predicted());
+  r.stats.putatives = static_cast<int>(s.putatives());
+  r.stats.inliers = static_cast<int>(s.inliers());
+  r.stats.inlier_ratio = s.inlier_ratio();
+  r.stats.ransac_iterations = static_cast<int>(s.ransac_iterations());
+  r.stats.reproj_rmse_px = s.reproj_rmse_px();
+  const v1::StepTimings& t = in.timings();
+  r.stats.times = {t.detect_ms(), t.describe_ms(), t.predict_ms(),    t.project_ms(),
+                   t.match_ms(),  t.pose_ms(),     t.relocalize_ms(), t.total_ms()};
+  r.relocalization.kind = KindFromName(in.relocalization().kind());
+  r.relocalization.found = in.relocalization().found();
+  r.relocalization.awaiting_confirmation = in.relocalization().awaiting_confirmation();
+  r.relocalization.keyframe = in.relocalization().keyframe();
+  r.relocalization.candidates = static_cast<int>(in.relocalization().candidates());
+  r.relocalization.ms = in.relocalization().ms();
+  return r;
+}
+
+}  // namespace visloc::proto

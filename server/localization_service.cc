@@ -1,0 +1,221 @@
+#include "server/localization_service.h"
+
+#include <condition_variable>
+#include <deque>
+#include <thread>
+
+#include "core/localization/relocalizer.h"
+#include "core/util/check.h"
+#include "core/util/strings.h"
+#include "core/util/timer.h"
+#include "server/log.h"
+
+namespace visloc::server {
+namespace {
+
+using grpc::Status;
+using grpc::StatusCode;
+
+// Figures for the session-end log line.
+struct SessionTally {
+  uint64_t frames = 0;
+  uint64_t localized = 0;
+  uint64_t errors = 0;
+  uint64_t skipped = 0;
+  double server_ms_sum = 0.0;
+};
+
+class Session {
+ public:
+  Session(std::shared_ptr<const LocalizationMap> map, const v1::SessionStart& start,
+          const proto::WireLimits& limits)
+      : camera_(proto::FromProto(start.camera(), limits)),
+        localizer_(
+            std::move(map), camera_, proto::FromProto(start.options()),
+            start.options().has_body_from_cam()
+                ? std::optional(proto::FromProto(start.options().body_from_cam(), "body_from_cam"))
+                : std::nullopt) {}
+
+  // One response per frame, never an exception: a bad frame gets STATUS_ERROR.
+  v1::LocalizeResponse Answer(const v1::LocalizeRequest& request) {
+    Timer timer;
+    v1::LocalizeResponse response;
+    const uint64_t index = tally_.frames++;
+    try {
+      if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
+      const LocalizationResult result =
+          localizer_.Process(proto::FromProto(request.frame(), camera_));
+      proto::ToProto(result, index, &response);
+      if (result.has_pose && result.source != PoseSource::kMotion) ++tally_.localized;
+    } catch (const InputError& e) {
+      response.Clear();
+      response.set_frame_index(index);
+      response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
+      response.set_status(v1::STATUS_ERROR);
+      response.set_error(e.what());
+      ++tally_.errors;
+    }
+    const double ms = timer.ElapsedMs();
+    response.mutable_timings()->set_server_ms(ms);
+    tally_.server_ms_sum += ms;
+    return response;
+  }
+
+  v1::LocalizeResponse Skipped(const v1::LocalizeRequest& request) {
+    v1::LocalizeResponse response;
+    response.set_frame_index(tally_.frames++);
+    response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
+    response.set_status(v1::STATUS_SKIPPED);
+    ++tally_.skipped;
+    return response;
+  }
+
+  const SessionTally& tally() const { return tally_; }
+
+ private:
+  PinholeCamera camera_;
+  Localizer localizer_;
+  SessionTally tally_;
+};
+
+// NEWEST_ONLY: a reader thread queues frames; the session answers all but the newest as skipped.
+void ServeNewestOnly(Session* session,
+                     grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::deque<v1::LocalizeRequest> queue;
+  bool done = false;
+  std::thread reader([&] {
+    v1::LocalizeRequest request;
+    while (stream->Read(&request)) {
+      std::lock_guard<std::mutex> lock(mutex);
+      queue.push_back(std::move(request));
+      changed.notify_one();
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    done = true;
+    changed.notify_one();
+  });
+  while (true) {
+    std::deque<v1::LocalizeRequest> batch;
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      changed.wait(lock, [&] { return done || !queue.empty(); });
+      if (queue.empty() && done) break;
+      batch.swap(queue);
+    }
+    bool writing = true;
+    for (size_t i = 0; i + 1 < batch.size() && writing; ++i) {
+      writing = stream->Write(session->Skipped(batch[i]));
+    }
+    if (!writing || !stream->Write(session->Answer(batch.back()))) break;
+  }
+  reader.join();
+}
+
+}  // namespace
+
+Status StatusFromException(const std::exception& e) {
+  const std::string message = e.what();
+  if (message.rfind("no map named", 0) == 0) return Status(StatusCode::NOT_FOUND, message);
+  if (message.rfind("invalid map name", 0) == 0)
+    return Status(StatusCode::INVALID_ARGUMENT, message);
+  if (dynamic_cast<const InputError*>(&e)) return Status(StatusCode::INVALID_ARGUMENT, message);
+  return Status(StatusCode::INTERNAL, message);
+}
+
+LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& limits)
+    : maps_(maps), limits_(limits) {}
+
+Status LocalizationService::Localize(
+    grpc::ServerContext* context,
+    grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  v1::LocalizeRequest request;
+  if (!stream->Read(&request)) return Status(StatusCode::INVALID_ARGUMENT, "empty stream");
+  if (!request.has_start()) {
+    return Status(StatusCode::INVALID_ARGUMENT, "the first message must be a SessionStart");
+  }
+  const v1::SessionStart start = request.start();
+  if (++active_sessions_ > limits_.max_sessions) {
+    --active_sessions_;
+    return Status(StatusCode::RESOURCE_EXHAUSTED,
+                  StrCat("session limit reached (", limits_.max_sessions, " concurrent sessions)"));
+  }
+  struct Release {
+    std::atomic<int>* count;
+    ~Release() { --*count; }
+  } release{&active_sessions_};
+  std::unique_ptr<Session> session;
+  try {
+    session = std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire);
+  } catch (const std::exception& e) {
+    Log("session_refused",
+        {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
+    return StatusFromException(e);
+  }
+  const uint64_t id = next_session_id_++;
+  Log("session_start", {{"session", std::to_string(id)},
+                        {"map", start.map_name()},
+                        {"robot", start.robot_id()},
+                        {"peer", context->peer()},
+                        {"policy", v1::FrameDropPolicy_Name(start.options().drop_policy())}});
+  if (start.options().drop_policy() == v1::NEWEST_ONLY) {
+    ServeNewestOnly(session.get(), stream);
+  } else {
+    while (stream->Read(&request)) {
+      if (!stream->Write(session->Answer(request))) break;
+    }
+  }
+  const SessionTally& t = session->tally();
+  const uint64_t answered = t.frames - t.skipped;
+  Log("session_end",
+      {{"session", std::to_string(id)},
+       {"map", start.map_name()},
+       {"frames", std::to_string(t.frames)},
+       {"localized_fraction", FormatFixed(answered ? double(t.localized) / answered : 0.0, 3)},
+       {"skipped", std::to_string(t.skipped)},
+       {"errors", std::to_string(t.errors)},
+       {"mean_ms", FormatFixed(answered ? t.server_ms_sum / answered : 0.0, 2)},
+       {"cancelled", context->IsCancelled() ? "true" : "false"}});
+  return Status::OK;
+}
+
+Status LocalizationService::Relocalize(grpc::ServerContext*, const v1::RelocalizeRequest* request,
+                                       v1::RelocalizeResponse* response) {
+  try {
+    Timer timer;
+    auto map = maps_->Acquire(request->map_name());
+    const PinholeCamera camera = proto::FromProto(request->camera(), limits_.wire);
+    const cv::Mat image =
+        proto::DecodeImage(request->encoded_image(),
+                           request->has_raw_image() ? &request->raw_image() : nullptr, camera);
+    const LocalizerOptions options;
+    const PoseTracker tracker(map, camera, options.tracker);
+    const Relocalizer relocalizer(tracker, options.relocalization);
+    const QueryFrame frame(CreateFeatureExtractor(map->map().features)->Extract(image), camera);
+    const RelocalizationResult found = relocalizer.Relocalize(frame);
+    response->set_localized(found.success);
+    if (found.success) {
+      proto::ToProto(found.fix.cam_from_map.Inverse(), response->mutable_map_from_cam());
+      for (int i = 0; i < 36; ++i) response->add_covariance(found.fix.covariance(i / 6, i % 6));
+      response->set_inliers(found.fix.inliers);
+      response->set_inlier_ratio(found.fix.inlier_ratio);
+    }
+    response->set_keyframe(found.keyframe);
+    for (const RelocalizationCandidate& c : found.candidates) {
+      v1::RelocalizationCandidate* out = response->add_candidates();
+      out->set_keyframe(c.keyframe);
+      out->set_score(c.score);
+      out->set_matches(c.matches);
+      out->set_ransac_inliers(c.ransac_inliers);
+      out->set_verified_inliers(c.verified_inliers);
+      out->set_accepted(c.accepted);
+    }
+    response->set_ms(timer.ElapsedMs());
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+}  // namespace visloc::server

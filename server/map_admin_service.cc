@@ -1,0 +1,203 @@
+#include "server/map_admin_service.h"
+
+#include <zlib.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/util/check.h"
+#include "server/localization_service.h"
+#include "server/log.h"
+
+namespace visloc::server {
+namespace {
+
+using grpc::Status;
+using grpc::StatusCode;
+
+constexpr size_t kChunkBytes = 1 << 20;
+
+void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
+  out->set_name(entry.name);
+  out->set_size_bytes(entry.file_bytes);
+  out->set_available(entry.info.has_value());
+  out->set_problem(entry.error);
+  if (entry.info) {
+    out->set_keyframes(static_cast<uint32_t>(entry.info->keyframes));
+    out->set_points(entry.info->points);
+    out->set_feature_kind(entry.info->features.kind);
+    out->set_schema_version(entry.info->schema_version);
+    out->set_builder(entry.info->metadata.builder);
+    out->set_source_dataset(entry.info->metadata.source_dataset);
+    out->set_created_unix_s(entry.info->metadata.created_unix_s);
+  }
+}
+
+std::optional<mapstore::MapDirectory::Entry> Find(const mapstore::MapDirectory& dir,
+                                                  const std::string& name) {
+  mapstore::CheckMapName(name);
+  for (const auto& entry : dir.List()) {
+    if (entry.name == name) return entry;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+MapAdminService::MapAdminService(MapCache* maps, uint64_t max_upload_bytes)
+    : maps_(maps), max_upload_bytes_(max_upload_bytes) {}
+
+Status MapAdminService::ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
+                                 v1::ListMapsResponse* response) {
+  try {
+    for (const auto& entry : maps_->directory().List()) ToProto(entry, response->add_maps());
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+Status MapAdminService::GetMapInfo(grpc::ServerContext*, const v1::MapName* request,
+                                   v1::MapInfo* response) {
+  try {
+    const auto entry = Find(maps_->directory(), request->name());
+    if (!entry) return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
+    ToProto(*entry, response);
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+Status MapAdminService::UploadMap(grpc::ServerContext* context,
+                                  grpc::ServerReader<v1::UploadChunk>* reader,
+                                  v1::MapInfo* response) {
+  v1::UploadChunk chunk;
+  if (!reader->Read(&chunk) || !chunk.has_header()) {
+    return Status(StatusCode::INVALID_ARGUMENT, "an upload starts with a header");
+  }
+  const v1::UploadHeader header = chunk.header();
+  std::string staged;
+  try {
+    mapstore::CheckMapName(header.name());
+    if (header.size_bytes() == 0 || header.size_bytes() > max_upload_bytes_) {
+      return Status(StatusCode::INVALID_ARGUMENT, StrCat("upload size ", header.size_bytes(),
+                                                         " bytes outside 1..", max_upload_bytes_));
+    }
+    if (!header.replace() && maps_->directory().Contains(header.name())) {
+      return Status(StatusCode::ALREADY_EXISTS,
+                    "a map named '" + header.name() + "' already exists (set replace)");
+    }
+    staged = maps_->directory().StagingPathFor(header.name());
+    uint64_t received = 0;
+    uLong crc = crc32(0L, Z_NULL, 0);
+    {
+      std::ofstream out(staged, std::ios::binary | std::ios::trunc);
+      if (!out) throw InputError("cannot stage the upload in the maps folder");
+      while (reader->Read(&chunk)) {
+        if (!chunk.has_data() && chunk.kind_case() != v1::UploadChunk::kData) {
+          throw InputError("a second header in the upload");
+        }
+        received += chunk.data().size();
+        if (received > header.size_bytes()) {
+          throw InputError(
+              StrCat("upload exceeds its declared size of ", header.size_bytes(), " bytes"));
+        }
+        crc = crc32(crc, reinterpret_cast<const Bytef*>(chunk.data().data()),
+                    static_cast<uInt>(chunk.data().size()));
+        out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
+      }
+      if (!out.flush()) throw InputError("cannot write the upload (disk full?)");
+    }
+    if (context->IsCancelled() || received != header.size_bytes()) {
+      throw InputError(
+          StrCat("upload cut off: ", received, " of ", header.size_bytes(), " bytes arrived"));
+    }
+    if (static_cast<uint32_t>(crc) != header.crc32()) {
+      throw InputError(StrCat("upload checksum mismatch: CRC-32 ", static_cast<uint32_t>(crc),
+                              ", header says ", header.crc32()));
+    }
+    mapstore::MapDirectory(maps_->directory().dir())
+        .Publish(staged, header.name(), header.replace());
+    const auto entry = Find(maps_->directory(), header.name());
+    if (entry) ToProto(*entry, response);
+    Log("map_uploaded",
+        {{"map", header.name()}, {"bytes", std::to_string(received)}, {"peer", context->peer()}});
+    return Status::OK;
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    if (!staged.empty()) std::filesystem::remove(staged, ignored);
+    Log("map_upload_failed", {{"map", header.name()}, {"reason", e.what()}});
+    return StatusFromException(e);
+  }
+}
+
+Status MapAdminService::DownloadMap(grpc::ServerContext*, const v1::MapName* request,
+                                    grpc::ServerWriter<v1::DownloadChunk>* writer) {
+  try {
+    mapstore::CheckMapName(request->name());
+    if (!maps_->directory().Contains(request->name())) {
+      return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
+    }
+    // Read the whole file first: a concurrent replace renames a new file into place, so the
+    // open file stays the old, complete map.
+    std::ifstream in(maps_->directory().PathOf(request->name()), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    v1::DownloadChunk chunk;
+    v1::UploadHeader* header = chunk.mutable_header();
+    header->set_name(request->name());
+    header->set_size_bytes(bytes.size());
+    header->set_crc32(static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
+                                                  reinterpret_cast<const Bytef*>(bytes.data()),
+                                                  static_cast<uInt>(bytes.size()))));
+    if (!writer->Write(chunk)) return Status(StatusCode::CANCELLED, "client went away");
+    for (size_t at = 0; at < bytes.size(); at += kChunkBytes) {
+      chunk.Clear();
+      chunk.set_data(bytes.substr(at, kChunkBytes));
+      if (!writer->Write(chunk)) return Status(StatusCode::CANCELLED, "client went away");
+    }
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapName* request,
+                                  v1::Empty*) {
+  try {
+    mapstore::CheckMapName(request->name());
+    if (!maps_->directory().Contains(request->name())) {
+      return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
+    }
+    mapstore::MapDirectory(maps_->directory().dir()).Remove(request->name());
+    Log("map_deleted", {{"map", request->name()}, {"peer", context->peer()}});
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+Status MapAdminService::RenameMap(grpc::ServerContext* context, const v1::RenameMapRequest* request,
+                                  v1::MapInfo* response) {
+  try {
+    mapstore::CheckMapName(request->from());
+    mapstore::CheckMapName(request->to());
+    if (!maps_->directory().Contains(request->from())) {
+      return Status(StatusCode::NOT_FOUND, "no map named '" + request->from() + "'");
+    }
+    if (maps_->directory().Contains(request->to())) {
+      return Status(StatusCode::ALREADY_EXISTS,
+                    "a map named '" + request->to() + "' already exists");
+    }
+    mapstore::MapDirectory(maps_->directory().dir()).Rename(request->from(), request->to());
+    const auto entry = Find(maps_->directory(), request->to());
+    if (entry) ToProto(*entry, response);
+    Log("map_renamed",
+        {{"from", request->from()}, {"to", request->to()}, {"peer", context->peer()}});
+    return Status::OK;
+  } catch (const std::exception& e) {
+    return StatusFromException(e);
+  }
+}
+
+}  // namespace visloc::server

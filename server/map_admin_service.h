@@ -1,0 +1,34 @@
+#pragma once
+// The MapAdmin service: list, inspect, upload (checksummed chunks, published only when complete
+// and verified), download, delete and rename maps in the server's maps folder. All file work
+// goes through mapstore::MapDirectory; sessions holding a map keep it across delete or replace.
+
+#include "server/map_cache.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc::server {
+
+class MapAdminService final : public v1::MapAdmin::Service {
+ public:
+  // `max_upload_bytes` bounds an upload's declared and actual size.
+  MapAdminService(MapCache* maps, uint64_t max_upload_bytes);
+
+  grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
+                        v1::ListMapsResponse* response) override;
+  grpc::Status GetMapInfo(grpc::ServerContext*, const v1::MapName* request,
+                          v1::MapInfo* response) override;
+  grpc::Status UploadMap(grpc::ServerContext* context, grpc::ServerReader<v1::UploadChunk>* reader,
+                         v1::MapInfo* response) override;
+  grpc::Status DownloadMap(grpc::ServerContext* context, const v1::MapName* request,
+                           grpc::ServerWriter<v1::DownloadChunk>* writer) override;
+  grpc::Status DeleteMap(grpc::ServerContext*, const v1::MapName* request,
+                         v1::Empty* response) override;
+  grpc::Status RenameMap(grpc::ServerContext*, const v1::RenameMapRequest* request,
+                         v1::MapInfo* response) override;
+
+ private:
+  MapCache* maps_;
+  uint64_t max_upload_bytes_;
+};
+
+}  // namespace visloc::server

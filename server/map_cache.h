@@ -1,0 +1,63 @@
+#pragma once
+// The server's loaded maps: loaded from the maps folder on first use, shared read-only by every
+// session that uses them (shared_ptr: a map stays alive while any session holds it), and
+// dropped from the cache when idle. A map file replaced on disk (an upload, `visloc map
+// build --out` into the folder) is noticed by its changed identity (inode, size, mtime): new
+// sessions get the new map, running sessions keep the one they hold.
+
+#include <chrono>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "core/map/localization_map.h"
+#include "mapstore/map_directory.h"
+
+namespace visloc::server {
+
+struct MapCacheStats {
+  int loads = 0;
+  int hits = 0;
+  int unloads = 0;
+};
+
+class MapCache {
+ public:
+  // `idle_unload` is how long a map no session holds stays loaded.
+  MapCache(std::string maps_dir, std::chrono::seconds idle_unload);
+
+  // The map NAME, loading it if needed. Throws InputError for an invalid name, a missing map
+  // ("no map named ..."), or a map file that does not load (the reason).
+  std::shared_ptr<const LocalizationMap> Acquire(const std::string& name);
+  // Drops maps no session holds that have been idle longer than the limit. Returns how many.
+  int UnloadIdle();
+
+  const mapstore::MapDirectory& directory() const { return directory_; }
+  MapCacheStats stats() const;
+  int loaded() const;
+
+ private:
+  struct FileIdentity {
+    uint64_t inode = 0;
+    uint64_t bytes = 0;
+    int64_t mtime_ns = 0;
+    bool operator==(const FileIdentity& o) const {
+      return inode == o.inode && bytes == o.bytes && mtime_ns == o.mtime_ns;
+    }
+  };
+  struct Entry {
+    std::shared_ptr<const LocalizationMap> map;
+    FileIdentity identity;
+    std::chrono::steady_clock::time_point last_used;
+  };
+  static FileIdentity IdentityOf(const std::string& path);
+
+  mapstore::MapDirectory directory_;
+  std::chrono::seconds idle_unload_;
+  mutable std::mutex mutex_;
+  std::map<std::string, Entry> entries_;
+  MapCacheStats stats_;
+};
+
+}  // namespace visloc::server
