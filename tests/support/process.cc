@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -54,6 +55,11 @@ int SpawnProcess(const std::vector<std::string>& argv) {
   return Start(argv, "/dev/null", "/dev/null");
 }
 
+int SpawnProcess(const std::vector<std::string>& argv, const std::string& out_path,
+                 const std::string& err_path) {
+  return Start(argv, out_path, err_path);
+}
+
 int WaitProcess(int pid) {
   int status = 0;
   while (waitpid(pid, &status, 0) < 0) {
@@ -76,6 +82,52 @@ ProcessResult RunProcess(const std::vector<std::string>& argv) {
   result.out = ReadAll(out_path);
   result.err = ReadAll(err_path);
   return result;
+}
+
+ServerProcess::ServerProcess(const std::string& server_binary, const std::string& maps_dir,
+                             std::vector<std::string> extra_args) {
+  static int counter = 0;
+  dir_ = (std::filesystem::temp_directory_path() /
+          ("visloc-server-" + std::to_string(getpid()) + "-" + std::to_string(counter++)))
+             .string();
+  std::filesystem::create_directories(dir_);
+  std::vector<std::string> argv = {server_binary, "--maps", maps_dir, "--listen", "127.0.0.1:0"};
+  argv.insert(argv.end(), extra_args.begin(), extra_args.end());
+  pid_ = SpawnProcess(argv, dir_ + "/stdout", dir_ + "/stderr");
+  const std::string prefix = "listening on ";
+  for (int attempt = 0; attempt < 600 && address_.empty(); ++attempt) {
+    const std::string out = ReadAll(dir_ + "/stdout");
+    const size_t at = out.find(prefix);
+    const size_t end = at == std::string::npos ? at : out.find('\n', at);
+    if (end != std::string::npos) {
+      address_ = out.substr(at + prefix.size(), end - at - prefix.size());
+      break;
+    }
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      exit_code_ = ExitCode(status);
+      pid_ = -1;
+      break;
+    }
+    usleep(50'000);
+  }
+  VISLOC_CHECK(!address_.empty(), "visloc-server did not start: ", ReadAll(dir_ + "/stderr"));
+}
+
+ServerProcess::~ServerProcess() {
+  Stop();
+  std::error_code ignored;
+  std::filesystem::remove_all(dir_, ignored);
+}
+
+std::string ServerProcess::Log() const { return ReadAll(dir_ + "/stderr"); }
+
+int ServerProcess::Stop() {
+  if (pid_ > 0) {
+    exit_code_ = KillProcess(pid_, SIGTERM);
+    pid_ = -1;
+  }
+  return exit_code_;
 }
 
 }  // namespace visloc::testing

@@ -19,9 +19,36 @@ ProcessResult RunProcess(const std::vector<std::string>& argv);
 // Starts `argv[0]` with the arguments without waiting; its output goes to /dev/null.
 // Returns the child's process id.
 int SpawnProcess(const std::vector<std::string>& argv);
+// The same with stdout and stderr written to the given files.
+int SpawnProcess(const std::vector<std::string>& argv, const std::string& out_path,
+                 const std::string& err_path);
 // Sends `signal` to the child and reaps it. Returns the exit code as RunProcess reports it.
 int KillProcess(int pid, int signal);
 // Waits for the child to end. Returns the exit code as RunProcess reports it.
 int WaitProcess(int pid);
+
+// A real visloc-server on a free loopback port, for end-to-end tests: started in the
+// constructor (waits until it prints "listening on ADDRESS"), SIGTERMed in the destructor.
+class ServerProcess {
+ public:
+  ServerProcess(const std::string& server_binary, const std::string& maps_dir,
+                std::vector<std::string> extra_args = {});
+  ~ServerProcess();
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  const std::string& address() const { return address_; }
+  int pid() const { return pid_; }
+  // What the server logged to stderr so far.
+  std::string Log() const;
+  // Sends SIGTERM and waits; returns the exit code. Idempotent.
+  int Stop();
+
+ private:
+  std::string dir_;
+  std::string address_;
+  int pid_ = -1;
+  int exit_code_ = -1;
+};
 
 }  // namespace visloc::testing

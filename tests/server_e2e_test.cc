@@ -1,0 +1,125 @@
+// End-to-end through the real server: visloc-server on a loopback port with a maps folder, the
+// real `visloc stream` client over gRPC, on the localization fixture's map and sequences.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
+#include "dataset/tum.h"
+#include "tests/support/process.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::ProcessResult;
+using testing::ServerProcess;
+
+const std::string kData = VISLOC_LOCALIZATION_DATA;
+
+ProcessResult Visloc(std::vector<std::string> args) {
+  args.insert(args.begin(), VISLOC_CLI_PATH);
+  return testing::RunProcess(args);
+}
+
+double JsonNumber(const std::string& json, const std::string& key) {
+  const size_t at = json.find("\"" + key + "\":");
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "no " << key << " in " << json;
+    return -1;
+  }
+  return std::stod(json.substr(at + key.size() + 3));
+}
+
+// A maps folder holding the fixture's map as "square".
+class ServerE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override { std::filesystem::copy_file(kData + "/map.db", maps_.File("square.db")); }
+  TempDir maps_{"visloc_server_maps"};
+  TempDir out_{"visloc_server_out"};
+};
+
+TEST_F(ServerE2eTest, StreamsAKidnappingThroughTheServerLikeTheInProcessEngine) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const std::string stats = out_.File("stats.csv");
+  const ProcessResult stream =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/kidnap", "--rate", "max", "--stats", stats, "--trajectory",
+              out_.File("est.tum"), "--gt", kData + "/kidnap/groundtruth_map.tum", "--json"});
+  ASSERT_EQ(stream.exit_code, 0) << stream.err;
+  EXPECT_EQ(JsonNumber(stream.out, "errors"), 0);
+  EXPECT_EQ(JsonNumber(stream.out, "frames"), 150);
+  EXPECT_NEAR(JsonNumber(stream.out, "localized_fraction"), 132.0 / 150, 0.01);
+  EXPECT_LT(JsonNumber(stream.out, "position_max_m"), 0.05);
+  // The same answers as the engine in-process on the same frames.
+  const ProcessResult local = Visloc({"localize", "--map", kData + "/map.db", "--dataset",
+                                      kData + "/kidnap", "--stats", out_.File("local.csv")});
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  const auto remote_rows = ReadTextLines(stats), local_rows = ReadTextLines(out_.File("local.csv"));
+  ASSERT_EQ(remote_rows.size(), local_rows.size());
+  for (size_t i = 1; i < remote_rows.size(); ++i) {
+    // timestamp, status and source agree exactly.
+    const auto head = [](const std::string& row) {
+      return row.substr(0, row.find(',', row.find(',', row.find(',') + 1) + 1));
+    };
+    EXPECT_EQ(head(remote_rows[i].text), head(local_rows[i].text)) << "row " << i;
+  }
+  EXPECT_EQ(server.Stop(), 0);
+  const std::string log = server.Log();
+  EXPECT_THAT(log, HasSubstr("event=session_start session=1 map=square"));
+  EXPECT_THAT(
+      log, HasSubstr("event=session_end session=1 map=square frames=150 localized_fraction=0.880"));
+  EXPECT_THAT(log, HasSubstr("event=server_stop"));
+}
+
+TEST_F(ServerE2eTest, UnknownMapsAndEscapingNamesAreRefusedAndTheServerGoesOn) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult unknown = Visloc({"stream", "--server", server.address(), "--map", "nope",
+                                        "--dataset", kData + "/query_square", "--frames", "3"});
+  EXPECT_EQ(unknown.exit_code, 1);
+  EXPECT_THAT(unknown.err, HasSubstr("no map named 'nope'"));
+  EXPECT_THAT(unknown.err, HasSubstr("gRPC code 5"));  // NOT_FOUND
+  const ProcessResult escaping =
+      Visloc({"stream", "--server", server.address(), "--map", "../square", "--dataset",
+              kData + "/query_square", "--frames", "3"});
+  EXPECT_EQ(escaping.exit_code, 1);
+  EXPECT_THAT(escaping.err, HasSubstr("invalid map name '../square'"));
+  const ProcessResult good =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "20", "--rate", "max", "--json"});
+  ASSERT_EQ(good.exit_code, 0) << good.err;
+  EXPECT_EQ(JsonNumber(good.out, "localized_fraction"), 1.0);
+}
+
+TEST_F(ServerE2eTest, NewestOnlyPolicyAnswersSkippedFramesToo) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult stream =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "60", "--rate", "max", "--policy", "newest",
+              "--stats", out_.File("s.csv"), "--json"});
+  ASSERT_EQ(stream.exit_code, 0) << stream.err;
+  const double skipped = JsonNumber(stream.out, "skipped");
+  const double answered = JsonNumber(stream.out, "frames");
+  EXPECT_EQ(skipped + answered, 60);  // One response per frame.
+  EXPECT_GT(skipped, 0);
+  EXPECT_GE(answered, 1);
+}
+
+TEST(ServerStartTest, RefusesAMissingMapsFolderAndNonLoopbackWithoutAuth) {
+  const ProcessResult missing =
+      testing::RunProcess({VISLOC_SERVER_PATH, "--maps", "/nonexistent/maps"});
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_THAT(missing.err, HasSubstr("/nonexistent/maps"));
+  TempDir maps;
+  const ProcessResult open =
+      testing::RunProcess({VISLOC_SERVER_PATH, "--maps", maps.path(), "--listen", "0.0.0.0:0"});
+  EXPECT_EQ(open.exit_code, 2);
+  EXPECT_THAT(open.err, HasSubstr("loopback only"));
+}
+
+}  // namespace
+}  // namespace visloc
