@@ -1,40 +1,56 @@
 #!/usr/bin/env bash
-# The main job on the embedded default: install, build, generate the mapping sequence and a
-# query sequence with a kidnapping, build the map, localize the query and score it.
-#
-# Status: the gRPC server is the next issue; until it lands the query is localized by the same
-# engine in-process (`visloc localize`), and compared with the walking planner's dead reckoning
-# (which drifts and never notices a kidnapping).
+# The main job on the embedded default: install, build, generate a mapping sequence and a
+# query sequence with a kidnapping, build the map, start visloc-server on loopback, stream the
+# query through it, print the per-frame story and a summary, and stop the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
 VISLOC=build/client/visloc
+SERVER=build/server/visloc-server
 OUT=${VISLOC_DEMO_OUT:-out/demo}
-mkdir -p "$OUT"
+mkdir -p "$OUT/maps"
 
 echo "== 1. Generating the mapping sequence and a query sequence with a kidnapping (320x240, 15 fps)"
 "$VISLOC" sim --out "$OUT" --sequence map_square,kidnap
 
 echo
 echo "== 2. Building the map from the stereo mapping sequence"
-"$VISLOC" map build --dataset "$OUT/map_square" --out "$OUT/map_square.db"
-"$VISLOC" map export "$OUT/map_square.db" --keyframes "$OUT/keyframes.tum" --ply "$OUT/map_square.ply"
+"$VISLOC" map build --dataset "$OUT/map_square" --out "$OUT/maps/square.db"
+"$VISLOC" map export "$OUT/maps/square.db" --keyframes "$OUT/keyframes.tum"
 echo "-- keyframe poses against ground truth:"
 "$VISLOC" eval --gt "$OUT/map_square/groundtruth_map.tum" --est "$OUT/keyframes.tum"
 
 echo
-echo "== 3. Localizing the kidnap sequence in the map (monocular, left images only)"
-"$VISLOC" localize --map "$OUT/map_square.db" --dataset "$OUT/kidnap" \
+echo "== 3. Starting visloc-server on a free loopback port"
+"$SERVER" --maps "$OUT/maps" --listen 127.0.0.1:0 > "$OUT/server.out" 2> "$OUT/server.log" &
+server_pid=$!
+trap 'kill -TERM $server_pid 2>/dev/null || true' EXIT
+for _ in $(seq 100); do
+  grep -q "listening on" "$OUT/server.out" 2>/dev/null && break
+  sleep 0.1
+done
+address=$(sed -n 's/^listening on //p' "$OUT/server.out")
+[[ -n $address ]] || { cat "$OUT/server.log"; echo "the server did not start"; exit 1; }
+echo "server at $address"
+
+echo
+echo "== 4. Streaming the kidnap sequence through the server at 15 fps (monocular, left images)"
+"$VISLOC" stream --server "$address" --map square --dataset "$OUT/kidnap" \
   --trajectory "$OUT/kidnap_localized.tum" --stats "$OUT/kidnap_stats.csv" \
   --gt "$OUT/kidnap/groundtruth_map.tum"
-echo "-- what happened around the kidnapping (frame, status, inliers/putatives, relocalization):"
+echo "-- per frame, where the status changes (frame, status, inliers/putatives, relocalization):"
 awk -F, 'NR > 1 { s = $2; if (s != prev || s == "relocalized") printf "  frame %4d  %-12s %4s/%-4s %s\n", NR - 2, s, $7, $6, $19; prev = s }' \
   "$OUT/kidnap_stats.csv"
 "$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap_localized.tum"
 
 echo
-echo "== 4. For comparison: the walking planner's dead reckoning on the same sequence"
+echo "== 5. For comparison: the walking planner's dead reckoning on the same sequence"
 "$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap/odometry_map.tum"
 
+kill -TERM "$server_pid"
+wait "$server_pid" || true
+trap - EXIT
 echo
-echo "Sequences, ground truth and contact sheets are in $OUT/ (see $OUT/kidnap/contact_sheet.png)."
+echo "Server log: $OUT/server.log"
+tail -n 2 "$OUT/server.log" | sed 's/^/  /'
+echo "Sequences, ground truth, contact sheets and outputs are in $OUT/."
