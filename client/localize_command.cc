@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "client/commands.h"
+#include "client/dataset_frames.h"
 #include "client/localization_report.h"
 #include "core/localization/localizer.h"
 #include "core/util/args.h"
@@ -46,27 +47,13 @@ std::optional<std::pair<double, double>> ParseBlackout(const std::string& text) 
 
 FrameInput MakeFrameInput(const Dataset& dataset, size_t index, const LocalizeArgs& args,
                           const std::optional<std::pair<double, double>>& blackout) {
-  const FrameRecord& record = dataset.frames[index];
-  FrameInput input;
-  input.timestamp_ns = record.timestamp_ns;
+  FrameInput input =
+      DatasetFrameInput(dataset, index, args.odometry, args.odometry && !args.no_gyro);
   const PinholeCamera& camera = dataset.left.camera;
-  input.image = LoadGreyImage(record.left_path, camera.width(), camera.height());
-  const double t_s = NsToSeconds(record.timestamp_ns - dataset.frames.front().timestamp_ns);
+  input.image = LoadGreyImage(dataset.frames[index].left_path, camera.width(), camera.height());
+  const double t_s = NsToSeconds(input.timestamp_ns - dataset.frames.front().timestamp_ns);
   if (blackout && t_s >= blackout->first && t_s < blackout->second) {
     input.image.setTo(0);  // The camera is covered; the robot keeps walking.
-  }
-  if (args.odometry) {
-    input.odom_from_cam =
-        InterpolateAt(dataset.odom_from_cam, record.timestamp_ns, SecondsToNs(0.2));
-    if (!args.no_gyro) {
-      const int64_t previous =
-          index > 0 ? dataset.frames[index - 1].timestamp_ns : record.timestamp_ns;
-      for (const ImuSample& s : dataset.imu) {
-        if (s.timestamp_ns > previous && s.timestamp_ns <= record.timestamp_ns) {
-          input.gyro.push_back({s.timestamp_ns, s.gyro_radps});
-        }
-      }
-    }
   }
   return input;
 }

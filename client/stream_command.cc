@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "client/commands.h"
+#include "client/dataset_frames.h"
 #include "client/localization_report.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/util/args.h"
@@ -58,22 +59,9 @@ v1::LocalizeRequest StartRequest(const StreamArgs& args, const Dataset& dataset)
 }
 
 v1::LocalizeRequest FrameRequest(const StreamArgs& args, const Dataset& dataset, size_t index) {
-  const FrameRecord& record = dataset.frames[index];
-  FrameInput input;
-  input.timestamp_ns = record.timestamp_ns;
-  if (args.odometry) {
-    input.odom_from_cam =
-        InterpolateAt(dataset.odom_from_cam, record.timestamp_ns, SecondsToNs(0.2));
-    const int64_t previous =
-        index > 0 ? dataset.frames[index - 1].timestamp_ns : record.timestamp_ns;
-    for (const ImuSample& s : dataset.imu) {
-      if (s.timestamp_ns > previous && s.timestamp_ns <= record.timestamp_ns) {
-        input.gyro.push_back({s.timestamp_ns, s.gyro_radps});
-      }
-    }
-  }
+  const FrameInput input = DatasetFrameInput(dataset, index, args.odometry, args.odometry);
   v1::LocalizeRequest request;
-  proto::ToProto(input, ReadFileBytes(record.left_path), request.mutable_frame());
+  proto::ToProto(input, ReadFileBytes(dataset.frames[index].left_path), request.mutable_frame());
   return request;
 }
 
