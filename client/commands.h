@@ -15,6 +15,7 @@ int RunEval(const Args& args);
 int RunMap(const Args& args);
 int RunLocalize(const Args& args);
 int RunStream(const Args& args);
+int RunRelocalize(const Args& args);
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

@@ -22,6 +22,7 @@ const std::vector<Subcommand> kCommands = {
     {"map", "build and manage maps: build, info, verify, export, list, delete, rename", RunMap},
     {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},
     {"stream", "stream a dataset to visloc-server as one robot session", RunStream},
+    {"relocalize", "ask visloc-server where one image was taken", RunRelocalize},
 };
 
 }  // namespace

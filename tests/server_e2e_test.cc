@@ -9,6 +9,7 @@
 
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
+#include "dataset/dataset.h"
 #include "dataset/tum.h"
 #include "tests/support/process.h"
 
@@ -107,6 +108,30 @@ TEST_F(ServerE2eTest, NewestOnlyPolicyAnswersSkippedFramesToo) {
   EXPECT_EQ(skipped + answered, 60);  // One response per frame.
   EXPECT_GT(skipped, 0);
   EXPECT_GE(answered, 1);
+}
+
+TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  // Frame 60 of the offset square, compared with its ground truth.
+  const Dataset dataset = ReadDataset(kData + "/query_square");
+  const ProcessResult found =
+      Visloc({"relocalize", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", dataset.frames[60].left_path, "--json"});
+  ASSERT_EQ(found.exit_code, 0) << found.err << found.out;
+  const Trajectory gt = ReadTum(kData + "/query_square/groundtruth_map.tum");
+  const auto truth = InterpolateAt(gt, dataset.frames[60].timestamp_ns, 1'000'000);
+  ASSERT_TRUE(truth.has_value());
+  const Eigen::Vector3d position(JsonNumber(found.out, "tx"), JsonNumber(found.out, "ty"),
+                                 JsonNumber(found.out, "tz"));
+  EXPECT_LT((position - truth->translation).norm(), 0.05);
+  EXPECT_GT(JsonNumber(found.out, "inliers"), 40);
+
+  const Dataset elsewhere = ReadDataset(kData + "/outofmap");
+  const ProcessResult refused =
+      Visloc({"relocalize", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/outofmap", elsewhere.frames[10].left_path});
+  EXPECT_EQ(refused.exit_code, 3);
+  EXPECT_THAT(refused.out, HasSubstr("not localized"));
 }
 
 TEST(ServerStartTest, RefusesAMissingMapsFolderAndNonLoopbackWithoutAuth) {
