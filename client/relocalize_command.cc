@@ -22,21 +22,22 @@ int RunRelocalize(const Args& raw_args) {
   std::string server, map_name, image_path, dataset_dir;
   bool json = false;
   ArgParser parser("visloc relocalize",
-                   "Asks visloc-server where one image was taken in a map. The camera model comes "
-                   "from --dataset (its left camera); prints the pose with its evidence and the "
-                   "ranked candidate keyframes, or 'not localized' (exit 3).");
+                   "Asks visloc-server where one image was taken in a map: prints the pose with "
+                   "its evidence and the ranked candidate keyframes, or 'not localized' (exit 3). "
+                   "The image is taken to come from the map's camera unless --dataset names the "
+                   "dataset whose left camera took it.");
   parser.AddFlag("server", &server, "server address HOST:PORT", /*required=*/true);
   parser.AddFlag("map", &map_name, "map name on the server", true);
-  parser.AddFlag("dataset", &dataset_dir, "dataset whose left camera took the image", true);
+  parser.AddFlag("dataset", &dataset_dir, "dataset whose left camera took the image");
   parser.AddPositional("IMAGE", &image_path, "PNG or JPEG image", true);
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
-  const Dataset dataset = ReadDataset(dataset_dir);
   std::ifstream in(image_path, std::ios::binary);
   if (!in) throw InputError(image_path + ": cannot open image");
   v1::RelocalizeRequest request;
   request.set_map_name(map_name);
-  proto::ToProto(dataset.left.camera, request.mutable_camera());
+  if (!dataset_dir.empty())
+    proto::ToProto(ReadDataset(dataset_dir).left.camera, request.mutable_camera());
   request.set_encoded_image(
       std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
   auto stub =

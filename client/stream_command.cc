@@ -33,7 +33,7 @@ using Clock = std::chrono::steady_clock;
 
 struct StreamArgs {
   std::string server, map_name, dataset_dir, format, trajectory_path, stats_path, gt_path;
-  std::string rate = "realtime";
+  double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
   bool odometry = false, json = false;
   int frames = 0;
@@ -77,7 +77,9 @@ int RunStream(const Args& raw_args) {
   parser.AddFlag("map", &args.map_name, "map name on the server", true);
   parser.AddFlag("dataset", &args.dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
   parser.AddFlag("format", &args.format, "euroc or kitti (default: detected)");
-  parser.AddFlag("rate", &args.rate, "realtime (the dataset's rate) or max");
+  parser.AddFlag(
+      "rate", &args.rate_hz,
+      "frames per second to send (default: the dataset's timing; 0: as fast as possible)");
   parser.AddFlag("policy", &args.policy, "all (answer every frame) or newest (drop stale frames)");
   parser.AddSwitch("odometry", &args.odometry, "send the dataset's odometry and gyro");
   parser.AddFlag("trajectory", &args.trajectory_path, "write the estimated poses (TUM)");
@@ -86,7 +88,8 @@ int RunStream(const Args& raw_args) {
   parser.AddFlag("frames", &args.frames, "stop after this many frames (0: all)");
   parser.AddSwitch("json", &args.json, "print the summary as one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
-  if (args.rate != "realtime" && args.rate != "max") throw UsageError("--rate is realtime or max");
+  if (args.rate_hz > 1000)
+    throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
   if (args.policy != "all" && args.policy != "newest")
     throw UsageError("--policy is all or newest");
   const Dataset dataset = ReadDataset(
@@ -113,9 +116,12 @@ int RunStream(const Args& raw_args) {
     const Clock::time_point start = Clock::now();
     const int64_t t0 = dataset.frames.front().timestamp_ns;
     for (size_t i = 0; i < count && ok; ++i) {
-      if (args.rate == "realtime") {
+      if (args.rate_hz < 0) {
         std::this_thread::sleep_until(
             start + std::chrono::nanoseconds(dataset.frames[i].timestamp_ns - t0));
+      } else if (args.rate_hz > 0) {
+        std::this_thread::sleep_until(
+            start + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args.rate_hz)));
       }
       v1::LocalizeRequest request;
       try {

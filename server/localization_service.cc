@@ -185,7 +185,10 @@ Status LocalizationService::Relocalize(grpc::ServerContext*, const v1::Relocaliz
   try {
     Timer timer;
     auto map = maps_->Acquire(request->map_name());
-    const PinholeCamera camera = proto::FromProto(request->camera(), limits_.wire);
+    // Without a camera model the image is taken to come from the map's own camera.
+    const PinholeCamera camera = request->has_camera()
+                                     ? proto::FromProto(request->camera(), limits_.wire)
+                                     : map->map().camera;
     const cv::Mat image =
         proto::DecodeImage(request->encoded_image(),
                            request->has_raw_image() ? &request->raw_image() : nullptr, camera);

@@ -49,7 +49,7 @@ TEST_F(ServerE2eTest, StreamsAKidnappingThroughTheServerLikeTheInProcessEngine) 
   const std::string stats = out_.File("stats.csv");
   const ProcessResult stream =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
-              kData + "/kidnap", "--rate", "max", "--stats", stats, "--trajectory",
+              kData + "/kidnap", "--rate", "0", "--stats", stats, "--trajectory",
               out_.File("est.tum"), "--gt", kData + "/kidnap/groundtruth_map.tum", "--json"});
   ASSERT_EQ(stream.exit_code, 0) << stream.err;
   EXPECT_EQ(JsonNumber(stream.out, "errors"), 0);
@@ -91,7 +91,7 @@ TEST_F(ServerE2eTest, UnknownMapsAndEscapingNamesAreRefusedAndTheServerGoesOn) {
   EXPECT_THAT(escaping.err, HasSubstr("invalid map name '../square'"));
   const ProcessResult good =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
-              kData + "/query_square", "--frames", "20", "--rate", "max", "--json"});
+              kData + "/query_square", "--frames", "20", "--rate", "0", "--json"});
   ASSERT_EQ(good.exit_code, 0) << good.err;
   EXPECT_EQ(JsonNumber(good.out, "localized_fraction"), 1.0);
 }
@@ -100,7 +100,7 @@ TEST_F(ServerE2eTest, NewestOnlyPolicyAnswersSkippedFramesToo) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   const ProcessResult stream =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
-              kData + "/query_square", "--frames", "60", "--rate", "max", "--policy", "newest",
+              kData + "/query_square", "--frames", "60", "--rate", "0", "--policy", "newest",
               "--stats", out_.File("s.csv"), "--json"});
   ASSERT_EQ(stream.exit_code, 0) << stream.err;
   const double skipped = JsonNumber(stream.out, "skipped");
@@ -127,9 +127,9 @@ TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
   EXPECT_GT(JsonNumber(found.out, "inliers"), 40);
 
   const Dataset elsewhere = ReadDataset(kData + "/outofmap");
-  const ProcessResult refused =
-      Visloc({"relocalize", "--server", server.address(), "--map", "square", "--dataset",
-              kData + "/outofmap", elsewhere.frames[10].left_path});
+  // Without --dataset the map's camera is assumed (the same rig here).
+  const ProcessResult refused = Visloc({"relocalize", "--server", server.address(), "--map",
+                                        "square", elsewhere.frames[10].left_path});
   EXPECT_EQ(refused.exit_code, 3);
   EXPECT_THAT(refused.out, HasSubstr("not localized"));
 }
