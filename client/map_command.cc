@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/remote_map.h"
 #include "client/subcommands.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -26,6 +27,12 @@ using mapstore::MapInfo;
 namespace fs = std::filesystem;
 
 // MAP.db, or NAME in --maps DIR.
+// The folder verbs work on a local maps folder or on a server: exactly one of the two.
+void RequireOneOf(const std::string& maps_dir, const std::string& server) {
+  if (maps_dir.empty() == server.empty())
+    throw UsageError("give either --maps DIR or --server ADDR");
+}
+
 std::string ResolveMap(const std::string& map_or_name, const std::string& maps_dir) {
   if (!maps_dir.empty() && mapstore::IsValidMapName(map_or_name) && !EndsWith(map_or_name, ".db")) {
     return mapstore::MapDirectory(maps_dir).PathOf(map_or_name);
@@ -141,10 +148,13 @@ int RunInfo(const Args& args) {
   bool json = false;
   ArgParser parser("visloc map info",
                    "Counts, extent, camera, features, size and schema of a map.");
-  parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
+  std::string server;
+  parser.AddPositional("MAP", &map, "a map file, or a map name with --maps or --server");
   parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
+  parser.AddFlag("server", &server, "ask this visloc-server about map MAP");
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
+  if (!server.empty()) return RemoteMapInfo(server, map, json);
   const std::string path = ResolveMap(map, maps_dir);
   const MapInfo info = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
   if (json) {
@@ -320,10 +330,15 @@ int RunBuild(const Args& args) {
 int RunList(const Args& args) {
   std::string maps_dir;
   bool json = false;
-  ArgParser parser("visloc map list", "Lists the maps in a maps folder, with broken ones and why.");
-  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  std::string server;
+  ArgParser parser("visloc map list",
+                   "Lists the maps in a maps folder or on a server, with broken ones and why.");
+  parser.AddFlag("maps", &maps_dir, "maps folder");
+  parser.AddFlag("server", &server, "visloc-server address");
   parser.AddSwitch("json", &json, "print a JSON array");
   if (!parser.Parse(args, std::cout)) return 0;
+  RequireOneOf(maps_dir, server);
+  if (!server.empty()) return RemoteMapList(server, json);
   const auto entries = mapstore::MapDirectory(maps_dir).List();
   if (json) {
     JsonWriter writer;
@@ -359,10 +374,14 @@ int RunList(const Args& args) {
 
 int RunDelete(const Args& args) {
   std::string name, maps_dir;
-  ArgParser parser("visloc map delete", "Deletes a map from a maps folder.");
+  std::string server;
+  ArgParser parser("visloc map delete", "Deletes a map from a maps folder or a server.");
   parser.AddPositional("NAME", &name, "the map's name");
-  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  parser.AddFlag("maps", &maps_dir, "maps folder");
+  parser.AddFlag("server", &server, "visloc-server address");
   if (!parser.Parse(args, std::cout)) return 0;
+  RequireOneOf(maps_dir, server);
+  if (!server.empty()) return RemoteMapDelete(server, name);
   mapstore::MapDirectory(maps_dir).Remove(name);
   std::printf("deleted %s\n", name.c_str());
   return 0;
@@ -371,14 +390,42 @@ int RunDelete(const Args& args) {
 int RunRename(const Args& args) {
   std::string from, to, maps_dir;
   ArgParser parser("visloc map rename",
-                   "Renames a map in a maps folder (its file and its own name).");
+                   "Renames a map in a maps folder or on a server (its file and its own name).");
+  std::string server;
   parser.AddPositional("OLD", &from, "the current name");
   parser.AddPositional("NEW", &to, "the new name");
-  parser.AddFlag("maps", &maps_dir, "maps folder", /*required=*/true);
+  parser.AddFlag("maps", &maps_dir, "maps folder");
+  parser.AddFlag("server", &server, "visloc-server address");
   if (!parser.Parse(args, std::cout)) return 0;
+  RequireOneOf(maps_dir, server);
+  if (!server.empty()) return RemoteMapRename(server, from, to);
   mapstore::MapDirectory(maps_dir).Rename(from, to);
   std::printf("renamed %s -> %s\n", from.c_str(), to.c_str());
   return 0;
+}
+
+int RunUpload(const Args& args) {
+  std::string path, name, server;
+  bool replace = false;
+  ArgParser parser("visloc map upload",
+                   "Uploads a map file to a server in checksummed chunks; the server publishes it "
+                   "only once it is complete and verified.");
+  parser.AddPositional("MAP", &path, "the map file");
+  parser.AddFlag("name", &name, "name on the server (default: the map's own name)");
+  parser.AddFlag("server", &server, "visloc-server address", /*required=*/true);
+  parser.AddSwitch("replace", &replace, "replace a map of that name");
+  if (!parser.Parse(args, std::cout)) return 0;
+  return RemoteMapUpload(server, path, name, replace);
+}
+
+int RunDownload(const Args& args) {
+  std::string name, out, server;
+  ArgParser parser("visloc map download", "Downloads a map from a server into a file.");
+  parser.AddPositional("NAME", &name, "the map's name on the server");
+  parser.AddFlag("out", &out, "map file to write", /*required=*/true);
+  parser.AddFlag("server", &server, "visloc-server address", /*required=*/true);
+  if (!parser.Parse(args, std::cout)) return 0;
+  return RemoteMapDownload(server, name, out);
 }
 
 }  // namespace
@@ -389,9 +436,11 @@ int RunMap(const Args& args) {
       {"info", "counts, extent, camera, features, size and schema", RunInfo},
       {"verify", "check a map file; exit 0 when sound", RunVerify},
       {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
-      {"list", "the maps in a maps folder", RunList},
-      {"delete", "delete a map from a maps folder", RunDelete},
-      {"rename", "rename a map in a maps folder", RunRename},
+      {"list", "the maps in a maps folder or on a server", RunList},
+      {"delete", "delete a map from a maps folder or a server", RunDelete},
+      {"rename", "rename a map in a maps folder or on a server", RunRename},
+      {"upload", "upload a map file to a server", RunUpload},
+      {"download", "download a map from a server", RunDownload},
   };
   return DispatchSubcommand("visloc map VERB [options]", "Manage map files. Verbs:", kVerbs, args);
 }

@@ -1,0 +1,190 @@
+#include "client/remote_map.h"
+
+#include <grpcpp/grpcpp.h>
+#include <zlib.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "core/util/text_file.h"
+#include "mapstore/map_store.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc::cli {
+namespace {
+
+namespace v1 = ::visloc::v1;
+constexpr size_t kChunkBytes = 1 << 20;
+
+std::unique_ptr<v1::MapAdmin::Stub> Connect(const std::string& server) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(64 << 20);
+  return v1::MapAdmin::NewStub(
+      grpc::CreateCustomChannel(server, grpc::InsecureChannelCredentials(), args));
+}
+
+void Check(const grpc::Status& status, const std::string& server) {
+  if (!status.ok()) {
+    throw InputError(StrCat("server ", server, ": ", status.error_message(), " (gRPC code ",
+                            static_cast<int>(status.error_code()), ")"));
+  }
+}
+
+uint32_t Crc32(const std::string& bytes) {
+  return static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
+                                     reinterpret_cast<const Bytef*>(bytes.data()),
+                                     static_cast<uInt>(bytes.size())));
+}
+
+void WriteJson(JsonWriter& json, const v1::MapInfo& info) {
+  json.BeginObject()
+      .Field("name", info.name())
+      .Field("available", info.available())
+      .Field("size_bytes", static_cast<int64_t>(info.size_bytes()));
+  if (info.available()) {
+    json.Field("keyframes", static_cast<int64_t>(info.keyframes()))
+        .Field("points", static_cast<int64_t>(info.points()))
+        .Field("features", info.feature_kind())
+        .Field("schema_version", static_cast<int64_t>(info.schema_version()))
+        .Field("builder", info.builder())
+        .Field("source_dataset", info.source_dataset())
+        .Field("created_unix_s", static_cast<int64_t>(info.created_unix_s()));
+  } else {
+    json.Field("problem", info.problem());
+  }
+  json.EndObject();
+}
+
+void PrintRow(const v1::MapInfo& info) {
+  if (info.available()) {
+    std::printf("%-24s %10u %10llu %12llu B  %s\n", info.name().c_str(), info.keyframes(),
+                static_cast<unsigned long long>(info.points()),
+                static_cast<unsigned long long>(info.size_bytes()), info.feature_kind().c_str());
+  } else {
+    std::printf("%-24s unavailable: %s\n", info.name().c_str(), info.problem().c_str());
+  }
+}
+
+}  // namespace
+
+int RemoteMapList(const std::string& server, bool json) {
+  grpc::ClientContext context;
+  v1::ListMapsResponse response;
+  Check(Connect(server)->ListMaps(&context, v1::ListMapsRequest(), &response), server);
+  if (json) {
+    JsonWriter writer;
+    writer.BeginArray();
+    for (const auto& info : response.maps()) WriteJson(writer, info);
+    writer.EndArray();
+    std::cout << writer.str() << "\n";
+    return 0;
+  }
+  std::printf("%-24s %10s %10s %14s  %s\n", "NAME", "KEYFRAMES", "POINTS", "SIZE", "FEATURES");
+  for (const auto& info : response.maps()) PrintRow(info);
+  std::printf("%d maps on %s\n", response.maps_size(), server.c_str());
+  return 0;
+}
+
+int RemoteMapInfo(const std::string& server, const std::string& name, bool json) {
+  grpc::ClientContext context;
+  v1::MapName request;
+  request.set_name(name);
+  v1::MapInfo info;
+  Check(Connect(server)->GetMapInfo(&context, request, &info), server);
+  if (json) {
+    JsonWriter writer;
+    WriteJson(writer, info);
+    std::cout << writer.str() << "\n";
+  } else {
+    PrintRow(info);
+  }
+  return 0;
+}
+
+int RemoteMapUpload(const std::string& server, const std::string& path, const std::string& name,
+                    bool replace) {
+  // Refuse to send what the server would refuse anyway, with the local file's problem.
+  const mapstore::MapInfo local = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  v1::UploadChunk chunk;
+  v1::UploadHeader* header = chunk.mutable_header();
+  header->set_name(name.empty() ? local.metadata.name : name);
+  header->set_size_bytes(bytes.size());
+  header->set_crc32(Crc32(bytes));
+  header->set_replace(replace);
+  const std::string target = header->name();
+  grpc::ClientContext context;
+  v1::MapInfo info;
+  auto writer = Connect(server)->UploadMap(&context, &info);
+  bool ok = writer->Write(chunk);
+  for (size_t at = 0; ok && at < bytes.size(); at += kChunkBytes) {
+    chunk.Clear();
+    chunk.set_data(bytes.substr(at, kChunkBytes));
+    ok = writer->Write(chunk);
+  }
+  writer->WritesDone();
+  Check(writer->Finish(), server);
+  std::printf("uploaded %s as '%s' (%zu bytes, %u keyframes, %llu points)\n", path.c_str(),
+              target.c_str(), bytes.size(), info.keyframes(),
+              static_cast<unsigned long long>(info.points()));
+  return 0;
+}
+
+int RemoteMapDownload(const std::string& server, const std::string& name, const std::string& out) {
+  grpc::ClientContext context;
+  v1::MapName request;
+  request.set_name(name);
+  auto reader = Connect(server)->DownloadMap(&context, request);
+  v1::DownloadChunk chunk;
+  v1::UploadHeader header;
+  std::string bytes;
+  bool have_header = false;
+  while (reader->Read(&chunk)) {
+    if (chunk.has_header()) {
+      header = chunk.header();
+      have_header = true;
+      bytes.reserve(header.size_bytes());
+    } else {
+      bytes += chunk.data();
+    }
+  }
+  Check(reader->Finish(), server);
+  if (!have_header || bytes.size() != header.size_bytes() || Crc32(bytes) != header.crc32()) {
+    throw InputError(StrCat("download of '", name, "' is incomplete or corrupt: ", bytes.size(),
+                            " of ", header.size_bytes(), " bytes"));
+  }
+  WriteFileAtomically(out, bytes);
+  const auto report = mapstore::VerifyMapFile(out);
+  if (!report.ok()) throw InputError(out + ": downloaded map is not sound: " + report.problems[0]);
+  std::printf("downloaded '%s' to %s (%zu bytes, CRC-32 checked, map verified)\n", name.c_str(),
+              out.c_str(), bytes.size());
+  return 0;
+}
+
+int RemoteMapDelete(const std::string& server, const std::string& name) {
+  grpc::ClientContext context;
+  v1::MapName request;
+  request.set_name(name);
+  v1::Empty response;
+  Check(Connect(server)->DeleteMap(&context, request, &response), server);
+  std::printf("deleted '%s' on %s\n", name.c_str(), server.c_str());
+  return 0;
+}
+
+int RemoteMapRename(const std::string& server, const std::string& from, const std::string& to) {
+  grpc::ClientContext context;
+  v1::RenameMapRequest request;
+  request.set_from(from);
+  request.set_to(to);
+  v1::MapInfo info;
+  Check(Connect(server)->RenameMap(&context, request, &info), server);
+  std::printf("renamed '%s' -> '%s' on %s\n", from.c_str(), to.c_str(), server.c_str());
+  return 0;
+}
+
+}  // namespace visloc::cli

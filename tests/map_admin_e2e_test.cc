@@ -1,0 +1,161 @@
+// Map management through the real server: `visloc map upload|list|info|download|rename|delete
+// --server` against visloc-server on loopback, plus a raw gRPC client for what the CLI never
+// does (an upload cut off half-way, a wrong checksum, a file that is not a map).
+
+#include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/temp_dir.h"
+#include "mapstore/map_store.h"
+#include "tests/support/process.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::ProcessResult;
+using testing::ServerProcess;
+
+ProcessResult Visloc(std::vector<std::string> args) {
+  args.insert(args.begin(), VISLOC_CLI_PATH);
+  return testing::RunProcess(args);
+}
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+size_t FilesIn(const std::string& dir) {
+  size_t n = 0;
+  for ([[maybe_unused]] const auto& file : std::filesystem::directory_iterator(dir)) ++n;
+  return n;
+}
+
+class MapAdminE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    SyntheticMapOptions options;
+    options.keyframes = 20;
+    options.points = 2000;
+    Map map = MakeSyntheticMap(options);
+    map.metadata.name = "lab";
+    mapstore::SaveMap(map, local_.File("lab.db"));
+  }
+  // Sends a header and then `bytes`, optionally cancelling after `cut_after` bytes.
+  grpc::Status RawUpload(const std::string& name, const std::string& bytes, uint32_t crc,
+                         size_t cut_after = std::string::npos) {
+    auto stub = v1::MapAdmin::NewStub(
+        grpc::CreateChannel(server_.address(), grpc::InsecureChannelCredentials()));
+    grpc::ClientContext context;
+    v1::MapInfo info;
+    auto writer = stub->UploadMap(&context, &info);
+    v1::UploadChunk chunk;
+    chunk.mutable_header()->set_name(name);
+    chunk.mutable_header()->set_size_bytes(bytes.size());
+    chunk.mutable_header()->set_crc32(crc);
+    writer->Write(chunk);
+    const size_t sent = std::min(cut_after, bytes.size());
+    for (size_t at = 0; at < sent; at += 65536) {
+      chunk.Clear();
+      chunk.set_data(bytes.substr(at, std::min<size_t>(65536, sent - at)));
+      writer->Write(chunk);
+    }
+    if (cut_after != std::string::npos) {
+      context.TryCancel();  // The client vanishes mid-upload.
+    } else {
+      writer->WritesDone();
+    }
+    return writer->Finish();
+  }
+  static uint32_t Crc(const std::string& bytes) {
+    return static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
+                                       reinterpret_cast<const Bytef*>(bytes.data()),
+                                       static_cast<uInt>(bytes.size())));
+  }
+
+  TempDir local_{"visloc_admin_local"};
+  TempDir maps_{"visloc_admin_maps"};
+  ServerProcess server_{VISLOC_SERVER_PATH, maps_.path()};
+};
+
+TEST_F(MapAdminE2eTest, UploadListDownloadRenameDelete) {
+  const std::string address = server_.address();
+  const ProcessResult upload =
+      Visloc({"map", "upload", local_.File("lab.db"), "--server", address});
+  ASSERT_EQ(upload.exit_code, 0) << upload.err;
+  EXPECT_THAT(upload.out, HasSubstr("uploaded"));
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("lab.db")));
+
+  const ProcessResult list = Visloc({"map", "list", "--server", address, "--json"});
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_THAT(list.out, HasSubstr("\"name\":\"lab\""));
+  EXPECT_THAT(list.out, HasSubstr("\"points\":2000"));
+
+  const ProcessResult again = Visloc({"map", "upload", local_.File("lab.db"), "--server", address});
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_THAT(again.err, HasSubstr("already exists"));
+  EXPECT_EQ(
+      Visloc({"map", "upload", local_.File("lab.db"), "--server", address, "--replace"}).exit_code,
+      0);
+
+  const std::string copy = local_.File("copy.db");
+  const ProcessResult download =
+      Visloc({"map", "download", "lab", "--out", copy, "--server", address});
+  ASSERT_EQ(download.exit_code, 0) << download.err;
+  EXPECT_EQ(ReadBytes(copy), ReadBytes(local_.File("lab.db")));
+
+  const ProcessResult info = Visloc({"map", "info", "lab", "--server", address, "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_THAT(info.out, HasSubstr("\"keyframes\":20"));
+
+  ASSERT_EQ(Visloc({"map", "rename", "lab", "lab2", "--server", address}).exit_code, 0);
+  EXPECT_THAT(Visloc({"map", "list", "--server", address}).out, HasSubstr("lab2"));
+  ASSERT_EQ(Visloc({"map", "delete", "lab2", "--server", address}).exit_code, 0);
+  EXPECT_EQ(FilesIn(maps_.path()), 0u);
+  const ProcessResult gone = Visloc({"map", "delete", "lab2", "--server", address});
+  EXPECT_EQ(gone.exit_code, 1);
+  EXPECT_THAT(gone.err, HasSubstr("no map named 'lab2'"));
+}
+
+TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
+  const std::string bytes = ReadBytes(local_.File("lab.db"));
+  const grpc::Status status = RawUpload("lab", bytes, Crc(bytes), bytes.size() / 2);
+  EXPECT_FALSE(status.ok());
+  // The server notices the cancellation and removes the staged half.
+  for (int i = 0; i < 100 && FilesIn(maps_.path()) > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(FilesIn(maps_.path()), 0u);
+  EXPECT_THAT(Visloc({"map", "list", "--server", server_.address()}).out, HasSubstr("0 maps"));
+  // And the server still takes a complete upload.
+  EXPECT_TRUE(RawUpload("lab", bytes, Crc(bytes)).ok());
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("lab.db")));
+}
+
+TEST_F(MapAdminE2eTest, WrongChecksumsForeignFilesAndEscapingNamesAreRefused) {
+  const std::string bytes = ReadBytes(local_.File("lab.db"));
+  grpc::Status status = RawUpload("lab", bytes, Crc(bytes) ^ 1u);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("checksum mismatch"));
+  const std::string not_a_map(4096, 'x');
+  status = RawUpload("junk", not_a_map, Crc(not_a_map));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("not sound"));
+  status = RawUpload("../escape", bytes, Crc(bytes));
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(), HasSubstr("invalid map name '../escape'"));
+  EXPECT_EQ(FilesIn(maps_.path()), 0u);
+  EXPECT_FALSE(std::filesystem::exists(maps_.File("../escape.db")));
+}
+
+}  // namespace
+}  // namespace visloc
