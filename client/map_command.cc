@@ -28,8 +28,9 @@ namespace fs = std::filesystem;
 
 // MAP.db, or NAME in --maps DIR.
 // The folder verbs work on a local maps folder or on a server: exactly one of the two.
-void RequireOneOf(const std::string& maps_dir, const std::string& server) {
-  if (maps_dir.empty() == server.empty())
+void RequireOneOf(const std::string& maps_dir, Connection& server) {
+  server.ApplyEnvironment();
+  if (maps_dir.empty() == server.server.empty())
     throw UsageError("give either --maps DIR or --server ADDR");
 }
 
@@ -148,13 +149,14 @@ int RunInfo(const Args& args) {
   bool json = false;
   ArgParser parser("visloc map info",
                    "Counts, extent, camera, features, size and schema of a map.");
-  std::string server;
+  Connection server;
   parser.AddPositional("MAP", &map, "a map file, or a map name with --maps or --server");
   parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
-  parser.AddFlag("server", &server, "ask this visloc-server about map MAP");
+  server.AddFlags(parser, /*server_required=*/false);
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
-  if (!server.empty()) return RemoteMapInfo(server, map, json);
+  server.ApplyEnvironment();
+  if (!server.server.empty()) return RemoteMapInfo(server, map, json);
   const std::string path = ResolveMap(map, maps_dir);
   const MapInfo info = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
   if (json) {
@@ -330,15 +332,15 @@ int RunBuild(const Args& args) {
 int RunList(const Args& args) {
   std::string maps_dir;
   bool json = false;
-  std::string server;
+  Connection server;
   ArgParser parser("visloc map list",
                    "Lists the maps in a maps folder or on a server, with broken ones and why.");
   parser.AddFlag("maps", &maps_dir, "maps folder");
-  parser.AddFlag("server", &server, "visloc-server address");
+  server.AddFlags(parser, /*server_required=*/false);
   parser.AddSwitch("json", &json, "print a JSON array");
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.empty()) return RemoteMapList(server, json);
+  if (!server.server.empty()) return RemoteMapList(server, json);
   const auto entries = mapstore::MapDirectory(maps_dir).List();
   if (json) {
     JsonWriter writer;
@@ -374,14 +376,14 @@ int RunList(const Args& args) {
 
 int RunDelete(const Args& args) {
   std::string name, maps_dir;
-  std::string server;
+  Connection server;
   ArgParser parser("visloc map delete", "Deletes a map from a maps folder or a server.");
   parser.AddPositional("NAME", &name, "the map's name");
   parser.AddFlag("maps", &maps_dir, "maps folder");
-  parser.AddFlag("server", &server, "visloc-server address");
+  server.AddFlags(parser, /*server_required=*/false);
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.empty()) return RemoteMapDelete(server, name);
+  if (!server.server.empty()) return RemoteMapDelete(server, name);
   mapstore::MapDirectory(maps_dir).Remove(name);
   std::printf("deleted %s\n", name.c_str());
   return 0;
@@ -391,40 +393,44 @@ int RunRename(const Args& args) {
   std::string from, to, maps_dir;
   ArgParser parser("visloc map rename",
                    "Renames a map in a maps folder or on a server (its file and its own name).");
-  std::string server;
+  Connection server;
   parser.AddPositional("OLD", &from, "the current name");
   parser.AddPositional("NEW", &to, "the new name");
   parser.AddFlag("maps", &maps_dir, "maps folder");
-  parser.AddFlag("server", &server, "visloc-server address");
+  server.AddFlags(parser, /*server_required=*/false);
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.empty()) return RemoteMapRename(server, from, to);
+  if (!server.server.empty()) return RemoteMapRename(server, from, to);
   mapstore::MapDirectory(maps_dir).Rename(from, to);
   std::printf("renamed %s -> %s\n", from.c_str(), to.c_str());
   return 0;
 }
 
 int RunUpload(const Args& args) {
-  std::string path, name, server;
+  std::string path, name;
+  Connection server;
   bool replace = false;
   ArgParser parser("visloc map upload",
                    "Uploads a map file to a server in checksummed chunks; the server publishes it "
                    "only once it is complete and verified.");
   parser.AddPositional("MAP", &path, "the map file");
   parser.AddFlag("name", &name, "name on the server (default: the map's own name)");
-  parser.AddFlag("server", &server, "visloc-server address", /*required=*/true);
+  server.AddFlags(parser);
   parser.AddSwitch("replace", &replace, "replace a map of that name");
   if (!parser.Parse(args, std::cout)) return 0;
+  server.ApplyEnvironment();
   return RemoteMapUpload(server, path, name, replace);
 }
 
 int RunDownload(const Args& args) {
-  std::string name, out, server;
+  std::string name, out;
+  Connection server;
   ArgParser parser("visloc map download", "Downloads a map from a server into a file.");
   parser.AddPositional("NAME", &name, "the map's name on the server");
   parser.AddFlag("out", &out, "map file to write", /*required=*/true);
-  parser.AddFlag("server", &server, "visloc-server address", /*required=*/true);
+  server.AddFlags(parser);
   if (!parser.Parse(args, std::cout)) return 0;
+  server.ApplyEnvironment();
   return RemoteMapDownload(server, name, out);
 }
 

@@ -8,6 +8,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/connection.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
@@ -19,36 +20,36 @@
 namespace visloc::cli {
 
 int RunRelocalize(const Args& raw_args) {
-  std::string server, map_name, image_path, dataset_dir;
+  std::string map_name, image_path, dataset_dir;
+  Connection server;
   bool json = false;
   ArgParser parser("visloc relocalize",
                    "Asks visloc-server where one image was taken in a map: prints the pose with "
                    "its evidence and the ranked candidate keyframes, or 'not localized' (exit 3). "
                    "The image is taken to come from the map's camera unless --dataset names the "
                    "dataset whose left camera took it.");
-  parser.AddFlag("server", &server, "server address HOST:PORT", /*required=*/true);
+  server.AddFlags(parser);
   parser.AddFlag("map", &map_name, "map name on the server", true);
   parser.AddFlag("dataset", &dataset_dir, "dataset whose left camera took the image");
   parser.AddPositional("IMAGE", &image_path, "PNG or JPEG image", true);
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
+  server.ApplyEnvironment();
   std::ifstream in(image_path, std::ios::binary);
   if (!in) throw InputError(image_path + ": cannot open image");
   v1::RelocalizeRequest request;
   request.set_map_name(map_name);
-  if (!dataset_dir.empty())
+  if (!dataset_dir.empty()) {
     proto::ToProto(ReadDataset(dataset_dir).left.camera, request.mutable_camera());
+  }
   request.set_encoded_image(
       std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
-  auto stub =
-      v1::Localization::NewStub(grpc::CreateChannel(server, grpc::InsecureChannelCredentials()));
+  auto stub = v1::Localization::NewStub(server.OpenChannel());
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::RelocalizeResponse response;
   const grpc::Status status = stub->Relocalize(&context, request, &response);
-  if (!status.ok()) {
-    throw InputError(StrCat("server ", server, ": ", status.error_message(), " (gRPC code ",
-                            static_cast<int>(status.error_code()), ")"));
-  }
+  CheckCall(status, server.server);
   const v1::Pose& p = response.map_from_cam();
   if (json) {
     JsonWriter out;

@@ -20,18 +20,8 @@ namespace {
 namespace v1 = ::visloc::v1;
 constexpr size_t kChunkBytes = 1 << 20;
 
-std::unique_ptr<v1::MapAdmin::Stub> Connect(const std::string& server) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
-  return v1::MapAdmin::NewStub(
-      grpc::CreateCustomChannel(server, grpc::InsecureChannelCredentials(), args));
-}
-
-void Check(const grpc::Status& status, const std::string& server) {
-  if (!status.ok()) {
-    throw InputError(StrCat("server ", server, ": ", status.error_message(), " (gRPC code ",
-                            static_cast<int>(status.error_code()), ")"));
-  }
+std::unique_ptr<v1::MapAdmin::Stub> Connect(const Connection& server) {
+  return v1::MapAdmin::NewStub(server.OpenChannel());
 }
 
 uint32_t Crc32(const std::string& bytes) {
@@ -71,10 +61,11 @@ void PrintRow(const v1::MapInfo& info) {
 
 }  // namespace
 
-int RemoteMapList(const std::string& server, bool json) {
+int RemoteMapList(const Connection& server, bool json) {
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::ListMapsResponse response;
-  Check(Connect(server)->ListMaps(&context, v1::ListMapsRequest(), &response), server);
+  CheckCall(Connect(server)->ListMaps(&context, v1::ListMapsRequest(), &response), server.server);
   if (json) {
     JsonWriter writer;
     writer.BeginArray();
@@ -85,16 +76,17 @@ int RemoteMapList(const std::string& server, bool json) {
   }
   std::printf("%-24s %10s %10s %14s  %s\n", "NAME", "KEYFRAMES", "POINTS", "SIZE", "FEATURES");
   for (const auto& info : response.maps()) PrintRow(info);
-  std::printf("%d maps on %s\n", response.maps_size(), server.c_str());
+  std::printf("%d maps on %s\n", response.maps_size(), server.server.c_str());
   return 0;
 }
 
-int RemoteMapInfo(const std::string& server, const std::string& name, bool json) {
+int RemoteMapInfo(const Connection& server, const std::string& name, bool json) {
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::MapName request;
   request.set_name(name);
   v1::MapInfo info;
-  Check(Connect(server)->GetMapInfo(&context, request, &info), server);
+  CheckCall(Connect(server)->GetMapInfo(&context, request, &info), server.server);
   if (json) {
     JsonWriter writer;
     WriteJson(writer, info);
@@ -105,7 +97,7 @@ int RemoteMapInfo(const std::string& server, const std::string& name, bool json)
   return 0;
 }
 
-int RemoteMapUpload(const std::string& server, const std::string& path, const std::string& name,
+int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,
                     bool replace) {
   // Refuse to send what the server would refuse anyway, with the local file's problem.
   const mapstore::MapInfo local = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
@@ -119,6 +111,7 @@ int RemoteMapUpload(const std::string& server, const std::string& path, const st
   header->set_replace(replace);
   const std::string target = header->name();
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::MapInfo info;
   auto writer = Connect(server)->UploadMap(&context, &info);
   bool ok = writer->Write(chunk);
@@ -128,15 +121,16 @@ int RemoteMapUpload(const std::string& server, const std::string& path, const st
     ok = writer->Write(chunk);
   }
   writer->WritesDone();
-  Check(writer->Finish(), server);
+  CheckCall(writer->Finish(), server.server);
   std::printf("uploaded %s as '%s' (%zu bytes, %u keyframes, %llu points)\n", path.c_str(),
               target.c_str(), bytes.size(), info.keyframes(),
               static_cast<unsigned long long>(info.points()));
   return 0;
 }
 
-int RemoteMapDownload(const std::string& server, const std::string& name, const std::string& out) {
+int RemoteMapDownload(const Connection& server, const std::string& name, const std::string& out) {
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::MapName request;
   request.set_name(name);
   auto reader = Connect(server)->DownloadMap(&context, request);
@@ -153,7 +147,7 @@ int RemoteMapDownload(const std::string& server, const std::string& name, const 
       bytes += chunk.data();
     }
   }
-  Check(reader->Finish(), server);
+  CheckCall(reader->Finish(), server.server);
   if (!have_header || bytes.size() != header.size_bytes() || Crc32(bytes) != header.crc32()) {
     throw InputError(StrCat("download of '", name, "' is incomplete or corrupt: ", bytes.size(),
                             " of ", header.size_bytes(), " bytes"));
@@ -166,24 +160,26 @@ int RemoteMapDownload(const std::string& server, const std::string& name, const 
   return 0;
 }
 
-int RemoteMapDelete(const std::string& server, const std::string& name) {
+int RemoteMapDelete(const Connection& server, const std::string& name) {
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::MapName request;
   request.set_name(name);
   v1::Empty response;
-  Check(Connect(server)->DeleteMap(&context, request, &response), server);
-  std::printf("deleted '%s' on %s\n", name.c_str(), server.c_str());
+  CheckCall(Connect(server)->DeleteMap(&context, request, &response), server.server);
+  std::printf("deleted '%s' on %s\n", name.c_str(), server.server.c_str());
   return 0;
 }
 
-int RemoteMapRename(const std::string& server, const std::string& from, const std::string& to) {
+int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to) {
   grpc::ClientContext context;
+  server.Prepare(&context);
   v1::RenameMapRequest request;
   request.set_from(from);
   request.set_to(to);
   v1::MapInfo info;
-  Check(Connect(server)->RenameMap(&context, request, &info), server);
-  std::printf("renamed '%s' -> '%s' on %s\n", from.c_str(), to.c_str(), server.c_str());
+  CheckCall(Connect(server)->RenameMap(&context, request, &info), server.server);
+  std::printf("renamed '%s' -> '%s' on %s\n", from.c_str(), to.c_str(), server.server.c_str());
   return 0;
 }
 

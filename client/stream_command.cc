@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "client/commands.h"
+#include "client/connection.h"
 #include "client/dataset_frames.h"
 #include "client/localization_report.h"
 #include "core/eval/trajectory_eval.h"
@@ -32,7 +33,8 @@ namespace v1 = ::visloc::v1;
 using Clock = std::chrono::steady_clock;
 
 struct StreamArgs {
-  std::string server, map_name, dataset_dir, format, trajectory_path, stats_path, gt_path;
+  Connection server;
+  std::string map_name, dataset_dir, format, trajectory_path, stats_path, gt_path;
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
   bool odometry = false, json = false;
@@ -73,7 +75,7 @@ int RunStream(const Args& raw_args) {
                    "Streams a dataset's left images to visloc-server as one robot session and "
                    "reports every frame's answer: the TUM trajectory, the per-frame statistics "
                    "CSV, a live line on a terminal, and a summary with the client-side latency.");
-  parser.AddFlag("server", &args.server, "server address HOST:PORT", /*required=*/true);
+  args.server.AddFlags(parser);
   parser.AddFlag("map", &args.map_name, "map name on the server", true);
   parser.AddFlag("dataset", &args.dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
   parser.AddFlag("format", &args.format, "euroc or kitti (default: detected)");
@@ -88,6 +90,7 @@ int RunStream(const Args& raw_args) {
   parser.AddFlag("frames", &args.frames, "stop after this many frames (0: all)");
   parser.AddSwitch("json", &args.json, "print the summary as one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
+  args.server.ApplyEnvironment();
   if (args.rate_hz > 1000)
     throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
   if (args.policy != "all" && args.policy != "newest")
@@ -102,12 +105,9 @@ int RunStream(const Args& raw_args) {
   const size_t count = args.frames > 0 ? std::min<size_t>(args.frames, dataset.frames.size())
                                        : dataset.frames.size();
 
-  grpc::ChannelArguments channel_args;
-  channel_args.SetMaxReceiveMessageSize(64 << 20);
-  auto channel =
-      grpc::CreateCustomChannel(args.server, grpc::InsecureChannelCredentials(), channel_args);
-  auto stub = v1::Localization::NewStub(channel);
+  auto stub = v1::Localization::NewStub(args.server.OpenChannel());
   grpc::ClientContext context;
+  args.server.Prepare(&context);
   auto stream = stub->Localize(&context);
   std::vector<Clock::time_point> sent(count);
   std::mutex sent_mutex;
@@ -169,10 +169,7 @@ int RunStream(const Args& raw_args) {
   writer.join();
   const grpc::Status status = stream->Finish();
   if (ShowProgress() && !args.json) std::fprintf(stderr, "\n");
-  if (!status.ok()) {
-    throw InputError(StrCat("server ", args.server, ": ", status.error_message(), " (gRPC code ",
-                            static_cast<int>(status.error_code()), ")"));
-  }
+  CheckCall(status, args.server.server);
   if (!args.trajectory_path.empty()) WriteTum(args.trajectory_path, report.PosedTrajectory());
   if (!args.stats_path.empty()) report.WriteStatsCsv(args.stats_path);
   const ErrorStats latency = ComputeErrorStats(latency_ms);
@@ -183,7 +180,7 @@ int RunStream(const Args& raw_args) {
   const Trajectory* gt = ground_truth.empty() ? nullptr : &ground_truth;
   if (args.json) {
     JsonWriter json;
-    json.BeginObject().Field("server", args.server).Field("map", args.map_name);
+    json.BeginObject().Field("server", args.server.server).Field("map", args.map_name);
     json.Field("errors", static_cast<int64_t>(errors))
         .Field("skipped", static_cast<int64_t>(skipped));
     json.Field("latency_ms_mean", latency.mean)
@@ -193,8 +190,8 @@ int RunStream(const Args& raw_args) {
     json.EndObject();
     std::cout << json.str() << "\n";
   } else {
-    std::printf("server %s, map %s: %zu frames sent, %d errors, %d skipped\n", args.server.c_str(),
-                args.map_name.c_str(), count, errors, skipped);
+    std::printf("server %s, map %s: %zu frames sent, %d errors, %d skipped\n",
+                args.server.server.c_str(), args.map_name.c_str(), count, errors, skipped);
     report.PrintSummary(stdout, gt);
     std::printf("latency (client, send to answer): mean %.2f ms, p50 %.2f ms, p99 %.2f ms\n",
                 latency.mean, latency.median, p99);

@@ -9,7 +9,7 @@ PACKAGES=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libeigen3-dev libopencv-dev libceres-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  sqlite3 libyaml-cpp-dev zlib1g-dev
+  sqlite3 libyaml-cpp-dev zlib1g-dev openssl
 )
 
 missing=()

@@ -28,8 +28,9 @@ struct SessionTally {
 class Session {
  public:
   Session(std::shared_ptr<const LocalizationMap> map, const v1::SessionStart& start,
-          const proto::WireLimits& limits)
-      : camera_(proto::FromProto(start.camera(), limits)),
+          const proto::WireLimits& limits, WorkPermits* workers)
+      : workers_(workers),
+        camera_(proto::FromProto(start.camera(), limits)),
         localizer_(
             std::move(map), camera_, proto::FromProto(start.options()),
             start.options().has_body_from_cam()
@@ -73,6 +74,7 @@ class Session {
   const SessionTally& tally() const { return tally_; }
 
  private:
+  WorkPermits* workers_;
   PinholeCamera camera_;
   Localizer localizer_;
   SessionTally tally_;
@@ -124,12 +126,14 @@ Status StatusFromException(const std::exception& e) {
   return Status(StatusCode::INTERNAL, message);
 }
 
-LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& limits)
-    : maps_(maps), limits_(limits) {}
+LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& limits,
+                                         const TokenAuth* auth)
+    : maps_(maps), limits_(limits), auth_(auth), workers_(std::max(1, limits.workers)) {}
 
 Status LocalizationService::Localize(
     grpc::ServerContext* context,
     grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  if (Status allowed = auth_->Check(*context, Role::kLocalize); !allowed.ok()) return allowed;
   v1::LocalizeRequest request;
   if (!stream->Read(&request)) return Status(StatusCode::INVALID_ARGUMENT, "empty stream");
   if (!request.has_start()) {
@@ -147,7 +151,8 @@ Status LocalizationService::Localize(
   } release{&active_sessions_};
   std::unique_ptr<Session> session;
   try {
-    session = std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire);
+    session =
+        std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire, &workers_);
   } catch (const std::exception& e) {
     Log("session_refused",
         {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
@@ -180,8 +185,10 @@ Status LocalizationService::Localize(
   return Status::OK;
 }
 
-Status LocalizationService::Relocalize(grpc::ServerContext*, const v1::RelocalizeRequest* request,
+Status LocalizationService::Relocalize(grpc::ServerContext* context,
+                                       const v1::RelocalizeRequest* request,
                                        v1::RelocalizeResponse* response) {
+  if (Status allowed = auth_->Check(*context, Role::kLocalize); !allowed.ok()) return allowed;
   try {
     Timer timer;
     auto map = maps_->Acquire(request->map_name());

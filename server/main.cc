@@ -1,6 +1,7 @@
 // visloc-server: the localization service for a fleet of robots (product.md).
 //
-//   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--max-sessions N]
+//   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--tls-cert F --tls-key F]
+//                 [--tokens F] [--threads N] [--max-sessions N]
 //
 // Serves Localization, MapAdmin, grpc.health.v1 and server reflection. Prints
 // "listening on ADDRESS" once ready (with port 0, the port chosen). SIGTERM or SIGINT drains:
@@ -9,15 +10,18 @@
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/resource_quota.h>
 #include <signal.h>
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <thread>
 
 #include "core/util/args.h"
 #include "core/util/check.h"
+#include "server/auth.h"
 #include "server/localization_service.h"
 #include "server/log.h"
 #include "server/map_admin_service.h"
@@ -32,7 +36,26 @@ struct ServerArgs {
   int idle_unload_s = 300;
   double drain_s = 5.0;
   int64_t max_upload_mb = 2048;
+  std::string tls_cert, tls_key, tokens;
+  bool allow_remote = false;
+  int threads = 0;
 };
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot read");
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerArgs& args) {
+  if (args.tls_cert.empty() != args.tls_key.empty()) {
+    throw UsageError("--tls-cert and --tls-key go together");
+  }
+  if (args.tls_cert.empty()) return grpc::InsecureServerCredentials();
+  grpc::SslServerCredentialsOptions options;
+  options.pem_key_cert_pairs.push_back({ReadFile(args.tls_key), ReadFile(args.tls_cert)});
+  return grpc::SslServerCredentials(options);
+}
 
 bool IsLoopback(const std::string& address) {
   return address.rfind("127.", 0) == 0 || address.rfind("localhost:", 0) == 0 ||
@@ -50,12 +73,22 @@ int Run(int argc, char** argv) {
   parser.AddFlag("idle-unload-s", &args.idle_unload_s, "unload maps idle this long");
   parser.AddFlag("drain-s", &args.drain_s, "grace period for open streams at shutdown");
   parser.AddFlag("max-upload-mb", &args.max_upload_mb, "largest map upload accepted");
+  parser.AddFlag("tls-cert", &args.tls_cert, "serve TLS with this certificate chain (PEM)");
+  parser.AddFlag("tls-key", &args.tls_key, "the certificate's private key (PEM)");
+  parser.AddFlag("tokens", &args.tokens, "bearer tokens file: 'TOKEN localize|admin' per line");
+  parser.AddSwitch("allow-remote", &args.allow_remote,
+                   "listen beyond loopback without tokens (trusted networks only)");
+  parser.AddFlag("threads", &args.threads,
+                 "frames processed at once across sessions (default: one per core)");
   if (!parser.Parse(std::vector<std::string>(argv + 1, argv + argc), std::cout)) return 0;
   if (args.max_sessions < 1) throw UsageError("--max-sessions must be at least 1");
-  if (!IsLoopback(args.listen)) {
-    throw UsageError("without authentication the server listens on loopback only (got " +
-                     args.listen + ")");
+  if (!IsLoopback(args.listen) && args.tokens.empty() && !args.allow_remote) {
+    throw UsageError("without --tokens the server listens on loopback only (got " + args.listen +
+                     "; --allow-remote overrides)");
   }
+  if (args.threads < 0) throw UsageError("--threads must not be negative");
+  const TokenAuth auth = args.tokens.empty() ? TokenAuth() : TokenAuth::FromFile(args.tokens);
+  const auto credentials = Credentials(args);
 
   // Block the shutdown signals in every thread; one thread waits for them.
   sigset_t signals;
@@ -68,14 +101,23 @@ int Run(int argc, char** argv) {
   const int stale = mapstore::MapDirectory(args.maps_dir).RemoveStaleTemporaries();
   ServiceLimits limits;
   limits.max_sessions = args.max_sessions;
-  LocalizationService localization(&maps, limits);
-  MapAdminService admin(&maps, static_cast<uint64_t>(args.max_upload_mb) << 20);
+  // The per-frame engine work runs on at most this many threads at once: the machine's cores.
+  limits.workers = args.threads > 0
+                       ? args.threads
+                       : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  LocalizationService localization(&maps, limits, &auth);
+  MapAdminService admin(&maps, static_cast<uint64_t>(args.max_upload_mb) << 20, &auth);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
   int port = 0;
-  builder.AddListeningPort(args.listen, grpc::InsecureServerCredentials(), &port);
+  builder.AddListeningPort(args.listen, credentials, &port);
+  // The sync server gives each call a thread, and a Localize stream keeps its thread for its
+  // life (mostly waiting on the network); room for every session plus admin calls.
+  grpc::ResourceQuota quota("visloc-server");
+  quota.SetMaxThreads(args.max_sessions + 16);
+  builder.SetResourceQuota(quota);
   builder.RegisterService(&localization);
   builder.RegisterService(&admin);
   builder.SetMaxReceiveMessageSize(64 << 20);  // A raw 4096x4096 frame is 16 MiB.
@@ -86,6 +128,9 @@ int Run(int argc, char** argv) {
   Log("server_start", {{"listen", bound},
                        {"maps", args.maps_dir},
                        {"max_sessions", std::to_string(args.max_sessions)},
+                       {"workers", std::to_string(limits.workers)},
+                       {"tls", args.tls_cert.empty() ? "off" : "on"},
+                       {"tokens", auth.enabled() ? "on" : "off"},
                        {"stale_temporaries_removed", std::to_string(stale)}});
   std::printf("listening on %s\n", bound.c_str());
   std::fflush(stdout);

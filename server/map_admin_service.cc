@@ -44,11 +44,12 @@ std::optional<mapstore::MapDirectory::Entry> Find(const mapstore::MapDirectory& 
 
 }  // namespace
 
-MapAdminService::MapAdminService(MapCache* maps, uint64_t max_upload_bytes)
-    : maps_(maps), max_upload_bytes_(max_upload_bytes) {}
+MapAdminService::MapAdminService(MapCache* maps, uint64_t max_upload_bytes, const TokenAuth* auth)
+    : maps_(maps), max_upload_bytes_(max_upload_bytes), auth_(auth) {}
 
-Status MapAdminService::ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
+Status MapAdminService::ListMaps(grpc::ServerContext* context, const v1::ListMapsRequest*,
                                  v1::ListMapsResponse* response) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
     for (const auto& entry : maps_->directory().List()) ToProto(entry, response->add_maps());
     return Status::OK;
@@ -57,8 +58,9 @@ Status MapAdminService::ListMaps(grpc::ServerContext*, const v1::ListMapsRequest
   }
 }
 
-Status MapAdminService::GetMapInfo(grpc::ServerContext*, const v1::MapName* request,
+Status MapAdminService::GetMapInfo(grpc::ServerContext* context, const v1::MapName* request,
                                    v1::MapInfo* response) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
     const auto entry = Find(maps_->directory(), request->name());
     if (!entry) return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
@@ -72,6 +74,7 @@ Status MapAdminService::GetMapInfo(grpc::ServerContext*, const v1::MapName* requ
 Status MapAdminService::UploadMap(grpc::ServerContext* context,
                                   grpc::ServerReader<v1::UploadChunk>* reader,
                                   v1::MapInfo* response) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   v1::UploadChunk chunk;
   if (!reader->Read(&chunk) || !chunk.has_header()) {
     return Status(StatusCode::INVALID_ARGUMENT, "an upload starts with a header");
@@ -132,8 +135,9 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
   }
 }
 
-Status MapAdminService::DownloadMap(grpc::ServerContext*, const v1::MapName* request,
+Status MapAdminService::DownloadMap(grpc::ServerContext* context, const v1::MapName* request,
                                     grpc::ServerWriter<v1::DownloadChunk>* writer) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
     mapstore::CheckMapName(request->name());
     if (!maps_->directory().Contains(request->name())) {
@@ -164,6 +168,7 @@ Status MapAdminService::DownloadMap(grpc::ServerContext*, const v1::MapName* req
 
 Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapName* request,
                                   v1::Empty*) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
     mapstore::CheckMapName(request->name());
     if (!maps_->directory().Contains(request->name())) {
@@ -179,6 +184,7 @@ Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapNam
 
 Status MapAdminService::RenameMap(grpc::ServerContext* context, const v1::RenameMapRequest* request,
                                   v1::MapInfo* response) {
+  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
     mapstore::CheckMapName(request->from());
     mapstore::CheckMapName(request->to());

@@ -3,6 +3,7 @@
 // and verified), download, delete and rename maps in the server's maps folder. All file work
 // goes through mapstore::MapDirectory; sessions holding a map keep it across delete or replace.
 
+#include "server/auth.h"
 #include "server/map_cache.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
@@ -11,7 +12,8 @@ namespace visloc::server {
 class MapAdminService final : public v1::MapAdmin::Service {
  public:
   // `max_upload_bytes` bounds an upload's declared and actual size.
-  MapAdminService(MapCache* maps, uint64_t max_upload_bytes);
+  // Every call needs the admin role. `auth` must outlive the service.
+  MapAdminService(MapCache* maps, uint64_t max_upload_bytes, const TokenAuth* auth);
 
   grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
                         v1::ListMapsResponse* response) override;
@@ -29,6 +31,7 @@ class MapAdminService final : public v1::MapAdmin::Service {
  private:
   MapCache* maps_;
   uint64_t max_upload_bytes_;
+  const TokenAuth* auth_;
 };
 
 }  // namespace visloc::server

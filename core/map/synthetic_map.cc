@@ -44,7 +44,8 @@ Map MakeSyntheticMap(const SyntheticMapOptions& options) {
   map.features.kind = options.descriptor_type == DescriptorType::kFloat32 ? "harris_surf16" : "orb";
   map.features.descriptor_type = options.descriptor_type;
   map.features.descriptor_dim = options.descriptor_dim;
-  map.features.params = {{"max_features", 500}, {"threshold", 1e-4}};
+  // Parameters every extractor kind accepts, so sessions can run on synthetic maps.
+  map.features.params = {{"max_features", 500}, {"grid_cols", 8}};
 
   // Keyframes on a loop of ~0.15 m spacing, looking outwards, as a robot walking a circle.
   const double radius = std::max(0.5, options.keyframes * 0.15 / (2 * M_PI));

@@ -1,0 +1,112 @@
+// Security end to end against the real server: bearer tokens with two roles (robots localize,
+// admins manage maps) and TLS with a certificate generated for the test.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/temp_dir.h"
+#include "mapstore/map_store.h"
+#include "tests/support/process.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::ProcessResult;
+using testing::ServerProcess;
+
+const std::string kRobotToken = "robot-token-0123456789";
+const std::string kAdminToken = "admin-token-0123456789";
+
+ProcessResult Visloc(std::vector<std::string> args) {
+  args.insert(args.begin(), VISLOC_CLI_PATH);
+  return testing::RunProcess(args);
+}
+
+class SecurityE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    SyntheticMapOptions options;
+    options.keyframes = 10;
+    options.points = 500;
+    mapstore::SaveMap(MakeSyntheticMap(options), maps_.File("lab.db"));
+    std::ofstream(files_.File("tokens")) << "# robots and operators\n"
+                                         << kRobotToken << " localize\n"
+                                         << kAdminToken << " admin\n";
+    cv::imwrite(files_.File("blank.png"), cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)));
+  }
+  TempDir maps_{"visloc_security_maps"};
+  TempDir files_{"visloc_security_files"};
+};
+
+TEST_F(SecurityE2eTest, TokenRolesAreEnforcedOnEveryService) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--tokens", files_.File("tokens")});
+  const std::string address = server.address();
+  const ProcessResult missing = Visloc({"map", "list", "--server", address});
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_THAT(missing.err, HasSubstr("missing bearer token"));
+  EXPECT_THAT(missing.err, HasSubstr("gRPC code 16"));  // UNAUTHENTICATED
+  const ProcessResult wrong =
+      Visloc({"map", "list", "--server", address, "--token", "nope-nope-nope-nope"});
+  EXPECT_EQ(wrong.exit_code, 1);
+  EXPECT_THAT(wrong.err, HasSubstr("unknown token"));
+  const ProcessResult robot_admin =
+      Visloc({"map", "delete", "lab", "--server", address, "--token", kRobotToken});
+  EXPECT_EQ(robot_admin.exit_code, 1);
+  EXPECT_THAT(robot_admin.err, HasSubstr("may localize but not manage maps"));
+  EXPECT_THAT(robot_admin.err, HasSubstr("gRPC code 7"));  // PERMISSION_DENIED
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("lab.db")));
+
+  // Localization: refused without a token, served with the robot's (a blank image is simply
+  // not localized: exit 3, not an authorization error).
+  const ProcessResult anonymous =
+      Visloc({"relocalize", "--server", address, "--map", "lab", files_.File("blank.png")});
+  EXPECT_EQ(anonymous.exit_code, 1);
+  EXPECT_THAT(anonymous.err, HasSubstr("missing bearer token"));
+  const ProcessResult robot = Visloc({"relocalize", "--server", address, "--map", "lab",
+                                      files_.File("blank.png"), "--token", kRobotToken});
+  EXPECT_EQ(robot.exit_code, 3) << robot.err;
+  EXPECT_THAT(robot.out, HasSubstr("not localized"));
+
+  const ProcessResult admin = Visloc({"map", "list", "--server", address, "--token", kAdminToken});
+  EXPECT_EQ(admin.exit_code, 0) << admin.err;
+  EXPECT_THAT(admin.out, HasSubstr("lab"));
+  EXPECT_EQ(Visloc({"map", "delete", "lab", "--server", address, "--token", kAdminToken}).exit_code,
+            0);
+}
+
+TEST_F(SecurityE2eTest, MalformedTokenFilesAreRefusedAtStart) {
+  std::ofstream(files_.File("bad_tokens")) << kRobotToken << " superuser\n";
+  const ProcessResult bad = testing::RunProcess(
+      {VISLOC_SERVER_PATH, "--maps", maps_.path(), "--tokens", files_.File("bad_tokens")});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_THAT(bad.err, HasSubstr(files_.File("bad_tokens") + ":1: expected 'TOKEN ROLE'"));
+}
+
+TEST_F(SecurityE2eTest, TlsServesOnlyClientsThatTrustItsCertificate) {
+  const std::string key = files_.File("server.key"), cert = files_.File("server.pem");
+  const ProcessResult openssl =
+      testing::RunProcess({"/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout",
+                           key, "-out", cert, "-days", "1", "-subj", "/CN=localhost", "-addext",
+                           "subjectAltName=IP:127.0.0.1,DNS:localhost"});
+  ASSERT_EQ(openssl.exit_code, 0) << openssl.err;
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--tls-cert", cert, "--tls-key", key});
+  const ProcessResult trusted =
+      Visloc({"map", "list", "--server", server.address(), "--tls-ca", cert});
+  EXPECT_EQ(trusted.exit_code, 0) << trusted.err;
+  EXPECT_THAT(trusted.out, HasSubstr("lab"));
+  const ProcessResult plaintext = Visloc({"map", "list", "--server", server.address()});
+  EXPECT_EQ(plaintext.exit_code, 1);
+  EXPECT_THAT(plaintext.err, HasSubstr("gRPC code 14"));  // UNAVAILABLE: no TLS handshake
+  EXPECT_THAT(server.Log(), HasSubstr("tls=on"));
+}
+
+}  // namespace
+}  // namespace visloc
