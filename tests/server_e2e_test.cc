@@ -6,12 +6,17 @@
 
 #include <filesystem>
 #include <fstream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
 
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
+#include "proto/convert.h"
 #include "tests/support/process.h"
+#include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc {
 namespace {
@@ -132,6 +137,90 @@ TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
                                         "square", elsewhere.frames[10].left_path});
   EXPECT_EQ(refused.exit_code, 3);
   EXPECT_THAT(refused.out, HasSubstr("not localized"));
+}
+
+TEST_F(ServerE2eTest, ConcurrentSessionsOnDifferentMaps) {
+  std::filesystem::copy_file(kData + "/map.db", maps_.File("square-copy.db"));
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  std::vector<int> pids;
+  for (int i = 0; i < 4; ++i) {
+    const std::string map = i % 2 ? "square" : "square-copy";
+    pids.push_back(testing::SpawnProcess(
+        {VISLOC_CLI_PATH, "stream", "--server", server.address(), "--map", map, "--dataset",
+         kData + "/query_square", "--frames", "45", "--json"},
+        out_.File("stream" + std::to_string(i) + ".json"),
+        out_.File("stream" + std::to_string(i) + ".err")));
+  }
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(testing::WaitProcess(pids[i]), 0);
+    std::ifstream in(out_.File("stream" + std::to_string(i) + ".json"));
+    const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(JsonNumber(json, "localized_fraction"), 1.0) << json;
+    EXPECT_EQ(JsonNumber(json, "errors"), 0);
+  }
+  server.Stop();
+  const std::string log = server.Log();
+  size_t ends = 0;
+  for (size_t at = log.find("event=session_end"); at != std::string::npos;
+       at = log.find("event=session_end", at + 1)) {
+    ++ends;
+  }
+  EXPECT_EQ(ends, 4u);
+  EXPECT_THAT(log, HasSubstr("maps_loaded=2"));
+}
+
+TEST_F(ServerE2eTest, ABadFrameMidStreamGetsAnErrorAndTheSessionGoesOn) {
+  // A copy of the first 30 frames of the offset square with frame 10 corrupted.
+  const std::string dataset = out_.File("broken");
+  std::filesystem::copy(kData + "/query_square", dataset, std::filesystem::copy_options::recursive);
+  const Dataset original = ReadDataset(dataset);
+  const std::string victim = original.frames[10].left_path;
+  std::ofstream(victim, std::ios::binary | std::ios::trunc) << "this is not a PNG";
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult stream =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset", dataset,
+              "--frames", "30", "--rate", "0", "--stats", out_.File("s.csv"), "--json"});
+  ASSERT_EQ(stream.exit_code, 0) << stream.err;
+  EXPECT_EQ(JsonNumber(stream.out, "errors"), 1);
+  EXPECT_THAT(stream.err,
+              HasSubstr("frame 10: server: image: 17 bytes are not a decodable PNG or JPEG"));
+  EXPECT_EQ(JsonNumber(stream.out, "frames"), 29);
+  EXPECT_EQ(JsonNumber(stream.out, "localized_fraction"), 1.0);
+}
+
+TEST_F(ServerE2eTest, AClientThatVanishesIsCleanedUpAndTheServerGoesOn) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const Dataset dataset = ReadDataset(kData + "/query_square");
+  {
+    auto stub = v1::Localization::NewStub(
+        grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+    grpc::ClientContext context;
+    auto stream = stub->Localize(&context);
+    v1::LocalizeRequest start;
+    start.mutable_start()->set_map_name("square");
+    proto::ToProto(dataset.left.camera, start.mutable_start()->mutable_camera());
+    ASSERT_TRUE(stream->Write(start));
+    for (int i = 0; i < 5; ++i) {
+      v1::LocalizeRequest frame;
+      frame.mutable_frame()->set_timestamp_ns(dataset.frames[i].timestamp_ns);
+      std::ifstream in(dataset.frames[i].left_path, std::ios::binary);
+      frame.mutable_frame()->set_encoded(
+          std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
+      ASSERT_TRUE(stream->Write(frame));
+    }
+    v1::LocalizeResponse response;
+    ASSERT_TRUE(stream->Read(&response));  // The session is live...
+    context.TryCancel();                   // ...and the robot drops off the network.
+  }
+  for (int i = 0; i < 100 && server.Log().find("event=session_end") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_THAT(server.Log(), HasSubstr("cancelled=true"));
+  const ProcessResult next =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "10", "--rate", "0", "--json"});
+  EXPECT_EQ(next.exit_code, 0) << next.err;
+  EXPECT_THAT(server.Log(), HasSubstr("event=session_start session=2"));
 }
 
 TEST(ServerStartTest, RefusesAMissingMapsFolderAndNonLoopbackWithoutAuth) {
