@@ -16,6 +16,7 @@ int RunMap(const Args& args);
 int RunLocalize(const Args& args);
 int RunStream(const Args& args);
 int RunRelocalize(const Args& args);
+int RunPlot(const Args& args);
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

@@ -23,6 +23,7 @@ const std::vector<Subcommand> kCommands = {
     {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},
     {"stream", "stream a dataset to visloc-server as one robot session", RunStream},
     {"relocalize", "ask visloc-server where one image was taken", RunRelocalize},
+    {"plot", "top view of a map and a trajectory (PNG or SVG)", RunPlot},
 };
 
 }  // namespace

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the embedded default: install, build, generate a mapping sequence and a
 # query sequence with a kidnapping, build the map, start visloc-server on loopback, stream the
-# query through it, print the per-frame story and a summary, and stop the server.
+# query through it, print the per-frame story and a summary, draw the plot, and stop the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh
@@ -42,6 +42,8 @@ echo "-- per frame, where the status changes (frame, status, inliers/putatives, 
 awk -F, 'NR > 1 { s = $2; if (s != prev || s == "relocalized") printf "  frame %4d  %-12s %4s/%-4s %s\n", NR - 2, s, $7, $6, $19; prev = s }' \
   "$OUT/kidnap_stats.csv"
 "$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap_localized.tum"
+"$VISLOC" plot --map "$OUT/maps/square.db" --trajectory "$OUT/kidnap_localized.tum" \
+  --stats "$OUT/kidnap_stats.csv" --gt "$OUT/kidnap/groundtruth_map.tum" --out "$OUT/kidnap.png"
 
 echo
 echo "== 5. For comparison: the walking planner's dead reckoning on the same sequence"

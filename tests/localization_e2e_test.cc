@@ -220,6 +220,35 @@ TEST(LocalizationE2eTest, BaselinesLocalizeTooButPredictMorePoints) {
   EXPECT_LT(1.5 * predicted, all_in_view);
 }
 
+TEST(LocalizationE2eTest, PlotShowsTheTrajectoryAndTheKidnappingJump) {
+  TempDir dir("visloc_plot_e2e");
+  const ProcessResult localize =
+      Visloc({"localize", "--map", kData + "/map.db", "--dataset", kData + "/kidnap",
+              "--trajectory", dir.File("est.tum"), "--stats", dir.File("stats.csv")});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  for (const std::string name : {"plot.png", "plot.svg"}) {
+    const ProcessResult plot =
+        Visloc({"plot", "--map", kData + "/map.db", "--trajectory", dir.File("est.tum"), "--stats",
+                dir.File("stats.csv"), "--gt", kData + "/kidnap/groundtruth_map.tum", "--out",
+                dir.File(name)});
+    ASSERT_EQ(plot.exit_code, 0) << plot.err;
+    // 132 posed frames: 130 segments along the walk and one dashed jump across the kidnapping.
+    EXPECT_THAT(plot.out, HasSubstr("130 trajectory segments, 1 gaps"));
+  }
+  std::ifstream svg(dir.File("plot.svg"));
+  const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(text, HasSubstr("<svg"));
+  EXPECT_THAT(text, HasSubstr("stroke-dasharray"));
+  std::ifstream png(dir.File("plot.png"), std::ios::binary);
+  char signature[8] = {};
+  png.read(signature, 8);
+  EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+  const ProcessResult wrong = Visloc({"plot", "--map", kData + "/map.db", "--trajectory",
+                                      dir.File("est.tum"), "--out", dir.File("plot.gif")});
+  EXPECT_EQ(wrong.exit_code, 1);
+  EXPECT_THAT(wrong.err, HasSubstr("the plot must be .png or .svg"));
+}
+
 TEST(LocalizationE2eTest, BadArgumentsAreNamed) {
   const ProcessResult no_map =
       Visloc({"localize", "--map", kData + "/nope.db", "--dataset", kData + "/query_square"});

@@ -1,0 +1,37 @@
+#pragma once
+// `visloc plot`: a top view of a map and a trajectory, like the paper's Figs. 17 and 19: map
+// points (grey), keyframes (blue), ground truth (wide violet), and the estimated trajectory coloured
+// by inlier ratio (red 0 -> yellow -> green 1). Where the estimate has a gap (lost frames) the
+// two ends are joined by a dashed line, so a kidnapping shows as a jump. PNG or SVG by the
+// output's extension.
+//
+// "Top" is along the normal of the plane the keyframes lie in (a ground robot's head), or the
+// map's -y axis (up for the first camera) when they do not span a plane.
+
+#include <map>
+#include <string>
+
+#include "core/geometry/trajectory.h"
+#include "core/map/localization_map.h"
+
+namespace visloc::cli {
+
+struct PlotInput {
+  const LocalizationMap* map = nullptr;
+  Trajectory estimate;                     // map_from_cam
+  std::map<int64_t, double> inlier_ratio;  // By timestamp; missing: drawn grey.
+  Trajectory ground_truth;                 // Optional.
+  std::string title;
+};
+
+struct PlotStats {
+  int points_drawn = 0;
+  int keyframes_drawn = 0;
+  int estimate_segments = 0;
+  int gaps = 0;  // Dashed jumps across lost stretches.
+};
+
+// Writes PNG or SVG to `path` (by extension). Throws InputError for another extension.
+PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path);
+
+}  // namespace visloc::cli
