@@ -123,6 +123,10 @@ int Run(int argc, char** argv) {
   builder.SetMaxReceiveMessageSize(64 << 20);  // A raw 4096x4096 frame is 16 MiB.
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) throw InputError("cannot listen on " + args.listen);
+  grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService();
+  for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin"}) {
+    health->SetServingStatus(service, true);
+  }
   const std::string bound =
       args.listen.substr(0, args.listen.rfind(':')) + ":" + std::to_string(port);
   Log("server_start", {{"listen", bound},
@@ -146,6 +150,7 @@ int Run(int argc, char** argv) {
   sigwait(&signals, &signal_number);
   Log("server_draining", {{"signal", signal_number == SIGTERM ? "SIGTERM" : "SIGINT"},
                           {"open_sessions", std::to_string(localization.active_sessions())}});
+  health->SetServingStatus(false);  // Load balancers stop sending new robots here.
   server->Shutdown(std::chrono::system_clock::now() +
                    std::chrono::milliseconds(static_cast<int64_t>(args.drain_s * 1000)));
   server->Wait();

@@ -14,6 +14,7 @@
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
+#include "grpc/health/v1/health.grpc.pb.h"
 #include "proto/convert.h"
 #include "tests/support/process.h"
 #include "visloc/v1/visloc.grpc.pb.h"
@@ -221,6 +222,36 @@ TEST_F(ServerE2eTest, AClientThatVanishesIsCleanedUpAndTheServerGoesOn) {
               kData + "/query_square", "--frames", "10", "--rate", "0", "--json"});
   EXPECT_EQ(next.exit_code, 0) << next.err;
   EXPECT_THAT(server.Log(), HasSubstr("event=session_start session=2"));
+}
+
+TEST_F(ServerE2eTest, HealthServiceReportsServing) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  auto health = grpc::health::v1::Health::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  for (const std::string service : {"", "visloc.v1.Localization", "visloc.v1.MapAdmin"}) {
+    grpc::ClientContext context;
+    grpc::health::v1::HealthCheckRequest request;
+    request.set_service(service);
+    grpc::health::v1::HealthCheckResponse response;
+    ASSERT_TRUE(health->Check(&context, request, &response).ok()) << service;
+    EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING) << service;
+  }
+}
+
+TEST_F(ServerE2eTest, SigtermDrainsAnOpenStreamAndExitsCleanly) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  // 30 frames at 15 Hz: the stream is open for 2 s; SIGTERM arrives after ~0.7 s.
+  const int client = testing::SpawnProcess(
+      {VISLOC_CLI_PATH, "stream", "--server", server.address(), "--map", "square", "--dataset",
+       kData + "/query_square", "--frames", "30", "--json"},
+      out_.File("drain.json"), out_.File("drain.err"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  EXPECT_EQ(server.Stop(), 0);
+  EXPECT_EQ(testing::WaitProcess(client), 0);
+  std::ifstream in(out_.File("drain.json"));
+  const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(JsonNumber(json, "frames"), 30) << json;
+  EXPECT_THAT(server.Log(), HasSubstr("event=server_draining signal=SIGTERM open_sessions=1"));
 }
 
 TEST(ServerStartTest, RefusesAMissingMapsFolderAndNonLoopbackWithoutAuth) {
