@@ -17,9 +17,18 @@ MapCache::FileIdentity MapCache::IdentityOf(const std::string& path) {
           static_cast<int64_t>(st.st_mtim.tv_sec) * 1'000'000'000 + st.st_mtim.tv_nsec};
 }
 
+std::shared_ptr<std::mutex> MapCache::LoadLockFor(const std::string& name) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::shared_ptr<std::mutex>& load_lock = load_locks_[name];
+  if (!load_lock) load_lock = std::make_shared<std::mutex>();
+  return load_lock;
+}
+
 std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name) {
   mapstore::CheckMapName(name);
   const std::string path = directory_.PathOf(name);
+  const std::shared_ptr<std::mutex> load_lock = LoadLockFor(name);
+  std::lock_guard<std::mutex> loading(*load_lock);
   const FileIdentity identity = IdentityOf(path);
   if (identity.inode == 0) {
     throw InputError("no map named '" + name + "' in the server's maps folder");
@@ -33,8 +42,7 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
       return it->second.map;
     }
   }
-  // Load outside the lock: other maps stay available meanwhile. Two sessions racing for the
-  // same new map may both load it; the second result wins, both are valid.
+  // Loaded under this name's lock only: other maps stay available meanwhile.
   auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
   std::lock_guard<std::mutex> lock(mutex_);
   entries_[name] = {map, identity, std::chrono::steady_clock::now()};

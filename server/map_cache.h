@@ -3,7 +3,8 @@
 // session that uses them (shared_ptr: a map stays alive while any session holds it), and
 // dropped from the cache when idle. A map file replaced on disk (an upload, `visloc map
 // build --out` into the folder) is noticed by its changed identity (inode, size, mtime): new
-// sessions get the new map, running sessions keep the one they hold.
+// sessions get the new map, running sessions keep the one they hold. Sessions asking for a map
+// that is being loaded wait for that one load.
 
 #include <chrono>
 #include <map>
@@ -53,10 +54,15 @@ class MapCache {
   };
   static FileIdentity IdentityOf(const std::string& path);
 
+  // The lock one name's (re)load holds, so sessions racing for a new map load it once while
+  // other maps stay available.
+  std::shared_ptr<std::mutex> LoadLockFor(const std::string& name);
+
   mapstore::MapDirectory directory_;
   std::chrono::seconds idle_unload_;
   mutable std::mutex mutex_;
   std::map<std::string, Entry> entries_;
+  std::map<std::string, std::shared_ptr<std::mutex>> load_locks_;
   MapCacheStats stats_;
 };
 

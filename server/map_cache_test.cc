@@ -36,6 +36,20 @@ TEST(MapCacheTest, LoadsOnceSharesAndPicksUpReplacedFiles) {
   EXPECT_EQ(first->point_count(), 200u);
 }
 
+TEST(MapCacheTest, SessionsRacingForANewMapLoadItOnce) {
+  TempDir dir;
+  mapstore::SaveMap(SmallMap(20000), dir.File("big.db"));
+  MapCache cache(dir.path(), std::chrono::seconds(60));
+  std::vector<std::thread> sessions;
+  std::vector<std::shared_ptr<const LocalizationMap>> got(6);
+  for (int i = 0; i < 6; ++i) {
+    sessions.emplace_back([&, i] { got[i] = cache.Acquire("big"); });
+  }
+  for (auto& t : sessions) t.join();
+  EXPECT_EQ(cache.stats().loads, 1);
+  for (const auto& map : got) EXPECT_EQ(map.get(), got[0].get());
+}
+
 TEST(MapCacheTest, UnloadsOnlyMapsNoSessionHolds) {
   TempDir dir;
   mapstore::SaveMap(SmallMap(100), dir.File("a.db"));
