@@ -21,6 +21,7 @@
 
 #include "core/util/args.h"
 #include "core/util/check.h"
+#include "core/util/memory.h"
 #include "server/auth.h"
 #include "server/localization_service.h"
 #include "server/log.h"
@@ -164,6 +165,7 @@ int Run(int argc, char** argv) {
 }  // namespace visloc::server
 
 int main(int argc, char** argv) {
+  visloc::KeepFreedMemoryForReuse();
   try {
     return visloc::server::Run(argc, argv);
   } catch (const visloc::UsageError& e) {

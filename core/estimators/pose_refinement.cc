@@ -118,10 +118,14 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
       const Rigid3d candidate = ApplyUpdate(delta, pose);
       const NormalEquations candidate_ne = Linearize(candidate, observations, options);
       if (candidate_ne.robust_cost < ne.robust_cost) {
+        // Converged when the step is far below any measurable motion (1e-8 m / rad) or the
+        // cost stopped decreasing in its 9th significant digit.
+        const bool converged = delta.norm() < 1e-8 ||
+                               ne.robust_cost - candidate_ne.robust_cost < 1e-9 * ne.robust_cost;
         pose = candidate;
         ne = candidate_ne;
         lambda = std::max(lambda / 10, 1e-9);
-        if (delta.norm() < 1e-10) {
+        if (converged) {
           local.converged = true;
           break;
         }

@@ -1,6 +1,7 @@
 #include "core/features/harris_surf16.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <opencv2/imgproc.hpp>
@@ -36,30 +37,56 @@ HarrisSurf16Extractor::HarrisSurf16Extractor(const HarrisSurf16Options& options)
 
 namespace {
 
-// Harris response at one scale (CV_32F).
+// Harris response at one scale (CV_32F). Element-wise steps are fused into single loops:
+// OpenCV matrix expressions would allocate a temporary per operator.
 cv::Mat HarrisResponse(const cv::Mat& image_f, double sigma, double k) {
   cv::Mat smoothed, ix, iy;
   cv::GaussianBlur(image_f, smoothed, cv::Size(), 0.7 * sigma);
   cv::Sobel(smoothed, ix, CV_32F, 1, 0, 3, 1.0 / 8.0);
   cv::Sobel(smoothed, iy, CV_32F, 0, 1, 3, 1.0 / 8.0);
-  cv::Mat ixx = ix.mul(ix), iyy = iy.mul(iy), ixy = ix.mul(iy);
+  cv::Mat ixx(ix.size(), CV_32F), iyy(ix.size(), CV_32F), ixy(ix.size(), CV_32F);
+  for (int y = 0; y < ix.rows; ++y) {
+    const float* gx = ix.ptr<float>(y);
+    const float* gy = iy.ptr<float>(y);
+    float* xx = ixx.ptr<float>(y);
+    float* yy = iyy.ptr<float>(y);
+    float* xy = ixy.ptr<float>(y);
+    for (int x = 0; x < ix.cols; ++x) {
+      xx[x] = gx[x] * gx[x];
+      yy[x] = gy[x] * gy[x];
+      xy[x] = gx[x] * gy[x];
+    }
+  }
   cv::GaussianBlur(ixx, ixx, cv::Size(), sigma);
   cv::GaussianBlur(iyy, iyy, cv::Size(), sigma);
   cv::GaussianBlur(ixy, ixy, cv::Size(), sigma);
-  cv::Mat response = ixx.mul(iyy) - ixy.mul(ixy);
-  cv::Mat trace = ixx + iyy;
-  response -= k * trace.mul(trace);
-  // Scale normalization (sigma^4 for a product of two squared first derivatives) makes
-  // responses comparable across scales.
-  response *= static_cast<float>(std::pow(sigma, 4));
+  // det - k trace^2, scale-normalized by sigma^4 (a product of two squared first derivatives)
+  // so responses compare across scales.
+  const float norm = static_cast<float>(std::pow(sigma, 4));
+  const float kf = static_cast<float>(k);
+  cv::Mat response(ix.size(), CV_32F);
+  for (int y = 0; y < ix.rows; ++y) {
+    const float* xx = ixx.ptr<float>(y);
+    const float* yy = iyy.ptr<float>(y);
+    const float* xy = ixy.ptr<float>(y);
+    float* r = response.ptr<float>(y);
+    for (int x = 0; x < ix.cols; ++x) {
+      const float trace = xx[x] + yy[x];
+      r[x] = norm * (xx[x] * yy[x] - xy[x] * xy[x] - kf * trace * trace);
+    }
+  }
   return response;
 }
 
-// Local maxima above `threshold`, refined to sub-pixel by a separable quadratic fit.
-void FindMaxima(const cv::Mat& response, float threshold, double sigma, int border,
+// Local maxima above `threshold`, refined to sub-pixel by a separable quadratic fit. The
+// response may come from a level of the image pyramid `level_scale` times smaller than the
+// image; positions are returned in full-resolution pixels (pixel centres: full-resolution
+// pixels 2i and 2i+1 average into half-resolution pixel i, centred at 2i + 0.5).
+void FindMaxima(const cv::Mat& response, float threshold, double sigma, int border, int level_scale,
                 std::vector<Keypoint>* out) {
   cv::Mat dilated;
   cv::dilate(response, dilated, cv::Mat());
+  const float offset = 0.5f * (level_scale - 1);
   for (int y = border; y < response.rows - border; ++y) {
     const float* r = response.ptr<float>(y);
     const float* d = dilated.ptr<float>(y);
@@ -72,7 +99,8 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
       const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
       const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
       Keypoint keypoint;
-      keypoint.pixel = Eigen::Vector2f(x + ox, y + oy);
+      keypoint.pixel =
+          Eigen::Vector2f((x + ox) * level_scale + offset, (y + oy) * level_scale + offset);
       keypoint.scale_px = static_cast<float>(sigma);
       keypoint.response = r[x];
       out->push_back(keypoint);
@@ -108,7 +136,8 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* 
             }
           }
         }
-        const double distance = std::hypot(x - k.pixel.x(), y - k.pixel.y());
+        const float ex = x - k.pixel.x(), ey = y - k.pixel.y();
+        const double distance = ex * ex + ey * ey;  // Squared: only compared.
         if (is_max && distance < best_distance) {
           best_distance = distance;
           best = r;
@@ -190,12 +219,21 @@ std::vector<Keypoint> SelectEvenly(std::vector<Keypoint> keypoints, const cv::Si
 }
 
 std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* detected) const {
-  cv::Mat image_f;
+  // A two-level pyramid: a scale whose sigma is at least 2 px is computed on the half-size
+  // image with half the sigma (a quarter of the pixels, shorter kernels). The sigma^4
+  // normalization makes the response independent of the level, and every corner is then
+  // re-localized on the finest full-resolution response anyway.
+  cv::Mat image_f, half_f;
   grey.convertTo(image_f, CV_32F, 1.0 / 255.0);
+  cv::resize(image_f, half_f, cv::Size(grey.cols / 2, grey.rows / 2), 0, 0, cv::INTER_AREA);
   std::vector<cv::Mat> responses;
+  std::vector<int> level_scales;
   float strongest = 0.0f;
   for (double sigma : options_.scales_px) {
-    responses.push_back(HarrisResponse(image_f, sigma, options_.harris_k));
+    const int level_scale = sigma >= 2.0 ? 2 : 1;
+    level_scales.push_back(level_scale);
+    responses.push_back(HarrisResponse(level_scale == 1 ? image_f : half_f, sigma / level_scale,
+                                       options_.harris_k));
     double max_value = 0;
     cv::minMaxLoc(responses.back(), nullptr, &max_value);
     strongest = std::max(strongest, static_cast<float>(max_value));
@@ -205,10 +243,12 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   std::vector<Keypoint> keypoints;
   const int border = std::max(options_.border_px, 2);
   for (size_t i = 0; i < responses.size(); ++i) {
-    FindMaxima(responses[i], threshold, options_.scales_px[i], border, &keypoints);
+    FindMaxima(responses[i], threshold, options_.scales_px[i], border / level_scales[i],
+               level_scales[i], &keypoints);
   }
   const size_t finest = std::min_element(options_.scales_px.begin(), options_.scales_px.end()) -
                         options_.scales_px.begin();
+  VISLOC_CHECK(level_scales[finest] == 1, "the finest scale must be below 2 px");
   LocalizeAtFinestScale(responses[finest], &keypoints, options_.scales_px[finest]);
   keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
   if (detected) *detected = static_cast<int>(keypoints.size());
@@ -218,48 +258,101 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
 
 namespace {
 
-// Sum of the integral image `ii` (CV_64F, (h+1)x(w+1)) over [x0, x1) x [y0, y1), clamped.
-inline double BoxSum(const cv::Mat& ii, int x0, int y0, int x1, int y1) {
-  x0 = std::clamp(x0, 0, ii.cols - 1);
-  x1 = std::clamp(x1, 0, ii.cols - 1);
-  y0 = std::clamp(y0, 0, ii.rows - 1);
-  y1 = std::clamp(y1, 0, ii.rows - 1);
-  return ii.at<double>(y1, x1) - ii.at<double>(y0, x1) - ii.at<double>(y1, x0) +
-         ii.at<double>(y0, x0);
+constexpr int kSamplesPerSide = 12;  // 6 per sub-region, 2 sub-regions per side.
+
+// Sample offsets (pixels, relative to the keypoint) and Gaussian weights of the descriptor
+// window for one keypoint scale: a 12 s square of 12 x 12 samples, weighted by a Gaussian of
+// sigma 3.3 s. Keypoints come in a handful of scales, so these are computed once per scale.
+struct DescriptorPattern {
+  double scale = 0.0;
+  int half_haar = 1;  // Haar wavelet half size (the wavelet is 2 s wide, rounded to even).
+  std::array<double, kSamplesPerSide> offsets{};
+  std::array<float, kSamplesPerSide * kSamplesPerSide> weights{};
+};
+
+DescriptorPattern MakePattern(double s) {
+  DescriptorPattern pattern;
+  pattern.scale = s;
+  pattern.half_haar = std::max(2, static_cast<int>(std::lround(2 * s)) & ~1) / 2;
+  const double gauss = 1.0 / (2.0 * (3.3 * s) * (3.3 * s));
+  for (int i = 0; i < kSamplesPerSide; ++i) pattern.offsets[i] = (i - 5.5) * s;
+  for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+    for (int sx = 0; sx < kSamplesPerSide; ++sx) {
+      const double ox = pattern.offsets[sx], oy = pattern.offsets[sy];
+      pattern.weights[sy * kSamplesPerSide + sx] =
+          static_cast<float>(std::exp(-(ox * ox + oy * oy) * gauss));
+    }
+  }
+  return pattern;
 }
+
+// Box sums over an integral image (CV_32S, (h+1) x (w+1)); coordinates are clamped to the
+// image so windows that overhang the border read the edge.
+class BoxSums {
+ public:
+  explicit BoxSums(const cv::Mat& grey) {
+    cv::integral(grey, integral_, CV_32S);
+    stride_ = static_cast<int>(integral_.step1());
+    data_ = integral_.ptr<int>(0);
+    max_x_ = integral_.cols - 1;
+    max_y_ = integral_.rows - 1;
+  }
+  // Sum over [x0, x1) x [y0, y1).
+  int Sum(int x0, int y0, int x1, int y1) const {
+    x0 = std::clamp(x0, 0, max_x_);
+    x1 = std::clamp(x1, 0, max_x_);
+    y0 = std::clamp(y0, 0, max_y_);
+    y1 = std::clamp(y1, 0, max_y_);
+    return data_[y1 * stride_ + x1] - data_[y0 * stride_ + x1] - data_[y1 * stride_ + x0] +
+           data_[y0 * stride_ + x0];
+  }
+
+ private:
+  cv::Mat integral_;
+  const int* data_ = nullptr;
+  int stride_ = 0, max_x_ = 0, max_y_ = 0;
+};
+
+inline int RoundToInt(double v) { return static_cast<int>(std::floor(v + 0.5)); }
 
 }  // namespace
 
 cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
                                         const std::vector<Keypoint>& keypoints) const {
-  cv::Mat integral;
-  cv::integral(grey, integral, CV_64F);
+  const BoxSums boxes(grey);
   cv::Mat descriptors(static_cast<int>(keypoints.size()), 16, CV_32F);
-  constexpr int kSamplesPerSide = 12;  // 6 per sub-region, 2 sub-regions per side.
+  std::vector<DescriptorPattern> patterns;
   for (size_t i = 0; i < keypoints.size(); ++i) {
     const Keypoint& k = keypoints[i];
-    const double s = k.scale_px;
-    const int haar = std::max(2, static_cast<int>(std::lround(2 * s)) & ~1);  // even size
-    const int half = haar / 2;
+    auto pattern = std::find_if(patterns.begin(), patterns.end(),
+                                [&](const DescriptorPattern& p) { return p.scale == k.scale_px; });
+    if (pattern == patterns.end()) {
+      patterns.push_back(MakePattern(k.scale_px));
+      pattern = patterns.end() - 1;
+    }
+    const int half = pattern->half_haar;
+    std::array<int, kSamplesPerSide> xs, ys;
+    for (int j = 0; j < kSamplesPerSide; ++j) {
+      xs[j] = RoundToInt(k.pixel.x() + pattern->offsets[j]);
+      ys[j] = RoundToInt(k.pixel.y() + pattern->offsets[j]);
+    }
     float* d = descriptors.ptr<float>(static_cast<int>(i));
     std::fill(d, d + 16, 0.0f);
-    const double gauss = 1.0 / (2.0 * (3.3 * s) * (3.3 * s));
     for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+      const int y = ys[sy];
       for (int sx = 0; sx < kSamplesPerSide; ++sx) {
-        // Sample centres at (index - 5.5) * s around the corner: a 12 s square.
-        const double ox = (sx - 5.5) * s, oy = (sy - 5.5) * s;
-        const int x = static_cast<int>(std::lround(k.pixel.x() + ox));
-        const int y = static_cast<int>(std::lround(k.pixel.y() + oy));
-        const double dx = BoxSum(integral, x, y - half, x + half, y + half) -
-                          BoxSum(integral, x - half, y - half, x, y + half);
-        const double dy = BoxSum(integral, x - half, y, x + half, y + half) -
-                          BoxSum(integral, x - half, y - half, x + half, y);
-        const double w = std::exp(-(ox * ox + oy * oy) * gauss);
+        const int x = xs[sx];
+        // Haar responses: right minus left half, bottom minus top half.
+        const float dx = static_cast<float>(boxes.Sum(x, y - half, x + half, y + half) -
+                                            boxes.Sum(x - half, y - half, x, y + half));
+        const float dy = static_cast<float>(boxes.Sum(x - half, y, x + half, y + half) -
+                                            boxes.Sum(x - half, y - half, x + half, y));
+        const float w = pattern->weights[sy * kSamplesPerSide + sx];
         float* cell = d + 4 * ((sy / 6) * 2 + (sx / 6));
-        cell[0] += static_cast<float>(w * dx);
-        cell[1] += static_cast<float>(w * dy);
-        cell[2] += static_cast<float>(w * std::abs(dx));
-        cell[3] += static_cast<float>(w * std::abs(dy));
+        cell[0] += w * dx;
+        cell[1] += w * dy;
+        cell[2] += w * std::abs(dx);
+        cell[3] += w * std::abs(dy);
       }
     }
     double norm = 0;

@@ -1,0 +1,14 @@
+#pragma once
+// Process-wide allocator tuning for frame-rate work.
+//
+// Every frame allocates and frees a few image-sized buffers (~300 KB at 320x240). With glibc's
+// defaults the freed top of the heap is returned to the kernel and the next frame faults the
+// pages back in, zero-filled: measured at 20% of feature extraction time. Keeping freed memory
+// (it is reused by the very next frame) removes that cost.
+
+namespace visloc {
+
+// Call once at program start, before threads are created.
+void KeepFreedMemoryForReuse();
+
+}  // namespace visloc
