@@ -17,6 +17,7 @@ int RunLocalize(const Args& args);
 int RunStream(const Args& args);
 int RunRelocalize(const Args& args);
 int RunPlot(const Args& args);
+int RunBench(const Args& args);
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

@@ -25,6 +25,7 @@ const std::vector<Subcommand> kCommands = {
     {"stream", "stream a dataset to visloc-server as one robot session", RunStream},
     {"relocalize", "ask visloc-server where one image was taken", RunRelocalize},
     {"plot", "top view of a map and a trajectory (PNG or SVG)", RunPlot},
+    {"bench", "time the engine, its baselines and a reference on a dataset", RunBench},
 };
 
 }  // namespace

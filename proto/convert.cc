@@ -226,6 +226,7 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
   v1::StepTimings* pt = out->mutable_timings();
   pt->set_detect_ms(t.detect_ms);
   pt->set_describe_ms(t.describe_ms);
+  pt->set_undistort_ms(t.undistort_ms);
   pt->set_predict_ms(t.predict_ms);
   pt->set_project_ms(t.project_ms);
   pt->set_match_ms(t.match_ms);
@@ -262,8 +263,15 @@ LocalizationResult FromProto(const v1::LocalizeResponse& in) {
   r.stats.ransac_iterations = static_cast<int>(s.ransac_iterations());
   r.stats.reproj_rmse_px = s.reproj_rmse_px();
   const v1::StepTimings& t = in.timings();
-  r.stats.times = {t.detect_ms(), t.describe_ms(), t.predict_ms(),    t.project_ms(),
-                   t.match_ms(),  t.pose_ms(),     t.relocalize_ms(), t.total_ms()};
+  r.stats.times.detect_ms = t.detect_ms();
+  r.stats.times.describe_ms = t.describe_ms();
+  r.stats.times.undistort_ms = t.undistort_ms();
+  r.stats.times.predict_ms = t.predict_ms();
+  r.stats.times.project_ms = t.project_ms();
+  r.stats.times.match_ms = t.match_ms();
+  r.stats.times.pose_ms = t.pose_ms();
+  r.stats.times.relocalize_ms = t.relocalize_ms();
+  r.stats.times.total_ms = t.total_ms();
   r.relocalization.kind = KindFromName(in.relocalization().kind());
   r.relocalization.found = in.relocalization().found();
   r.relocalization.awaiting_confirmation = in.relocalization().awaiting_confirmation();

@@ -39,7 +39,7 @@ echo "== 4. Streaming the kidnap sequence through the server at 15 fps (monocula
   --trajectory "$OUT/kidnap_localized.tum" --stats "$OUT/kidnap_stats.csv" \
   --gt "$OUT/kidnap/groundtruth_map.tum"
 echo "-- per frame, where the status changes (frame, status, inliers/putatives, relocalization):"
-awk -F, 'NR > 1 { s = $2; if (s != prev || s == "relocalized") printf "  frame %4d  %-12s %4s/%-4s %s\n", NR - 2, s, $7, $6, $19; prev = s }' \
+awk -F, 'NR > 1 { s = $2; if (s != prev || s == "relocalized") printf "  frame %4d  %-12s %4s/%-4s %s\n", NR - 2, s, $7, $6, $20; prev = s }' \
   "$OUT/kidnap_stats.csv"
 "$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap_localized.tum"
 "$VISLOC" plot --map "$OUT/maps/square.db" --trajectory "$OUT/kidnap_localized.tum" \

@@ -249,6 +249,24 @@ TEST(LocalizationE2eTest, PlotShowsTheTrajectoryAndTheKidnappingJump) {
   EXPECT_THAT(wrong.err, HasSubstr("the plot must be .png or .svg"));
 }
 
+TEST(LocalizationE2eTest, BenchReportsEveryFigureInOneRun) {
+  const ProcessResult bench =
+      Visloc({"bench", "--dataset", kData + "/query_square", "--map", kData + "/map.db", "--frames",
+              "20", "--relocalization-queries", "4", "--json"});
+  ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  for (const char* key : {"ms_per_frame_median", "ms_per_frame_p95",
+                          "no_visibility_ms_per_frame_median", "brute_force_ms_per_frame_median",
+                          "orb_reference_ms_per_frame_median", "relocalization_ms_median"}) {
+    EXPECT_GT(JsonNumber(bench.out, "", key), 0.0) << key;
+  }
+  EXPECT_EQ(JsonNumber(bench.out, "", "localized_fraction"), 1.0);
+  EXPECT_EQ(JsonNumber(bench.out, "", "relocalization_found_fraction"), 1.0);
+  // Ratios within one run: brute force matches every keypoint against every map point.
+  EXPECT_GT(JsonNumber(bench.out, "", "brute_force_ms_per_frame_median"),
+            JsonNumber(bench.out, "", "ms_per_frame_median"));
+  EXPECT_GT(JsonNumber(bench.out, "detect", "median"), 0.0);
+}
+
 TEST(LocalizationE2eTest, BadArgumentsAreNamed) {
   const ProcessResult no_map =
       Visloc({"localize", "--map", kData + "/nope.db", "--dataset", kData + "/query_square"});

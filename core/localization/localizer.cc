@@ -251,7 +251,10 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   result.timestamp_ns = input.timestamp_ns;
   FrameStats& stats = result.stats;
   ExtractStats extract;
-  QueryFrame frame(extractor_->Extract(input.image, &extract), camera_);
+  FeatureSet features = extractor_->Extract(input.image, &extract);
+  Timer undistort;
+  QueryFrame frame(std::move(features), camera_);
+  stats.times.undistort_ms = undistort.ElapsedMs();
   stats.times.detect_ms = extract.detect_ms;
   stats.times.describe_ms = extract.describe_ms;
   stats.features = static_cast<int>(frame.size());

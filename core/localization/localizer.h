@@ -104,6 +104,7 @@ struct LocalizerOptions {
 struct StepTimings {
   double detect_ms = 0.0;
   double describe_ms = 0.0;
+  double undistort_ms = 0.0;  // Keypoints to normalized coordinates, and their search grid.
   double predict_ms = 0.0;
   double project_ms = 0.0;
   double match_ms = 0.0;

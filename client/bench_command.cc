@@ -1,0 +1,252 @@
+// `visloc bench`: the engine's speed on a dataset, in one run on the same frames, with the
+// baselines and a reference measured alongside so every figure can be read as a ratio that is
+// stable across machines (seed paper 000, Tables 5-6):
+//   - the per-step timing of the visibility-guided tracker (median and 95th percentile);
+//   - the same engine with visibility prediction off (transparent world) and brute force;
+//   - OpenCV's ORB (ORB::create(500), default pyramid) detecting and describing each frame;
+//   - global relocalization per query (features + retrieval + verification);
+//   - with --server: the round trip per frame through gRPC, one frame in flight at a time.
+// Images are decoded before timing starts; only the engine's work is timed.
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include <opencv2/features2d.hpp>
+
+#include "client/commands.h"
+#include "client/connection.h"
+#include "core/eval/trajectory_eval.h"
+#include "core/localization/localizer.h"
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "core/util/timer.h"
+#include "dataset/dataset.h"
+#include "mapstore/map_store.h"
+#include "proto/convert.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc::cli {
+namespace {
+
+struct ModeRun {
+  std::vector<LocalizationResult> results;
+  double localized_fraction = 0.0;
+  ErrorStats total_ms;
+};
+
+ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
+                const std::vector<cv::Mat>& images, PredictionMode mode) {
+  LocalizerOptions options;
+  options.tracker.prediction = mode;
+  Localizer localizer(map, dataset.left.camera, options);
+  ModeRun run;
+  std::vector<double> totals;
+  int localized = 0;
+  for (size_t i = 0; i < images.size(); ++i) {
+    FrameInput input;
+    input.timestamp_ns = dataset.frames[i].timestamp_ns;
+    input.image = images[i];
+    run.results.push_back(localizer.Process(input));
+    const LocalizationResult& r = run.results.back();
+    totals.push_back(r.stats.times.total_ms);
+    localized += r.has_pose && r.source != PoseSource::kMotion;
+  }
+  run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
+  run.total_ms = ComputeErrorStats(totals);
+  return run;
+}
+
+ErrorStats TimeOrb(const std::vector<cv::Mat>& images) {
+  const cv::Ptr<cv::ORB> orb = cv::ORB::create(500);
+  std::vector<double> ms;
+  for (const cv::Mat& image : images) {
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
+    Timer timer;
+    orb->detectAndCompute(image, cv::noArray(), keypoints, descriptors);
+    ms.push_back(timer.ElapsedMs());
+  }
+  return ComputeErrorStats(ms);
+}
+
+struct RelocalizationRun {
+  ErrorStats ms;  // Features + retrieval + verification, per query.
+  double found_fraction = 0.0;
+};
+
+RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap>& map,
+                                     const PinholeCamera& camera,
+                                     const std::vector<cv::Mat>& images, int queries) {
+  const LocalizerOptions options;
+  const PoseTracker tracker(map, camera, options.tracker);
+  const Relocalizer relocalizer(tracker, options.relocalization);
+  const auto extractor = CreateFeatureExtractor(map->map().features);
+  std::vector<double> ms;
+  int found = 0;
+  const size_t step = std::max<size_t>(1, images.size() / std::max(1, queries));
+  for (size_t i = 0; i < images.size(); i += step) {
+    Timer timer;
+    const QueryFrame frame(extractor->Extract(images[i]), camera);
+    found += relocalizer.Relocalize(frame).success;
+    ms.push_back(timer.ElapsedMs());
+  }
+  RelocalizationRun run;
+  run.ms = ComputeErrorStats(ms);
+  run.found_fraction = ms.empty() ? 0.0 : static_cast<double>(found) / ms.size();
+  return run;
+}
+
+// One frame in flight: send, wait for the answer, send the next.
+ErrorStats TimeGrpc(const Connection& server, const std::string& map_name, const Dataset& dataset,
+                    size_t count) {
+  auto stub = v1::Localization::NewStub(server.OpenChannel());
+  grpc::ClientContext context;
+  server.Prepare(&context);
+  auto stream = stub->Localize(&context);
+  v1::LocalizeRequest start;
+  start.mutable_start()->set_map_name(map_name);
+  proto::ToProto(dataset.left.camera, start.mutable_start()->mutable_camera());
+  stream->Write(start);
+  std::vector<double> ms;
+  for (size_t i = 0; i < count; ++i) {
+    std::ifstream in(dataset.frames[i].left_path, std::ios::binary);
+    v1::LocalizeRequest request;
+    request.mutable_frame()->set_timestamp_ns(dataset.frames[i].timestamp_ns);
+    request.mutable_frame()->set_encoded(
+        std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
+    v1::LocalizeResponse response;
+    Timer timer;
+    if (!stream->Write(request) || !stream->Read(&response)) break;
+    ms.push_back(timer.ElapsedMs());
+  }
+  stream->WritesDone();
+  CheckCall(stream->Finish(), server.server);
+  return ComputeErrorStats(ms);
+}
+
+// Per-step statistics of one run, in the order of the paper's Tables 5-6.
+std::vector<std::pair<std::string, ErrorStats>> StepStats(const ModeRun& run) {
+  const std::vector<std::pair<std::string, double StepTimings::*>> steps = {
+      {"undistort", &StepTimings::undistort_ms}, {"detect", &StepTimings::detect_ms},
+      {"describe", &StepTimings::describe_ms},   {"predict", &StepTimings::predict_ms},
+      {"project", &StepTimings::project_ms},     {"match", &StepTimings::match_ms},
+      {"pose", &StepTimings::pose_ms},           {"relocalize", &StepTimings::relocalize_ms},
+      {"total", &StepTimings::total_ms}};
+  std::vector<std::pair<std::string, ErrorStats>> out;
+  for (const auto& [name, member] : steps) {
+    std::vector<double> values;
+    for (const LocalizationResult& r : run.results) values.push_back(r.stats.times.*member);
+    out.emplace_back(name, ComputeErrorStats(values));
+  }
+  return out;
+}
+
+}  // namespace
+
+int RunBench(const Args& raw_args) {
+  std::string dataset_dir, map_path, format, server_map;
+  int frames = 0, relocalization_queries = 30;
+  bool json = false;
+  Connection server;
+  ArgParser parser("visloc bench",
+                   "Times the localization engine on a dataset's frames: per-step medians and "
+                   "95th percentiles, the transparent-world and brute-force baselines, OpenCV's "
+                   "ORB as a machine-independent reference, global relocalization per query, and "
+                   "with --server the round trip through gRPC.");
+  parser.AddFlag("dataset", &dataset_dir, "dataset folder", /*required=*/true);
+  parser.AddFlag("map", &map_path, "map file (.db)", /*required=*/true);
+  parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
+  parser.AddFlag("frames", &frames, "use the first N frames (0: all)");
+  parser.AddFlag("relocalization-queries", &relocalization_queries,
+                 "frames spread over the sequence used as relocalization queries");
+  server.AddFlags(parser, /*server_required=*/false);
+  parser.AddFlag("server-map", &server_map, "the map's name on the server (default: file stem)");
+  parser.AddSwitch("json", &json, "print one JSON object");
+  if (!parser.Parse(raw_args, std::cout)) return 0;
+  server.ApplyEnvironment();
+  if (frames < 0 || relocalization_queries < 1) throw UsageError("--frames >= 0, queries >= 1");
+  const Dataset dataset = ReadDataset(
+      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(map_path));
+  const size_t count =
+      frames > 0 ? std::min<size_t>(frames, dataset.frames.size()) : dataset.frames.size();
+  std::vector<cv::Mat> images;
+  const PinholeCamera& camera = dataset.left.camera;
+  for (size_t i = 0; i < count; ++i) {
+    images.push_back(LoadGreyImage(dataset.frames[i].left_path, camera.width(), camera.height()));
+  }
+  if (!json) std::fprintf(stderr, "timing %zu frames of %s ...\n", count, dataset_dir.c_str());
+  const ModeRun visibility = RunMode(map, dataset, images, PredictionMode::kVisibility);
+  const ModeRun transparent = RunMode(map, dataset, images, PredictionMode::kTransparent);
+  const ModeRun brute = RunMode(map, dataset, images, PredictionMode::kBruteForce);
+  const ErrorStats orb = TimeOrb(images);
+  const RelocalizationRun relocalization =
+      TimeRelocalization(map, camera, images, relocalization_queries);
+  std::optional<ErrorStats> grpc_ms;
+  if (!server.server.empty()) {
+    if (server_map.empty()) server_map = std::filesystem::path(map_path).stem().string();
+    grpc_ms = TimeGrpc(server, server_map, dataset, count);
+  }
+  const auto steps = StepStats(visibility);
+  const double ours = visibility.total_ms.median;
+  if (json) {
+    JsonWriter out;
+    out.BeginObject()
+        .Field("frames", static_cast<int64_t>(count))
+        .Field("width", static_cast<int64_t>(camera.width()))
+        .Field("height", static_cast<int64_t>(camera.height()))
+        .Field("map_points", static_cast<int64_t>(map->point_count()))
+        .Field("map_keyframes", static_cast<int64_t>(map->keyframe_count()))
+        .Field("ms_per_frame_median", ours)
+        .Field("ms_per_frame_p95", visibility.total_ms.p95)
+        .Field("no_visibility_ms_per_frame_median", transparent.total_ms.median)
+        .Field("brute_force_ms_per_frame_median", brute.total_ms.median)
+        .Field("orb_reference_ms_per_frame_median", orb.median)
+        .Field("relocalization_ms_median", relocalization.ms.median)
+        .Field("relocalization_found_fraction", relocalization.found_fraction)
+        .Field("localized_fraction", visibility.localized_fraction)
+        .Field("no_visibility_localized_fraction", transparent.localized_fraction)
+        .Field("brute_force_localized_fraction", brute.localized_fraction);
+    if (grpc_ms) out.Field("grpc_ms_per_frame_median", grpc_ms->median);
+    out.Key("steps").BeginObject();
+    for (const auto& [name, stats] : steps) {
+      out.Key(name).BeginObject().Field("median", stats.median).Field("p95", stats.p95).EndObject();
+    }
+    out.EndObject().EndObject();
+    std::cout << out.str() << "\n";
+    return 0;
+  }
+  std::printf("%zu frames %dx%d, map %zu keyframes / %zu points\n\n", count, camera.width(),
+              camera.height(), map->keyframe_count(), map->point_count());
+  std::printf("%-28s %10s %10s\n", "step (visibility-guided)", "median ms", "p95 ms");
+  for (const auto& [name, stats] : steps) {
+    std::printf("%-28s %10.3f %10.3f\n", name.c_str(), stats.median, stats.p95);
+  }
+  std::printf("\n%-28s %10s %10s %10s\n", "per frame", "median ms", "x ORB", "localized");
+  const auto row = [&](const char* name, double ms, double localized) {
+    std::printf("%-28s %10.3f %10.2f %9.1f%%\n", name, ms, ms / orb.median, 100 * localized);
+  };
+  row("visibility (the method)", ours, visibility.localized_fraction);
+  row("transparent world", transparent.total_ms.median, transparent.localized_fraction);
+  row("brute force", brute.total_ms.median, brute.localized_fraction);
+  std::printf("%-28s %10.3f %10.2f\n", "ORB(500) reference", orb.median, 1.0);
+  std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.1fx one tracking frame)\n",
+              "global relocalization/query", relocalization.ms.median,
+              relocalization.ms.median / orb.median, 100 * relocalization.found_fraction,
+              relocalization.ms.median / ours);
+  if (grpc_ms) {
+    std::printf("%-28s %10.3f %10.2f            (%.2fx in-process)\n", "through gRPC (round trip)",
+                grpc_ms->median, grpc_ms->median / orb.median, grpc_ms->median / ours);
+  }
+  return 0;
+}
+
+}  // namespace visloc::cli
