@@ -29,6 +29,7 @@ struct LocalizeArgs {
   bool json = false;
   int frames = 0;
   int k = 10;
+  int max_features = 0;
   double threshold = 0.2;
 };
 
@@ -80,6 +81,7 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("mode", &args.mode, "visibility, transparent or brute_force (baselines)");
   parser.AddFlag("k", &args.k, "visibility: nearest keyframes K");
   parser.AddFlag("threshold", &args.threshold, "visibility: probability threshold P_t");
+  parser.AddFlag("max-features", &args.max_features, "keypoints per image (0: the map's setting)");
   parser.AddFlag("blackout", &args.blackout,
                  "START,DURATION: black images in this window (s from the first frame)");
   parser.AddSwitch("bridge-constant-velocity", &args.bridge_constant_velocity,
@@ -105,6 +107,7 @@ int RunLocalize(const Args& raw_args) {
   options.tracker.visibility.k = args.k;
   options.tracker.visibility.probability_threshold = args.threshold;
   options.motion.bridge_with_constant_velocity = args.bridge_constant_velocity;
+  options.max_query_features = args.max_features;
   if (args.planar) options.motion.plane_sigma_m = 0.02;
   Localizer localizer(map, dataset.left.camera, options,
                       args.odometry ? std::optional(dataset.left.body_from_cam) : std::nullopt);

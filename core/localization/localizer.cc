@@ -62,6 +62,7 @@ void LocalizerOptions::Check() const {
   VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0, "jump gate ", max_jump_m, " m ", max_jump_deg,
                " deg");
   VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
+  VISLOC_CHECK(max_query_features >= 0, "max_query_features ", max_query_features);
 }
 
 std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map) {
@@ -99,7 +100,13 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCa
   if (body_from_cam) {
     cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
   }
-  extractor_ = CreateFeatureExtractor(map_->map().features);
+  FeatureSettings features = map_->map().features;
+  if (options_.max_query_features > 0) {
+    for (auto& [name, value] : features.params) {
+      if (name == "max_features") value = options_.max_query_features;
+    }
+  }
+  extractor_ = CreateFeatureExtractor(features);
   tracker_ = std::make_unique<PoseTracker>(map_, camera_, options_.tracker);
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
   if (options_.motion.plane_sigma_m > 0) {

@@ -98,6 +98,9 @@ struct LocalizerOptions {
   double local_relocalization_s = 2.0;
   // Radii given at 320 pixels of image width, scaled with the session camera's width.
   bool scale_radii_with_width = true;
+  // Keypoints per query image; 0 keeps the map's setting. The detector and descriptor are
+  // always the map's; only how many of the strongest (evenly spread) corners are kept changes.
+  int max_query_features = 0;
   void Check() const;
 };
 
