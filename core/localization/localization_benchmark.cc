@@ -1,0 +1,167 @@
+// Microbenchmarks of the localization hot kernels (Google Benchmark). Run:
+//   build/core/localization/localization_benchmark --benchmark_counters_tabular=true
+// Speed is measured here, never asserted in tests. Inputs are synthetic and deterministic:
+// a textured random image for the feature extractor, a synthetic map and exact projections
+// for the matcher and the solvers.
+
+#include <benchmark/benchmark.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/estimators/p3p.h"
+#include "core/estimators/pnp_ransac.h"
+#include "core/features/features.h"
+#include "core/localization/map_matching.h"
+#include "core/localization/pose_tracker.h"
+#include "core/localization/visibility_predictor.h"
+#include "core/map/synthetic_map.h"
+#include "core/util/random.h"
+
+namespace visloc {
+namespace {
+
+// Blurred noise with a little structure at several scales: corners everywhere, like a
+// textured indoor scene, deterministic in the seed.
+cv::Mat TexturedImage(int width, int height) {
+  cv::RNG rng(7);
+  cv::Mat image(height, width, CV_8UC1), fine(height, width, CV_8UC1),
+      coarse(height / 8, width / 8, CV_8UC1);
+  rng.fill(fine, cv::RNG::UNIFORM, 0, 255);
+  rng.fill(coarse, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(fine, fine, cv::Size(), 1.5);
+  cv::resize(coarse, coarse, image.size(), 0, 0, cv::INTER_NEAREST);
+  cv::addWeighted(fine, 0.5, coarse, 0.5, 0, image);
+  return image;
+}
+
+void BM_ExtractHarrisSurf16(benchmark::State& state) {
+  const cv::Mat image = TexturedImage(static_cast<int>(state.range(0)),
+                                      static_cast<int>(state.range(0)) * 3 / 4);
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  size_t features = 0;
+  for (auto _ : state) features = extractor->Extract(image).size();
+  state.counters["features"] = static_cast<double>(features);
+}
+BENCHMARK(BM_ExtractHarrisSurf16)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+
+void BM_OrbReference(benchmark::State& state) {
+  const cv::Mat image = TexturedImage(static_cast<int>(state.range(0)),
+                                      static_cast<int>(state.range(0)) * 3 / 4);
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("orb"));
+  for (auto _ : state) benchmark::DoNotOptimize(extractor->Extract(image));
+}
+BENCHMARK(BM_OrbReference)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+
+void BM_DescriptorDistance(benchmark::State& state) {
+  const bool binary = state.range(0) == 1;
+  cv::Mat a(1000, binary ? 32 : 16, binary ? CV_8U : CV_32F);
+  cv::randu(a, 0, binary ? 255 : 1);
+  int row = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(DescriptorDistance(a, row, a, (row + 1) % 1000));
+    row = (row + 7) % 1000;
+  }
+  state.SetLabel(binary ? "hamming 256 bit" : "L2 16 float");
+}
+BENCHMARK(BM_DescriptorDistance)->Arg(0)->Arg(1);
+
+struct Scene {
+  std::shared_ptr<const LocalizationMap> map;
+  Rigid3d cam_from_map;
+  FeatureSet features;
+};
+
+// A synthetic map and a view of it with keypoints at the exact projections.
+const Scene& TestScene() {
+  static const Scene scene = [] {
+    SyntheticMapOptions options;
+    options.keyframes = 60;
+    options.points = 10000;
+    Scene s;
+    s.map = std::make_shared<const LocalizationMap>(MakeSyntheticMap(options));
+    s.cam_from_map = s.map->map().keyframes[20].map_from_cam.Inverse();
+    Rng rng(3);
+    for (uint32_t j : s.map->VisiblePoints(20)) {
+      Eigen::Vector2d pixel;
+      if (!s.map->map().camera.Project(s.cam_from_map * s.map->map().points[j].position_in_map,
+                                       &pixel)) {
+        continue;
+      }
+      pixel += Eigen::Vector2d(rng.Normal(0, 0.3), rng.Normal(0, 0.3));
+      s.features.keypoints.push_back({pixel.cast<float>(), 1.2f, 1.0f});
+      s.features.descriptors.push_back(s.map->map().descriptors.row(static_cast<int>(j)));
+    }
+    return s;
+  }();
+  return scene;
+}
+
+void BM_PredictVisibility(benchmark::State& state) {
+  const Scene& s = TestScene();
+  const VisibilityPredictor predictor(*s.map, VisibilityOptions{});
+  size_t predicted = 0;
+  for (auto _ : state) predicted = predictor.Predict(s.cam_from_map.Inverse()).size();
+  state.counters["predicted"] = static_cast<double>(predicted);
+}
+BENCHMARK(BM_PredictVisibility);
+
+void BM_ProjectAndMatch(benchmark::State& state) {
+  const Scene& s = TestScene();
+  const QueryFrame frame(s.features, s.map->map().camera);
+  std::vector<uint32_t> points;
+  for (uint32_t j : s.map->VisiblePoints(20)) points.push_back(j);
+  size_t matches = 0;
+  for (auto _ : state) {
+    const auto projected = ProjectPoints(s.map->map(), s.map->map().camera, s.cam_from_map, points);
+    matches = MatchProjected(s.map->map(), projected, frame, MatchOptions{}).size();
+  }
+  state.counters["points"] = static_cast<double>(points.size());
+  state.counters["matches"] = static_cast<double>(matches);
+}
+BENCHMARK(BM_ProjectAndMatch);
+
+std::vector<PoseObservation> Observations(double outlier_fraction) {
+  const Scene& s = TestScene();
+  const QueryFrame frame(s.features, s.map->map().camera);
+  std::vector<PoseObservation> observations;
+  Rng rng(5);
+  size_t i = 0;
+  for (uint32_t j : s.map->VisiblePoints(20)) {
+    if (i >= frame.size()) break;
+    PoseObservation o;
+    o.point_in_world = s.map->map().points[j].position_in_map;
+    o.normalized = frame.normalized(static_cast<int>(i++));
+    if (rng.Uniform01() < outlier_fraction) o.normalized += Eigen::Vector2d(0.2, -0.1);
+    observations.push_back(o);
+  }
+  return observations;
+}
+
+void BM_SolveP3P(benchmark::State& state) {
+  const auto observations = Observations(0.0);
+  const std::array<Eigen::Vector3d, 3> points = {observations[0].point_in_world,
+                                                 observations[10].point_in_world,
+                                                 observations[20].point_in_world};
+  const std::array<Eigen::Vector2d, 3> bearings = {observations[0].normalized,
+                                                   observations[10].normalized,
+                                                   observations[20].normalized};
+  for (auto _ : state) benchmark::DoNotOptimize(SolveP3P(points, bearings));
+}
+BENCHMARK(BM_SolveP3P);
+
+void BM_PnpRansac(benchmark::State& state) {
+  const auto observations = Observations(state.range(0) / 100.0);
+  PnpRansacOptions options;
+  options.refine.focal_px = 160.0;
+  int iterations = 0;
+  for (auto _ : state) iterations = SolvePnpRansac(observations, options).stats.iterations;
+  state.counters["observations"] = static_cast<double>(observations.size());
+  state.counters["ransac_iterations"] = iterations;
+  state.SetLabel(std::to_string(state.range(0)) + "% outliers");
+}
+BENCHMARK(BM_PnpRansac)->Arg(5)->Arg(30)->Arg(60)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace visloc
+
+BENCHMARK_MAIN();
