@@ -11,6 +11,7 @@
 #include "core/estimators/p3p.h"
 #include "core/estimators/pnp_ransac.h"
 #include "core/features/features.h"
+#include "core/localization/localizer.h"
 #include "core/localization/map_matching.h"
 #include "core/localization/pose_tracker.h"
 #include "core/localization/visibility_predictor.h"
@@ -35,8 +36,8 @@ cv::Mat TexturedImage(int width, int height) {
 }
 
 void BM_ExtractHarrisSurf16(benchmark::State& state) {
-  const cv::Mat image = TexturedImage(static_cast<int>(state.range(0)),
-                                      static_cast<int>(state.range(0)) * 3 / 4);
+  const cv::Mat image =
+      TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
   size_t features = 0;
   for (auto _ : state) features = extractor->Extract(image).size();
@@ -45,8 +46,8 @@ void BM_ExtractHarrisSurf16(benchmark::State& state) {
 BENCHMARK(BM_ExtractHarrisSurf16)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
 
 void BM_OrbReference(benchmark::State& state) {
-  const cv::Mat image = TexturedImage(static_cast<int>(state.range(0)),
-                                      static_cast<int>(state.range(0)) * 3 / 4);
+  const cv::Mat image =
+      TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("orb"));
   for (auto _ : state) benchmark::DoNotOptimize(extractor->Extract(image));
 }
@@ -142,9 +143,8 @@ void BM_SolveP3P(benchmark::State& state) {
   const std::array<Eigen::Vector3d, 3> points = {observations[0].point_in_world,
                                                  observations[10].point_in_world,
                                                  observations[20].point_in_world};
-  const std::array<Eigen::Vector2d, 3> bearings = {observations[0].normalized,
-                                                   observations[10].normalized,
-                                                   observations[20].normalized};
+  const std::array<Eigen::Vector2d, 3> bearings = {
+      observations[0].normalized, observations[10].normalized, observations[20].normalized};
   for (auto _ : state) benchmark::DoNotOptimize(SolveP3P(points, bearings));
 }
 BENCHMARK(BM_SolveP3P);
@@ -160,6 +160,50 @@ void BM_PnpRansac(benchmark::State& state) {
   state.SetLabel(std::to_string(state.range(0)) + "% outliers");
 }
 BENCHMARK(BM_PnpRansac)->Arg(5)->Arg(30)->Arg(60)->Unit(benchmark::kMicrosecond);
+
+// Global relocalization against map size: synthetic maps of N keyframes (25 N points, each seen
+// by 4 keyframes, a 512-word vocabulary), one query view near keyframe N/2 with 100 clutter
+// keypoints. Retrieval goes through the inverted index, so its cost follows the keyframes that
+// share words with the query, and verification is a fixed number of candidates.
+void BM_RelocalizeScaling(benchmark::State& state) {
+  const int keyframes = static_cast<int>(state.range(0));
+  SyntheticMapOptions options;
+  options.keyframes = keyframes;
+  options.points = 25 * keyframes;
+  options.vocabulary_depth = 3;
+  options.appearance_from_descriptors = true;
+  const auto map = std::make_shared<const LocalizationMap>(MakeSyntheticMap(options));
+  const int k = keyframes / 2;
+  const Rigid3d cam_from_map = map->map().keyframes[k].map_from_cam.Inverse();
+  FeatureSet features;
+  Rng rng(11);
+  for (uint32_t j : map->VisiblePoints(k)) {
+    Eigen::Vector2d pixel;
+    if (!map->map().camera.Project(cam_from_map * map->map().points[j].position_in_map, &pixel) ||
+        !map->map().camera.IsInImage(pixel)) {
+      continue;
+    }
+    features.keypoints.push_back({pixel.cast<float>(), 1.2f, 1.0f});
+    features.descriptors.push_back(map->map().descriptors.row(static_cast<int>(j)));
+  }
+  for (int c = 0; c < 100; ++c) {
+    features.keypoints.push_back(
+        {Eigen::Vector2f(rng.Uniform(0, 319), rng.Uniform(0, 239)), 1.2f, 1.0f});
+    cv::Mat descriptor(1, 16, CV_32F);
+    cv::randu(descriptor, -1, 1);
+    features.descriptors.push_back(descriptor);
+  }
+  const QueryFrame frame(features, map->map().camera);
+  const LocalizerOptions defaults;
+  const PoseTracker tracker(map, map->map().camera, defaults.tracker);
+  const Relocalizer relocalizer(tracker, defaults.relocalization);
+  bool found = false;
+  for (auto _ : state) found = relocalizer.Relocalize(frame).success;
+  state.counters["found"] = found;
+  state.counters["points"] = static_cast<double>(map->point_count());
+  state.counters["memory_MiB"] = map->MemoryBytes() / (1024.0 * 1024.0);
+}
+BENCHMARK(BM_RelocalizeScaling)->Arg(100)->Arg(1000)->Arg(10000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace visloc

@@ -18,21 +18,13 @@ namespace visloc {
 namespace {
 
 // A map whose keyframe appearance vectors come from the descriptors of the points they see, as
-// the map builder makes them (the synthetic map's own vectors are random).
+// the map builder makes them.
 std::shared_ptr<const LocalizationMap> TestMap() {
   SyntheticMapOptions options;
   options.keyframes = 40;
   options.points = 4000;
-  Map map = MakeSyntheticMap(options);
-  map.appearance.keyframe_vectors.clear();
-  for (size_t k = 0; k < map.keyframes.size(); ++k) {
-    cv::Mat seen;
-    for (const Observation& o : map.observations) {
-      if (o.keyframe == k) seen.push_back(map.descriptors.row(static_cast<int>(o.point)));
-    }
-    map.appearance.keyframe_vectors.push_back(ComputeBow(map.appearance.vocabulary, seen));
-  }
-  return std::make_shared<const LocalizationMap>(std::move(map));
+  options.appearance_from_descriptors = true;
+  return std::make_shared<const LocalizationMap>(MakeSyntheticMap(options));
 }
 
 struct View {

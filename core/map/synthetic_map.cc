@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/map/vocabulary.h"
 #include "core/util/check.h"
 #include "core/util/random.h"
 
@@ -88,21 +89,34 @@ Map MakeSyntheticMap(const SyntheticMapOptions& options) {
   map.kernel.cues = {"translation_m", "view_direction"};
   map.kernel.metric = Eigen::Matrix2d{{2.0, 0.1}, {0.1, 3.0}};
   if (options.appearance) {
+    VISLOC_CHECK(options.vocabulary_depth >= 1 && options.vocabulary_depth <= 5,
+                 "vocabulary depth ", options.vocabulary_depth);
     Vocabulary& vocabulary = map.appearance.vocabulary;
     vocabulary.branching = 8;
-    vocabulary.depth = 2;
-    vocabulary.centroids = RandomDescriptors(8 + 64, options, rng);
-    for (int w = 0; w < 64; ++w)
+    vocabulary.depth = options.vocabulary_depth;
+    int nodes = 0, words = 1;
+    for (int level = 1; level <= vocabulary.depth; ++level) {
+      words *= 8;
+      nodes += words;
+    }
+    vocabulary.centroids = RandomDescriptors(nodes, options, rng);
+    for (int w = 0; w < words; ++w)
       vocabulary.word_weights.push_back(static_cast<float>(rng.Uniform(0.1, 3)));
     for (int k = 0; k < options.keyframes; ++k) {
       BowVector vector;
-      for (uint32_t w = 0; w < 64; ++w) {
-        if (rng.Uniform01() < 0.3) vector.emplace_back(w, static_cast<float>(rng.Uniform01()));
+      if (options.appearance_from_descriptors) {
+        cv::Mat seen;
+        for (uint32_t j : seen_by[k]) seen.push_back(map.descriptors.row(static_cast<int>(j)));
+        vector = ComputeBow(vocabulary, seen);
+      } else {
+        for (uint32_t w = 0; w < static_cast<uint32_t>(words); ++w) {
+          if (rng.Uniform01() < 0.3) vector.emplace_back(w, static_cast<float>(rng.Uniform01()));
+        }
+        // L1-normalized, as ComputeBow makes them.
+        float total = 0.0f;
+        for (const auto& entry : vector) total += entry.second;
+        for (auto& entry : vector) entry.second /= total;
       }
-      // L1-normalized, as ComputeBow makes them.
-      float total = 0.0f;
-      for (const auto& entry : vector) total += entry.second;
-      for (auto& entry : vector) entry.second /= total;
       map.appearance.keyframe_vectors.push_back(std::move(vector));
     }
   }

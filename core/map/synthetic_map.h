@@ -15,7 +15,11 @@ struct SyntheticMapOptions {
   int observations_per_point = 4;  // Consecutive keyframes that see each point.
   DescriptorType descriptor_type = DescriptorType::kFloat32;
   int descriptor_dim = 16;
-  bool appearance = true;  // Add a vocabulary (branching 8, depth 2) and keyframe vectors.
+  bool appearance = true;    // Add a vocabulary (branching 8) and keyframe vectors.
+  int vocabulary_depth = 2;  // 8^depth words.
+  // Keyframe vectors from the descriptors of the points each keyframe sees (as the map builder
+  // makes them), so relocalization can work on the map; otherwise random vectors.
+  bool appearance_from_descriptors = false;
   uint64_t seed = 1;
 };
 
