@@ -61,6 +61,17 @@ $V bench --dataset "$WORK/seq320/straight" --map "$WORK/map320.db" --json > "$WO
 $V bench --dataset "$WORK/seq640/query_square" --map "$WORK/map640.db" --json > "$WORK/bench640.json"
 $V bench --dataset "$WORK/seq640/circle" --map "$WORK/map640.db" --json > "$WORK/bench640c.json"
 
+echo "== through gRPC"
+mkdir -p "$WORK/maps"
+cp "$WORK/map320.db" "$WORK/maps/map320.db"
+build/server/visloc-server --maps "$WORK/maps" --listen 127.0.0.1:0 > "$WORK/server.out" 2> "$WORK/server.log" &
+server_pid=$!
+for _ in $(seq 100); do grep -q "listening on" "$WORK/server.out" 2>/dev/null && break; sleep 0.1; done
+$V bench --dataset "$WORK/seq320/query_square" --map "$WORK/map320.db" --frames 300 \
+  --server "$(sed -n 's/^listening on //p' "$WORK/server.out")" --json > "$WORK/bench_grpc.json"
+kill -TERM "$server_pid"
+wait "$server_pid" || true
+
 echo "== scaling (microbenchmarks)"
 # One CSV per family: the CSV reporter's columns come from the first benchmark it reports.
 families=(ExtractHarrisSurf16 OrbReference DescriptorDistance PredictVisibility ProjectAndMatch
@@ -139,6 +150,10 @@ echo "== writing $REPORT"
     b=$(field "$WORK/bench640.json" $key) p=$(field "$WORK/bench640.json" orb_reference_ms_per_frame_median)
     echo "| ${key%_median} | $(fmt "$a" 1 2) | $(awk -v a="$a" -v o="$o" 'BEGIN{printf "%.2f", a/o}') | $(fmt "$b" 1 2) | $(awk -v a="$b" -v o="$p" 'BEGIN{printf "%.2f", a/o}') |"
   done
+  echo
+  echo "Through gRPC on loopback, one frame in flight, raw 8-bit frames (\`visloc bench --server\`, first 300"
+  echo "frames of the square): $(fmt "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" 1 2) ms per frame against $(fmt "$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 1 2) ms in-process in the same run"
+  echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x)."
   echo
   echo "Initialization (the first frame, features included): $(awk -F, 'NR == 2 {print $19}' "$WORK/query_square.csv") ms on the square;"
   echo "the paper: 1,636.86 ms (Table 5) and 2,540.93 ms (Table 6)."
