@@ -100,6 +100,12 @@ class SvgCanvas : public Canvas {
   std::ostringstream out_;
 };
 
+std::unique_ptr<Canvas> MakeCanvas(const std::string& path, int width, int height) {
+  if (EndsWith(path, ".svg")) return std::make_unique<SvgCanvas>(width, height);
+  if (EndsWith(path, ".png")) return std::make_unique<PngCanvas>(width, height);
+  throw InputError(path + ": the plot must be .png or .svg");
+}
+
 // Map frame -> 2D top-view coordinates (metres): two axes spanning the ground plane.
 struct TopView {
   Eigen::Vector3d e1, e2;
@@ -120,8 +126,9 @@ TopView MakeTopView(const LocalizationMap& map) {
 
 PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path) {
   VISLOC_CHECK(input.map != nullptr, "no map to plot");
-  const bool svg = EndsWith(path, ".svg");
-  if (!svg && !EndsWith(path, ".png")) throw InputError(path + ": the plot must be .png or .svg");
+  if (!EndsWith(path, ".svg") && !EndsWith(path, ".png")) {
+    throw InputError(path + ": the plot must be .png or .svg");
+  }
   const LocalizationMap& map = *input.map;
   const TopView view = MakeTopView(map);
   // Extent: keyframes and trajectories, plus the points' central 98% (outliers stretch it).
@@ -156,12 +163,7 @@ PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path) {
     return Eigen::Vector2d(margin + (q.x() - box.min().x()) * scale,
                            margin + 40 + (box.max().y() - q.y()) * scale);
   };
-  std::unique_ptr<Canvas> canvas;
-  if (svg) {
-    canvas = std::make_unique<SvgCanvas>(width, height);
-  } else {
-    canvas = std::make_unique<PngCanvas>(width, height);
-  }
+  const std::unique_ptr<Canvas> canvas = MakeCanvas(path, width, height);
   PlotStats stats;
   for (const MapPoint& p : map.map().points) {
     const Eigen::Vector2d q = px(p.position_in_map);
@@ -208,6 +210,41 @@ PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path) {
   canvas->Text(width - margin - scale, bar_y - 6, "1 m", {20, 20, 20});
   canvas->Save(path);
   return stats;
+}
+
+void WriteSeriesPlot(const std::vector<Series>& panels, const std::string& title,
+                     const std::string& path) {
+  VISLOC_CHECK(!panels.empty(), "no series to plot");
+  const int width = 900, panel_height = 160, left = 70, right = 20, top = 40, gap = 40;
+  const int height = top + static_cast<int>(panels.size()) * (panel_height + gap);
+  const std::unique_ptr<Canvas> canvas = MakeCanvas(path, width, height);
+  canvas->Text(left, 22, title, {20, 20, 20});
+  for (size_t p = 0; p < panels.size(); ++p) {
+    const Series& series = panels[p];
+    const double y0 = top + p * (panel_height + gap) + 18;  // Panel top.
+    double max_value = 0.0;
+    for (double v : series.values) {
+      if (std::isfinite(v)) max_value = std::max(max_value, v);
+    }
+    if (max_value <= 0) max_value = 1.0;
+    const size_t n = std::max<size_t>(2, series.values.size());
+    const auto x_of = [&](size_t i) { return left + (width - left - right) * double(i) / (n - 1); };
+    const auto y_of = [&](double v) { return y0 + panel_height * (1.0 - v / max_value); };
+    canvas->Line(left, y0 + panel_height, width - right, y0 + panel_height, {120, 120, 120}, 1,
+                 false);
+    canvas->Line(left, y0, left, y0 + panel_height, {120, 120, 120}, 1, false);
+    canvas->Text(left, y0 - 6, series.title, {20, 20, 20});
+    canvas->Text(8, y0 + 10, FormatFixed(max_value, max_value < 10 ? 2 : 0), {80, 80, 80});
+    canvas->Text(8, y0 + panel_height, "0", {80, 80, 80});
+    canvas->Text(width - right - 80, y0 + panel_height + 16,
+                 StrCat(series.values.size(), " frames"), {80, 80, 80});
+    for (size_t i = 1; i < series.values.size(); ++i) {
+      const double a = series.values[i - 1], b = series.values[i];
+      if (!std::isfinite(a) || !std::isfinite(b)) continue;
+      canvas->Line(x_of(i - 1), y_of(a), x_of(i), y_of(b), {40, 90, 200}, 1.5, false);
+    }
+  }
+  canvas->Save(path);
 }
 
 }  // namespace visloc::cli

@@ -1,8 +1,8 @@
 #pragma once
 // `visloc plot`: a top view of a map and a trajectory, like the paper's Figs. 17 and 19: map
-// points (grey), keyframes (blue), ground truth (wide violet), and the estimated trajectory coloured
-// by inlier ratio (red 0 -> yellow -> green 1). Where the estimate has a gap (lost frames) the
-// two ends are joined by a dashed line, so a kidnapping shows as a jump. PNG or SVG by the
+// points (grey), keyframes (blue), ground truth (wide violet), and the estimated trajectory
+// coloured by inlier ratio (red 0 -> yellow -> green 1). Where the estimate has a gap (lost frames)
+// the two ends are joined by a dashed line, so a kidnapping shows as a jump. PNG or SVG by the
 // output's extension.
 //
 // "Top" is along the normal of the plane the keyframes lie in (a ground robot's head), or the
@@ -10,6 +10,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "core/geometry/trajectory.h"
 #include "core/map/localization_map.h"
@@ -33,5 +34,15 @@ struct PlotStats {
 
 // Writes PNG or SVG to `path` (by extension). Throws InputError for another extension.
 PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path);
+
+// Per-frame series along a sequence, one panel each, stacked (the paper's Figs. 10 and 22):
+// e.g. {"total time (ms)", times}, {"inlier ratio", ratios}, {"RANSAC iterations", its}.
+// Frames without a value are NaN and leave a gap. PNG or SVG by extension.
+struct Series {
+  std::string title;
+  std::vector<double> values;
+};
+void WriteSeriesPlot(const std::vector<Series>& panels, const std::string& title,
+                     const std::string& path);
 
 }  // namespace visloc::cli

@@ -1,8 +1,10 @@
 // `visloc plot --map MAP.db --trajectory EST.tum [--stats S.csv] [--gt GT.tum] --out P.png|P.svg`
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 
 #include "client/commands.h"
 #include "client/plot.h"
@@ -16,46 +18,86 @@
 namespace visloc::cli {
 namespace {
 
-// timestamp_ns -> inlier_ratio from a stats CSV written by localize or stream.
-std::map<int64_t, double> ReadInlierRatios(const std::string& path) {
+// Columns of a stats CSV written by localize or stream, by name; rows in file order. A frame
+// without a pose has no inlier ratio or iterations worth plotting: those read as NaN.
+struct StatsTable {
+  std::vector<int64_t> timestamps;
+  std::map<std::string, std::vector<double>> columns;
+};
+
+StatsTable ReadStats(const std::string& path, const std::vector<std::string>& wanted) {
   const std::vector<TextLine> lines = ReadTextLines(path);
   if (lines.empty()) throw InputError(path + ": empty stats file");
   const std::vector<std::string> header = Split(lines[0].text, ',');
-  const auto column = std::find(header.begin(), header.end(), "inlier_ratio");
-  if (header.empty() || header[0] != "timestamp_ns" || column == header.end()) {
-    ThrowAtLine(path, 1, "not a visloc stats file (no timestamp_ns / inlier_ratio columns)");
+  std::vector<size_t> index;
+  for (const std::string& name : wanted) {
+    const auto column = std::find(header.begin(), header.end(), name);
+    if (header.empty() || header[0] != "timestamp_ns" || column == header.end()) {
+      ThrowAtLine(path, 1, "not a visloc stats file (no timestamp_ns / " + name + " column)");
+    }
+    index.push_back(static_cast<size_t>(column - header.begin()));
   }
-  const size_t ratio_column = static_cast<size_t>(column - header.begin());
-  std::map<int64_t, double> ratios;
+  StatsTable table;
   for (size_t i = 1; i < lines.size(); ++i) {
     const std::vector<std::string> fields = Split(lines[i].text, ',');
     const auto timestamp = fields.empty() ? std::nullopt : ParseInt64(fields[0]);
-    const auto ratio =
-        fields.size() > ratio_column ? ParseDouble(fields[ratio_column]) : std::nullopt;
-    if (!timestamp || !ratio) ThrowAtLine(path, lines[i].number, "bad timestamp or inlier ratio");
-    ratios[*timestamp] = *ratio;
+    if (!timestamp) ThrowAtLine(path, lines[i].number, "bad timestamp");
+    table.timestamps.push_back(*timestamp);
+    const bool posed =
+        fields.size() > 2 && (fields[2] == "tracking" || fields[2] == "relocalization");
+    for (size_t c = 0; c < wanted.size(); ++c) {
+      const auto value = fields.size() > index[c] ? ParseDouble(fields[index[c]]) : std::nullopt;
+      if (!value) ThrowAtLine(path, lines[i].number, "bad " + wanted[c]);
+      const bool timing = EndsWith(wanted[c], "_ms");
+      table.columns[wanted[c]].push_back(
+          timing || posed ? *value : std::numeric_limits<double>::quiet_NaN());
+    }
   }
-  return ratios;
+  return table;
 }
 
 }  // namespace
 
 int RunPlot(const Args& args) {
   std::string map_path, trajectory_path, stats_path, gt_path, out;
+  bool series = false;
   ArgParser parser("visloc plot",
                    "Draws a top view of a map with an estimated trajectory coloured by inlier "
-                   "ratio (and ground truth beside it), as PNG or SVG by the output's extension.");
-  parser.AddFlag("map", &map_path, "map file (.db)", /*required=*/true);
-  parser.AddFlag("trajectory", &trajectory_path, "estimated poses (TUM)", true);
+                   "ratio (and ground truth beside it), or with --series the per-frame time, "
+                   "inlier ratio and RANSAC iterations along the sequence from --stats; PNG or "
+                   "SVG by the output's extension.");
+  parser.AddFlag("map", &map_path, "map file (.db); top view");
+  parser.AddFlag("trajectory", &trajectory_path, "estimated poses (TUM); top view");
+  parser.AddSwitch("series", &series, "plot --stats along the sequence instead");
   parser.AddFlag("stats", &stats_path, "per-frame statistics (CSV) for the colours");
   parser.AddFlag("gt", &gt_path, "ground truth (TUM, map frame)");
   parser.AddFlag("out", &out, "PLOT.png or PLOT.svg", true);
   if (!parser.Parse(args, std::cout)) return 0;
+  if (series) {
+    if (stats_path.empty()) throw UsageError("--series needs --stats");
+    const StatsTable table =
+        ReadStats(stats_path, {"total_ms", "inlier_ratio", "ransac_iterations"});
+    WriteSeriesPlot({{"time per frame (ms)", table.columns.at("total_ms")},
+                     {"inlier ratio", table.columns.at("inlier_ratio")},
+                     {"RANSAC iterations", table.columns.at("ransac_iterations")}},
+                    std::filesystem::path(stats_path).filename().string(), out);
+    std::printf("wrote %s: %zu frames\n", out.c_str(), table.timestamps.size());
+    return 0;
+  }
+  if (map_path.empty() || trajectory_path.empty()) {
+    throw UsageError("a top view needs --map and --trajectory (or use --series --stats)");
+  }
   const LocalizationMap map(mapstore::LoadMap(map_path));
   PlotInput input;
   input.map = &map;
   input.estimate = ReadTum(trajectory_path);
-  if (!stats_path.empty()) input.inlier_ratio = ReadInlierRatios(stats_path);
+  if (!stats_path.empty()) {
+    const StatsTable table = ReadStats(stats_path, {"inlier_ratio"});
+    const std::vector<double>& ratios = table.columns.at("inlier_ratio");
+    for (size_t i = 0; i < ratios.size(); ++i) {
+      if (std::isfinite(ratios[i])) input.inlier_ratio[table.timestamps[i]] = ratios[i];
+    }
+  }
   if (!gt_path.empty()) input.ground_truth = ReadTum(gt_path);
   input.title = std::filesystem::path(map_path).filename().string() + "  /  " +
                 std::filesystem::path(trajectory_path).filename().string();

@@ -243,6 +243,17 @@ TEST(LocalizationE2eTest, PlotShowsTheTrajectoryAndTheKidnappingJump) {
   char signature[8] = {};
   png.read(signature, 8);
   EXPECT_EQ(std::string(signature + 1, 3), "PNG");
+  const ProcessResult series = Visloc(
+      {"plot", "--series", "--stats", dir.File("stats.csv"), "--out", dir.File("series.svg")});
+  ASSERT_EQ(series.exit_code, 0) << series.err;
+  EXPECT_THAT(series.out, HasSubstr("150 frames"));
+  std::ifstream series_svg(dir.File("series.svg"));
+  const std::string series_text((std::istreambuf_iterator<char>(series_svg)),
+                                std::istreambuf_iterator<char>());
+  EXPECT_THAT(series_text, HasSubstr("RANSAC iterations"));
+  const ProcessResult no_stats = Visloc({"plot", "--series", "--out", dir.File("s.png")});
+  EXPECT_EQ(no_stats.exit_code, 2);
+  EXPECT_THAT(no_stats.err, HasSubstr("--series needs --stats"));
   const ProcessResult wrong = Visloc({"plot", "--map", kData + "/map.db", "--trajectory",
                                       dir.File("est.tum"), "--out", dir.File("plot.gif")});
   EXPECT_EQ(wrong.exit_code, 1);
