@@ -1,9 +1,9 @@
 #include "client/connection.h"
 
 #include <cstdlib>
-#include <fstream>
 
 #include "core/util/check.h"
+#include "core/util/text_file.h"
 
 namespace visloc::cli {
 
@@ -25,11 +25,8 @@ void Connection::ApplyEnvironment() {
 std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
   if (!tls_ca_path.empty()) {
-    std::ifstream in(tls_ca_path, std::ios::binary);
-    if (!in) throw InputError(tls_ca_path + ": cannot read the CA certificate");
     grpc::SslCredentialsOptions options;
-    options.pem_root_certs =
-        std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    options.pem_root_certs = ReadFileBytes(tls_ca_path);
     credentials = grpc::SslCredentials(options);
   }
   grpc::ChannelArguments args;

@@ -4,7 +4,6 @@
 #include <grpcpp/grpcpp.h>
 
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 
 #include "client/commands.h"
@@ -13,6 +12,7 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "proto/convert.h"
 #include "visloc/v1/visloc.grpc.pb.h"
@@ -35,15 +35,12 @@ int RunRelocalize(const Args& raw_args) {
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
   server.ApplyEnvironment();
-  std::ifstream in(image_path, std::ios::binary);
-  if (!in) throw InputError(image_path + ": cannot open image");
   v1::RelocalizeRequest request;
   request.set_map_name(map_name);
   if (!dataset_dir.empty()) {
     proto::ToProto(ReadDataset(dataset_dir).left.camera, request.mutable_camera());
   }
-  request.set_encoded_image(
-      std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()));
+  request.set_encoded_image(ReadFileBytes(image_path));
   auto stub = v1::Localization::NewStub(server.OpenChannel());
   grpc::ClientContext context;
   server.Prepare(&context);

@@ -1,16 +1,15 @@
 #include "client/remote_map.h"
 
 #include <grpcpp/grpcpp.h>
-#include <zlib.h>
 
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
+#include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
@@ -22,12 +21,6 @@ constexpr size_t kChunkBytes = 1 << 20;
 
 std::unique_ptr<v1::MapAdmin::Stub> Connect(const Connection& server) {
   return v1::MapAdmin::NewStub(server.OpenChannel());
-}
-
-uint32_t Crc32(const std::string& bytes) {
-  return static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
-                                     reinterpret_cast<const Bytef*>(bytes.data()),
-                                     static_cast<uInt>(bytes.size())));
 }
 
 void WriteJson(JsonWriter& json, const v1::MapInfo& info) {
@@ -101,13 +94,12 @@ int RemoteMapUpload(const Connection& server, const std::string& path, const std
                     bool replace) {
   // Refuse to send what the server would refuse anyway, with the local file's problem.
   const mapstore::MapInfo local = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
-  std::ifstream in(path, std::ios::binary);
-  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string bytes = ReadFileBytes(path);
   v1::UploadChunk chunk;
   v1::UploadHeader* header = chunk.mutable_header();
   header->set_name(name.empty() ? local.metadata.name : name);
   header->set_size_bytes(bytes.size());
-  header->set_crc32(Crc32(bytes));
+  header->set_crc32(mapstore::Crc32(bytes));
   header->set_replace(replace);
   const std::string target = header->name();
   grpc::ClientContext context;
@@ -148,7 +140,8 @@ int RemoteMapDownload(const Connection& server, const std::string& name, const s
     }
   }
   CheckCall(reader->Finish(), server.server);
-  if (!have_header || bytes.size() != header.size_bytes() || Crc32(bytes) != header.crc32()) {
+  if (!have_header || bytes.size() != header.size_bytes() ||
+      mapstore::Crc32(bytes) != header.crc32()) {
     throw InputError(StrCat("download of '", name, "' is incomplete or corrupt: ", bytes.size(),
                             " of ", header.size_bytes(), " bytes"));
   }

@@ -7,7 +7,6 @@
 
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <mutex>
 #include <thread>
@@ -21,6 +20,7 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
 #include "proto/convert.h"
@@ -40,12 +40,6 @@ struct StreamArgs {
   bool odometry = false, json = false;
   int frames = 0;
 };
-
-std::string ReadFileBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open image");
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 v1::LocalizeRequest StartRequest(const StreamArgs& args, const Dataset& dataset) {
   v1::LocalizeRequest request;

@@ -44,39 +44,50 @@ bool MapDirectory::Contains(const std::string& name) const {
   return fs::is_regular_file(PathOf(name));
 }
 
+MapDirectory::Entry MapDirectory::EntryFor(const std::string& name, const std::string& path) const {
+  Entry entry;
+  entry.name = name;
+  entry.path = path;
+  std::error_code error;
+  entry.file_bytes = fs::file_size(path, error);
+  try {
+    entry.info = SummarizeMap(LoadMap(path), path);
+  } catch (const InputError& e) {
+    entry.error = e.what();
+  }
+  return entry;
+}
+
 std::vector<MapDirectory::Entry> MapDirectory::List() const {
   std::vector<Entry> entries;
   for (const auto& file : fs::directory_iterator(dir_)) {
     const std::string filename = file.path().filename().string();
     if (!file.is_regular_file() || !EndsWith(filename, ".db")) continue;
-    Entry entry;
-    entry.name = filename.substr(0, filename.size() - 3);
-    if (!IsValidMapName(entry.name)) continue;
-    entry.path = file.path().string();
-    std::error_code error;
-    entry.file_bytes = fs::file_size(file.path(), error);
-    try {
-      entry.info = SummarizeMap(LoadMap(entry.path), entry.path);
-    } catch (const InputError& e) {
-      entry.error = e.what();
-    }
-    entries.push_back(std::move(entry));
+    const std::string name = filename.substr(0, filename.size() - 3);
+    if (IsValidMapName(name)) entries.push_back(EntryFor(name, file.path().string()));
   }
   std::sort(entries.begin(), entries.end(),
             [](const Entry& a, const Entry& b) { return a.name < b.name; });
   return entries;
 }
 
+MapDirectory::Entry MapDirectory::Describe(const std::string& name) const {
+  CheckMapName(name);
+  if (!Contains(name)) throw NotFoundError("no map named '" + name + "'");
+  return EntryFor(name, PathOf(name));
+}
+
 void MapDirectory::Remove(const std::string& name) {
   const std::string path = PathOf(name);
-  if (!fs::is_regular_file(path)) throw InputError(StrCat("no map named '", name, "' in ", dir_));
+  if (!fs::is_regular_file(path))
+    throw NotFoundError(StrCat("no map named '", name, "' in ", dir_));
   fs::remove(path);
 }
 
 void MapDirectory::Rename(const std::string& from, const std::string& to) {
   const std::string from_path = PathOf(from), to_path = PathOf(to);
   if (!fs::is_regular_file(from_path))
-    throw InputError(StrCat("no map named '", from, "' in ", dir_));
+    throw NotFoundError(StrCat("no map named '", from, "' in ", dir_));
   if (fs::exists(to_path))
     throw InputError(StrCat("a map named '", to, "' already exists in ", dir_));
   // The new file is complete and synced before the old one goes: a crash in between leaves
@@ -91,8 +102,8 @@ std::string MapDirectory::StagingPathFor(const std::string& name) const {
   return TemporaryPathBeside(PathOf(name));
 }
 
-MapInfo MapDirectory::Publish(const std::string& staged_path, const std::string& name,
-                              bool replace) {
+MapDirectory::Entry MapDirectory::Publish(const std::string& staged_path, const std::string& name,
+                                          bool replace) {
   try {
     CheckMapName(name);
     if (!replace && Contains(name)) {
@@ -106,7 +117,7 @@ MapInfo MapDirectory::Publish(const std::string& staged_path, const std::string&
       throw InputError(path + ": cannot move the map into place: " + std::strerror(errno));
     }
     SyncPath(dir_, O_RDONLY | O_DIRECTORY);
-    return SummarizeMap(LoadMap(path), path);
+    return EntryFor(name, path);
   } catch (...) {
     std::error_code ignored;
     fs::remove(staged_path, ignored);

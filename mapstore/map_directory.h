@@ -37,11 +37,15 @@ class MapDirectory {
   };
   // Every *.db file with a valid name, sorted by name; broken maps are listed with their error.
   std::vector<Entry> List() const;
+  // The entry of one map (loading only that map). Throws NotFoundError when there is none and
+  // InputError for an invalid name.
+  Entry Describe(const std::string& name) const;
 
-  // Throws InputError "no map named NAME in DIR" when absent.
+  // Throws NotFoundError "no map named NAME in DIR" when absent.
   void Remove(const std::string& name);
   // Renames the file and the map's own name (a durable rewrite, then the old file is removed).
-  // Throws InputError when `from` is absent, `to` exists, or either name is invalid.
+  // Throws NotFoundError when `from` is absent, InputError when `to` exists or either name is
+  // invalid.
   void Rename(const std::string& from, const std::string& to);
   // Where an incoming copy of NAME (an upload) is staged: a temporary file beside DIR/NAME.db,
   // invisible to List and removed by RemoveStaleTemporaries if its writer dies.
@@ -49,13 +53,15 @@ class MapDirectory {
   // Verifies the staged file (VerifyMapFile) and publishes it as NAME with one atomic, durable
   // rename. An existing NAME is replaced only with `replace`. On any failure the staged file is
   // removed and InputError names the problem; DIR/NAME.db is then untouched.
-  MapInfo Publish(const std::string& staged_path, const std::string& name, bool replace);
+  Entry Publish(const std::string& staged_path, const std::string& name, bool replace);
 
   // Removes temporary files of writers that are no longer running (left by a crash).
   // Returns how many were removed.
   int RemoveStaleTemporaries();
 
  private:
+  Entry EntryFor(const std::string& name, const std::string& path) const;
+
   std::string dir_;
 };
 

@@ -77,6 +77,34 @@ TEST(MapDirectoryTest, RemoveAndRename) {
               ::testing::ThrowsMessage<InputError>(HasSubstr("no such maps folder")));
 }
 
+TEST(MapDirectoryTest, DescribesOneMapAndSaysWhenThereIsNone) {
+  TempDir dir;
+  MapDirectory maps(dir.path());
+  SaveMap(NamedMap("lab"), maps.PathOf("lab"));
+  { std::ofstream(maps.PathOf("broken")) << "not a map"; }
+  const MapDirectory::Entry lab = maps.Describe("lab");
+  EXPECT_EQ(lab.name, "lab");
+  ASSERT_TRUE(lab.info.has_value());
+  EXPECT_EQ(lab.info->metadata.name, "lab");
+  EXPECT_GT(lab.file_bytes, 0u);
+  const MapDirectory::Entry broken = maps.Describe("broken");
+  EXPECT_FALSE(broken.info.has_value());
+  EXPECT_FALSE(broken.error.empty());
+  // A missing map is a NotFoundError (services answer "not found"), a bad name only InputError.
+  EXPECT_THAT([&] { maps.Describe("nope"); },
+              ::testing::ThrowsMessage<NotFoundError>(HasSubstr("no map named 'nope'")));
+  EXPECT_THROW(maps.Remove("nope"), NotFoundError);
+  EXPECT_THROW(maps.Rename("nope", "x"), NotFoundError);
+  try {
+    maps.Describe("../etc");
+    FAIL() << "expected InputError";
+  } catch (const NotFoundError&) {
+    FAIL() << "an invalid name is not 'not found'";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("invalid map name"));
+  }
+}
+
 TEST(MapDirectoryTest, RemovesTemporariesOfDeadWritersOnly) {
   TempDir dir;
   MapDirectory maps(dir.path());

@@ -12,6 +12,7 @@
 #include "core/map/localization_map.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "mapstore/checksum.h"
 #include "mapstore/file_sync.h"
 #include "mapstore/sqlite.h"
 
@@ -109,13 +110,7 @@ constexpr const char* kFormatName = "visloc-map";
 class Crc {
  public:
   void Add(const void* data, size_t bytes) {
-    const auto* p = static_cast<const Bytef*>(data);
-    while (bytes > 0) {
-      const auto chunk = static_cast<uInt>(std::min<size_t>(bytes, 1u << 30));
-      crc_ = crc32(crc_, p, chunk);
-      p += chunk;
-      bytes -= chunk;
-    }
+    crc_ = Crc32(std::string_view(static_cast<const char*>(data), bytes), crc_);
   }
   template <typename T>
   void Pod(const T& value) {
@@ -130,10 +125,10 @@ class Crc {
     Pod(mat.cols);
     for (int r = 0; r < mat.rows; ++r) Add(mat.ptr(r), mat.cols * mat.elemSize());
   }
-  uint32_t value() const { return static_cast<uint32_t>(crc_); }
+  uint32_t value() const { return crc_; }
 
  private:
-  uLong crc_ = crc32(0L, Z_NULL, 0);
+  uint32_t crc_ = 0;
 };
 
 uint32_t ContentChecksum(const Map& map) {
@@ -730,6 +725,19 @@ std::string TemporaryPathBeside(const std::string& path) {
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   return (dir / StrCat(".", target.filename().string(), ".tmp-", ::getpid(), "-", counter++))
       .string();
+}
+
+uint32_t Crc32(std::string_view bytes, uint32_t previous) {
+  uLong crc = previous;
+  const auto* p = reinterpret_cast<const Bytef*>(bytes.data());
+  size_t left = bytes.size();
+  while (left > 0) {  // zlib takes at most 4 GiB - 1 per call.
+    const auto chunk = static_cast<uInt>(std::min<size_t>(left, 1u << 30));
+    crc = crc32(crc, p, chunk);
+    p += chunk;
+    left -= chunk;
+  }
+  return static_cast<uint32_t>(crc);
 }
 
 }  // namespace visloc::mapstore

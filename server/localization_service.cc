@@ -118,12 +118,9 @@ void ServeNewestOnly(Session* session,
 }  // namespace
 
 Status StatusFromException(const std::exception& e) {
-  const std::string message = e.what();
-  if (message.rfind("no map named", 0) == 0) return Status(StatusCode::NOT_FOUND, message);
-  if (message.rfind("invalid map name", 0) == 0)
-    return Status(StatusCode::INVALID_ARGUMENT, message);
-  if (dynamic_cast<const InputError*>(&e)) return Status(StatusCode::INVALID_ARGUMENT, message);
-  return Status(StatusCode::INTERNAL, message);
+  if (dynamic_cast<const NotFoundError*>(&e)) return Status(StatusCode::NOT_FOUND, e.what());
+  if (dynamic_cast<const InputError*>(&e)) return Status(StatusCode::INVALID_ARGUMENT, e.what());
+  return Status(StatusCode::INTERNAL, e.what());
 }
 
 LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& limits,

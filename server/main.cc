@@ -15,13 +15,13 @@
 
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
 #include <thread>
 
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
+#include "core/util/text_file.h"
 #include "server/auth.h"
 #include "server/localization_service.h"
 #include "server/log.h"
@@ -42,19 +42,13 @@ struct ServerArgs {
   int threads = 0;
 };
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot read");
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerArgs& args) {
   if (args.tls_cert.empty() != args.tls_key.empty()) {
     throw UsageError("--tls-cert and --tls-key go together");
   }
   if (args.tls_cert.empty()) return grpc::InsecureServerCredentials();
   grpc::SslServerCredentialsOptions options;
-  options.pem_key_cert_pairs.push_back({ReadFile(args.tls_key), ReadFile(args.tls_cert)});
+  options.pem_key_cert_pairs.push_back({ReadFileBytes(args.tls_key), ReadFileBytes(args.tls_cert)});
   return grpc::SslServerCredentials(options);
 }
 

@@ -1,11 +1,11 @@
 #include "server/map_admin_service.h"
 
-#include <zlib.h>
-
 #include <filesystem>
 #include <fstream>
 
 #include "core/util/check.h"
+#include "core/util/text_file.h"
+#include "mapstore/checksum.h"
 #include "server/localization_service.h"
 #include "server/log.h"
 
@@ -33,15 +33,6 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
   }
 }
 
-std::optional<mapstore::MapDirectory::Entry> Find(const mapstore::MapDirectory& dir,
-                                                  const std::string& name) {
-  mapstore::CheckMapName(name);
-  for (const auto& entry : dir.List()) {
-    if (entry.name == name) return entry;
-  }
-  return std::nullopt;
-}
-
 }  // namespace
 
 MapAdminService::MapAdminService(MapCache* maps, uint64_t max_upload_bytes, const TokenAuth* auth)
@@ -62,9 +53,7 @@ Status MapAdminService::GetMapInfo(grpc::ServerContext* context, const v1::MapNa
                                    v1::MapInfo* response) {
   if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
   try {
-    const auto entry = Find(maps_->directory(), request->name());
-    if (!entry) return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
-    ToProto(*entry, response);
+    ToProto(maps_->directory().Describe(request->name()), response);
     return Status::OK;
   } catch (const std::exception& e) {
     return StatusFromException(e);
@@ -93,7 +82,7 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
     }
     staged = maps_->directory().StagingPathFor(header.name());
     uint64_t received = 0;
-    uLong crc = crc32(0L, Z_NULL, 0);
+    uint32_t crc = 0;
     {
       std::ofstream out(staged, std::ios::binary | std::ios::trunc);
       if (!out) throw InputError("cannot stage the upload in the maps folder");
@@ -106,8 +95,7 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
           throw InputError(
               StrCat("upload exceeds its declared size of ", header.size_bytes(), " bytes"));
         }
-        crc = crc32(crc, reinterpret_cast<const Bytef*>(chunk.data().data()),
-                    static_cast<uInt>(chunk.data().size()));
+        crc = mapstore::Crc32(chunk.data(), crc);
         out.write(chunk.data().data(), static_cast<std::streamsize>(chunk.data().size()));
       }
       if (!out.flush()) throw InputError("cannot write the upload (disk full?)");
@@ -116,14 +104,13 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
       throw InputError(
           StrCat("upload cut off: ", received, " of ", header.size_bytes(), " bytes arrived"));
     }
-    if (static_cast<uint32_t>(crc) != header.crc32()) {
-      throw InputError(StrCat("upload checksum mismatch: CRC-32 ", static_cast<uint32_t>(crc),
-                              ", header says ", header.crc32()));
+    if (crc != header.crc32()) {
+      throw InputError(
+          StrCat("upload checksum mismatch: CRC-32 ", crc, ", header says ", header.crc32()));
     }
-    mapstore::MapDirectory(maps_->directory().dir())
-        .Publish(staged, header.name(), header.replace());
-    const auto entry = Find(maps_->directory(), header.name());
-    if (entry) ToProto(*entry, response);
+    ToProto(mapstore::MapDirectory(maps_->directory().dir())
+                .Publish(staged, header.name(), header.replace()),
+            response);
     Log("map_uploaded",
         {{"map", header.name()}, {"bytes", std::to_string(received)}, {"peer", context->peer()}});
     return Status::OK;
@@ -145,15 +132,12 @@ Status MapAdminService::DownloadMap(grpc::ServerContext* context, const v1::MapN
     }
     // Read the whole file first: a concurrent replace renames a new file into place, so the
     // open file stays the old, complete map.
-    std::ifstream in(maps_->directory().PathOf(request->name()), std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = ReadFileBytes(maps_->directory().PathOf(request->name()));
     v1::DownloadChunk chunk;
     v1::UploadHeader* header = chunk.mutable_header();
     header->set_name(request->name());
     header->set_size_bytes(bytes.size());
-    header->set_crc32(static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
-                                                  reinterpret_cast<const Bytef*>(bytes.data()),
-                                                  static_cast<uInt>(bytes.size()))));
+    header->set_crc32(mapstore::Crc32(bytes));
     if (!writer->Write(chunk)) return Status(StatusCode::CANCELLED, "client went away");
     for (size_t at = 0; at < bytes.size(); at += kChunkBytes) {
       chunk.Clear();
@@ -196,8 +180,7 @@ Status MapAdminService::RenameMap(grpc::ServerContext* context, const v1::Rename
                     "a map named '" + request->to() + "' already exists");
     }
     mapstore::MapDirectory(maps_->directory().dir()).Rename(request->from(), request->to());
-    const auto entry = Find(maps_->directory(), request->to());
-    if (entry) ToProto(*entry, response);
+    ToProto(maps_->directory().Describe(request->to()), response);
     Log("map_renamed",
         {{"from", request->from()}, {"to", request->to()}, {"peer", context->peer()}});
     return Status::OK;

@@ -31,7 +31,7 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
   std::lock_guard<std::mutex> loading(*load_lock);
   const FileIdentity identity = IdentityOf(path);
   if (identity.inode == 0) {
-    throw InputError("no map named '" + name + "' in the server's maps folder");
+    throw NotFoundError("no map named '" + name + "' in the server's maps folder");
   }
   {
     std::lock_guard<std::mutex> lock(mutex_);

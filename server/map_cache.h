@@ -28,8 +28,8 @@ class MapCache {
   // `idle_unload` is how long a map no session holds stays loaded.
   MapCache(std::string maps_dir, std::chrono::seconds idle_unload);
 
-  // The map NAME, loading it if needed. Throws InputError for an invalid name, a missing map
-  // ("no map named ..."), or a map file that does not load (the reason).
+  // The map NAME, loading it if needed. Throws NotFoundError for a missing map ("no map named
+  // ..."), InputError for an invalid name or a map file that does not load (the reason).
   std::shared_ptr<const LocalizationMap> Acquire(const std::string& name);
   // Drops maps no session holds that have been idle longer than the limit. Returns how many.
   int UnloadIdle();

@@ -5,7 +5,6 @@
 #include <gmock/gmock.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <filesystem>
 #include <fstream>
@@ -13,6 +12,8 @@
 
 #include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
+#include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
 #include "tests/support/process.h"
 #include "visloc/v1/visloc.grpc.pb.h"
@@ -27,11 +28,6 @@ using testing::ServerProcess;
 ProcessResult Visloc(std::vector<std::string> args) {
   args.insert(args.begin(), VISLOC_CLI_PATH);
   return testing::RunProcess(args);
-}
-
-std::string ReadBytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 size_t FilesIn(const std::string& dir) {
@@ -76,11 +72,7 @@ class MapAdminE2eTest : public ::testing::Test {
     }
     return writer->Finish();
   }
-  static uint32_t Crc(const std::string& bytes) {
-    return static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0),
-                                       reinterpret_cast<const Bytef*>(bytes.data()),
-                                       static_cast<uInt>(bytes.size())));
-  }
+  static uint32_t Crc(const std::string& bytes) { return mapstore::Crc32(bytes); }
 
   TempDir local_{"visloc_admin_local"};
   TempDir maps_{"visloc_admin_maps"};
@@ -111,7 +103,7 @@ TEST_F(MapAdminE2eTest, UploadListDownloadRenameDelete) {
   const ProcessResult download =
       Visloc({"map", "download", "lab", "--out", copy, "--server", address});
   ASSERT_EQ(download.exit_code, 0) << download.err;
-  EXPECT_EQ(ReadBytes(copy), ReadBytes(local_.File("lab.db")));
+  EXPECT_EQ(ReadFileBytes(copy), ReadFileBytes(local_.File("lab.db")));
 
   const ProcessResult info = Visloc({"map", "info", "lab", "--server", address, "--json"});
   ASSERT_EQ(info.exit_code, 0) << info.err;
@@ -121,13 +113,16 @@ TEST_F(MapAdminE2eTest, UploadListDownloadRenameDelete) {
   EXPECT_THAT(Visloc({"map", "list", "--server", address}).out, HasSubstr("lab2"));
   ASSERT_EQ(Visloc({"map", "delete", "lab2", "--server", address}).exit_code, 0);
   EXPECT_EQ(FilesIn(maps_.path()), 0u);
+  const ProcessResult missing_info = Visloc({"map", "info", "lab2", "--server", address});
+  EXPECT_EQ(missing_info.exit_code, 1);
+  EXPECT_THAT(missing_info.err, HasSubstr("no map named 'lab2' (gRPC code 5)"));  // NOT_FOUND
   const ProcessResult gone = Visloc({"map", "delete", "lab2", "--server", address});
   EXPECT_EQ(gone.exit_code, 1);
   EXPECT_THAT(gone.err, HasSubstr("no map named 'lab2'"));
 }
 
 TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
-  const std::string bytes = ReadBytes(local_.File("lab.db"));
+  const std::string bytes = ReadFileBytes(local_.File("lab.db"));
   const grpc::Status status = RawUpload("lab", bytes, Crc(bytes), bytes.size() / 2);
   EXPECT_FALSE(status.ok());
   // The server notices the cancellation and removes the staged half.
@@ -142,7 +137,7 @@ TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
 }
 
 TEST_F(MapAdminE2eTest, WrongChecksumsForeignFilesAndEscapingNamesAreRefused) {
-  const std::string bytes = ReadBytes(local_.File("lab.db"));
+  const std::string bytes = ReadFileBytes(local_.File("lab.db"));
   grpc::Status status = RawUpload("lab", bytes, Crc(bytes) ^ 1u);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("checksum mismatch"));

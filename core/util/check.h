@@ -30,6 +30,13 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Bad input of one kind: it names something (a map, a file) that does not exist. Services map
+// it to "not found" rather than "invalid argument".
+class NotFoundError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 namespace internal {
 [[noreturn]] void ThrowCheckFailure(const char* file, int line, const char* condition,
                                     const std::string& message);

@@ -23,6 +23,15 @@ std::vector<TextLine> ReadTextLines(const std::string& path) {
   return lines;
 }
 
+std::string ReadFileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(StrCat(path, ": cannot open file"));
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) throw InputError(StrCat(path, ": read error"));
+  return bytes.str();
+}
+
 std::vector<DataRow> ReadDataRows(const std::string& path, char delimiter) {
   std::vector<DataRow> rows;
   for (const TextLine& line : ReadTextLines(path)) {

@@ -33,6 +33,10 @@ int64_t FieldAsInt64(const std::string& path, const DataRow& row, size_t index);
 // Throws unless the row has at least `count` fields.
 void RequireFieldCount(const std::string& path, const DataRow& row, size_t count);
 
+// The whole file as bytes (images, certificates, map files). Throws InputError naming the file
+// when it cannot be read.
+std::string ReadFileBytes(const std::string& path);
+
 // Writes `contents` to `path` atomically (temporary file + rename), so a reader never sees a
 // half-written file. Throws InputError when the file cannot be written.
 void WriteFileAtomically(const std::string& path, const std::string& contents);
