@@ -20,6 +20,8 @@
 
 #include "client/commands.h"
 #include "client/connection.h"
+#include "client/dataset_frames.h"
+#include "client/localization_report.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/localization/localizer.h"
 #include "core/util/args.h"
@@ -136,23 +138,6 @@ ErrorStats TimeGrpc(const Connection& server, const std::string& map_name, const
   return ComputeErrorStats(ms);
 }
 
-// Per-step statistics of one run, in the order of the paper's Tables 5-6.
-std::vector<std::pair<std::string, ErrorStats>> StepStats(const ModeRun& run) {
-  const std::vector<std::pair<std::string, double StepTimings::*>> steps = {
-      {"undistort", &StepTimings::undistort_ms}, {"detect", &StepTimings::detect_ms},
-      {"describe", &StepTimings::describe_ms},   {"predict", &StepTimings::predict_ms},
-      {"project", &StepTimings::project_ms},     {"match", &StepTimings::match_ms},
-      {"pose", &StepTimings::pose_ms},           {"relocalize", &StepTimings::relocalize_ms},
-      {"total", &StepTimings::total_ms}};
-  std::vector<std::pair<std::string, ErrorStats>> out;
-  for (const auto& [name, member] : steps) {
-    std::vector<double> values;
-    for (const LocalizationResult& r : run.results) values.push_back(r.stats.times.*member);
-    out.emplace_back(name, ComputeErrorStats(values));
-  }
-  return out;
-}
-
 }  // namespace
 
 int RunBench(const Args& raw_args) {
@@ -177,8 +162,7 @@ int RunBench(const Args& raw_args) {
   if (!parser.Parse(raw_args, std::cout)) return 0;
   server.ApplyEnvironment();
   if (frames < 0 || relocalization_queries < 1) throw UsageError("--frames >= 0, queries >= 1");
-  const Dataset dataset = ReadDataset(
-      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Dataset dataset = ReadQueryDataset(dataset_dir, format, /*odometry=*/false);
   const auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(map_path));
   const size_t count =
       frames > 0 ? std::min<size_t>(frames, dataset.frames.size()) : dataset.frames.size();
@@ -199,7 +183,7 @@ int RunBench(const Args& raw_args) {
     if (server_map.empty()) server_map = std::filesystem::path(map_path).stem().string();
     grpc_ms = TimeGrpc(server, server_map, dataset, images);
   }
-  const auto steps = StepStats(visibility);
+  const std::vector<StepSummary> steps = SummarizeSteps(visibility.results);
   const double ours = visibility.total_ms.median;
   if (json) {
     JsonWriter out;
@@ -221,8 +205,12 @@ int RunBench(const Args& raw_args) {
         .Field("brute_force_localized_fraction", brute.localized_fraction);
     if (grpc_ms) out.Field("grpc_ms_per_frame_median", grpc_ms->median);
     out.Key("steps").BeginObject();
-    for (const auto& [name, stats] : steps) {
-      out.Key(name).BeginObject().Field("median", stats.median).Field("p95", stats.p95).EndObject();
+    for (const StepSummary& step : steps) {
+      out.Key(step.name)
+          .BeginObject()
+          .Field("median", step.ms.median)
+          .Field("p95", step.ms.p95)
+          .EndObject();
     }
     out.EndObject().EndObject();
     std::cout << out.str() << "\n";
@@ -231,8 +219,8 @@ int RunBench(const Args& raw_args) {
   std::printf("%zu frames %dx%d, map %zu keyframes / %zu points\n\n", count, camera.width(),
               camera.height(), map->keyframe_count(), map->point_count());
   std::printf("%-28s %10s %10s\n", "step (visibility-guided)", "median ms", "p95 ms");
-  for (const auto& [name, stats] : steps) {
-    std::printf("%-28s %10.3f %10.3f\n", name.c_str(), stats.median, stats.p95);
+  for (const StepSummary& step : steps) {
+    std::printf("%-28s %10.3f %10.3f\n", step.name.c_str(), step.ms.median, step.ms.p95);
   }
   std::printf("\n%-28s %10s %10s %10s\n", "per frame", "median ms", "x ORB", "localized");
   const auto row = [&](const char* name, double ms, double localized) {

@@ -2,7 +2,6 @@
 
 #include <map>
 
-#include "core/eval/trajectory_eval.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
@@ -22,15 +21,6 @@ std::vector<std::pair<const char*, double>> StepColumns(const StepTimings& t) {
           {"project_ms", t.project_ms},     {"match_ms", t.match_ms},
           {"pose_ms", t.pose_ms},           {"relocalize_ms", t.relocalize_ms},
           {"total_ms", t.total_ms}};
-}
-
-ErrorStats StatsOf(const std::vector<LocalizationResult>& results,
-                   double (*value)(const LocalizationResult&), bool posed_only = false) {
-  std::vector<double> values;
-  for (const LocalizationResult& r : results) {
-    if (!posed_only || VisualFix(r)) values.push_back(value(r));
-  }
-  return ComputeErrorStats(values);
 }
 
 struct GroundTruthErrors {
@@ -107,126 +97,127 @@ std::string RunReport::ProgressLine(size_t frame_count) const {
                 FormatFixed(r.stats.times.total_ms, 1), " ms");
 }
 
-void RunReport::PrintSummary(std::FILE* out, const Trajectory* ground_truth) const {
-  const size_t n = results_.size();
-  std::map<std::string, int> by_status;
-  size_t visual = 0, posed = 0;
-  for (const LocalizationResult& r : results_) {
-    ++by_status[TrackingStatusName(r.status)];
-    visual += VisualFix(r);
-    posed += r.has_pose;
+namespace {
+
+// Everything the printed and the JSON summaries report, computed once.
+struct Summary {
+  size_t frames = 0;
+  size_t visual = 0;  // Frames with a visual fix.
+  size_t posed = 0;   // Frames with any pose (motion bridging included).
+  std::map<std::string, int64_t> by_status;
+  ErrorStats inliers, inlier_ratio, ransac_iterations;  // Over frames with a visual fix.
+  std::vector<StepSummary> steps;
+  std::optional<GroundTruthErrors> errors, bridged;
+};
+
+Summary Summarize(const std::vector<LocalizationResult>& results, const Trajectory* ground_truth) {
+  Summary summary;
+  summary.frames = results.size();
+  std::vector<double> inliers, ratios, iterations;
+  for (const LocalizationResult& r : results) {
+    ++summary.by_status[TrackingStatusName(r.status)];
+    summary.posed += r.has_pose;
+    if (!VisualFix(r)) continue;
+    ++summary.visual;
+    inliers.push_back(r.stats.inliers);
+    ratios.push_back(r.stats.inlier_ratio);
+    iterations.push_back(r.stats.ransac_iterations);
   }
-  std::fprintf(out, "frames %zu: localized %zu (%.1f%%) by vision, %zu with a pose;", n, visual,
-               n ? 100.0 * visual / n : 0.0, posed);
-  for (const auto& [status, count] : by_status) std::fprintf(out, " %s %d", status.c_str(), count);
+  summary.inliers = ComputeErrorStats(inliers);
+  summary.inlier_ratio = ComputeErrorStats(ratios);
+  summary.ransac_iterations = ComputeErrorStats(iterations);
+  summary.steps = SummarizeSteps(results);
+  if (ground_truth) {
+    summary.errors = CompareWithGroundTruth(results, *ground_truth);
+    summary.bridged = CompareWithGroundTruth(results, *ground_truth, PoseSource::kMotion);
+  }
+  return summary;
+}
+
+}  // namespace
+
+std::vector<StepSummary> SummarizeSteps(const std::vector<LocalizationResult>& results) {
+  std::vector<StepSummary> steps;
+  for (const auto& [column, unused] : StepColumns({})) {
+    std::string name = column;
+    steps.push_back({name.substr(0, name.size() - 3), {}});  // Drop "_ms".
+  }
+  std::vector<std::vector<double>> values(steps.size());
+  for (const LocalizationResult& r : results) {
+    const auto columns = StepColumns(r.stats.times);
+    for (size_t c = 0; c < columns.size(); ++c) values[c].push_back(columns[c].second);
+  }
+  for (size_t c = 0; c < steps.size(); ++c) steps[c].ms = ComputeErrorStats(values[c]);
+  return steps;
+}
+
+void RunReport::PrintSummary(std::FILE* out, const Trajectory* ground_truth) const {
+  const Summary s = Summarize(results_, ground_truth);
+  std::fprintf(out, "frames %zu: localized %zu (%.1f%%) by vision, %zu with a pose;", s.frames,
+               s.visual, s.frames ? 100.0 * s.visual / s.frames : 0.0, s.posed);
+  for (const auto& [status, count] : s.by_status) {
+    std::fprintf(out, " %s %lld", status.c_str(), static_cast<long long>(count));
+  }
   std::fprintf(out, "\n");
-  const ErrorStats inliers = StatsOf(
-      results_, [](const LocalizationResult& r) { return static_cast<double>(r.stats.inliers); },
-      true);
-  const ErrorStats ratio = StatsOf(
-      results_, [](const LocalizationResult& r) { return r.stats.inlier_ratio; }, true);
-  const ErrorStats iterations = StatsOf(
-      results_,
-      [](const LocalizationResult& r) { return static_cast<double>(r.stats.ransac_iterations); },
-      true);
   std::fprintf(out,
                "localized frames: inliers median %.0f, inlier ratio median %.3f, RANSAC "
                "iterations median %.0f (max %.0f)\n",
-               inliers.median, ratio.median, iterations.median, iterations.max);
+               s.inliers.median, s.inlier_ratio.median, s.ransac_iterations.median,
+               s.ransac_iterations.max);
   std::fprintf(out, "time per frame (ms), median / p95:");
-  std::vector<std::vector<double>> columns(StepColumns({}).size());
-  for (const LocalizationResult& r : results_) {
-    const auto steps = StepColumns(r.stats.times);
-    for (size_t c = 0; c < steps.size(); ++c) columns[c].push_back(steps[c].second);
-  }
-  const auto names = StepColumns({});
-  for (size_t c = 0; c < columns.size(); ++c) {
-    const ErrorStats stats = ComputeErrorStats(columns[c]);
-    std::string name = names[c].first;
-    name.resize(name.size() - 3);  // Drop "_ms".
-    std::fprintf(out, " %s %.2f/%.2f", name.c_str(), stats.median, stats.p95);
+  for (const StepSummary& step : s.steps) {
+    std::fprintf(out, " %s %.2f/%.2f", step.name.c_str(), step.ms.median, step.ms.p95);
   }
   std::fprintf(out, "\n");
-  if (ground_truth) {
-    const GroundTruthErrors errors = CompareWithGroundTruth(results_, *ground_truth);
+  if (s.errors) {
     std::fprintf(out,
                  "error against ground truth (%zu posed frames): position median %.2f cm, max "
                  "%.2f cm; rotation median %.3f deg, max %.3f deg\n",
-                 errors.compared, 100 * errors.position_m.median, 100 * errors.position_m.max,
-                 errors.rotation_deg.median, errors.rotation_deg.max);
-    const GroundTruthErrors bridged =
-        CompareWithGroundTruth(results_, *ground_truth, PoseSource::kMotion);
-    if (bridged.compared > 0) {
-      std::fprintf(out,
-                   "  of which bridged by motion alone (%zu frames): position median %.2f cm, "
-                   "max %.2f cm; rotation max %.3f deg\n",
-                   bridged.compared, 100 * bridged.position_m.median, 100 * bridged.position_m.max,
-                   bridged.rotation_deg.max);
-    }
+                 s.errors->compared, 100 * s.errors->position_m.median,
+                 100 * s.errors->position_m.max, s.errors->rotation_deg.median,
+                 s.errors->rotation_deg.max);
+  }
+  if (s.bridged && s.bridged->compared > 0) {
+    std::fprintf(out,
+                 "  of which bridged by motion alone (%zu frames): position median %.2f cm, "
+                 "max %.2f cm; rotation max %.3f deg\n",
+                 s.bridged->compared, 100 * s.bridged->position_m.median,
+                 100 * s.bridged->position_m.max, s.bridged->rotation_deg.max);
   }
 }
 
 void RunReport::WriteSummaryJson(JsonWriter& json, const Trajectory* ground_truth) const {
-  size_t visual = 0, posed = 0;
-  std::map<std::string, int64_t> by_status;
-  for (const LocalizationResult& r : results_) {
-    ++by_status[TrackingStatusName(r.status)];
-    visual += VisualFix(r);
-    posed += r.has_pose;
-  }
-  const double n = static_cast<double>(std::max<size_t>(1, results_.size()));
-  json.Field("frames", static_cast<int64_t>(results_.size()))
-      .Field("localized_fraction", visual / n)
-      .Field("posed_fraction", posed / n);
+  const Summary s = Summarize(results_, ground_truth);
+  const double n = static_cast<double>(std::max<size_t>(1, s.frames));
+  json.Field("frames", static_cast<int64_t>(s.frames))
+      .Field("localized_fraction", s.visual / n)
+      .Field("posed_fraction", s.posed / n);
   json.Key("statuses").BeginObject();
-  for (const auto& [status, count] : by_status) json.Field(status, count);
+  for (const auto& [status, count] : s.by_status) json.Field(status, count);
   json.EndObject();
   json.Key("ms_per_frame").BeginObject();
-  const auto names = StepColumns({});
-  for (size_t c = 0; c < names.size(); ++c) {
-    std::vector<double> values;
-    for (const LocalizationResult& r : results_)
-      values.push_back(StepColumns(r.stats.times)[c].second);
-    const ErrorStats stats = ComputeErrorStats(values);
-    json.Key(names[c].first)
+  for (const StepSummary& step : s.steps) {
+    json.Key(step.name + "_ms")
         .BeginObject()
-        .Field("median", stats.median)
-        .Field("p95", stats.p95)
+        .Field("median", step.ms.median)
+        .Field("p95", step.ms.p95)
         .EndObject();
   }
   json.EndObject();
-  json.Field("inlier_ratio_median",
-             StatsOf(
-                 results_, [](const LocalizationResult& r) { return r.stats.inlier_ratio; }, true)
-                 .median);
-  json.Field(
-      "inliers_median",
-      StatsOf(
-          results_,
-          [](const LocalizationResult& r) { return static_cast<double>(r.stats.inliers); }, true)
-          .median);
-  json.Field("ransac_iterations_median",
-             StatsOf(
-                 results_,
-                 [](const LocalizationResult& r) {
-                   return static_cast<double>(r.stats.ransac_iterations);
-                 },
-                 true)
-                 .median);
-  if (ground_truth) {
-    const GroundTruthErrors errors = CompareWithGroundTruth(results_, *ground_truth);
+  json.Field("inlier_ratio_median", s.inlier_ratio.median)
+      .Field("inliers_median", s.inliers.median)
+      .Field("ransac_iterations_median", s.ransac_iterations.median);
+  if (s.errors) {
     json.Key("ground_truth")
         .BeginObject()
-        .Field("compared", static_cast<int64_t>(errors.compared))
-        .Field("position_median_m", errors.position_m.median)
-        .Field("position_max_m", errors.position_m.max)
-        .Field("rotation_median_deg", errors.rotation_deg.median)
-        .Field("rotation_max_deg", errors.rotation_deg.max);
-    const GroundTruthErrors bridged =
-        CompareWithGroundTruth(results_, *ground_truth, PoseSource::kMotion);
-    json.Field("bridged_compared", static_cast<int64_t>(bridged.compared))
-        .Field("bridged_position_max_m", bridged.position_m.max)
-        .Field("bridged_position_median_m", bridged.position_m.median)
+        .Field("compared", static_cast<int64_t>(s.errors->compared))
+        .Field("position_median_m", s.errors->position_m.median)
+        .Field("position_max_m", s.errors->position_m.max)
+        .Field("rotation_median_deg", s.errors->rotation_deg.median)
+        .Field("rotation_max_deg", s.errors->rotation_deg.max)
+        .Field("bridged_compared", static_cast<int64_t>(s.bridged->compared))
+        .Field("bridged_position_max_m", s.bridged->position_m.max)
+        .Field("bridged_position_median_m", s.bridged->position_m.median)
         .EndObject();
   }
 }

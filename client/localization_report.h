@@ -8,11 +8,19 @@
 #include <string>
 #include <vector>
 
+#include "core/eval/trajectory_eval.h"
 #include "core/geometry/trajectory.h"
 #include "core/localization/localizer.h"
 #include "core/util/json.h"
 
 namespace visloc::cli {
+
+// Median and 95th percentile of one per-frame step ("detect", ..., "total"), in CSV order.
+struct StepSummary {
+  std::string name;  // Without the "_ms" of its CSV column.
+  ErrorStats ms;
+};
+std::vector<StepSummary> SummarizeSteps(const std::vector<LocalizationResult>& results);
 
 // The CSV header line (no newline) and one row per frame.
 std::string StatsCsvHeader();

@@ -93,12 +93,7 @@ int RunLocalize(const Args& raw_args) {
   if (args.frames < 0) throw UsageError("--frames must not be negative");
   const auto blackout = ParseBlackout(args.blackout);
 
-  const Dataset dataset = ReadDataset(
-      args.dataset_dir,
-      args.format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(args.format)));
-  if (args.odometry && dataset.odom_from_cam.empty()) {
-    throw InputError(args.dataset_dir + ": --odometry given but the dataset has no odometry");
-  }
+  const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, args.odometry);
   const Trajectory ground_truth = args.gt_path.empty() ? Trajectory{} : ReadTum(args.gt_path);
   auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(args.map_path));
 

@@ -89,12 +89,7 @@ int RunStream(const Args& raw_args) {
     throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
   if (args.policy != "all" && args.policy != "newest")
     throw UsageError("--policy is all or newest");
-  const Dataset dataset = ReadDataset(
-      args.dataset_dir,
-      args.format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(args.format)));
-  if (args.odometry && dataset.odom_from_cam.empty()) {
-    throw InputError(args.dataset_dir + ": --odometry given but the dataset has no odometry");
-  }
+  const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, args.odometry);
   const Trajectory ground_truth = args.gt_path.empty() ? Trajectory{} : ReadTum(args.gt_path);
   const size_t count = args.frames > 0 ? std::min<size_t>(args.frames, dataset.frames.size())
                                        : dataset.frames.size();

@@ -10,30 +10,21 @@
 #include "core/util/temp_dir.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
 namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
 using testing::RunProcess;
 using ::testing::StartsWith;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return RunProcess(args);
-}
+using testing::Visloc;
 
 // Values of "key":number in a flat-enough JSON text, by the first occurrence of the key
 // after `after` (a key that opens the enclosing object).
-double JsonNumber(const std::string& json, const std::string& after, const std::string& key) {
-  const size_t scope = json.find("\"" + after + "\"");
-  EXPECT_NE(scope, std::string::npos) << after;
-  const size_t at = json.find("\"" + key + "\":", scope);
-  EXPECT_NE(at, std::string::npos) << key;
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 TEST(CliTest, EveryCommandHasHelpAndUnknownCommandsFail) {
   const ProcessResult top = Visloc({"--help"});

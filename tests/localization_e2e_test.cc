@@ -14,31 +14,18 @@
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/tum.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
 namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
+using testing::Visloc;
 
 const std::string kData = VISLOC_LOCALIZATION_DATA;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
-
-// The number after "key": in `json`, searching from the first occurrence of "section".
-double JsonNumber(const std::string& json, const std::string& section, const std::string& key) {
-  const size_t from = section.empty() ? 0 : json.find("\"" + section + "\"");
-  const size_t at = json.find("\"" + key + "\":", from);
-  if (from == std::string::npos || at == std::string::npos) {
-    ADD_FAILURE() << "no " << section << "." << key << " in " << json;
-    return -1;
-  }
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 struct LocalizeRun {
   std::string summary_json;  // visloc localize --json
@@ -276,6 +263,14 @@ TEST(LocalizationE2eTest, BenchReportsEveryFigureInOneRun) {
   EXPECT_GT(JsonNumber(bench.out, "", "brute_force_ms_per_frame_median"),
             JsonNumber(bench.out, "", "ms_per_frame_median"));
   EXPECT_GT(JsonNumber(bench.out, "detect", "median"), 0.0);
+}
+
+TEST(LocalizationE2eTest, MaxFeaturesCapsTheKeypointsPerQuery) {
+  const LocalizeRun capped = Localize("query_square", {"--frames", "20", "--max-features", "150"});
+  EXPECT_EQ(capped.localized_fraction(), 1.0);
+  for (const auto& row : capped.stats) EXPECT_LE(std::stoi(row[3]), 150);  // Column 3: features.
+  const LocalizeRun full = Localize("query_square", {"--frames", "20"});
+  EXPECT_GT(MedianColumn(full, 3), 150);
 }
 
 TEST(LocalizationE2eTest, BadArgumentsAreNamed) {

@@ -15,6 +15,7 @@
 #include "core/util/text_file.h"
 #include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
@@ -22,13 +23,10 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
 using testing::ServerProcess;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
+using testing::Visloc;
 
 size_t FilesIn(const std::string& dir) {
   size_t n = 0;

@@ -9,23 +9,16 @@
 #include "mapstore/map_store.h"
 #include "sim/sequences.h"
 #include "sim/world.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
 namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
-
-double JsonNumber(const std::string& json, const std::string& after, const std::string& key) {
-  const size_t at = json.find("\"" + key + "\":", json.find("\"" + after + "\""));
-  return std::stod(json.substr(at + key.size() + 3));
-}
+using testing::Visloc;
 
 TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
   TempDir dir;

@@ -10,6 +10,7 @@
 #include "dataset/ply.h"
 #include "dataset/tum.h"
 #include "mapstore/sqlite.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
 namespace visloc {
@@ -17,12 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
+using testing::Visloc;
 
 void WriteMap(const std::string& path, int points, int seed) {
   ASSERT_EQ(

@@ -13,22 +13,20 @@
 #include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
 #include "mapstore/map_store.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
 namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
 using testing::ServerProcess;
+using testing::Visloc;
 
 const std::string kRobotToken = "robot-token-0123456789";
 const std::string kAdminToken = "admin-token-0123456789";
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
 
 class SecurityE2eTest : public ::testing::Test {
  protected:
@@ -93,9 +91,9 @@ TEST_F(SecurityE2eTest, MalformedTokenFilesAreRefusedAtStart) {
 TEST_F(SecurityE2eTest, TlsServesOnlyClientsThatTrustItsCertificate) {
   const std::string key = files_.File("server.key"), cert = files_.File("server.pem");
   const ProcessResult openssl =
-      testing::RunProcess({"/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout",
-                           key, "-out", cert, "-days", "1", "-subj", "/CN=localhost", "-addext",
-                           "subjectAltName=IP:127.0.0.1,DNS:localhost"});
+      testing::RunProcess({"/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes",
+                           "-keyout", key, "-out", cert, "-days", "1", "-subj", "/CN=localhost",
+                           "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"});
   ASSERT_EQ(openssl.exit_code, 0) << openssl.err;
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--tls-cert", cert, "--tls-key", key});
   const ProcessResult trusted =

@@ -16,6 +16,7 @@
 #include "dataset/tum.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "proto/convert.h"
+#include "tests/support/e2e.h"
 #include "tests/support/process.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
@@ -23,24 +24,12 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using testing::JsonNumber;
 using testing::ProcessResult;
 using testing::ServerProcess;
+using testing::Visloc;
 
 const std::string kData = VISLOC_LOCALIZATION_DATA;
-
-ProcessResult Visloc(std::vector<std::string> args) {
-  args.insert(args.begin(), VISLOC_CLI_PATH);
-  return testing::RunProcess(args);
-}
-
-double JsonNumber(const std::string& json, const std::string& key) {
-  const size_t at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) {
-    ADD_FAILURE() << "no " << key << " in " << json;
-    return -1;
-  }
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 // A maps folder holding the fixture's map as "square".
 class ServerE2eTest : public ::testing::Test {
@@ -252,6 +241,18 @@ TEST_F(ServerE2eTest, SigtermDrainsAnOpenStreamAndExitsCleanly) {
   const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(JsonNumber(json, "frames"), 30) << json;
   EXPECT_THAT(server.Log(), HasSubstr("event=server_draining signal=SIGTERM open_sessions=1"));
+}
+
+TEST_F(ServerE2eTest, BenchMeasuresTheRoundTripThroughTheServer) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult bench = Visloc(
+      {"bench", "--dataset", kData + "/query_square", "--map", maps_.File("square.db"), "--frames",
+       "10", "--relocalization-queries", "2", "--server", server.address(), "--json"});
+  ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  EXPECT_GT(JsonNumber(bench.out, "grpc_ms_per_frame_median"), 0.0);
+  // The server answered the 10 raw frames of one session.
+  server.Stop();
+  EXPECT_THAT(server.Log(), HasSubstr("map=square frames=10 localized_fraction=1.000"));
 }
 
 TEST(ServerStartTest, RefusesAMissingMapsFolderAndNonLoopbackWithoutAuth) {

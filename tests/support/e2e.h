@@ -1,0 +1,38 @@
+#pragma once
+// Helpers shared by the end-to-end tests: run the `visloc` binary under test, and read numbers
+// out of its --json output. Header-only because VISLOC_CLI_PATH is defined per test target
+// (tests/CMakeLists.txt, visloc_add_e2e_test).
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "tests/support/process.h"
+
+namespace visloc::testing {
+
+// Runs `visloc ARGS...` and captures its exit code and output.
+inline ProcessResult Visloc(std::vector<std::string> args) {
+  args.insert(args.begin(), VISLOC_CLI_PATH);
+  return RunProcess(args);
+}
+
+// The number after "key": in `json`, searching from the first occurrence of "section" (from the
+// start when `section` is empty). A missing key fails the test and returns -1.
+inline double JsonNumber(const std::string& json, const std::string& section,
+                         const std::string& key) {
+  const size_t from = section.empty() ? 0 : json.find("\"" + section + "\"");
+  const size_t at = from == std::string::npos ? from : json.find("\"" + key + "\":", from);
+  if (at == std::string::npos) {
+    ADD_FAILURE() << "no " << section << (section.empty() ? "" : ".") << key << " in " << json;
+    return -1;
+  }
+  return std::stod(json.substr(at + key.size() + 3));
+}
+
+inline double JsonNumber(const std::string& json, const std::string& key) {
+  return JsonNumber(json, "", key);
+}
+
+}  // namespace visloc::testing
