@@ -58,12 +58,6 @@ void MotionFilter::Predict(const Rigid3d& cam_prev_from_cam_cur, const Matrix6d&
   covariance_ = a * covariance_ * a.transpose() + process_noise;
 }
 
-double MotionFilter::PoseDistance(const Rigid3d& measured, const Matrix6d& noise) const {
-  const Vector6d innovation = LogSe3(map_from_cam_.Inverse() * measured);
-  const Matrix6d s = covariance_ + noise;
-  return innovation.dot(s.ldlt().solve(innovation));
-}
-
 double MotionFilter::UpdatePose(const Rigid3d& measured, const Matrix6d& noise) {
   VISLOC_CHECK(initialized_, "MotionFilter::UpdatePose before Reset");
   const Vector6d innovation = LogSe3(map_from_cam_.Inverse() * measured);

@@ -39,8 +39,6 @@ class MotionFilter {
   // Fuses a measured map_from_cam with covariance `noise` (same perturbation). Returns the
   // squared Mahalanobis distance of the innovation (6 degrees of freedom), for gating.
   double UpdatePose(const Rigid3d& measured_map_from_cam, const Matrix6d& noise);
-  // The squared Mahalanobis distance UpdatePose would see, without updating.
-  double PoseDistance(const Rigid3d& measured_map_from_cam, const Matrix6d& noise) const;
 
   // Fuses "the camera centre is `height_m` above the plane {x : normal . x = offset}" (map
   // frame, unit normal) with standard deviation sigma_m.

@@ -19,7 +19,6 @@ class QueryFrame {
 
   const FeatureSet& features() const { return features_; }
   size_t size() const { return features_.size(); }
-  const Eigen::Vector2f& pixel(int i) const { return features_.keypoints[i].pixel; }
   // Undistorted normalized image coordinates (x/z, y/z) of keypoint i.
   const Eigen::Vector2d& normalized(int i) const { return normalized_[i]; }
 
