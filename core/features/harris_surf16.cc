@@ -306,6 +306,28 @@ class BoxSums {
     return data_[y1 * stride_ + x1] - data_[y0 * stride_ + x1] - data_[y1 * stride_ + x0] +
            data_[y0 * stride_ + x0];
   }
+  // True when [x0, x1) x [y0, y1) lies inside the image, so no coordinate needs clamping.
+  bool Contains(int x0, int y0, int x1, int y1) const {
+    return x0 >= 0 && y0 >= 0 && x1 <= max_x_ && y1 <= max_y_;
+  }
+  // Haar responses of half size `half` at (x, y) for a window inside the image: right minus
+  // left half, bottom minus top half, from 8 integral reads (the halves share their edges).
+  void HaarInside(int x, int y, int half, float* dx, float* dy) const {
+    const int* top = data_ + (y - half) * stride_ + x;
+    const int* mid = data_ + y * stride_ + x;
+    const int* bottom = data_ + (y + half) * stride_ + x;
+    *dx = static_cast<float>(bottom[half] - top[half] + bottom[-half] - top[-half] -
+                             2 * (bottom[0] - top[0]));
+    *dy = static_cast<float>(bottom[half] + top[half] - bottom[-half] - top[-half] -
+                             2 * (mid[half] - mid[-half]));
+  }
+  // The same anywhere: windows that overhang the border read the edge.
+  void HaarClamped(int x, int y, int half, float* dx, float* dy) const {
+    *dx = static_cast<float>(Sum(x, y - half, x + half, y + half) -
+                             Sum(x - half, y - half, x, y + half));
+    *dy = static_cast<float>(Sum(x - half, y, x + half, y + half) -
+                             Sum(x - half, y - half, x + half, y));
+  }
 
  private:
   cv::Mat integral_;
@@ -336,25 +358,37 @@ cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
       xs[j] = RoundToInt(k.pixel.x() + pattern->offsets[j]);
       ys[j] = RoundToInt(k.pixel.y() + pattern->offsets[j]);
     }
-    float* d = descriptors.ptr<float>(static_cast<int>(i));
-    std::fill(d, d + 16, 0.0f);
+    const bool inside =
+        boxes.Contains(xs.front() - half, ys.front() - half, xs.back() + half, ys.back() + half);
+    // Per sub-region sums (sum dx, sum dy, sum |dx|, sum |dy|), accumulated in locals.
+    std::array<float, 16> sums{};
     for (int sy = 0; sy < kSamplesPerSide; ++sy) {
       const int y = ys[sy];
-      for (int sx = 0; sx < kSamplesPerSide; ++sx) {
-        const int x = xs[sx];
-        // Haar responses: right minus left half, bottom minus top half.
-        const float dx = static_cast<float>(boxes.Sum(x, y - half, x + half, y + half) -
-                                            boxes.Sum(x - half, y - half, x, y + half));
-        const float dy = static_cast<float>(boxes.Sum(x - half, y, x + half, y + half) -
-                                            boxes.Sum(x - half, y - half, x + half, y));
-        const float w = pattern->weights[sy * kSamplesPerSide + sx];
-        float* cell = d + 4 * ((sy / 6) * 2 + (sx / 6));
-        cell[0] += w * dx;
-        cell[1] += w * dy;
-        cell[2] += w * std::abs(dx);
-        cell[3] += w * std::abs(dy);
+      const float* weights = &pattern->weights[sy * kSamplesPerSide];
+      for (int column = 0; column < 2; ++column) {
+        float sum_dx = 0, sum_dy = 0, sum_abs_dx = 0, sum_abs_dy = 0;
+        for (int sx = 6 * column; sx < 6 * column + 6; ++sx) {
+          float dx, dy;
+          if (inside) {
+            boxes.HaarInside(xs[sx], y, half, &dx, &dy);
+          } else {
+            boxes.HaarClamped(xs[sx], y, half, &dx, &dy);
+          }
+          const float w = weights[sx];
+          sum_dx += w * dx;
+          sum_dy += w * dy;
+          sum_abs_dx += w * std::abs(dx);
+          sum_abs_dy += w * std::abs(dy);
+        }
+        float* cell = &sums[4 * ((sy / 6) * 2 + column)];
+        cell[0] += sum_dx;
+        cell[1] += sum_dy;
+        cell[2] += sum_abs_dx;
+        cell[3] += sum_abs_dy;
       }
     }
+    float* d = descriptors.ptr<float>(static_cast<int>(i));
+    std::copy(sums.begin(), sums.end(), d);
     double norm = 0;
     for (int j = 0; j < 16; ++j) norm += d[j] * d[j];
     norm = std::sqrt(norm);
