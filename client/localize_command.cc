@@ -26,7 +26,7 @@ struct LocalizeArgs {
   std::string mode = "visibility";
   std::string blackout;  // "START,DURATION" in seconds from the first frame.
   bool odometry = false, no_gyro = false, planar = false, bridge_constant_velocity = false;
-  bool json = false;
+  bool json = false, all_scales = false;
   int frames = 0;
   int k = 10;
   int max_features = 0;
@@ -82,6 +82,8 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("k", &args.k, "visibility: nearest keyframes K");
   parser.AddFlag("threshold", &args.threshold, "visibility: probability threshold P_t");
   parser.AddFlag("max-features", &args.max_features, "keypoints per image (0: the map's setting)");
+  parser.AddSwitch("all-scales", &args.all_scales,
+                   "detect at all of the map's scales (default: the finest only, faster)");
   parser.AddFlag("blackout", &args.blackout,
                  "START,DURATION: black images in this window (s from the first frame)");
   parser.AddSwitch("bridge-constant-velocity", &args.bridge_constant_velocity,
@@ -103,6 +105,7 @@ int RunLocalize(const Args& raw_args) {
   options.tracker.visibility.probability_threshold = args.threshold;
   options.motion.bridge_with_constant_velocity = args.bridge_constant_velocity;
   options.max_query_features = args.max_features;
+  options.finest_scale_only = !args.all_scales;
   if (args.planar) options.motion.plane_sigma_m = 0.02;
   Localizer localizer(map, dataset.left.camera, options,
                       args.odometry ? std::optional(dataset.left.body_from_cam) : std::nullopt);

@@ -1,5 +1,7 @@
 #include "core/features/features.h"
 
+#include <algorithm>
+#include <limits>
 #include <map>
 
 #include <opencv2/features2d.hpp>
@@ -146,6 +148,32 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
   }
   throw InputError(
       StrCat("unknown feature kind '", settings.kind, "' (expected harris_surf16 or orb)"));
+}
+
+FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,
+                                     bool finest_scale_only) {
+  VISLOC_CHECK(max_features >= 0, "max_features ", max_features);
+  FeatureSettings query = map_settings;
+  query.params.clear();
+  double finest_scale = std::numeric_limits<double>::max();
+  for (const auto& [name, value] : map_settings.params) {
+    if (name.rfind("scale_", 0) == 0 && name != "scale_factor") {
+      finest_scale = std::min(finest_scale, value);
+    }
+  }
+  for (auto [name, value] : map_settings.params) {
+    if (name == "max_features" && max_features > 0) value = max_features;
+    if (finest_scale_only) {
+      // Harris scales: keep the smallest as the only one. ORB: the full-resolution level.
+      if (name.rfind("scale_", 0) == 0 && name != "scale_factor") {
+        if (name != "scale_0") continue;
+        value = finest_scale;
+      }
+      if (name == "levels" && map_settings.kind == "orb") value = 1;
+    }
+    query.params.emplace_back(name, value);
+  }
+  return query;
 }
 
 }  // namespace visloc

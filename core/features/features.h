@@ -55,6 +55,14 @@ FeatureSettings DefaultFeatureSettings(const std::string& kind);
 // Creates the extractor for settings read from a map (unknown parameters are an InputError).
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& settings);
 
+// The settings for query images of a localization session: the map's detector and descriptor
+// (so descriptors stay comparable), with at most `max_features` corners (0 keeps the map's) and,
+// when `finest_scale_only`, detection at the finest scale only. The seed paper does the same
+// for speed (paper 000, sec. 6.3): corners of the coarser scales are still in the map, but a
+// single scale finds enough of them for the pose, at a fraction of the detection time.
+FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,
+                                     bool finest_scale_only);
+
 // Keeps the nearest and second-nearest candidates of a descriptor search, for Lowe's ratio test
 // (a match is distinctive when best < ratio * second).
 struct NearestTwo {

@@ -52,26 +52,17 @@ bool Transfer(const ViewPair& v, const Keypoint& k, Eigen::Vector2d* pixel) {
   return v.camera.Project(v.world_from_second.Inverse() * (v.world_from_first * in_first), pixel);
 }
 
-class FeatureKindTest : public ::testing::TestWithParam<std::string> {};
+struct MatchQuality {
+  double repeatability = 0.0;    // Share of transferable corners detected again within 1.5 px.
+  double median_error_px = 0.0;  // Of those re-detections.
+  int matched = 0;               // Distinctive nearest-descriptor matches within a 30 px window.
+  double precision = 0.0;        // Share of them on the right corner (within 2 px).
+};
 
-TEST_P(FeatureKindTest, EvenlySpreadRepeatableAndMatchable) {
-  const ViewPair& v = Views();
-  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings(GetParam()));
-  ExtractStats stats;
-  const FeatureSet a = extractor->Extract(v.first, &stats);
-  const FeatureSet b = extractor->Extract(v.second);
-  EXPECT_GE(a.size(), 300u);
-  EXPECT_LE(a.size(), 600u);
-  EXPECT_EQ(a.descriptors.rows, static_cast<int>(a.size()));
-  EXPECT_EQ(a.descriptors.cols, extractor->settings().descriptor_dim);
-  std::set<int> cells;
-  for (const Keypoint& k : a.keypoints)
-    cells.insert(static_cast<int>(k.pixel.y() / 40) * 8 + static_cast<int>(k.pixel.x() / 40));
-  EXPECT_GE(cells.size(), 32u) << "features must cover most of the 8x6 grid";
-
-  // Repeatability: the share of first-view corners detected again within 1.5 px of where the
-  // true geometry puts them, and the accuracy of those positions. Then matching precision:
-  // nearest-descriptor matches (with a ratio test) that land on the right corner.
+// Repeatability: the share of first-view corners detected again within 1.5 px of where the true
+// geometry puts them, and the accuracy of those positions. Then matching precision:
+// nearest-descriptor matches (with a ratio test) that land on the right corner.
+MatchQuality Measure(const ViewPair& v, const FeatureSet& a, const FeatureSet& b) {
   int transferable = 0, repeated = 0, matched = 0, correct = 0;
   std::vector<double> errors;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -97,20 +88,91 @@ TEST_P(FeatureKindTest, EvenlySpreadRepeatableAndMatchable) {
     }
   }
   std::sort(errors.begin(), errors.end());
-  const double repeatability = static_cast<double>(repeated) / transferable;
-  const double precision = static_cast<double>(correct) / matched;
+  MatchQuality quality;
+  quality.repeatability = static_cast<double>(repeated) / std::max(1, transferable);
+  quality.median_error_px = errors.empty() ? 1e9 : errors[errors.size() / 2];
+  quality.matched = matched;
+  quality.precision = static_cast<double>(correct) / std::max(1, matched);
+  return quality;
+}
+
+class FeatureKindTest : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(FeatureKindTest, EvenlySpreadRepeatableAndMatchable) {
+  const ViewPair& v = Views();
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings(GetParam()));
+  ExtractStats stats;
+  const FeatureSet a = extractor->Extract(v.first, &stats);
+  const FeatureSet b = extractor->Extract(v.second);
+  EXPECT_GE(a.size(), 300u);
+  EXPECT_LE(a.size(), 600u);
+  EXPECT_EQ(a.descriptors.rows, static_cast<int>(a.size()));
+  EXPECT_EQ(a.descriptors.cols, extractor->settings().descriptor_dim);
+  std::set<int> cells;
+  for (const Keypoint& k : a.keypoints)
+    cells.insert(static_cast<int>(k.pixel.y() / 40) * 8 + static_cast<int>(k.pixel.x() / 40));
+  EXPECT_GE(cells.size(), 32u) << "features must cover most of the 8x6 grid";
+
+  const MatchQuality quality = Measure(v, a, b);
   std::printf(
       "%s: %zu features (%d detected), repeatability %.2f, median error %.2f px, "
       "%d matches with precision %.2f; detect %.2f ms, describe %.2f ms\n",
-      GetParam().c_str(), a.size(), stats.detected, repeatability, errors[errors.size() / 2],
-      matched, precision, stats.detect_ms, stats.describe_ms);
-  EXPECT_GT(repeatability, 0.5);
-  EXPECT_LT(errors[errors.size() / 2], 0.5);
-  EXPECT_GT(matched, 100);
-  EXPECT_GT(precision, 0.9);
+      GetParam().c_str(), a.size(), stats.detected, quality.repeatability, quality.median_error_px,
+      quality.matched, quality.precision, stats.detect_ms, stats.describe_ms);
+  EXPECT_GT(quality.repeatability, 0.5);
+  EXPECT_LT(quality.median_error_px, 0.5);
+  EXPECT_GT(quality.matched, 100);
+  EXPECT_GT(quality.precision, 0.9);
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, FeatureKindTest, ::testing::Values("harris_surf16", "orb"));
+
+// A localization session detects at the finest scale only; its corners must still find the
+// map's (all-scale) corners and descriptors.
+TEST(QueryFeatureSettingsTest, FinestScaleQueryMatchesAllScaleMapFeatures) {
+  const FeatureSettings map_settings = DefaultFeatureSettings("harris_surf16");
+  const FeatureSettings query_settings = QueryFeatureSettings(map_settings, 600, true);
+  const std::vector<std::pair<std::string, double>> expected_params = {
+      {"scale_0", 1.2},      {"harris_k", 0.04}, {"relative_threshold", 0.005},
+      {"max_features", 600}, {"grid_cols", 8},   {"grid_rows", 6},
+      {"border_px", 8}};
+  EXPECT_EQ(query_settings.params, expected_params);
+  EXPECT_EQ(QueryFeatureSettings(map_settings, 0, false).params, map_settings.params);
+  for (const auto& [name, value] : QueryFeatureSettings(map_settings, 250, false).params) {
+    if (name == "max_features") {
+      EXPECT_EQ(value, 250.0);
+    }
+  }
+
+  const ViewPair& v = Views();
+  const FeatureSet all_scales = CreateFeatureExtractor(map_settings)->Extract(v.first);
+  const FeatureSet query_features = CreateFeatureExtractor(query_settings)->Extract(v.second);
+  EXPECT_EQ(query_features.size(), 600u);
+  for (const Keypoint& k : query_features.keypoints) ASSERT_FLOAT_EQ(k.scale_px, 1.2f);
+  // The map's corners of the finest scale are the ones a finest-scale query can match (the
+  // coarser ones' descriptors cover larger windows; the pose's RANSAC rejects what they draw).
+  FeatureSet map_features;
+  for (size_t i = 0; i < all_scales.size(); ++i) {
+    if (all_scales.keypoints[i].scale_px != 1.2f) continue;
+    map_features.keypoints.push_back(all_scales.keypoints[i]);
+    map_features.descriptors.push_back(all_scales.descriptors.row(static_cast<int>(i)));
+  }
+  EXPECT_GT(map_features.size(), all_scales.size() / 2);
+  const MatchQuality quality = Measure(v, map_features, query_features);
+  std::printf(
+      "finest-scale query: %zu of %zu map corners at the finest scale, %d matches with "
+      "precision %.2f\n",
+      map_features.size(), all_scales.size(), quality.matched, quality.precision);
+  EXPECT_GT(quality.matched, 100);
+  EXPECT_GT(quality.precision, 0.9);
+
+  FeatureSettings orb = DefaultFeatureSettings("orb");
+  for (const auto& [name, value] : QueryFeatureSettings(orb, 0, true).params) {
+    if (name == "levels") {
+      EXPECT_EQ(value, 1.0);
+    }
+  }
+}
 
 TEST(HarrisSurf16Test, DescriptorIgnoresContrastAndBrightness) {
   const ViewPair& v = Views();

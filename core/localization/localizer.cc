@@ -100,13 +100,8 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCa
   if (body_from_cam) {
     cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
   }
-  FeatureSettings features = map_->map().features;
-  if (options_.max_query_features > 0) {
-    for (auto& [name, value] : features.params) {
-      if (name == "max_features") value = options_.max_query_features;
-    }
-  }
-  extractor_ = CreateFeatureExtractor(features);
+  extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
+      map_->map().features, options_.max_query_features, options_.finest_scale_only));
   tracker_ = std::make_unique<PoseTracker>(map_, camera_, options_.tracker);
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
   if (options_.motion.plane_sigma_m > 0) {

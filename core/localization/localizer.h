@@ -101,6 +101,9 @@ struct LocalizerOptions {
   // Keypoints per query image; 0 keeps the map's setting. The detector and descriptor are
   // always the map's; only how many of the strongest (evenly spread) corners are kept changes.
   int max_query_features = 0;
+  // Detect query corners at the map detector's finest scale only (as the seed paper does for
+  // speed); false uses all of the map's scales.
+  bool finest_scale_only = true;
   void Check() const;
 };
 
