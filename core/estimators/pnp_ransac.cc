@@ -10,7 +10,7 @@ namespace visloc {
 
 void PnpRansacOptions::Check() const {
   VISLOC_CHECK(max_error_px > 0 && max_iterations >= 1 && min_iterations >= 1 && confidence > 0 &&
-                   confidence < 1 && min_inliers >= 3,
+                   confidence < 1 && min_inliers >= 3 && refinement_passes >= 1,
                "PnP RANSAC options");
   refine.Check();
 }
@@ -96,16 +96,16 @@ PnpResult RefinePoseOnInliers(const Rigid3d& cam_from_world,
   PnpResult result;
   const int n = static_cast<int>(observations.size());
   if (n < std::max(3, options.min_inliers)) return result;
-  // Refine on the inliers, re-select with the refined pose, refine once more.
+  // Select the inliers and refine on them; each further pass re-selects with the refined pose
+  // (a rough hypothesis misses inliers at the image edges) and refines again.
   std::vector<char> mask;
-  if (CountInliers(cam_from_world, observations, options, &mask) < options.min_inliers) {
-    return result;
+  Rigid3d pose = cam_from_world;
+  for (int pass = 0; pass < options.refinement_passes; ++pass) {
+    if (CountInliers(pose, observations, options, &mask) < options.min_inliers) return result;
+    const bool last = pass + 1 == options.refinement_passes;
+    pose = RefinePose(pose, Select(observations, mask), options.refine,
+                      last ? &result.stats.refine : nullptr, last ? &result.covariance : nullptr);
   }
-  Rigid3d pose = RefinePose(cam_from_world, Select(observations, mask), options.refine);
-  const int inliers = CountInliers(pose, observations, options, &mask);
-  if (inliers < options.min_inliers) return result;
-  pose = RefinePose(pose, Select(observations, mask), options.refine, &result.stats.refine,
-                    &result.covariance);
   result.stats.inliers = CountInliers(pose, observations, options, &result.inlier_mask);
   result.stats.inlier_ratio = static_cast<double>(result.stats.inliers) / n;
   result.cam_from_world = pose;

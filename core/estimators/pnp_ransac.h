@@ -18,6 +18,8 @@ struct PnpRansacOptions {
   int min_iterations = 5;
   double confidence = 0.999;
   int min_inliers = 8;
+  // Select-inliers-and-refine passes after RANSAC (or on a given pose), at least 1.
+  int refinement_passes = 2;
   uint64_t seed = 1;  // Sampling is deterministic given the seed.
   PoseRefineOptions refine;
   void Check() const;

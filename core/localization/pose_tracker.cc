@@ -129,7 +129,10 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
     fix.times.match_ms += timer.ElapsedMs();
   }
   timer.Restart();
-  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), options_.ransac);
+  // One refinement pass: RefineAround re-matches around this pose and refines twice anyway.
+  PnpRansacOptions ransac_options = options_.ransac;
+  ransac_options.refinement_passes = 1;
+  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), ransac_options);
   fix.times.pose_ms += timer.ElapsedMs();
   fix.ransac_iterations = ransac.stats.iterations;
   fix.putatives = static_cast<int>(matches.size());
