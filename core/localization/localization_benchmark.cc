@@ -11,11 +11,13 @@
 #include "core/estimators/p3p.h"
 #include "core/estimators/pnp_ransac.h"
 #include "core/features/features.h"
+#include "core/features/harris_surf16.h"
 #include "core/localization/localizer.h"
 #include "core/localization/map_matching.h"
 #include "core/localization/pose_tracker.h"
 #include "core/localization/visibility_predictor.h"
 #include "core/map/synthetic_map.h"
+#include "core/util/memory.h"
 #include "core/util/random.h"
 
 namespace visloc {
@@ -35,15 +37,42 @@ cv::Mat TexturedImage(int width, int height) {
   return image;
 }
 
+// Extraction as a map is built (all scales, second argument 0) and as a localization session
+// runs it (the finest scale only, second argument 1).
+HarrisSurf16Options ExtractorOptions(bool finest_scale_only) {
+  HarrisSurf16Options options;
+  if (finest_scale_only) options.scales_px.resize(1);
+  return options;
+}
+
 void BM_ExtractHarrisSurf16(benchmark::State& state) {
   const cv::Mat image =
       TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
-  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  const HarrisSurf16Extractor extractor(ExtractorOptions(state.range(1) == 1));
   size_t features = 0;
-  for (auto _ : state) features = extractor->Extract(image).size();
+  for (auto _ : state) features = extractor.Extract(image).size();
   state.counters["features"] = static_cast<double>(features);
 }
-BENCHMARK(BM_ExtractHarrisSurf16)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ExtractHarrisSurf16)->ArgsProduct({{320, 640}, {0, 1}})->Unit(benchmark::kMillisecond);
+
+// The two halves of extraction apart: detection, and description of the detected corners.
+void BM_DetectHarrisSurf16(benchmark::State& state) {
+  const cv::Mat image =
+      TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
+  const HarrisSurf16Extractor extractor(ExtractorOptions(state.range(1) == 1));
+  for (auto _ : state) benchmark::DoNotOptimize(extractor.Detect(image));
+}
+BENCHMARK(BM_DetectHarrisSurf16)->ArgsProduct({{320, 640}, {0, 1}})->Unit(benchmark::kMillisecond);
+
+void BM_DescribeHarrisSurf16(benchmark::State& state) {
+  const cv::Mat image =
+      TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
+  const HarrisSurf16Extractor extractor(ExtractorOptions(false));
+  const std::vector<Keypoint> keypoints = extractor.Detect(image);
+  for (auto _ : state) benchmark::DoNotOptimize(extractor.Describe(image, keypoints));
+  state.counters["features"] = static_cast<double>(keypoints.size());
+}
+BENCHMARK(BM_DescribeHarrisSurf16)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
 
 void BM_OrbReference(benchmark::State& state) {
   const cv::Mat image =
@@ -208,4 +237,13 @@ BENCHMARK(BM_RelocalizeScaling)->Arg(100)->Arg(1000)->Arg(10000)->Unit(benchmark
 }  // namespace
 }  // namespace visloc
 
-BENCHMARK_MAIN();
+// As in the server and the CLI: freed image buffers are reused, not returned to the kernel
+// and faulted in again on the next frame.
+int main(int argc, char** argv) {
+  visloc::KeepFreedMemoryForReuse();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
