@@ -2,7 +2,8 @@
 // baselines and a reference measured alongside so every figure can be read as a ratio that is
 // stable across machines (seed paper 000, Tables 5-6):
 //   - the per-step timing of the visibility-guided tracker (median and 95th percentile);
-//   - the same engine with visibility prediction off (transparent world) and brute force;
+//   - the same engine with visibility prediction off (transparent world) and brute force, whole
+//     frames and the map search alone (predict + project + match + pose, what prediction changes);
 //   - OpenCV's ORB (ORB::create(500), default pyramid) detecting and describing each frame;
 //   - global relocalization per query (features + retrieval + verification);
 //   - with --server: the round trip per frame through gRPC, one frame in flight at a time.
@@ -41,6 +42,8 @@ struct ModeRun {
   std::vector<LocalizationResult> results;
   double localized_fraction = 0.0;
   ErrorStats total_ms;
+  // The part visibility prediction changes: predict + project + match + pose, per frame.
+  ErrorStats map_search_ms;
 };
 
 ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
@@ -49,7 +52,7 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
   options.tracker.prediction = mode;
   Localizer localizer(map, dataset.left.camera, options);
   ModeRun run;
-  std::vector<double> totals;
+  std::vector<double> totals, map_search;
   int localized = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     FrameInput input;
@@ -58,10 +61,13 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
     run.results.push_back(localizer.Process(input));
     const LocalizationResult& r = run.results.back();
     totals.push_back(r.stats.times.total_ms);
+    const StepTimings& t = r.stats.times;
+    map_search.push_back(t.predict_ms + t.project_ms + t.match_ms + t.pose_ms);
     localized += r.has_pose && r.source != PoseSource::kMotion;
   }
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
   run.total_ms = ComputeErrorStats(totals);
+  run.map_search_ms = ComputeErrorStats(map_search);
   return run;
 }
 
@@ -89,7 +95,8 @@ RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap
   const LocalizerOptions options;
   const PoseTracker tracker(map, camera, options.tracker);
   const Relocalizer relocalizer(tracker, options.relocalization);
-  const auto extractor = CreateFeatureExtractor(map->map().features);
+  const auto extractor = CreateFeatureExtractor(QueryFeatureSettings(
+      map->map().features, options.max_query_features, options.finest_scale_only));
   std::vector<double> ms;
   int found = 0;
   const size_t step = std::max<size_t>(1, images.size() / std::max(1, queries));
@@ -196,6 +203,8 @@ int RunBench(const Args& raw_args) {
         .Field("ms_per_frame_median", ours)
         .Field("ms_per_frame_p95", visibility.total_ms.p95)
         .Field("no_visibility_ms_per_frame_median", transparent.total_ms.median)
+        .Field("map_search_ms_median", visibility.map_search_ms.median)
+        .Field("no_visibility_map_search_ms_median", transparent.map_search_ms.median)
         .Field("brute_force_ms_per_frame_median", brute.total_ms.median)
         .Field("orb_reference_ms_per_frame_median", orb.median)
         .Field("relocalization_ms_median", relocalization.ms.median)
@@ -230,6 +239,10 @@ int RunBench(const Args& raw_args) {
   row("transparent world", transparent.total_ms.median, transparent.localized_fraction);
   row("brute force", brute.total_ms.median, brute.localized_fraction);
   std::printf("%-28s %10.3f %10.2f\n", "ORB(500) reference", orb.median, 1.0);
+  std::printf("%-28s %10.3f %10.2f            (transparent world %.3f ms, %.2fx)\n",
+              "map search (predict..pose)", visibility.map_search_ms.median,
+              visibility.map_search_ms.median / orb.median, transparent.map_search_ms.median,
+              transparent.map_search_ms.median / visibility.map_search_ms.median);
   std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.1fx one tracking frame)\n",
               "global relocalization/query", relocalization.ms.median,
               relocalization.ms.median / orb.median, 100 * relocalization.found_fraction,

@@ -252,9 +252,10 @@ TEST(LocalizationE2eTest, BenchReportsEveryFigureInOneRun) {
       Visloc({"bench", "--dataset", kData + "/query_square", "--map", kData + "/map.db", "--frames",
               "20", "--relocalization-queries", "4", "--json"});
   ASSERT_EQ(bench.exit_code, 0) << bench.err;
-  for (const char* key : {"ms_per_frame_median", "ms_per_frame_p95",
-                          "no_visibility_ms_per_frame_median", "brute_force_ms_per_frame_median",
-                          "orb_reference_ms_per_frame_median", "relocalization_ms_median"}) {
+  for (const char* key :
+       {"ms_per_frame_median", "ms_per_frame_p95", "no_visibility_ms_per_frame_median",
+        "brute_force_ms_per_frame_median", "orb_reference_ms_per_frame_median",
+        "relocalization_ms_median", "map_search_ms_median", "no_visibility_map_search_ms_median"}) {
     EXPECT_GT(JsonNumber(bench.out, "", key), 0.0) << key;
   }
   EXPECT_EQ(JsonNumber(bench.out, "", "localized_fraction"), 1.0);
