@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <opencv2/imgcodecs.hpp>
@@ -212,39 +213,69 @@ PlotStats WriteTopViewPlot(const PlotInput& input, const std::string& path) {
   return stats;
 }
 
-void WriteSeriesPlot(const std::vector<Series>& panels, const std::string& title,
-                     const std::string& path) {
+void WriteCurvePlot(const std::vector<Curve>& panels, const CurveAxes& axes,
+                    const std::string& path) {
   VISLOC_CHECK(!panels.empty(), "no series to plot");
   const int width = 900, panel_height = 160, left = 70, right = 20, top = 40, gap = 40;
   const int height = top + static_cast<int>(panels.size()) * (panel_height + gap);
   const std::unique_ptr<Canvas> canvas = MakeCanvas(path, width, height);
-  canvas->Text(left, 22, title, {20, 20, 20});
+  canvas->Text(left, 22, axes.title, {20, 20, 20});
   for (size_t p = 0; p < panels.size(); ++p) {
-    const Series& series = panels[p];
-    const double y0 = top + p * (panel_height + gap) + 18;  // Panel top.
-    double max_value = 0.0;
-    for (double v : series.values) {
-      if (std::isfinite(v)) max_value = std::max(max_value, v);
+    const Curve& curve = panels[p];
+    VISLOC_CHECK(curve.x.size() == curve.y.size(), "curve x and y differ in length");
+    const auto x_scaled = [&](double x) { return axes.log_x ? std::log10(x) : x; };
+    double min_x = std::numeric_limits<double>::max(), max_x = -min_x, max_y = 0.0;
+    for (size_t i = 0; i < curve.x.size(); ++i) {
+      if (!std::isfinite(curve.y[i]) || (axes.log_x && curve.x[i] <= 0)) continue;
+      min_x = std::min(min_x, x_scaled(curve.x[i]));
+      max_x = std::max(max_x, x_scaled(curve.x[i]));
+      max_y = std::max(max_y, curve.y[i]);
     }
-    if (max_value <= 0) max_value = 1.0;
-    const size_t n = std::max<size_t>(2, series.values.size());
-    const auto x_of = [&](size_t i) { return left + (width - left - right) * double(i) / (n - 1); };
-    const auto y_of = [&](double v) { return y0 + panel_height * (1.0 - v / max_value); };
+    if (max_y <= 0) max_y = 1.0;
+    if (!(max_x > min_x)) min_x = 0, max_x = 1;
+    const double y0 = top + p * (panel_height + gap) + 18;  // Panel top.
+    const auto x_of = [&](double x) {
+      return left + (width - left - right) * (x_scaled(x) - min_x) / (max_x - min_x);
+    };
+    const auto y_of = [&](double v) { return y0 + panel_height * (1.0 - v / max_y); };
     canvas->Line(left, y0 + panel_height, width - right, y0 + panel_height, {120, 120, 120}, 1,
                  false);
     canvas->Line(left, y0, left, y0 + panel_height, {120, 120, 120}, 1, false);
-    canvas->Text(left, y0 - 6, series.title, {20, 20, 20});
-    canvas->Text(8, y0 + 10, FormatFixed(max_value, max_value < 10 ? 2 : 0), {80, 80, 80});
+    canvas->Text(left, y0 - 6, curve.title, {20, 20, 20});
+    canvas->Text(8, y0 + 10, FormatFixed(max_y, max_y < 10 ? 2 : 0), {80, 80, 80});
     canvas->Text(8, y0 + panel_height, "0", {80, 80, 80});
-    canvas->Text(width - right - 80, y0 + panel_height + 16,
-                 StrCat(series.values.size(), " frames"), {80, 80, 80});
-    for (size_t i = 1; i < series.values.size(); ++i) {
-      const double a = series.values[i - 1], b = series.values[i];
-      if (!std::isfinite(a) || !std::isfinite(b)) continue;
-      canvas->Line(x_of(i - 1), y_of(a), x_of(i), y_of(b), {40, 90, 200}, 1.5, false);
+    canvas->Text(width - right - 220, y0 + panel_height + 16, axes.x_label, {80, 80, 80});
+    const bool markers = curve.x.size() <= 50;
+    for (size_t i = 0; i < curve.x.size(); ++i) {
+      if (!std::isfinite(curve.y[i]) || (axes.log_x && curve.x[i] <= 0)) continue;
+      if (markers) {
+        canvas->Dot(x_of(curve.x[i]), y_of(curve.y[i]), 3.5, {40, 90, 200});
+        // Labels of the right half go to the left of their marker, to stay on the canvas.
+        const double label_x =
+            x_of(curve.x[i]) < width / 2 ? x_of(curve.x[i]) + 5 : x_of(curve.x[i]) - 110;
+        canvas->Text(label_x, y_of(curve.y[i]) - 8,
+                     StrCat(FormatFixed(curve.x[i], 0), ": ", FormatFixed(curve.y[i], 2)),
+                     {60, 60, 60});
+      }
+      if (i == 0 || !std::isfinite(curve.y[i - 1])) continue;
+      canvas->Line(x_of(curve.x[i - 1]), y_of(curve.y[i - 1]), x_of(curve.x[i]), y_of(curve.y[i]),
+                   {40, 90, 200}, 1.5, false);
     }
   }
   canvas->Save(path);
+}
+
+void WriteSeriesPlot(const std::vector<Series>& panels, const std::string& title,
+                     const std::string& path) {
+  std::vector<Curve> curves;
+  size_t frames = 0;
+  for (const Series& series : panels) {
+    Curve curve{series.title, {}, series.values};
+    for (size_t i = 0; i < series.values.size(); ++i) curve.x.push_back(static_cast<double>(i));
+    frames = std::max(frames, series.values.size());
+    curves.push_back(std::move(curve));
+  }
+  WriteCurvePlot(curves, CurveAxes{title, StrCat("frame (", frames, " frames)"), false}, path);
 }
 
 }  // namespace visloc::cli

@@ -45,4 +45,19 @@ struct Series {
 void WriteSeriesPlot(const std::vector<Series>& panels, const std::string& title,
                      const std::string& path);
 
+// Curves y(x), one panel each, stacked, sharing an x axis (the scaling curves: relocalization
+// time against keyframes, load time against points). With log_x the x axis is logarithmic
+// (x <= 0 is left out). Up to 50 points get markers with their values.
+struct Curve {
+  std::string title;
+  std::vector<double> x, y;
+};
+struct CurveAxes {
+  std::string title;
+  std::string x_label;
+  bool log_x = false;
+};
+void WriteCurvePlot(const std::vector<Curve>& panels, const CurveAxes& axes,
+                    const std::string& path);
+
 }  // namespace visloc::cli

@@ -1,4 +1,6 @@
 // `visloc plot --map MAP.db --trajectory EST.tum [--stats S.csv] [--gt GT.tum] --out P.png|P.svg`
+// `visloc plot --series --stats S.csv --out P.png`; `visloc plot --curves C.csv [--log-x] --out
+// P.png`
 
 #include <cmath>
 #include <cstdio>
@@ -56,11 +58,41 @@ StatsTable ReadStats(const std::string& path, const std::vector<std::string>& wa
   return table;
 }
 
+// A numeric CSV for --curves: a header of names, the first column x, each further column one
+// curve against it.
+std::vector<Curve> ReadCurves(const std::string& path, std::string* x_label) {
+  const std::vector<TextLine> lines = ReadTextLines(path);
+  if (lines.size() < 2) throw InputError(path + ": a curves CSV needs a header and a row");
+  const std::vector<std::string> header = Split(lines[0].text, ',');
+  if (header.size() < 2) ThrowAtLine(path, lines[0].number, "want x and at least one y column");
+  *x_label = header[0];
+  std::vector<Curve> curves(header.size() - 1);
+  for (size_t c = 1; c < header.size(); ++c) curves[c - 1].title = header[c];
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::vector<std::string> fields = Split(lines[i].text, ',');
+    if (fields.size() != header.size()) {
+      ThrowAtLine(path, lines[i].number, StrCat("want ", header.size(), " columns"));
+    }
+    std::vector<double> values;
+    for (const std::string& field : fields) {
+      const std::optional<double> value = ParseDouble(field);
+      if (!value) ThrowAtLine(path, lines[i].number, "not a number: '" + field + "'");
+      values.push_back(*value);
+    }
+    for (size_t c = 1; c < values.size(); ++c) {
+      curves[c - 1].x.push_back(values[0]);
+      curves[c - 1].y.push_back(values[c]);
+    }
+  }
+  return curves;
+}
+
 }  // namespace
 
 int RunPlot(const Args& args) {
   std::string map_path, trajectory_path, stats_path, gt_path, out;
-  bool series = false;
+  std::string curves_path;
+  bool series = false, log_x = false;
   ArgParser parser("visloc plot",
                    "Draws a top view of a map with an estimated trajectory coloured by inlier "
                    "ratio (and ground truth beside it), or with --series the per-frame time, "
@@ -69,10 +101,24 @@ int RunPlot(const Args& args) {
   parser.AddFlag("map", &map_path, "map file (.db); top view");
   parser.AddFlag("trajectory", &trajectory_path, "estimated poses (TUM); top view");
   parser.AddSwitch("series", &series, "plot --stats along the sequence instead");
+  parser.AddFlag("curves", &curves_path,
+                 "plot curves instead: a CSV whose first column is x, each other column a curve");
+  parser.AddSwitch("log-x", &log_x, "with --curves: logarithmic x axis");
   parser.AddFlag("stats", &stats_path, "per-frame statistics (CSV) for the colours");
   parser.AddFlag("gt", &gt_path, "ground truth (TUM, map frame)");
   parser.AddFlag("out", &out, "PLOT.png or PLOT.svg", true);
   if (!parser.Parse(args, std::cout)) return 0;
+  if (!curves_path.empty()) {
+    std::string x_label;
+    const std::vector<Curve> curves = ReadCurves(curves_path, &x_label);
+    WriteCurvePlot(curves,
+                   CurveAxes{std::filesystem::path(curves_path).filename().string(),
+                             x_label + (log_x ? " (log scale)" : ""), log_x},
+                   out);
+    std::printf("wrote %s: %zu curves of %zu points\n", out.c_str(), curves.size(),
+                curves[0].x.size());
+    return 0;
+  }
   if (series) {
     if (stats_path.empty()) throw UsageError("--series needs --stats");
     const StatsTable table =

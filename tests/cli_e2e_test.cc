@@ -23,9 +23,6 @@ using testing::RunProcess;
 using ::testing::StartsWith;
 using testing::Visloc;
 
-// Values of "key":number in a flat-enough JSON text, by the first occurrence of the key
-// after `after` (a key that opens the enclosing object).
-
 TEST(CliTest, EveryCommandHasHelpAndUnknownCommandsFail) {
   const ProcessResult top = Visloc({"--help"});
   EXPECT_EQ(top.exit_code, 0);
@@ -121,6 +118,27 @@ TEST(CliTest, SimListsTheCatalogue) {
   EXPECT_EQ(list.exit_code, 0);
   EXPECT_THAT(list.out, HasSubstr("kidnap"));
   EXPECT_THAT(list.out, HasSubstr("outofmap"));
+}
+
+TEST(CliTest, PlotCurvesDrawsEachColumnAgainstTheFirst) {
+  TempDir dir("visloc-curves");
+  std::ofstream(dir.File("scaling.csv")) << "keyframes,relocalization_ms,memory_MiB\n"
+                                         << "100,1.5,0.5\n1000,1.9,4.9\n10000,2.4,49\n";
+  const ProcessResult plot = Visloc(
+      {"plot", "--curves", dir.File("scaling.csv"), "--log-x", "--out", dir.File("s.svg")});
+  ASSERT_EQ(plot.exit_code, 0) << plot.err;
+  EXPECT_THAT(plot.out, HasSubstr("2 curves of 3 points"));
+  std::ifstream svg(dir.File("s.svg"));
+  const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(text, HasSubstr("relocalization_ms"));
+  EXPECT_THAT(text, HasSubstr("10000: 49.00"));
+  EXPECT_THAT(text, HasSubstr("keyframes (log scale)"));
+
+  std::ofstream(dir.File("bad.csv")) << "keyframes,ms\n100,fast\n";
+  const ProcessResult bad =
+      Visloc({"plot", "--curves", dir.File("bad.csv"), "--out", dir.File("b.svg")});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_THAT(bad.err, HasSubstr("bad.csv:2: not a number: 'fast'"));
 }
 
 }  // namespace
