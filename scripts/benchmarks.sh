@@ -77,7 +77,7 @@ wait "$server_pid" || true
 
 echo "== scaling (microbenchmarks)"
 # One CSV per family: the CSV reporter's columns come from the first benchmark it reports.
-families=(ExtractHarrisSurf16 OrbReference DescriptorDistance PredictVisibility ProjectAndMatch
+families=(ExtractHarrisSurf16 DetectHarrisSurf16 DescribeHarrisSurf16 OrbReference DescriptorDistance PredictVisibility ProjectAndMatch
           SolveP3P PnpRansac RelocalizeScaling)
 for family in "${families[@]}"; do
   build/core/localization/localization_benchmark --benchmark_format=csv \
@@ -91,6 +91,24 @@ for n in 1 4 16 32; do
   bash scripts/load.sh "$WORK/map320.db" "$WORK/seq320/query_square" "$n" 15 150 all | tail -1 > "$WORK/load$n.txt"
 done
 bash scripts/load.sh "$WORK/map320.db" "$WORK/seq320/query_square" 16 15 150 newest | tail -1 > "$WORK/load16n.txt"
+
+echo "== scaling curves"
+# CSVs for `visloc plot --curves`: first column x, each further column one curve.
+csv_column() {  # FILE NAME_PREFIX -> "n,col1,col2" rows for the named columns of a benchmark CSV
+  awk -F, -v prefix="$2" -v cols="$3" 'NR == 1 { for (i = 1; i <= NF; ++i) { h = $i; gsub(/"/, "", h); col[h] = i }; next }
+    index($1, "\"" prefix "/") == 1 { n = $1; gsub(/"|.*\//, "", n); line = n
+      k = split(cols, c, " "); for (j = 1; j <= k; ++j) line = line "," $col[c[j]]; print line }' "$1"
+}
+{ echo "keyframes,relocalization per query (ms),map memory (MiB)"
+  csv_column "$WORK/micro_RelocalizeScaling.csv" BM_RelocalizeScaling "real_time memory_MiB"; } > "$WORK/scaling_relocalization.csv"
+{ echo "map points,load time (ms)"; csv_column "$WORK/mapstore.csv" BM_LoadMap "real_time"; } > "$WORK/scaling_load.csv"
+{ echo "sessions at 15 Hz,frames per second,latency p50 (ms),latency p99 (ms)"
+  for n in 1 4 16 32; do
+    sed -n 's/.*= \([0-9.]*\) frames\/s; latency p50 \([0-9.]*\) ms.*p99 \([0-9.]*\) ms.*/\1,\2,\3/p' "$WORK/load$n.txt" | sed "s/^/$n,/"
+  done; } > "$WORK/scaling_sessions.csv"
+$V plot --curves "$WORK/scaling_relocalization.csv" --log-x --out docs/img/scaling_relocalization.png > /dev/null
+$V plot --curves "$WORK/scaling_load.csv" --log-x --out docs/img/scaling_load.png > /dev/null
+$V plot --curves "$WORK/scaling_sessions.csv" --out docs/img/scaling_sessions.png > /dev/null
 
 echo "== writing $REPORT"
 {
@@ -140,7 +158,8 @@ echo "== writing $REPORT"
   echo
   echo "\`visloc bench --dataset D --map M --json\`: medians per frame in ms, decoded images, one thread per"
   echo "session. The paper's figures are means on a 2011 Core i7 (single CPU); compare ours through the ORB"
-  echo "reference measured in the same run."
+  echo "reference measured in the same run. Query corners are detected at the map's finest scale only"
+  echo "(as the paper does for speed, sec. 6.3); maps are built with all three scales."
   echo
   echo "| step | 320x240 square | 320x240 straight | paper 320x240 square | 640x480 square | 640x480 circle | paper 640x480 square |"
   echo "|---|---|---|---|---|---|---|"
@@ -161,6 +180,12 @@ echo "== writing $REPORT"
     echo "| ${key%_median} | $(fmt "$a" 1 2) | $(awk -v a="$a" -v o="$o" 'BEGIN{printf "%.2f", a/o}') | $(fmt "$b" 1 2) | $(awk -v a="$b" -v o="$p" 'BEGIN{printf "%.2f", a/o}') |"
   done
   echo
+  a=$(field "$WORK/bench320.json" map_search_ms_median) b=$(field "$WORK/bench320.json" no_visibility_map_search_ms_median)
+  c=$(field "$WORK/bench640.json" map_search_ms_median) d=$(field "$WORK/bench640.json" no_visibility_map_search_ms_median)
+  echo "The map search alone (predict + project + match + pose, the steps visibility prediction changes):"
+  echo "$(fmt "$a" 1 3) ms with visibility against $(fmt "$b" 1 3) ms for the transparent world at 320x240"
+  echo "($(awk -v a="$a" -v b="$b" 'BEGIN{printf "%.2f", b/a}')x), $(fmt "$c" 1 3) against $(fmt "$d" 1 3) ms at 640x480 ($(awk -v a="$c" -v b="$d" 'BEGIN{printf "%.2f", b/a}')x)."
+  echo
   echo "Through gRPC on loopback, one frame in flight, raw 8-bit frames (\`visloc bench --server\`, first 300"
   echo "frames of the square): $(fmt "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" 1 2) ms per frame against $(fmt "$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 1 2) ms in-process in the same run"
   echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x)."
@@ -179,6 +204,8 @@ echo "== writing $REPORT"
            /^"BM_RelocalizeScaling/ { n = $1; gsub(/"|BM_RelocalizeScaling\//, "", n);
              printf "| %s | %d | %.1f MiB | %.2f %s |\n", n, $col["points"], $col["memory_MiB"], $col["real_time"], $col["time_unit"] }' "$WORK/micro_RelocalizeScaling.csv"
   echo
+  echo "![relocalization scaling](img/scaling_relocalization.png)"
+  echo
   echo "Map loading (\`build/mapstore/map_store_benchmark\`):"
   echo
   echo "| points | load time |"
@@ -186,6 +213,8 @@ echo "== writing $REPORT"
   awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) { h = $i; gsub(/"/, "", h); col[h] = i }; next }
            /^"BM_LoadMap/ { n = $1; gsub(/"|BM_LoadMap\//, "", n);
              printf "| %s | %.1f %s |\n", n, $col["real_time"], $col["time_unit"] }' "$WORK/mapstore.csv"
+  echo
+  echo "![load scaling](img/scaling_load.png)"
   echo
   echo "Hot kernels (same binary): "
   echo
@@ -201,7 +230,13 @@ echo "== writing $REPORT"
   echo
   echo "\`scripts/load.sh map320.db seq320/query_square N 15 150 POLICY\`:"
   echo
+  echo "| sessions | frames/s | p50 latency | p99 latency |"
+  echo "|---|---|---|---|"
+  tail -n +2 "$WORK/scaling_sessions.csv" | awk -F, '{ printf "| %d | %.1f | %.1f ms | %.1f ms |\n", $1, $2, $3, $4 }'
+  echo
   for n in 1 4 16 32; do echo "- N=$n, all frames: $(sed 's/^summary: //' "$WORK/load$n.txt")"; done
   echo "- N=16, newest only: $(sed 's/^summary: //' "$WORK/load16n.txt")"
+  echo
+  echo "![sessions](img/scaling_sessions.png)"
 } > "$REPORT"
 echo "wrote $REPORT"
