@@ -596,7 +596,9 @@ void CheckFileExists(const std::string& path) {
 
 }  // namespace
 
-void SaveMap(const Map& map, const std::string& path) {
+void SaveMap(const Map& map, const std::string& path, const SaveMapOptions& options) {
+  const int page = options.page_size_bytes;
+  VISLOC_CHECK(page >= 512 && page <= 65536 && (page & (page - 1)) == 0, "page size ", page);
   const auto problems = FindMapProblems(map, 1);
   VISLOC_CHECK(problems.empty(),
                "refusing to write an inconsistent map: ", problems.empty() ? "" : problems[0]);
@@ -608,10 +610,10 @@ void SaveMap(const Map& map, const std::string& path) {
   try {
     {
       Database db = Database::OpenForWriting(temp);
-      // Large pages: BLOB-heavy rows load with fewer page reads. The temporary file is
-      // discarded on any failure, so its journal can live in memory; FULL sync makes COMMIT
-      // durable before the rename publishes the file.
-      db.Exec("PRAGMA page_size = 65536; PRAGMA journal_mode = MEMORY; PRAGMA synchronous = FULL;");
+      // The temporary file is discarded on any failure, so its journal can live in memory;
+      // FULL sync makes COMMIT durable before the rename publishes the file.
+      db.Exec(StrCat("PRAGMA page_size = ", page,
+                     "; PRAGMA journal_mode = MEMORY; PRAGMA synchronous = FULL;"));
       Transaction transaction(db);
       db.Exec(kSchemaSql);
       WriteMeta(db, map);

@@ -26,9 +26,15 @@ namespace visloc::mapstore {
 // message saying a newer visloc wrote them.
 constexpr int kMapSchemaVersion = 1;
 
+struct SaveMapOptions {
+  // SQLite page size: large pages load BLOB-heavy maps with fewer reads; small ones keep tiny
+  // maps (fuzzing seeds, tests) small on disk. A power of two from 512 to 65536.
+  int page_size_bytes = 65536;
+};
+
 // Throws CheckError for an inconsistent map (nothing is written), InputError when the file
 // cannot be written (the previous file, if any, is left untouched).
-void SaveMap(const Map& map, const std::string& path);
+void SaveMap(const Map& map, const std::string& path, const SaveMapOptions& options = {});
 
 // Throws InputError "<path>: <problem>" naming the first problem: a missing, empty or
 // non-SQLite file, a foreign database, missing tables, a newer schema, malformed rows,
