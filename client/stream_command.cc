@@ -131,6 +131,7 @@ int RunStream(const Args& raw_args) {
   RunReport report;
   std::vector<double> latency_ms;
   int errors = 0, skipped = 0;
+  std::string skipped_reason;
   v1::LocalizeResponse response;
   while (stream->Read(&response)) {
     const size_t index = response.frame_index();
@@ -146,6 +147,13 @@ int RunStream(const Args& raw_args) {
       continue;
     }
     if (response.status() == v1::STATUS_SKIPPED) {
+      // A reason means the server refused the frame (its rate limit), not the drop policy the
+      // client chose: say so once.
+      if (!response.error().empty() && skipped_reason.empty()) {
+        skipped_reason = response.error();
+        std::fprintf(stderr, "visloc stream: frame %zu skipped by the server: %s\n", index,
+                     skipped_reason.c_str());
+      }
       ++skipped;
       continue;
     }

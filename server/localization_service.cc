@@ -9,6 +9,7 @@
 #include "core/util/strings.h"
 #include "core/util/timer.h"
 #include "server/log.h"
+#include "server/rate_limiter.h"
 
 namespace visloc::server {
 namespace {
@@ -62,11 +63,13 @@ class Session {
     return response;
   }
 
-  v1::LocalizeResponse Skipped(const v1::LocalizeRequest& request) {
+  // `reason` is empty for a frame dropped by NEWEST_ONLY (the client asked for that).
+  v1::LocalizeResponse Skipped(const v1::LocalizeRequest& request, const std::string& reason = "") {
     v1::LocalizeResponse response;
     response.set_frame_index(tally_.frames++);
     response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
     response.set_status(v1::STATUS_SKIPPED);
+    if (!reason.empty()) response.set_error(reason);
     ++tally_.skipped;
     return response;
   }
@@ -80,18 +83,42 @@ class Session {
   SessionTally tally_;
 };
 
-// NEWEST_ONLY: a reader thread queues frames; the session answers all but the newest as skipped.
-void ServeNewestOnly(Session* session,
+std::string RateLimitReason(double rate_hz) {
+  return StrCat("over the session frame-rate limit of ", FormatFixed(rate_hz, 1),
+                " Hz: frame not processed");
+}
+
+// PROCESS_ALL: every admitted frame is answered in turn.
+void ServeAll(Session* session, FrameRateLimiter* limiter,
+              grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  v1::LocalizeRequest request;
+  while (stream->Read(&request)) {
+    const bool admitted = limiter->Admit(FrameRateLimiter::Clock::now());
+    if (!stream->Write(admitted ? session->Answer(request)
+                                : session->Skipped(request, RateLimitReason(limiter->rate_hz())))) {
+      break;
+    }
+  }
+}
+
+// NEWEST_ONLY: a reader thread queues frames (admitted or not, at arrival); the session answers
+// all but the newest as skipped.
+void ServeNewestOnly(Session* session, FrameRateLimiter* limiter,
                      grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  struct Arrival {
+    v1::LocalizeRequest request;
+    bool admitted = true;
+  };
   std::mutex mutex;
   std::condition_variable changed;
-  std::deque<v1::LocalizeRequest> queue;
+  std::deque<Arrival> queue;
   bool done = false;
   std::thread reader([&] {
-    v1::LocalizeRequest request;
-    while (stream->Read(&request)) {
+    Arrival arrival;
+    while (stream->Read(&arrival.request)) {
+      arrival.admitted = limiter->Admit(FrameRateLimiter::Clock::now());
       std::lock_guard<std::mutex> lock(mutex);
-      queue.push_back(std::move(request));
+      queue.push_back(std::move(arrival));
       changed.notify_one();
     }
     std::lock_guard<std::mutex> lock(mutex);
@@ -99,7 +126,7 @@ void ServeNewestOnly(Session* session,
     changed.notify_one();
   });
   while (true) {
-    std::deque<v1::LocalizeRequest> batch;
+    std::deque<Arrival> batch;
     {
       std::unique_lock<std::mutex> lock(mutex);
       changed.wait(lock, [&] { return done || !queue.empty(); });
@@ -107,10 +134,18 @@ void ServeNewestOnly(Session* session,
       batch.swap(queue);
     }
     bool writing = true;
-    for (size_t i = 0; i + 1 < batch.size() && writing; ++i) {
-      writing = stream->Write(session->Skipped(batch[i]));
+    for (size_t i = 0; i < batch.size() && writing; ++i) {
+      const Arrival& arrival = batch[i];
+      const bool newest = i + 1 == batch.size();
+      if (!arrival.admitted) {
+        writing =
+            stream->Write(session->Skipped(arrival.request, RateLimitReason(limiter->rate_hz())));
+      } else {
+        writing = stream->Write(newest ? session->Answer(arrival.request)
+                                       : session->Skipped(arrival.request));
+      }
     }
-    if (!writing || !stream->Write(session->Answer(batch.back()))) break;
+    if (!writing) break;
   }
   reader.join();
 }
@@ -161,12 +196,11 @@ Status LocalizationService::Localize(
                         {"robot", start.robot_id()},
                         {"peer", context->peer()},
                         {"policy", v1::FrameDropPolicy_Name(start.options().drop_policy())}});
+  FrameRateLimiter limiter(limits_.max_frame_rate_hz);
   if (start.options().drop_policy() == v1::NEWEST_ONLY) {
-    ServeNewestOnly(session.get(), stream);
+    ServeNewestOnly(session.get(), &limiter, stream);
   } else {
-    while (stream->Read(&request)) {
-      if (!stream->Write(session->Answer(request))) break;
-    }
+    ServeAll(session.get(), &limiter, stream);
   }
   const SessionTally& t = session->tally();
   const uint64_t answered = t.frames - t.skipped;

@@ -17,6 +17,7 @@ namespace visloc::server {
 struct ServiceLimits {
   int max_sessions = 64;
   int workers = 2;  // Frames processed at once across all sessions (the engine's CPU work).
+  double max_frame_rate_hz = 0.0;  // Per session; faster frames are answered SKIPPED. 0: off.
   proto::WireLimits wire;
 };
 
