@@ -10,6 +10,10 @@ namespace visloc::cli {
 void Connection::AddFlags(ArgParser& parser, bool server_required) {
   parser.AddFlag("server", &server, "visloc-server address HOST:PORT", server_required);
   parser.AddFlag("tls-ca", &tls_ca_path, "use TLS, trusting this CA certificate (PEM)");
+  parser.AddFlag("tls-cert", &tls_cert_path,
+                 "mutual TLS: this client's certificate (PEM; default: $VISLOC_TLS_CERT)");
+  parser.AddFlag("tls-key", &tls_key_path,
+                 "mutual TLS: its private key (PEM; default: $VISLOC_TLS_KEY)");
   parser.AddFlag("token", &token, "bearer token (default: $VISLOC_TOKEN)");
 }
 
@@ -17,8 +21,19 @@ void Connection::ApplyEnvironment() {
   if (token.empty()) {
     if (const char* env = std::getenv("VISLOC_TOKEN")) token = env;
   }
-  if (tls_ca_path.empty()) {
-    if (const char* env = std::getenv("VISLOC_TLS_CA")) tls_ca_path = env;
+  const auto from_env = [](std::string* value, const char* name) {
+    if (value->empty()) {
+      if (const char* env = std::getenv(name)) *value = env;
+    }
+  };
+  from_env(&tls_ca_path, "VISLOC_TLS_CA");
+  from_env(&tls_cert_path, "VISLOC_TLS_CERT");
+  from_env(&tls_key_path, "VISLOC_TLS_KEY");
+  if (tls_cert_path.empty() != tls_key_path.empty()) {
+    throw UsageError("--tls-cert and --tls-key go together");
+  }
+  if (!tls_cert_path.empty() && tls_ca_path.empty()) {
+    throw UsageError("a client certificate (--tls-cert) needs --tls-ca for the server's");
   }
 }
 
@@ -27,6 +42,10 @@ std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
   if (!tls_ca_path.empty()) {
     grpc::SslCredentialsOptions options;
     options.pem_root_certs = ReadFileBytes(tls_ca_path);
+    if (!tls_cert_path.empty()) {
+      options.pem_cert_chain = ReadFileBytes(tls_cert_path);
+      options.pem_private_key = ReadFileBytes(tls_key_path);
+    }
     credentials = grpc::SslCredentials(options);
   }
   grpc::ChannelArguments args;

@@ -1,7 +1,8 @@
 #pragma once
-// How the client reaches a server: address, TLS trust and bearer token. Every remote verb takes
-// the same flags (--server, --tls-ca, --token); the token may also come from $VISLOC_TOKEN and
-// the CA from $VISLOC_TLS_CA, so they stay out of shell history.
+// How the client reaches a server: address, TLS trust (and for mutual TLS the client's own
+// certificate) and bearer token. Every remote verb takes the same flags (--server, --tls-ca,
+// --tls-cert, --tls-key, --token); each may also come from the environment ($VISLOC_TOKEN,
+// $VISLOC_TLS_CA, $VISLOC_TLS_CERT, $VISLOC_TLS_KEY), so secrets stay out of shell history.
 
 #include <memory>
 #include <string>
@@ -14,8 +15,9 @@ namespace visloc::cli {
 
 struct Connection {
   std::string server;
-  std::string tls_ca_path;  // Empty: plaintext.
-  std::string token;        // Empty: no authorization metadata.
+  std::string tls_ca_path;                  // Empty: plaintext.
+  std::string tls_cert_path, tls_key_path;  // Mutual TLS: the client's certificate and key.
+  std::string token;                        // Empty: no authorization metadata.
 
   // Adds --server, --tls-ca and --token to `parser`.
   void AddFlags(ArgParser& parser, bool server_required = true);

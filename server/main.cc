@@ -1,7 +1,8 @@
 // visloc-server: the localization service for a fleet of robots (product.md).
 //
 //   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--tls-cert F --tls-key F]
-//                 [--tokens F] [--threads N] [--max-sessions N]
+//                 [--tls-client-ca F] [--tokens F] [--threads N] [--max-sessions N]
+//                 [--max-frame-rate HZ]
 //
 // Serves Localization, MapAdmin, grpc.health.v1 and server reflection. Prints
 // "listening on ADDRESS" once ready (with port 0, the port chosen). SIGTERM or SIGINT drains:
@@ -21,6 +22,7 @@
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
+#include "core/util/strings.h"
 #include "core/util/text_file.h"
 #include "server/auth.h"
 #include "server/localization_service.h"
@@ -37,7 +39,8 @@ struct ServerArgs {
   int idle_unload_s = 300;
   double drain_s = 5.0;
   int64_t max_upload_mb = 2048;
-  std::string tls_cert, tls_key, tokens;
+  std::string tls_cert, tls_key, tls_client_ca, tokens;
+  double max_frame_rate_hz = 0.0;  // Per session; 0: no limit.
   bool allow_remote = false;
   int threads = 0;
 };
@@ -46,8 +49,16 @@ std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerArgs& args) {
   if (args.tls_cert.empty() != args.tls_key.empty()) {
     throw UsageError("--tls-cert and --tls-key go together");
   }
+  if (!args.tls_client_ca.empty() && args.tls_cert.empty()) {
+    throw UsageError("--tls-client-ca needs --tls-cert and --tls-key");
+  }
   if (args.tls_cert.empty()) return grpc::InsecureServerCredentials();
-  grpc::SslServerCredentialsOptions options;
+  // Mutual TLS when a client CA is given: a client without a certificate signed by it is
+  // refused during the handshake, before any RPC (and before tokens are looked at).
+  grpc::SslServerCredentialsOptions options(
+      args.tls_client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                 : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+  if (!args.tls_client_ca.empty()) options.pem_root_certs = ReadFileBytes(args.tls_client_ca);
   options.pem_key_cert_pairs.push_back({ReadFileBytes(args.tls_key), ReadFileBytes(args.tls_cert)});
   return grpc::SslServerCredentials(options);
 }
@@ -70,6 +81,10 @@ int Run(int argc, char** argv) {
   parser.AddFlag("max-upload-mb", &args.max_upload_mb, "largest map upload accepted");
   parser.AddFlag("tls-cert", &args.tls_cert, "serve TLS with this certificate chain (PEM)");
   parser.AddFlag("tls-key", &args.tls_key, "the certificate's private key (PEM)");
+  parser.AddFlag("tls-client-ca", &args.tls_client_ca,
+                 "mutual TLS: require client certificates signed by this CA (PEM)");
+  parser.AddFlag("max-frame-rate", &args.max_frame_rate_hz,
+                 "frames per second one session may send; more are answered SKIPPED (0: no limit)");
   parser.AddFlag("tokens", &args.tokens, "bearer tokens file: 'TOKEN localize|admin' per line");
   parser.AddSwitch("allow-remote", &args.allow_remote,
                    "listen beyond loopback without tokens (trusted networks only)");
@@ -82,6 +97,7 @@ int Run(int argc, char** argv) {
                      "; --allow-remote overrides)");
   }
   if (args.threads < 0) throw UsageError("--threads must not be negative");
+  if (!(args.max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate must not be negative");
   const TokenAuth auth = args.tokens.empty() ? TokenAuth() : TokenAuth::FromFile(args.tokens);
   const auto credentials = Credentials(args);
 
@@ -96,6 +112,7 @@ int Run(int argc, char** argv) {
   const int stale = mapstore::MapDirectory(args.maps_dir).RemoveStaleTemporaries();
   ServiceLimits limits;
   limits.max_sessions = args.max_sessions;
+  limits.max_frame_rate_hz = args.max_frame_rate_hz;
   // The per-frame engine work runs on at most this many threads at once: the machine's cores.
   limits.workers = args.threads > 0
                        ? args.threads
@@ -128,7 +145,10 @@ int Run(int argc, char** argv) {
                        {"maps", args.maps_dir},
                        {"max_sessions", std::to_string(args.max_sessions)},
                        {"workers", std::to_string(limits.workers)},
-                       {"tls", args.tls_cert.empty() ? "off" : "on"},
+                       {"tls", args.tls_cert.empty()        ? "off"
+                               : args.tls_client_ca.empty() ? "on"
+                                                            : "mutual"},
+                       {"max_frame_rate_hz", FormatFixed(args.max_frame_rate_hz, 1)},
                        {"tokens", auth.enabled() ? "on" : "off"},
                        {"stale_temporaries_removed", std::to_string(stale)}});
   std::printf("listening on %s\n", bound.c_str());

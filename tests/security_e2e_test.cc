@@ -1,5 +1,5 @@
 // Security end to end against the real server: bearer tokens with two roles (robots localize,
-// admins manage maps) and TLS with a certificate generated for the test.
+// admins manage maps), TLS, and mutual TLS with certificates generated for the test by openssl.
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -104,6 +104,77 @@ TEST_F(SecurityE2eTest, TlsServesOnlyClientsThatTrustItsCertificate) {
   EXPECT_EQ(plaintext.exit_code, 1);
   EXPECT_THAT(plaintext.err, HasSubstr("gRPC code 14"));  // UNAVAILABLE: no TLS handshake
   EXPECT_THAT(server.Log(), HasSubstr("tls=on"));
+}
+
+TEST_F(SecurityE2eTest, RobotTokensCannotCallAnyMapAdminRpc) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--tokens", files_.File("tokens")});
+  const std::string a = server.address();
+  const std::vector<std::vector<std::string>> admin_calls = {
+      {"map", "list", "--server", a},
+      {"map", "info", "lab", "--server", a},
+      {"map", "upload", maps_.File("lab.db"), "--name", "copy", "--server", a},
+      {"map", "download", "lab", "--out", files_.File("lab.db"), "--server", a},
+      {"map", "rename", "lab", "other", "--server", a},
+      {"map", "delete", "lab", "--server", a}};
+  for (std::vector<std::string> call : admin_calls) {
+    call.insert(call.end(), {"--token", kRobotToken});
+    const ProcessResult result = Visloc(call);
+    EXPECT_EQ(result.exit_code, 1) << call[1];
+    EXPECT_THAT(result.err, HasSubstr("gRPC code 7")) << call[1];  // PERMISSION_DENIED
+  }
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("lab.db")));
+  EXPECT_FALSE(std::filesystem::exists(maps_.File("copy.db")));
+  EXPECT_FALSE(std::filesystem::exists(files_.File("lab.db")));
+}
+
+// openssl, as an operator would run it (absolute path: the test runs it without a shell).
+void OpenSsl(const std::vector<std::string>& args) {
+  std::vector<std::string> command = {"/usr/bin/openssl"};
+  command.insert(command.end(), args.begin(), args.end());
+  const ProcessResult result = testing::RunProcess(command);
+  ASSERT_EQ(result.exit_code, 0) << result.err;
+}
+
+TEST_F(SecurityE2eTest, MutualTlsServesOnlyClientsWithACertificateFromTheClientCa) {
+  const auto file = [&](const char* name) { return files_.File(name); };
+  const std::vector<std::string> self_signed = {"req",    "-x509", "-newkey", "rsa:2048",
+                                                "-nodes", "-days", "1"};
+  auto with = [](std::vector<std::string> base, std::vector<std::string> more) {
+    base.insert(base.end(), more.begin(), more.end());
+    return base;
+  };
+  OpenSsl(
+      with(self_signed, {"-keyout", file("server.key"), "-out", file("server.pem"), "-subj",
+                         "/CN=localhost", "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"}));
+  OpenSsl(with(self_signed, {"-keyout", file("ca.key"), "-out", file("ca.pem"), "-subj",
+                             "/CN=visloc robots CA"}));
+  OpenSsl({"req", "-newkey", "rsa:2048", "-nodes", "-keyout", file("robot.key"), "-out",
+           file("robot.csr"), "-subj", "/CN=robot-7"});
+  OpenSsl({"x509", "-req", "-in", file("robot.csr"), "-CA", file("ca.pem"), "-CAkey",
+           file("ca.key"), "-CAcreateserial", "-out", file("robot.pem"), "-days", "1"});
+  OpenSsl(with(self_signed,
+               {"-keyout", file("rogue.key"), "-out", file("rogue.pem"), "-subj", "/CN=rogue"}));
+
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
+                       {"--tls-cert", file("server.pem"), "--tls-key", file("server.key"),
+                        "--tls-client-ca", file("ca.pem")});
+  const std::vector<std::string> list = {
+      "map", "list", "--server", server.address(), "--tls-ca", file("server.pem")};
+  const ProcessResult robot =
+      Visloc(with(list, {"--tls-cert", file("robot.pem"), "--tls-key", file("robot.key")}));
+  EXPECT_EQ(robot.exit_code, 0) << robot.err;
+  EXPECT_THAT(robot.out, HasSubstr("lab"));
+  const ProcessResult no_certificate = Visloc(list);
+  EXPECT_EQ(no_certificate.exit_code, 1);
+  EXPECT_THAT(no_certificate.err, HasSubstr("gRPC code 14"));  // handshake refused
+  const ProcessResult rogue =
+      Visloc(with(list, {"--tls-cert", file("rogue.pem"), "--tls-key", file("rogue.key")}));
+  EXPECT_EQ(rogue.exit_code, 1);
+  EXPECT_THAT(rogue.err, HasSubstr("gRPC code 14"));
+  const ProcessResult half = Visloc(with(list, {"--tls-cert", file("robot.pem")}));
+  EXPECT_EQ(half.exit_code, 2);
+  EXPECT_THAT(half.err, HasSubstr("--tls-cert and --tls-key go together"));
+  EXPECT_THAT(server.Log(), HasSubstr("tls=mutual"));
 }
 
 }  // namespace

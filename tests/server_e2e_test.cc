@@ -105,6 +105,27 @@ TEST_F(ServerE2eTest, NewestOnlyPolicyAnswersSkippedFramesToo) {
   EXPECT_GE(answered, 1);
 }
 
+TEST_F(ServerE2eTest, FramesOverTheSessionRateLimitAreSkippedWithAReason) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--max-frame-rate", "5"});
+  // 40 frames as fast as the client can send: one second of burst (5 frames) plus what 5 Hz
+  // refills while they are processed gets through; the rest is answered SKIPPED.
+  const ProcessResult flood =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "40", "--rate", "0", "--json"});
+  ASSERT_EQ(flood.exit_code, 0) << flood.err;
+  const double skipped = JsonNumber(flood.out, "skipped");
+  EXPECT_EQ(skipped + JsonNumber(flood.out, "frames"), 40);  // Still one answer per frame.
+  EXPECT_GE(skipped, 25);
+  EXPECT_THAT(flood.err, HasSubstr("over the session frame-rate limit of 5.0 Hz"));
+  EXPECT_THAT(server.Log(), HasSubstr("max_frame_rate_hz=5.0"));
+  // A client within the limit loses nothing.
+  const ProcessResult steady =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "10", "--rate", "4", "--json"});
+  ASSERT_EQ(steady.exit_code, 0) << steady.err;
+  EXPECT_EQ(JsonNumber(steady.out, "skipped"), 0);
+}
+
 TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   // Frame 60 of the offset square, compared with its ground truth.
