@@ -122,9 +122,9 @@ ServerProcess::~ServerProcess() {
 
 std::string ServerProcess::Log() const { return ReadAll(dir_ + "/stderr"); }
 
-int ServerProcess::Stop() {
+int ServerProcess::Stop(int signal) {
   if (pid_ > 0) {
-    exit_code_ = KillProcess(pid_, SIGTERM);
+    exit_code_ = KillProcess(pid_, signal);
     pid_ = -1;
   }
   return exit_code_;

@@ -41,8 +41,9 @@ class ServerProcess {
   int pid() const { return pid_; }
   // What the server logged to stderr so far.
   std::string Log() const;
-  // Sends SIGTERM and waits; returns the exit code. Idempotent.
-  int Stop();
+  // Sends `signal` (SIGTERM: a drain; SIGKILL: a crash) and waits; returns the exit code.
+  // Idempotent.
+  int Stop(int signal = 15);
 
  private:
   std::string dir_;
