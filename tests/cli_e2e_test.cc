@@ -124,8 +124,8 @@ TEST(CliTest, PlotCurvesDrawsEachColumnAgainstTheFirst) {
   TempDir dir("visloc-curves");
   std::ofstream(dir.File("scaling.csv")) << "keyframes,relocalization_ms,memory_MiB\n"
                                          << "100,1.5,0.5\n1000,1.9,4.9\n10000,2.4,49\n";
-  const ProcessResult plot = Visloc(
-      {"plot", "--curves", dir.File("scaling.csv"), "--log-x", "--out", dir.File("s.svg")});
+  const ProcessResult plot =
+      Visloc({"plot", "--curves", dir.File("scaling.csv"), "--log-x", "--out", dir.File("s.svg")});
   ASSERT_EQ(plot.exit_code, 0) << plot.err;
   EXPECT_THAT(plot.out, HasSubstr("2 curves of 3 points"));
   std::ifstream svg(dir.File("s.svg"));
