@@ -11,6 +11,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   sqlite3 libyaml-cpp-dev zlib1g-dev openssl
 )
+# scripts/fuzz.sh needs clang and its libFuzzer / sanitizer runtimes: `install-deps.sh --fuzz`.
+if [ "${1:-}" = "--fuzz" ]; then PACKAGES+=(clang libclang-rt-dev); fi
 
 missing=()
 for pkg in "${PACKAGES[@]}"; do

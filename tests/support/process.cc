@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -91,7 +92,11 @@ ServerProcess::ServerProcess(const std::string& server_binary, const std::string
           ("visloc-server-" + std::to_string(getpid()) + "-" + std::to_string(counter++)))
              .string();
   std::filesystem::create_directories(dir_);
-  std::vector<std::string> argv = {server_binary, "--maps", maps_dir, "--listen", "127.0.0.1:0"};
+  // $VISLOC_TEST_SERVER swaps in another build of the server (scripts/test.sh runs these tests
+  // against the ThreadSanitizer build of visloc-server).
+  const char* other_build = std::getenv("VISLOC_TEST_SERVER");
+  std::vector<std::string> argv = {other_build ? other_build : server_binary, "--maps", maps_dir,
+                                   "--listen", "127.0.0.1:0"};
   argv.insert(argv.end(), extra_args.begin(), extra_args.end());
   pid_ = SpawnProcess(argv, dir_ + "/stdout", dir_ + "/stderr");
   const std::string prefix = "listening on ";

@@ -29,6 +29,7 @@ int WaitProcess(int pid);
 
 // A real visloc-server on a free loopback port, for end-to-end tests: started in the
 // constructor (waits until it prints "listening on ADDRESS"), SIGTERMed in the destructor.
+// $VISLOC_TEST_SERVER, when set, names the server binary to run instead.
 class ServerProcess {
  public:
   ServerProcess(const std::string& server_binary, const std::string& maps_dir,
