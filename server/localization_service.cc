@@ -45,6 +45,8 @@ class Session {
     const uint64_t index = tally_.frames++;
     try {
       if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
+      // Decoding and the engine are the CPU work: one permit per core across all sessions.
+      const WorkPermit permit(workers_);
       const LocalizationResult result =
           localizer_.Process(proto::FromProto(request.frame(), camera_));
       proto::ToProto(result, index, &response);
@@ -223,6 +225,7 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
   try {
     Timer timer;
     auto map = maps_->Acquire(request->map_name());
+    const WorkPermit permit(&workers_);
     // Without a camera model the image is taken to come from the map's own camera.
     const PinholeCamera camera = request->has_camera()
                                      ? proto::FromProto(request->camera(), limits_.wire)

@@ -2,6 +2,7 @@
 // The Localization service: one Localize stream is one robot session with its own Localizer;
 // Relocalize answers one image without a session. Maps come from the shared MapCache.
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
 #include <mutex>
@@ -25,22 +26,42 @@ struct ServiceLimits {
 // run the engine, so N sessions share the machine's cores instead of oversubscribing them.
 class WorkPermits {
  public:
-  explicit WorkPermits(int permits) : free_(permits) {}
+  explicit WorkPermits(int permits) : permits_(permits), free_(permits) {}
   void Acquire() {
     std::unique_lock<std::mutex> lock(mutex_);
     available_.wait(lock, [this] { return free_ > 0; });
     --free_;
+    peak_in_use_ = std::max(peak_in_use_, permits_ - free_);
   }
   void Release() {
     std::lock_guard<std::mutex> lock(mutex_);
     ++free_;
     available_.notify_one();
   }
+  // The most permits ever held at once (for tests and the session-end log).
+  int peak_in_use() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return peak_in_use_;
+  }
 
  private:
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable available_;
+  const int permits_;
   int free_;
+  int peak_in_use_ = 0;
+};
+
+// Holds one permit for its scope.
+class WorkPermit {
+ public:
+  explicit WorkPermit(WorkPermits* permits) : permits_(permits) { permits_->Acquire(); }
+  ~WorkPermit() { permits_->Release(); }
+  WorkPermit(const WorkPermit&) = delete;
+  WorkPermit& operator=(const WorkPermit&) = delete;
+
+ private:
+  WorkPermits* permits_;
 };
 
 class LocalizationService final : public v1::Localization::Service {
@@ -55,6 +76,8 @@ class LocalizationService final : public v1::Localization::Service {
                           v1::RelocalizeResponse* response) override;
 
   int active_sessions() const { return active_sessions_.load(); }
+  // The most frames ever processed at once, across sessions (at most limits.workers).
+  int peak_frames_in_work() const { return workers_.peak_in_use(); }
 
  private:
   MapCache* maps_;
