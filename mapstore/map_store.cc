@@ -456,14 +456,28 @@ void ReadKeyframes(Database& db, Map* map) {
   }
 }
 
+// Counts read from the file decide allocations, so a damaged count must not ask for more
+// memory than the file could describe: each item takes at least `min_bytes_each` bytes of it.
+void CheckCountFitsTheFile(const Database& db, const char* what, int64_t count,
+                           size_t min_bytes_each) {
+  std::error_code error;
+  const uintmax_t file_bytes = fs::file_size(db.path(), error);
+  if (count < 0 || (!error && static_cast<uintmax_t>(count) > file_bytes / min_bytes_each)) {
+    throw InputError(StrCat(db.path(), ": ", what, " count ", count, " does not fit in a file of ",
+                            error ? 0 : file_bytes, " bytes"));
+  }
+}
+
 void ReadPoints(Database& db, Map* map) {
   Statement count = db.Prepare("SELECT COALESCE(SUM(point_count), 0) FROM point_chunks");
   count.Step();
   const int64_t total = count.ColumnInt64(0);
   if (total < 0 || total > (int64_t{1} << 31))
     throw InputError(StrCat(db.path(), ": point count ", total));
-  map->points.resize(total);
   const size_t descriptor_bytes = DescriptorBytes(map->features);
+  // A point's position (24 bytes) and quality (8) and descriptor are stored in its chunk.
+  CheckCountFitsTheFile(db, "point", total, 32 + descriptor_bytes);
+  map->points.resize(total);
   map->descriptors =
       cv::Mat(static_cast<int>(total), map->features.descriptor_dim, map->features.cv_type());
   Statement query = db.Prepare(
@@ -500,9 +514,9 @@ void ReadObservations(Database& db, Map* map) {
   Statement total =
       db.Prepare("SELECT COALESCE(SUM(observation_count), 0) FROM keyframe_observations");
   total.Step();
-  if (total.ColumnInt64(0) > 0 && total.ColumnInt64(0) < (int64_t{1} << 32)) {
-    map->observations.reserve(static_cast<size_t>(total.ColumnInt64(0)));
-  }
+  // An observation stores a point id (4 bytes) and a pixel (8).
+  CheckCountFitsTheFile(db, "observation", total.ColumnInt64(0), 12);
+  map->observations.reserve(static_cast<size_t>(total.ColumnInt64(0)));
   Statement query = db.Prepare(
       "SELECT keyframe_id, observation_count, points, pixels FROM keyframe_observations ORDER BY "
       "keyframe_id");

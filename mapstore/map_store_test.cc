@@ -192,6 +192,16 @@ TEST_F(BadMapFileTest, ChangedValuesAndWrongBlobSizes) {
   EXPECT_EQ(report.problems[0], path_ + ": point chunk 0 positions has 100 bytes, expected 7200");
 }
 
+// Counts in the file decide allocations: a damaged count must be refused before it asks for
+// gigabytes (found by the map fuzzer: a point count of ~2^30 made LoadMap allocate 10 GB).
+TEST_F(BadMapFileTest, CountsTooLargeForTheFileAreRefusedBeforeAllocating) {
+  const auto size = std::filesystem::file_size(path_);
+  Sql("UPDATE point_chunks SET point_count = 1073741824 WHERE first_point = 0");
+  // The small map's 300 points are one chunk, so the count read back is the damaged one.
+  EXPECT_EQ(LoadError(path_),
+            StrCat(path_, ": point count 1073741824 does not fit in a file of ", size, " bytes"));
+}
+
 // Damage at random places never crashes and never loads as a different map: the file is either
 // rejected with an InputError or (damage in unused space) loads identical to the original.
 TEST(MapStoreFuzzTest, RandomTruncationsAndByteFlips) {
