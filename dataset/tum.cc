@@ -9,13 +9,16 @@
 
 namespace visloc {
 
+// Nanoseconds in an int64 reach 9.22e9 s (year 2262); anything beyond is not a timestamp.
+constexpr double kMaxSeconds = 9.0e9;
+
 std::optional<int64_t> ParseSecondsToNs(const std::string& text) {
   const size_t dot = text.find('.');
   const bool plain_decimal = text.find_first_of("eE") == std::string::npos;
   if (plain_decimal && dot != std::string::npos && !StartsWith(text, "-")) {
     const auto seconds = ParseInt64(text.substr(0, dot).empty() ? "0" : text.substr(0, dot));
     std::string fraction = text.substr(dot + 1);
-    if (!seconds || fraction.size() > 18 ||
+    if (!seconds || *seconds > kMaxSeconds || fraction.size() > 18 ||
         fraction.find_first_not_of("0123456789") != std::string::npos) {
       return std::nullopt;
     }
@@ -24,7 +27,7 @@ std::optional<int64_t> ParseSecondsToNs(const std::string& text) {
     return *seconds * 1'000'000'000 + *ParseInt64(fraction);
   }
   const auto seconds = ParseDouble(text);
-  if (!seconds) return std::nullopt;
+  if (!seconds || !(std::abs(*seconds) <= kMaxSeconds)) return std::nullopt;
   return SecondsToNs(*seconds);
 }
 

@@ -34,6 +34,11 @@ TEST(TumTest, ParsesSecondsExactly) {
   EXPECT_EQ(*ParseSecondsToNs("12"), 12'000'000'000);
   EXPECT_EQ(*ParseSecondsToNs("1e-3"), 1'000'000);
   EXPECT_FALSE(ParseSecondsToNs("1.2.3"));
+  // Beyond what int64 nanoseconds hold (found by the dataset fuzzer: undefined behaviour).
+  EXPECT_FALSE(ParseSecondsToNs("1e22"));
+  EXPECT_FALSE(ParseSecondsToNs("99999999999.5"));
+  EXPECT_FALSE(ParseSecondsToNs("nan"));
+  EXPECT_FALSE(ParseSecondsToNs("-inf"));
   EXPECT_EQ(FormatNsAsSeconds(1'500'000'001), "1.500000001");
 }
 
