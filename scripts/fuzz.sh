@@ -22,17 +22,15 @@ for target in "${targets[@]}"; do
   mkdir -p "$corpus" "$crashes"
   cp -n fuzz/corpus/"$target"/* "$corpus"/ 2>/dev/null || true
   log=out/fuzz/$target.log
-  # -close_fd_mask=2: the server's logs on stderr would drown libFuzzer's own lines (which go to
-  # stderr too, so they are kept in the log by -print_final_stats before the mask applies).
   if ! ASAN_OPTIONS=detect_leaks=1 build-fuzz/fuzz/"${target}"_fuzzer -max_total_time="$seconds" \
       -print_final_stats=1 -artifact_prefix="$crashes/" -timeout=30 -rss_limit_mb=4096 \
       "$corpus" > "$log" 2>&1; then
     status=1
     echo "$target: CRASH, input in $crashes/ (see $log)"
   fi
-  execs=$(sed -n 's/^stat::number_executed_units: *//p' "$log")
-  rate=$(awk -v e="${execs:-0}" -v s="$seconds" 'BEGIN { printf "%.0f", e / s }')
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
+  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log")
   cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -1 | cut -d' ' -f2)
-  echo "$target: ${execs:-0} executions in ${seconds} s (${rate}/s), coverage ${cov:-?} edges, corpus $(ls "$corpus" | wc -l) inputs"
+  echo "$target: ${execs:-?} executions in ${seconds} s (${rate:-?}/s), coverage ${cov:-?} edges, corpus $(ls "$corpus" | wc -l) inputs"
 done
 exit $status
