@@ -199,6 +199,54 @@ TEST_F(ServerE2eTest, ABadFrameMidStreamGetsAnErrorAndTheSessionGoesOn) {
   EXPECT_EQ(JsonNumber(stream.out, "localized_fraction"), 1.0);
 }
 
+TEST_F(ServerE2eTest, OversizeMessagesAndImagesAreRefusedAndTheServerGoesOn) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  auto stub = v1::Localization::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  const Dataset dataset = ReadDataset(kData + "/query_square");
+  const auto start_session = [&](grpc::ClientContext* context) {
+    auto stream = stub->Localize(context);
+    v1::LocalizeRequest start;
+    start.mutable_start()->set_map_name("square");
+    proto::ToProto(dataset.left.camera, start.mutable_start()->mutable_camera());
+    EXPECT_TRUE(stream->Write(start));
+    return stream;
+  };
+  {
+    // A message over the server's 64 MiB limit ends the stream with RESOURCE_EXHAUSTED.
+    grpc::ClientContext context;
+    auto stream = start_session(&context);
+    v1::LocalizeRequest huge;
+    huge.mutable_frame()->set_encoded(std::string(65 << 20, '\0'));
+    stream->Write(huge);
+    stream->WritesDone();
+    v1::LocalizeResponse response;
+    EXPECT_FALSE(stream->Read(&response));
+    EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  }
+  {
+    // A raw frame that claims 5000 x 5000 pixels: an error answer naming the limit, and the
+    // session goes on.
+    grpc::ClientContext context;
+    auto stream = start_session(&context);
+    v1::LocalizeRequest frame;
+    frame.mutable_frame()->mutable_raw()->set_width(5000);
+    frame.mutable_frame()->mutable_raw()->set_height(5000);
+    frame.mutable_frame()->mutable_raw()->set_pixels(std::string(1000, '\0'));
+    ASSERT_TRUE(stream->Write(frame));
+    v1::LocalizeResponse response;
+    ASSERT_TRUE(stream->Read(&response));
+    EXPECT_EQ(response.status(), v1::STATUS_ERROR);
+    EXPECT_THAT(response.error(), HasSubstr("5000"));
+    stream->WritesDone();
+    EXPECT_TRUE(stream->Finish().ok());
+  }
+  const ProcessResult next =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "10", "--rate", "0", "--json"});
+  EXPECT_EQ(next.exit_code, 0) << next.err;
+}
+
 TEST_F(ServerE2eTest, AClientThatVanishesIsCleanedUpAndTheServerGoesOn) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   const Dataset dataset = ReadDataset(kData + "/query_square");
