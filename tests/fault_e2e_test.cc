@@ -67,12 +67,7 @@ class FaultE2eTest : public ::testing::Test {
  protected:
   void SetUp() override {
     fs::copy_file(kData + "/map.db", maps_.File("square.db"));
-    SyntheticMapOptions options;
-    options.keyframes = 20;
-    options.points = 2000;
-    Map map = MakeSyntheticMap(options);
-    map.metadata.name = "lab";
-    mapstore::SaveMap(map, maps_.File("lab.db"));
+    testing::SaveLabMap(maps_.File("lab.db"));
   }
   TempDir maps_{"visloc_fault_maps"};
   TempDir files_{"visloc_fault_files"};

@@ -36,14 +36,7 @@ size_t FilesIn(const std::string& dir) {
 
 class MapAdminE2eTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    SyntheticMapOptions options;
-    options.keyframes = 20;
-    options.points = 2000;
-    Map map = MakeSyntheticMap(options);
-    map.metadata.name = "lab";
-    mapstore::SaveMap(map, local_.File("lab.db"));
-  }
+  void SetUp() override { testing::SaveLabMap(local_.File("lab.db")); }
   // Sends a header and then `bytes`, optionally cancelling after `cut_after` bytes.
   grpc::Status RawUpload(const std::string& name, const std::string& bytes, uint32_t crc,
                          size_t cut_after = std::string::npos) {

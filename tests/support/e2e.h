@@ -1,13 +1,15 @@
 #pragma once
-// Helpers shared by the end-to-end tests: run the `visloc` binary under test, and read numbers
-// out of its --json output. Header-only because VISLOC_CLI_PATH is defined per test target
-// (tests/CMakeLists.txt, visloc_add_e2e_test).
+// Helpers shared by the end-to-end tests: run the `visloc` binary under test, read numbers out
+// of its --json output, write the shared small map. Header-only because VISLOC_CLI_PATH is defined
+// per test target (tests/CMakeLists.txt, visloc_add_e2e_test).
 
 #include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
+#include "core/map/synthetic_map.h"
+#include "mapstore/map_store.h"
 #include "tests/support/process.h"
 
 namespace visloc::testing {
@@ -33,6 +35,17 @@ inline double JsonNumber(const std::string& json, const std::string& section,
 
 inline double JsonNumber(const std::string& json, const std::string& key) {
   return JsonNumber(json, "", key);
+}
+
+// Writes the small synthetic map the map-management and fault tests share: "lab", 20 keyframes,
+// 2,000 points (about 0.5 MB). The test target links visloc::mapstore and visloc::map.
+inline void SaveLabMap(const std::string& path) {
+  SyntheticMapOptions options;
+  options.keyframes = 20;
+  options.points = 2000;
+  Map map = MakeSyntheticMap(options);
+  map.metadata.name = "lab";
+  mapstore::SaveMap(map, path);
 }
 
 }  // namespace visloc::testing
