@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
 #include "tests/support/e2e.h"
@@ -128,8 +129,7 @@ TEST(CliTest, PlotCurvesDrawsEachColumnAgainstTheFirst) {
       Visloc({"plot", "--curves", dir.File("scaling.csv"), "--log-x", "--out", dir.File("s.svg")});
   ASSERT_EQ(plot.exit_code, 0) << plot.err;
   EXPECT_THAT(plot.out, HasSubstr("2 curves of 3 points"));
-  std::ifstream svg(dir.File("s.svg"));
-  const std::string text((std::istreambuf_iterator<char>(svg)), std::istreambuf_iterator<char>());
+  const std::string text = ReadFileBytes(dir.File("s.svg"));
   EXPECT_THAT(text, HasSubstr("relocalization_ms"));
   EXPECT_THAT(text, HasSubstr("10000: 49.00"));
   EXPECT_THAT(text, HasSubstr("keyframes (log scale)"));

@@ -22,6 +22,7 @@
 #include "mapstore/map_store.h"
 #include "tests/support/e2e.h"
 #include "tests/support/process.h"
+#include "tests/support/upload.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc {
@@ -87,16 +88,8 @@ TEST_F(FaultE2eTest, ASigkilledServerLeavesNoPartialMapAndRestartsWithEveryMapIn
   grpc::ClientContext context;
   v1::MapInfo info;
   auto writer = stub->UploadMap(&context, &info);
-  v1::UploadChunk chunk;
-  chunk.mutable_header()->set_name("incoming");
-  chunk.mutable_header()->set_size_bytes(upload.size());
-  chunk.mutable_header()->set_crc32(mapstore::Crc32(upload));
-  ASSERT_TRUE(writer->Write(chunk));
-  for (size_t at = 0; at < upload.size() / 2; at += 65536) {
-    chunk.Clear();
-    chunk.set_data(upload.substr(at, 65536));
-    ASSERT_TRUE(writer->Write(chunk));
-  }
+  ASSERT_TRUE(testing::SendUpload(writer.get(), "incoming", upload, mapstore::Crc32(upload),
+                                  upload.size() / 2));
   WaitForLog(server, "event=session_start session=2");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   // The half upload is on disk, staged beside the maps under a name the server never lists.

@@ -17,6 +17,7 @@
 #include "mapstore/map_store.h"
 #include "tests/support/e2e.h"
 #include "tests/support/process.h"
+#include "tests/support/upload.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc {
@@ -45,17 +46,7 @@ class MapAdminE2eTest : public ::testing::Test {
     grpc::ClientContext context;
     v1::MapInfo info;
     auto writer = stub->UploadMap(&context, &info);
-    v1::UploadChunk chunk;
-    chunk.mutable_header()->set_name(name);
-    chunk.mutable_header()->set_size_bytes(bytes.size());
-    chunk.mutable_header()->set_crc32(crc);
-    writer->Write(chunk);
-    const size_t sent = std::min(cut_after, bytes.size());
-    for (size_t at = 0; at < sent; at += 65536) {
-      chunk.Clear();
-      chunk.set_data(bytes.substr(at, std::min<size_t>(65536, sent - at)));
-      writer->Write(chunk);
-    }
+    testing::SendUpload(writer.get(), name, bytes, crc, cut_after);
     if (cut_after != std::string::npos) {
       context.TryCancel();  // The client vanishes mid-upload.
     } else {
