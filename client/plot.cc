@@ -232,7 +232,8 @@ void WriteCurvePlot(const std::vector<Curve>& panels, const CurveAxes& axes,
       max_y = std::max(max_y, curve.y[i]);
     }
     if (max_y <= 0) max_y = 1.0;
-    if (!(max_x > min_x)) min_x = 0, max_x = 1;
+    if (min_x > max_x) min_x = max_x = 0.0;   // Nothing to draw.
+    if (max_x == min_x) max_x = min_x + 1.0;  // One point: a unit-wide axis around it.
     const double y0 = top + p * (panel_height + gap) + 18;  // Panel top.
     const auto x_of = [&](double x) {
       return left + (width - left - right) * (x_scaled(x) - min_x) / (max_x - min_x);

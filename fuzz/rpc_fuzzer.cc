@@ -98,11 +98,6 @@ void SetDeadline(grpc::ClientContext* context) {
   context->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(20));
 }
 
-template <typename Message>
-bool Parse(const std::string& bytes, Message* message) {
-  return message->ParseFromString(bytes);
-}
-
 void Localize(InProcessServer& server, FuzzInput& input) {
   grpc::ClientContext context;
   SetDeadline(&context);
@@ -114,7 +109,7 @@ void Localize(InProcessServer& server, FuzzInput& input) {
   int sent = 0;  // The first message sent opens the session and gets no answer.
   for (int i = 0; open && i < kMaxMessages && !input.empty(); ++i) {
     v1::LocalizeRequest request;
-    if (!Parse(input.Chunk(), &request)) continue;
+    if (!request.ParseFromString(input.Chunk())) continue;
     open = stream->Write(request) && (sent++ == 0 || stream->Read(&response));
   }
   stream->WritesDone();
@@ -130,7 +125,7 @@ void Upload(InProcessServer& server, FuzzInput& input) {
   auto writer = server.map_admin().UploadMap(&context, &reply);
   for (int i = 0; i < kMaxMessages && !input.empty(); ++i) {
     v1::UploadChunk chunk;
-    if (Parse(input.Chunk(), &chunk) && !writer->Write(chunk)) break;
+    if (chunk.ParseFromString(input.Chunk()) && !writer->Write(chunk)) break;
   }
   writer->WritesDone();
   writer->Finish();
@@ -138,7 +133,7 @@ void Upload(InProcessServer& server, FuzzInput& input) {
 
 void Download(InProcessServer& server, const std::string& bytes) {
   v1::MapName name;
-  if (!Parse(bytes, &name)) return;
+  if (!name.ParseFromString(bytes)) return;
   grpc::ClientContext context;
   SetDeadline(&context);
   auto reader = server.map_admin().DownloadMap(&context, name);
@@ -152,7 +147,7 @@ void Download(InProcessServer& server, const std::string& bytes) {
 template <typename Request, typename Response, typename Call>
 void Unary(const std::string& bytes, Call call) {
   Request request;
-  if (!Parse(bytes, &request)) return;
+  if (!request.ParseFromString(bytes)) return;
   grpc::ClientContext context;
   SetDeadline(&context);
   Response response;

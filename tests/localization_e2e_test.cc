@@ -272,6 +272,11 @@ TEST(LocalizationE2eTest, MaxFeaturesCapsTheKeypointsPerQuery) {
   for (const auto& row : capped.stats) EXPECT_LE(std::stoi(row[3]), 150);  // Column 3: features.
   const LocalizeRun full = Localize("query_square", {"--frames", "20"});
   EXPECT_GT(MedianColumn(full, 3), 150);
+  // Sessions detect at the map's finest scale only; --all-scales uses all three, as the map
+  // builder does, and finds at least as many corners to choose from.
+  const LocalizeRun all_scales = Localize("query_square", {"--frames", "20", "--all-scales"});
+  EXPECT_EQ(all_scales.localized_fraction(), 1.0);
+  EXPECT_GE(MedianColumn(all_scales, 3), MedianColumn(full, 3));
 }
 
 TEST(LocalizationE2eTest, BadArgumentsAreNamed) {
