@@ -18,6 +18,7 @@ int RunStream(const Args& args);
 int RunRelocalize(const Args& args);
 int RunPlot(const Args& args);
 int RunBench(const Args& args);
+int RunHealth(const Args& args);
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

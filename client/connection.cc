@@ -1,14 +1,19 @@
 #include "client/connection.h"
 
 #include <cstdlib>
+#include <random>
 
+#include "client/replicas.h"
 #include "core/util/check.h"
 #include "core/util/text_file.h"
 
 namespace visloc::cli {
 
 void Connection::AddFlags(ArgParser& parser, bool server_required) {
-  parser.AddFlag("server", &server, "visloc-server address HOST:PORT", server_required);
+  parser.AddFlag("server", &server,
+                 "visloc-server address HOST:PORT; replicas: a name with several addresses or "
+                 "ipv4:A:PORT,B:PORT (each session goes to the next replica)",
+                 server_required);
   parser.AddFlag("tls-ca", &tls_ca_path, "use TLS, trusting this CA certificate (PEM)");
   parser.AddFlag("tls-cert", &tls_cert_path,
                  "mutual TLS: this client's certificate (PEM; default: $VISLOC_TLS_CERT)");
@@ -50,7 +55,15 @@ std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
   }
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(64 << 20);
-  return grpc::CreateCustomChannel(server, credentials, args);
+  // Replicas (a name with several addresses, or an ipv4:/ipv6: list): each new stream goes to
+  // the next ready replica, starting at a random one per process (client/replicas.h).
+  args.SetLoadBalancingPolicyName("round_robin");
+  std::mt19937 rng(std::random_device{}());
+  const ReplicaTarget chosen = ChooseReplicaTarget(server, &rng);
+  if (!chosen.tls_name.empty() && !tls_ca_path.empty()) {
+    args.SetSslTargetNameOverride(chosen.tls_name);
+  }
+  return grpc::CreateCustomChannel(chosen.target, credentials, args);
 }
 
 void Connection::Prepare(grpc::ClientContext* context) const {

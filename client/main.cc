@@ -26,6 +26,7 @@ const std::vector<Subcommand> kCommands = {
     {"relocalize", "ask visloc-server where one image was taken", RunRelocalize},
     {"plot", "top view of a map and a trajectory (PNG or SVG)", RunPlot},
     {"bench", "time the engine, its baselines and a reference on a dataset", RunBench},
+    {"health", "ask visloc-server whether it is serving (grpc.health.v1)", RunHealth},
 };
 
 }  // namespace
