@@ -38,7 +38,7 @@ class InProcessServer {
       : maps_dir_("visloc-rpc-fuzz"),
         maps_(maps_dir_.path(), std::chrono::seconds(3600)),
         localization_(&maps_, Limits(), &auth_),
-        admin_(&maps_, 4 << 20, &auth_) {
+        admin_(&maps_, server::MapAdminOptions{4 << 20, false}, &auth_) {
     SyntheticMapOptions options;
     options.keyframes = 6;
     options.points = 200;

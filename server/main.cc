@@ -42,6 +42,7 @@ struct ServerArgs {
   std::string tls_cert, tls_key, tls_client_ca, tokens;
   double max_frame_rate_hz = 0.0;  // Per session; 0: no limit.
   bool allow_remote = false;
+  bool maps_read_only = false;
   int threads = 0;
 };
 
@@ -88,6 +89,9 @@ int Run(int argc, char** argv) {
   parser.AddFlag("tokens", &args.tokens, "bearer tokens file: 'TOKEN localize|admin' per line");
   parser.AddSwitch("allow-remote", &args.allow_remote,
                    "listen beyond loopback without tokens (trusted networks only)");
+  parser.AddSwitch("maps-read-only", &args.maps_read_only,
+                   "never change the maps folder (a replica of a shared folder another server "
+                   "writes): map upload, delete and rename are refused");
   parser.AddFlag("threads", &args.threads,
                  "frames processed at once across sessions (default: one per core)");
   if (!parser.Parse(std::vector<std::string>(argv + 1, argv + argc), std::cout)) return 0;
@@ -109,7 +113,10 @@ int Run(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   MapCache maps(args.maps_dir, std::chrono::seconds(args.idle_unload_s));
-  const int stale = mapstore::MapDirectory(args.maps_dir).RemoveStaleTemporaries();
+  // A read-only replica must not touch the folder: the temporaries in it may be another
+  // server's uploads in progress (whose process ids mean nothing in this one's namespace).
+  const int stale =
+      args.maps_read_only ? 0 : mapstore::MapDirectory(args.maps_dir).RemoveStaleTemporaries();
   ServiceLimits limits;
   limits.max_sessions = args.max_sessions;
   limits.max_frame_rate_hz = args.max_frame_rate_hz;
@@ -118,7 +125,10 @@ int Run(int argc, char** argv) {
                        ? args.threads
                        : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   LocalizationService localization(&maps, limits, &auth);
-  MapAdminService admin(&maps, static_cast<uint64_t>(args.max_upload_mb) << 20, &auth);
+  MapAdminOptions admin_options;
+  admin_options.max_upload_bytes = static_cast<uint64_t>(args.max_upload_mb) << 20;
+  admin_options.read_only = args.maps_read_only;
+  MapAdminService admin(&maps, admin_options, &auth);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -143,6 +153,7 @@ int Run(int argc, char** argv) {
       args.listen.substr(0, args.listen.rfind(':')) + ":" + std::to_string(port);
   Log("server_start", {{"listen", bound},
                        {"maps", args.maps_dir},
+                       {"maps_read_only", args.maps_read_only ? "yes" : "no"},
                        {"max_sessions", std::to_string(args.max_sessions)},
                        {"workers", std::to_string(limits.workers)},
                        {"tls", args.tls_cert.empty()        ? "off"

@@ -35,8 +35,19 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
 
 }  // namespace
 
-MapAdminService::MapAdminService(MapCache* maps, uint64_t max_upload_bytes, const TokenAuth* auth)
-    : maps_(maps), max_upload_bytes_(max_upload_bytes), auth_(auth) {}
+MapAdminService::MapAdminService(MapCache* maps, const MapAdminOptions& options,
+                                 const TokenAuth* auth)
+    : maps_(maps), options_(options), auth_(auth) {}
+
+Status MapAdminService::MayChange(const grpc::ServerContext& context) const {
+  if (Status allowed = auth_->Check(context, Role::kAdmin); !allowed.ok()) return allowed;
+  if (options_.read_only) {
+    return Status(StatusCode::FAILED_PRECONDITION,
+                  "this server's maps folder is read-only (--maps-read-only): upload, delete "
+                  "and rename maps through the fleet's admin server");
+  }
+  return Status::OK;
+}
 
 Status MapAdminService::ListMaps(grpc::ServerContext* context, const v1::ListMapsRequest*,
                                  v1::ListMapsResponse* response) {
@@ -63,7 +74,7 @@ Status MapAdminService::GetMapInfo(grpc::ServerContext* context, const v1::MapNa
 Status MapAdminService::UploadMap(grpc::ServerContext* context,
                                   grpc::ServerReader<v1::UploadChunk>* reader,
                                   v1::MapInfo* response) {
-  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
+  if (Status allowed = MayChange(*context); !allowed.ok()) return allowed;
   v1::UploadChunk chunk;
   if (!reader->Read(&chunk) || !chunk.has_header()) {
     return Status(StatusCode::INVALID_ARGUMENT, "an upload starts with a header");
@@ -72,9 +83,10 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
   std::string staged;
   try {
     mapstore::CheckMapName(header.name());
-    if (header.size_bytes() == 0 || header.size_bytes() > max_upload_bytes_) {
-      return Status(StatusCode::INVALID_ARGUMENT, StrCat("upload size ", header.size_bytes(),
-                                                         " bytes outside 1..", max_upload_bytes_));
+    if (header.size_bytes() == 0 || header.size_bytes() > options_.max_upload_bytes) {
+      return Status(StatusCode::INVALID_ARGUMENT,
+                    StrCat("upload size ", header.size_bytes(), " bytes outside 1..",
+                           options_.max_upload_bytes));
     }
     if (!header.replace() && maps_->directory().Contains(header.name())) {
       return Status(StatusCode::ALREADY_EXISTS,
@@ -152,7 +164,7 @@ Status MapAdminService::DownloadMap(grpc::ServerContext* context, const v1::MapN
 
 Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapName* request,
                                   v1::Empty*) {
-  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
+  if (Status allowed = MayChange(*context); !allowed.ok()) return allowed;
   try {
     mapstore::CheckMapName(request->name());
     if (!maps_->directory().Contains(request->name())) {
@@ -168,7 +180,7 @@ Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapNam
 
 Status MapAdminService::RenameMap(grpc::ServerContext* context, const v1::RenameMapRequest* request,
                                   v1::MapInfo* response) {
-  if (Status allowed = auth_->Check(*context, Role::kAdmin); !allowed.ok()) return allowed;
+  if (Status allowed = MayChange(*context); !allowed.ok()) return allowed;
   try {
     mapstore::CheckMapName(request->from());
     mapstore::CheckMapName(request->to());

@@ -9,11 +9,18 @@
 
 namespace visloc::server {
 
+struct MapAdminOptions {
+  uint64_t max_upload_bytes = 2048ull << 20;  // Bounds an upload's declared and actual size.
+  // A replica serving a shared maps folder that another server writes (docs/deployment.md):
+  // upload, delete and rename are refused (FAILED_PRECONDITION) so changes go through one
+  // place; list, info and download still work.
+  bool read_only = false;
+};
+
 class MapAdminService final : public v1::MapAdmin::Service {
  public:
-  // `max_upload_bytes` bounds an upload's declared and actual size.
   // Every call needs the admin role. `auth` must outlive the service.
-  MapAdminService(MapCache* maps, uint64_t max_upload_bytes, const TokenAuth* auth);
+  MapAdminService(MapCache* maps, const MapAdminOptions& options, const TokenAuth* auth);
 
   grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
                         v1::ListMapsResponse* response) override;
@@ -29,8 +36,11 @@ class MapAdminService final : public v1::MapAdmin::Service {
                          v1::MapInfo* response) override;
 
  private:
+  // The admin role check, and for changes the read-only refusal.
+  grpc::Status MayChange(const grpc::ServerContext& context) const;
+
   MapCache* maps_;
-  uint64_t max_upload_bytes_;
+  MapAdminOptions options_;
   const TokenAuth* auth_;
 };
 
