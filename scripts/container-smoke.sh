@@ -44,28 +44,40 @@ note "healthcheck: $(podman_ image inspect --format '{{.Config.Healthcheck.Test}
 
 echo "== 3. The image's filesystem, exported"
 root="$work/rootfs"
+# Nothing is ever mounted under $root; if something is (an earlier run of an older script),
+# deleting it would delete through the mount, so refuse.
+if grep -q " $root/" /proc/self/mounts 2> /dev/null; then
+  echo "container-smoke: something is mounted under $root; unmount it first"; exit 1
+fi
 rm -rf "$root" && mkdir -p "$root"
 container=$(podman_ create "$image")
 podman_ export "$container" | tar -C "$root" -x
-podman_ rm "$container" > /dev/null
+podman_ rm "$container" > /dev/null 2>&1  # (podman warns that no systemd timer exists)
 uid=$(chroot "$root" id -u visloc) gid=$(chroot "$root" id -g visloc)
 [ "$uid" -ne 0 ] || { echo "the image's user is root"; exit 1; }
-mount --bind /dev "$root/dev" && mount -t proc proc "$root/proc" && mounted=1 || mounted=0
+# The few device nodes a container runtime would give it; no host mounts.
+for node in "null 1 3" "zero 1 5" "random 1 8" "urandom 1 9"; do
+  set -- $node
+  rm -f "$root/dev/$1" && mknod -m 666 "$root/dev/$1" c "$2" "$3"
+done
+server_pid=
 cleanup() {
-  kill -TERM "${server_pid:-0}" 2> /dev/null || true
-  if [ "$mounted" = 1 ]; then umount "$root/proc" "$root/dev" 2> /dev/null || true; fi
+  if [ -n "$server_pid" ]; then kill -TERM "$server_pid" 2> /dev/null || true; fi
 }
 trap cleanup EXIT
 # Tokens as a Kubernetes secret would mount them; the maps volume owned by the image's user.
-printf 'robot-smoke localize\nadmin-smoke admin\n' > "$root/etc/visloc/tokens"
+robot_token=$(openssl rand -hex 16) admin_token=$(openssl rand -hex 16)
+printf '%s localize\n%s admin\n' "$robot_token" "$admin_token" > "$root/etc/visloc/tokens"
 as_visloc() { chroot --userspec="$uid:$gid" "$root" env HOME=/var/lib/visloc "$@"; }
 
 echo "== 4. visloc-server from the image, as uid $uid, on loopback"
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-as_visloc visloc-server --maps /maps --listen "127.0.0.1:$port" --tokens /etc/visloc/tokens \
-  > "$work/server.out" 2> "$work/server.log" &
+# chroot execs the server: $! is the server itself, which the SIGTERM below must reach.
+chroot --userspec="$uid:$gid" "$root" visloc-server --maps /maps --listen "127.0.0.1:$port" \
+  --tokens /etc/visloc/tokens > "$work/server.out" 2> "$work/server.log" &
 server_pid=$!
 for _ in $(seq 100); do grep -q "listening on" "$work/server.out" 2> /dev/null && break; sleep 0.1; done
+grep -q "listening on" "$work/server.out" || { cat "$work/server.log"; exit 1; }
 address=127.0.0.1:$port
 as_visloc visloc health --server "$address" | tee -a "$summary"
 
@@ -75,19 +87,28 @@ if [ ! -f "$data/square.db" ]; then
   build/client/visloc sim --out "$data" --sequence map_square,kidnap > /dev/null
   build/client/visloc map build --dataset "$data/map_square" --out "$data/square.db" > /dev/null
 fi
-VISLOC_TOKEN=admin-smoke build/client/visloc map upload "$data/square.db" --server "$address" --replace
-note "uploaded: $(stat -c '%U(%u) %s bytes' "$root/maps/square.db") in the image's /maps"
-VISLOC_TOKEN=robot-smoke build/client/visloc stream --server "$address" --map square \
+VISLOC_TOKEN=$admin_token build/client/visloc map upload "$data/square.db" --server "$address" --replace
+note "uploaded: $(stat -c 'owner uid %u, %s bytes' "$root/maps/square.db") in the image's /maps"
+VISLOC_TOKEN=$robot_token build/client/visloc stream --server "$address" --map square \
   --dataset "$data/kidnap" --trajectory "$work/kidnap.tum" --stats "$work/kidnap.csv" \
   --gt "$data/kidnap/groundtruth_map.tum" --json > "$work/stream.json"
 note "stream: $(cat "$work/stream.json")"
 note "eval: $(build/client/visloc eval --gt "$data/kidnap/groundtruth_map.tum" --est "$work/kidnap.tum" --json)"
-refused=$(VISLOC_TOKEN=robot-smoke build/client/visloc map delete square --server "$address" 2>&1 || true)
+refused=$(VISLOC_TOKEN=$robot_token build/client/visloc map delete square --server "$address" 2>&1 || true)
 note "robot token deleting a map: $refused"
 
-echo "== 6. SIGTERM drains"
+echo "== 6. The compose demo's client, from the image, against the same server (log: $work/demo-client.log)"
+start=$(date +%s)
+as_visloc VISLOC_TOKEN="$admin_token" VISLOC_DEMO_OUT=/var/lib/visloc/demo \
+  visloc-demo-client "$address" > "$work/demo-client.log" 2>&1 || { tail -20 "$work/demo-client.log"; exit 1; }
+note "demo client: passed in $(( $(date +%s) - start )) s; its last lines:"
+tail -n 8 "$work/demo-client.log" | sed 's/^/  /' | tee -a "$summary"
+
+echo "== 7. SIGTERM drains"
 kill -TERM "$server_pid"
-wait "$server_pid" && note "server exit: 0" || note "server exit: $?"
-server_pid=0
+status=0
+wait "$server_pid" || status=$?
+server_pid=
+note "server exit: $status"
 tail -n 1 "$work/server.log" | tee -a "$summary"
 echo "container-smoke: passed; figures in $summary"

@@ -3,6 +3,8 @@
 # fixed rate on one dataset, then the aggregate frames/s and each session's latency.
 # Usage: scripts/load.sh MAP.db DATASET SESSIONS [RATE_HZ=15] [FRAMES=150] [POLICY=all|newest]
 # Prints one line per session and a summary (median of the sessions' p50 and the worst p99).
+# VISLOC_LOAD_THREADS=N gives the server N engine workers (--threads; default one per core), so
+# a saturating run measures frames/s per core for capacity planning (docs/deployment.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 map=$1 dataset=$2 sessions=$3 rate=${4:-15} frames=${5:-150} policy=${6:-all}
@@ -11,6 +13,7 @@ trap 'kill -TERM ${server_pid:-0} 2>/dev/null || true; rm -rf "$work"' EXIT
 mkdir -p "$work/maps"
 cp "$map" "$work/maps/load.db"
 build/server/visloc-server --maps "$work/maps" --listen 127.0.0.1:0 --max-sessions 256 \
+  --threads "${VISLOC_LOAD_THREADS:-0}" \
   > "$work/server.out" 2> "$work/server.log" &
 server_pid=$!
 for _ in $(seq 100); do grep -q "listening on" "$work/server.out" 2>/dev/null && break; sleep 0.1; done
