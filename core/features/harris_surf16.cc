@@ -225,7 +225,10 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   // re-localized on the finest full-resolution response anyway.
   cv::Mat image_f, half_f;
   grey.convertTo(image_f, CV_32F, 1.0 / 255.0);
-  cv::resize(image_f, half_f, cv::Size(grey.cols / 2, grey.rows / 2), 0, 0, cv::INTER_AREA);
+  // The half-size image only when a scale uses it (queries detect at the finest scale only).
+  if (*std::max_element(options_.scales_px.begin(), options_.scales_px.end()) >= 2.0) {
+    cv::resize(image_f, half_f, cv::Size(grey.cols / 2, grey.rows / 2), 0, 0, cv::INTER_AREA);
+  }
   std::vector<cv::Mat> responses;
   std::vector<int> level_scales;
   float strongest = 0.0f;
