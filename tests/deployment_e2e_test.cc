@@ -9,7 +9,6 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
-#include <set>
 
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
