@@ -8,6 +8,7 @@
 
 #include "client/commands.h"
 #include "client/subcommands.h"
+#include "core/features/features.h"
 #include "core/util/args.h"
 #include "core/util/memory.h"
 
@@ -35,6 +36,7 @@ const std::vector<Subcommand> kCommands = {
 int main(int argc, char** argv) {
   using namespace visloc::cli;
   visloc::KeepFreedMemoryForReuse();
+  visloc::RunOpenCvOnCallingThread();
   const Args args(argv + 1, argv + argc);
   // Errors are reported as "visloc VERB: reason", naming the command the user ran.
   std::string verb;

@@ -19,6 +19,7 @@
 #include <iostream>
 #include <thread>
 
+#include "core/features/features.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/memory.h"
@@ -191,6 +192,7 @@ int Run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   visloc::KeepFreedMemoryForReuse();
+  visloc::RunOpenCvOnCallingThread();  // Sessions run in parallel, one worker per core.
   try {
     return visloc::server::Run(argc, argv);
   } catch (const visloc::UsageError& e) {

@@ -11,6 +11,8 @@
 #include "core/util/timer.h"
 
 namespace visloc {
+
+void RunOpenCvOnCallingThread() { cv::setNumThreads(0); }
 namespace {
 
 struct OrbOptions {

@@ -63,6 +63,13 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
 FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,
                                      bool finest_scale_only);
 
+// Makes OpenCV run every call on the calling thread. visloc parallelizes across sessions (one
+// engine worker per core); OpenCV's own thread pool on top of that oversubscribes the cores, and
+// on 320x240 images its hand-off costs more than the work it spreads (measured: 10% of a
+// detection in TBB and the scheduler). Programs call it once at start; timings then mean one
+// core per frame, for the ORB reference too.
+void RunOpenCvOnCallingThread();
+
 // Keeps the nearest and second-nearest candidates of a descriptor search, for Lowe's ratio test
 // (a match is distinctive when best < ratio * second).
 struct NearestTwo {

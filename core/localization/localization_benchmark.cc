@@ -238,9 +238,10 @@ BENCHMARK(BM_RelocalizeScaling)->Arg(100)->Arg(1000)->Arg(10000)->Unit(benchmark
 }  // namespace visloc
 
 // As in the server and the CLI: freed image buffers are reused, not returned to the kernel
-// and faulted in again on the next frame.
+// and faulted in again on the next frame, and OpenCV runs on the calling thread.
 int main(int argc, char** argv) {
   visloc::KeepFreedMemoryForReuse();
+  visloc::RunOpenCvOnCallingThread();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
