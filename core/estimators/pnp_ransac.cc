@@ -22,8 +22,9 @@ int CountInliers(const Rigid3d& pose, const std::vector<PoseObservation>& observ
   const double threshold_sq = options.max_error_px * options.max_error_px;
   int count = 0;
   if (mask) mask->assign(observations.size(), 0);
+  const PoseProjector projector(pose, options.refine);
   for (size_t i = 0; i < observations.size(); ++i) {
-    if (SquaredReprojectionErrorPx(pose, observations[i], options.refine) <= threshold_sq) {
+    if (projector.SquaredErrorPx(observations[i]) <= threshold_sq) {
       ++count;
       if (mask) (*mask)[i] = 1;
     }

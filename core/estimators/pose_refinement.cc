@@ -19,12 +19,6 @@ namespace {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 Rigid3d ApplyUpdate(const Vector6d& delta, const Rigid3d& pose) {
   const Eigen::Vector3d phi = delta.tail<3>();
   const double angle = phi.norm();
@@ -34,47 +28,65 @@ Rigid3d ApplyUpdate(const Vector6d& delta, const Rigid3d& pose) {
   return Rigid3d(rotation * pose.rotation, rotation * pose.translation + delta.head<3>());
 }
 
+// Gauss-Newton normal equations, accumulated in the 21 entries of the upper triangle (the
+// full 6x6 outer product per residual doubled the arithmetic of a linearization).
 struct NormalEquations {
-  Matrix6d h = Matrix6d::Zero();
+  double h_upper[21] = {};
   Vector6d g = Vector6d::Zero();
   double robust_cost = 0.0;
   double squared_px = 0.0;
   int residual_count = 0;
-};
 
-// Accumulates one scalar residual r (normalized units) with Jacobian row j wrt delta.
-void AddResidual(double r, const Eigen::Matrix<double, 1, 6>& j, double huber_normalized,
-                 NormalEquations* ne, double focal_px) {
-  const double abs_r = std::abs(r);
-  const double weight = abs_r <= huber_normalized ? 1.0 : huber_normalized / abs_r;
-  ne->h += weight * j.transpose() * j;
-  ne->g += weight * r * j.transpose();
-  ne->robust_cost +=
-      abs_r <= huber_normalized ? r * r : huber_normalized * (2 * abs_r - huber_normalized);
-  ne->squared_px += r * r * focal_px * focal_px;
-  ++ne->residual_count;
-}
+  // One scalar residual r (normalized units) whose derivative with respect to the camera point
+  // p is dr_dp; its row with respect to delta is dr_dp [I | -[p]x].
+  void Add(double r, const Eigen::Vector3d& dr_dp, const Eigen::Vector3d& p,
+           double huber_normalized, double focal_px) {
+    const double j[6] = {dr_dp.x(),
+                         dr_dp.y(),
+                         dr_dp.z(),
+                         dr_dp.z() * p.y() - dr_dp.y() * p.z(),
+                         dr_dp.x() * p.z() - dr_dp.z() * p.x(),
+                         dr_dp.y() * p.x() - dr_dp.x() * p.y()};
+    const double abs_r = std::abs(r);
+    const double weight = abs_r <= huber_normalized ? 1.0 : huber_normalized / abs_r;
+    int k = 0;
+    for (int a = 0; a < 6; ++a) {
+      const double wa = weight * j[a];
+      g(a) += wa * r;
+      for (int b = a; b < 6; ++b) h_upper[k++] += wa * j[b];
+    }
+    robust_cost +=
+        abs_r <= huber_normalized ? r * r : huber_normalized * (2 * abs_r - huber_normalized);
+    squared_px += r * r * focal_px * focal_px;
+    ++residual_count;
+  }
+
+  Matrix6d H() const {
+    Matrix6d h;
+    int k = 0;
+    for (int a = 0; a < 6; ++a) {
+      for (int b = a; b < 6; ++b) h(a, b) = h(b, a) = h_upper[k++];
+    }
+    return h;
+  }
+};
 
 NormalEquations Linearize(const Rigid3d& pose, const std::vector<PoseObservation>& observations,
                           const PoseRefineOptions& options) {
   NormalEquations ne;
   const double huber = options.huber_px / options.focal_px;
+  const PoseProjector projector(pose, options);
   for (const PoseObservation& o : observations) {
-    const Eigen::Vector3d p = pose * o.point_in_world;
+    const Eigen::Vector3d p = projector.ToCamera(o.point_in_world);
     if (p.z() <= 1e-6) continue;
     const double iz = 1.0 / p.z();
-    // d p / d delta = [I | -[p]x].
-    Eigen::Matrix<double, 3, 6> dp;
-    dp.leftCols<3>().setIdentity();
-    dp.rightCols<3>() = -Skew(p);
-    const Eigen::Matrix<double, 1, 3> dx(iz, 0, -p.x() * iz * iz);
-    const Eigen::Matrix<double, 1, 3> dy(0, iz, -p.y() * iz * iz);
-    AddResidual(p.x() * iz - o.normalized.x(), dx * dp, huber, &ne, options.focal_px);
-    AddResidual(p.y() * iz - o.normalized.y(), dy * dp, huber, &ne, options.focal_px);
+    const double u = p.x() * iz, v = p.y() * iz;
+    ne.Add(u - o.normalized.x(), Eigen::Vector3d(iz, 0, -u * iz), p, huber, options.focal_px);
+    ne.Add(v - o.normalized.y(), Eigen::Vector3d(0, iz, -v * iz), p, huber, options.focal_px);
     if (o.has_right) {
-      const Eigen::Matrix<double, 1, 3> dxr(iz, 0, -(p.x() - options.baseline_m) * iz * iz);
-      AddResidual((p.x() - options.baseline_m) * iz - o.right_x_normalized, dxr * dp, huber, &ne,
-                  options.focal_px);
+      const double ur = (p.x() - options.baseline_m) * iz;
+      ne.Add(ur - o.right_x_normalized, Eigen::Vector3d(iz, 0, -ur * iz), p, huber,
+             options.focal_px);
     }
   }
   return ne;
@@ -85,20 +97,6 @@ double Rmse(const NormalEquations& ne) {
 }
 
 }  // namespace
-
-double SquaredReprojectionErrorPx(const Rigid3d& cam_from_world, const PoseObservation& o,
-                                  const PoseRefineOptions& options) {
-  const Eigen::Vector3d p = cam_from_world * o.point_in_world;
-  if (p.z() <= 1e-6) return std::numeric_limits<double>::infinity();
-  const Eigen::Vector2d e = p.head<2>() / p.z() - o.normalized;
-  double squared = e.squaredNorm();
-  if (o.has_right) {
-    const double ed = options.disparity_weight *
-                      (options.baseline_m / p.z() - (o.normalized.x() - o.right_x_normalized));
-    squared = std::max(squared, ed * ed);
-  }
-  return squared * options.focal_px * options.focal_px;
-}
 
 Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservation>& observations,
                    const PoseRefineOptions& options, PoseRefineStats* stats, Matrix6d* covariance) {
@@ -111,8 +109,9 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
   if (observations.size() >= 3) {
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       local.iterations = iteration + 1;
-      Matrix6d damped = ne.h;
-      damped.diagonal() += lambda * (ne.h.diagonal().array() + 1e-9).matrix();
+      const Matrix6d h = ne.H();
+      Matrix6d damped = h;
+      damped.diagonal() += lambda * (h.diagonal().array() + 1e-9).matrix();
       const Vector6d delta = damped.ldlt().solve(-ne.g);
       if (!delta.allFinite()) break;
       const Rigid3d candidate = ApplyUpdate(delta, pose);
@@ -141,7 +140,7 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
   local.final_rmse_px = Rmse(ne);
   if (covariance) {
     const double sigma = options.pixel_sigma_px / options.focal_px;
-    *covariance = sigma * sigma * ne.h.ldlt().solve(Matrix6d::Identity());
+    *covariance = sigma * sigma * ne.H().ldlt().solve(Matrix6d::Identity());
   }
   if (stats) *stats = local;
   return pose;
