@@ -189,6 +189,67 @@ TEST(HarrisSurf16Test, DescriptorIgnoresContrastAndBrightness) {
   EXPECT_NEAR(cv::norm(a.row(0)), 1.0, 1e-5);
 }
 
+// The descriptor straight from its definition (harris_surf16.h), one pixel at a time; a
+// wavelet that overhangs the image sums only its part inside. The reference for the fast paths
+// (small wavelets read from a per-image response table, larger ones from an integral image).
+std::vector<float> ReferenceDescriptor(const cv::Mat& grey, const Keypoint& k) {
+  const double s = k.scale_px;
+  const int half = std::max(2, static_cast<int>(std::lround(2 * s)) & ~1) / 2;
+  const auto pixel = [&](int x, int y) {
+    const bool inside = x >= 0 && y >= 0 && x < grey.cols && y < grey.rows;
+    return inside ? static_cast<int>(grey.at<uint8_t>(y, x)) : 0;
+  };
+  const auto box = [&](int x0, int y0, int x1, int y1) {  // [x0, x1) x [y0, y1)
+    int sum = 0;
+    for (int y = y0; y < y1; ++y) {
+      for (int x = x0; x < x1; ++x) sum += pixel(x, y);
+    }
+    return sum;
+  };
+  std::vector<double> sums(16, 0.0);
+  for (int sy = 0; sy < 12; ++sy) {
+    for (int sx = 0; sx < 12; ++sx) {
+      const double ox = (sx - 5.5) * s, oy = (sy - 5.5) * s;
+      const int x = static_cast<int>(std::floor(k.pixel.x() + ox + 0.5));
+      const int y = static_cast<int>(std::floor(k.pixel.y() + oy + 0.5));
+      const double dx = box(x, y - half, x + half, y + half) - box(x - half, y - half, x, y + half);
+      const double dy = box(x - half, y, x + half, y + half) - box(x - half, y - half, x + half, y);
+      const double w = std::exp(-(ox * ox + oy * oy) / (2 * (3.3 * s) * (3.3 * s)));
+      double* cell = &sums[4 * ((sy / 6) * 2 + sx / 6)];
+      cell[0] += w * dx;
+      cell[1] += w * dy;
+      cell[2] += w * std::abs(dx);
+      cell[3] += w * std::abs(dy);
+    }
+  }
+  double norm = 0;
+  for (double v : sums) norm += v * v;
+  std::vector<float> descriptor;
+  for (double v : sums) descriptor.push_back(static_cast<float>(v / std::sqrt(norm)));
+  return descriptor;
+}
+
+TEST(HarrisSurf16Test, DescriptorsEqualTheirDefinitionInsideAndAtTheBorder) {
+  const cv::Mat& image = Views().first;
+  const HarrisSurf16Extractor extractor(HarrisSurf16Options{});
+  std::vector<Keypoint> keypoints;
+  for (float scale : {1.2f, 2.0f, 3.2f}) {  // Wavelet half sizes 1, 2 and 3.
+    for (const Eigen::Vector2f& pixel :
+         {Eigen::Vector2f(100.3f, 80.6f), Eigen::Vector2f(200.5f, 150.5f),
+          Eigen::Vector2f(2.2f, 3.7f), Eigen::Vector2f(318.6f, 120.0f)}) {
+      keypoints.push_back({pixel, scale, 1.0f});
+    }
+  }
+  const cv::Mat descriptors = extractor.Describe(image, keypoints);
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    const std::vector<float> expected = ReferenceDescriptor(image, keypoints[i]);
+    for (int j = 0; j < 16; ++j) {
+      EXPECT_NEAR(descriptors.at<float>(static_cast<int>(i), j), expected[j], 1e-5)
+          << "keypoint " << keypoints[i].pixel.transpose() << " scale " << keypoints[i].scale_px;
+    }
+  }
+}
+
 TEST(FeatureSettingsTest, SettingsRoundTripAndUnknownsAreRefused) {
   const FeatureSettings settings = DefaultFeatureSettings("harris_surf16");
   EXPECT_EQ(settings.descriptor_dim, 16);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
@@ -368,13 +369,90 @@ class BoxSums {
   int stride_ = 0, max_x_ = 0, max_y_ = 0;
 };
 
+// Haar responses of the smallest wavelet (half size 1: 2x2 pixels) at every pixel, from the
+// image directly. The finest scale's samples (most of a query's) then read two values instead
+// of eight integral-image entries. The values are the integers BoxSums::HaarInside gives, so
+// descriptors do not depend on which path computed them.
+class SmallHaar {
+ public:
+  explicit SmallHaar(const cv::Mat& grey) : dx_(grey.size(), CV_16S), dy_(grey.size(), CV_16S) {
+    dx_.row(0).setTo(0);
+    dy_.row(0).setTo(0);
+    for (int y = 1; y < grey.rows; ++y) {
+      const uint8_t* above = grey.ptr<uint8_t>(y - 1);
+      const uint8_t* row = grey.ptr<uint8_t>(y);
+      int16_t* dx = dx_.ptr<int16_t>(y);
+      int16_t* dy = dy_.ptr<int16_t>(y);
+      dx[0] = dy[0] = 0;
+      for (int x = 1; x < grey.cols; ++x) {
+        // Pixels a b / c d around the sample point (x, y), which is d's top-left corner.
+        const int a = above[x - 1], b = above[x], c = row[x - 1], d = row[x];
+        dx[x] = static_cast<int16_t>((b + d) - (a + c));
+        dy[x] = static_cast<int16_t>((c + d) - (a + b));
+      }
+    }
+  }
+  // True when samples at x in [x0, x1] and y in [y0, y1] have their whole wavelet inside.
+  bool Contains(int x0, int y0, int x1, int y1) const {
+    return x0 >= 1 && y0 >= 1 && x1 < dx_.cols && y1 < dx_.rows;
+  }
+  void Haar(int x, int y, float* dx, float* dy) const {
+    *dx = dx_.ptr<int16_t>(y)[x];
+    *dy = dy_.ptr<int16_t>(y)[x];
+  }
+
+ private:
+  cv::Mat dx_, dy_;
+};
+
 inline int RoundToInt(double v) { return static_cast<int>(std::floor(v + 0.5)); }
+
+// The descriptor of one keypoint from its sample grid (xs, ys) and the wavelet responses
+// `haar(x, y, &dx, &dy)`: per sub-region (sum dx, sum dy, sum |dx|, sum |dy|), Gaussian
+// weighted, normalized to unit length. One accumulation order for every response source. Each
+// sub-region sums into two accumulators (even and odd samples) so that consecutive samples do
+// not wait on each other's additions.
+template <typename HaarAt>
+void DescribeOne(const DescriptorPattern& pattern, const std::array<int, kSamplesPerSide>& xs,
+                 const std::array<int, kSamplesPerSide>& ys, HaarAt&& haar, float* descriptor) {
+  std::array<float, 16> sums{};
+  // One sample's weighted (dx, dy, |dx|, |dy|) added to `acc`.
+  const auto add_sample = [&](int x, int y, float w, float* acc) {
+    float dx, dy;
+    haar(x, y, &dx, &dy);
+    acc[0] += w * dx;
+    acc[1] += w * dy;
+    acc[2] += w * std::abs(dx);
+    acc[3] += w * std::abs(dy);
+  };
+  for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+    const int y = ys[sy];
+    const float* weights = &pattern.weights[sy * kSamplesPerSide];
+    for (int column = 0; column < 2; ++column) {
+      float even[4] = {0, 0, 0, 0}, odd[4] = {0, 0, 0, 0};
+      for (int sx = 6 * column; sx < 6 * column + 6; sx += 2) {
+        add_sample(xs[sx], y, weights[sx], even);
+        add_sample(xs[sx + 1], y, weights[sx + 1], odd);
+      }
+      float* cell = &sums[4 * ((sy / 6) * 2 + column)];
+      for (int c = 0; c < 4; ++c) cell[c] += even[c] + odd[c];
+    }
+  }
+  double norm = 0;
+  for (int j = 0; j < 16; ++j) norm += sums[j] * sums[j];
+  norm = std::sqrt(norm);
+  for (int j = 0; j < 16; ++j) {
+    descriptor[j] = norm > 1e-12 ? static_cast<float>(sums[j] / norm) : sums[j];
+  }
+}
 
 }  // namespace
 
 cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
                                         const std::vector<Keypoint>& keypoints) const {
-  const BoxSums boxes(grey);
+  // Both response sources are built on first use: a query needs only the small wavelets.
+  std::optional<BoxSums> boxes;
+  std::optional<SmallHaar> small;
   cv::Mat descriptors(static_cast<int>(keypoints.size()), 16, CV_32F);
   std::vector<DescriptorPattern> patterns;
   for (size_t i = 0; i < keypoints.size(); ++i) {
@@ -391,42 +469,25 @@ cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
       xs[j] = RoundToInt(k.pixel.x() + pattern->offsets[j]);
       ys[j] = RoundToInt(k.pixel.y() + pattern->offsets[j]);
     }
-    const bool inside =
-        boxes.Contains(xs.front() - half, ys.front() - half, xs.back() + half, ys.back() + half);
-    // Per sub-region sums (sum dx, sum dy, sum |dx|, sum |dy|), accumulated in locals.
-    std::array<float, 16> sums{};
-    for (int sy = 0; sy < kSamplesPerSide; ++sy) {
-      const int y = ys[sy];
-      const float* weights = &pattern->weights[sy * kSamplesPerSide];
-      for (int column = 0; column < 2; ++column) {
-        float sum_dx = 0, sum_dy = 0, sum_abs_dx = 0, sum_abs_dy = 0;
-        for (int sx = 6 * column; sx < 6 * column + 6; ++sx) {
-          float dx, dy;
-          if (inside) {
-            boxes.HaarInside(xs[sx], y, half, &dx, &dy);
-          } else {
-            boxes.HaarClamped(xs[sx], y, half, &dx, &dy);
-          }
-          const float w = weights[sx];
-          sum_dx += w * dx;
-          sum_dy += w * dy;
-          sum_abs_dx += w * std::abs(dx);
-          sum_abs_dy += w * std::abs(dy);
-        }
-        float* cell = &sums[4 * ((sy / 6) * 2 + column)];
-        cell[0] += sum_dx;
-        cell[1] += sum_dy;
-        cell[2] += sum_abs_dx;
-        cell[3] += sum_abs_dy;
+    float* d = descriptors.ptr<float>(static_cast<int>(i));
+    if (half == 1) {
+      if (!small) small.emplace(grey);
+      if (small->Contains(xs.front(), ys.front(), xs.back(), ys.back())) {
+        DescribeOne(
+            *pattern, xs, ys,
+            [&](int x, int y, float* dx, float* dy) { small->Haar(x, y, dx, dy); }, d);
+        continue;
       }
     }
-    float* d = descriptors.ptr<float>(static_cast<int>(i));
-    std::copy(sums.begin(), sums.end(), d);
-    double norm = 0;
-    for (int j = 0; j < 16; ++j) norm += d[j] * d[j];
-    norm = std::sqrt(norm);
-    if (norm > 1e-12) {
-      for (int j = 0; j < 16; ++j) d[j] = static_cast<float>(d[j] / norm);
+    if (!boxes) boxes.emplace(grey);
+    if (boxes->Contains(xs.front() - half, ys.front() - half, xs.back() + half, ys.back() + half)) {
+      DescribeOne(
+          *pattern, xs, ys,
+          [&](int x, int y, float* dx, float* dy) { boxes->HaarInside(x, y, half, dx, dy); }, d);
+    } else {
+      DescribeOne(
+          *pattern, xs, ys,
+          [&](int x, int y, float* dx, float* dy) { boxes->HaarClamped(x, y, half, dx, dy); }, d);
     }
   }
   return descriptors;
