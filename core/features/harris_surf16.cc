@@ -210,24 +210,19 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
 
 }  // namespace
 
-std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
-                                     const cv::Size& image_size, int grid_cols, int grid_rows,
-                                     int max_features) {
-  std::vector<int> order(keypoints.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-  if (static_cast<int>(keypoints.size()) <= max_features) return order;
-  std::sort(order.begin(), order.end(),
-            [&](int a, int b) { return keypoints[a].response > keypoints[b].response; });
+std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
+                                const cv::Size& image_size, int grid_cols, int grid_rows,
+                                int max_items) {
   const int cells = grid_cols * grid_rows;
-  const int quota = std::max(1, max_features / cells);
+  const int quota = std::max(1, max_items / cells);
   std::vector<int> used(cells, 0);
   std::vector<int> selected, rest;
-  for (int i : order) {
-    const Keypoint& k = keypoints[i];
+  for (int i = 0; i < static_cast<int>(pixels.size()); ++i) {
+    const Eigen::Vector2f& p = pixels[i];
     const int cx =
-        std::clamp(static_cast<int>(k.pixel.x() * grid_cols / image_size.width), 0, grid_cols - 1);
+        std::clamp(static_cast<int>(p.x() * grid_cols / image_size.width), 0, grid_cols - 1);
     const int cy =
-        std::clamp(static_cast<int>(k.pixel.y() * grid_rows / image_size.height), 0, grid_rows - 1);
+        std::clamp(static_cast<int>(p.y() * grid_rows / image_size.height), 0, grid_rows - 1);
     int& count = used[cy * grid_cols + cx];
     if (count < quota) {
       ++count;
@@ -236,9 +231,26 @@ std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
       rest.push_back(i);
     }
   }
-  for (size_t i = 0; i < rest.size() && static_cast<int>(selected.size()) < max_features; ++i) {
+  for (size_t i = 0; i < rest.size() && static_cast<int>(selected.size()) < max_items; ++i) {
     selected.push_back(rest[i]);
   }
+  return selected;
+}
+
+std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
+                                     const cv::Size& image_size, int grid_cols, int grid_rows,
+                                     int max_features) {
+  std::vector<int> order(keypoints.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  if (static_cast<int>(keypoints.size()) <= max_features) return order;
+  std::sort(order.begin(), order.end(),
+            [&](int a, int b) { return keypoints[a].response > keypoints[b].response; });
+  std::vector<Eigen::Vector2f> pixels;
+  pixels.reserve(order.size());
+  for (int i : order) pixels.push_back(keypoints[i].pixel);
+  std::vector<int> selected =
+      SpreadOverGrid(pixels, image_size, grid_cols, grid_rows, max_features);
+  for (int& i : selected) i = order[i];
   return selected;
 }
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "core/features/harris_surf16.h"  // SpreadOverGrid
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -35,6 +36,7 @@ void PoseTrackerOptions::Check() const {
   VISLOC_CHECK(matching.radius_px > 0 && refine_radius_px > 0, "search radii ", matching.radius_px,
                " ", refine_radius_px);
   VISLOC_CHECK(matching.ratio > 0 && matching.ratio <= 1, "ratio ", matching.ratio);
+  VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
 }
 
 PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
@@ -110,35 +112,65 @@ void PoseTracker::RefineAround(const QueryFrame& frame, const std::vector<uint32
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
 }
 
+std::vector<ProjectedPoint> PoseTracker::CoarseSubset(
+    const std::vector<ProjectedPoint>& projected) const {
+  const int wanted = options_.coarse_points;
+  if (wanted == 0 || static_cast<int>(projected.size()) <= wanted) return projected;
+  std::vector<Eigen::Vector2f> pixels;
+  pixels.reserve(projected.size());
+  for (const ProjectedPoint& p : projected) pixels.push_back(p.pixel.cast<float>());
+  std::vector<ProjectedPoint> subset;
+  subset.reserve(wanted);
+  for (int i : SpreadOverGrid(pixels, cv::Size(camera_.width(), camera_.height()), 8, 6, wanted)) {
+    subset.push_back(projected[i]);
+  }
+  return subset;
+}
+
+PnpResult PoseTracker::SolveFromMatches(const QueryFrame& frame,
+                                        const std::vector<PointMatch>& matches,
+                                        PoseFix* fix) const {
+  Timer timer;
+  // One refinement pass: RefineAround re-matches around this pose and refines twice anyway.
+  PnpRansacOptions ransac_options = options_.ransac;
+  ransac_options.refinement_passes = 1;
+  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), ransac_options);
+  fix->times.pose_ms += timer.ElapsedMs();
+  fix->ransac_iterations += ransac.stats.iterations;
+  fix->putatives = static_cast<int>(matches.size());
+  return ransac;
+}
+
 PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const {
   PoseFix fix;
-  std::vector<PointMatch> matches;
   std::vector<uint32_t> points;
+  PnpResult ransac;
   Timer timer;
   if (options_.prediction == PredictionMode::kBruteForce) {
-    matches = MatchByDescriptor(map_->map(), all_points_, frame, options_.matching);
+    const std::vector<PointMatch> matches =
+        MatchByDescriptor(map_->map(), all_points_, frame, options_.matching);
     fix.times.match_ms += timer.ElapsedMs();
+    ransac = SolveFromMatches(frame, matches, &fix);
+    if (!ransac.success) return fix;
+    points = PredictPoints(ransac.cam_from_world, &fix);
   } else {
     points = PredictPoints(prior_cam_from_map, &fix);
     timer.Restart();
     const std::vector<ProjectedPoint> projected =
         ProjectPoints(map_->map(), camera_, prior_cam_from_map, points);
+    const std::vector<ProjectedPoint> coarse = CoarseSubset(projected);
     fix.times.project_ms += timer.ElapsedMs();
     timer.Restart();
-    matches = MatchProjected(map_->map(), projected, frame, options_.matching);
+    std::vector<PointMatch> matches = MatchProjected(map_->map(), coarse, frame, options_.matching);
     fix.times.match_ms += timer.ElapsedMs();
-  }
-  timer.Restart();
-  // One refinement pass: RefineAround re-matches around this pose and refines twice anyway.
-  PnpRansacOptions ransac_options = options_.ransac;
-  ransac_options.refinement_passes = 1;
-  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), ransac_options);
-  fix.times.pose_ms += timer.ElapsedMs();
-  fix.ransac_iterations = ransac.stats.iterations;
-  fix.putatives = static_cast<int>(matches.size());
-  if (!ransac.success) return fix;
-  if (options_.prediction == PredictionMode::kBruteForce) {
-    points = PredictPoints(ransac.cam_from_world, &fix);
+    ransac = SolveFromMatches(frame, matches, &fix);
+    if (!ransac.success && coarse.size() < projected.size()) {
+      timer.Restart();
+      matches = MatchProjected(map_->map(), projected, frame, options_.matching);
+      fix.times.match_ms += timer.ElapsedMs();
+      ransac = SolveFromMatches(frame, matches, &fix);
+    }
+    if (!ransac.success) return fix;
   }
   RefineAround(frame, points, ransac.cam_from_world, options_.refine_radius_px, &fix);
   return fix;

@@ -33,7 +33,12 @@ struct PoseTrackerOptions {
   VisibilityOptions visibility;
   MatchOptions matching;          // radius_px: the guided search radius.
   double refine_radius_px = 4.0;  // Tight re-matching radius around the RANSAC pose.
-  PnpRansacOptions ransac;        // max_error_px is also the inlier threshold of the refinement.
+  // Points matched in the wide radius for RANSAC: the most probably visible, spread over the
+  // image (0: all). A RANSAC pose from a couple of hundred matches is as good as from all of
+  // them once every predicted point is re-matched around it in the tight radius, and the wide
+  // search is most of the matching time. When RANSAC fails on the subset, all points are tried.
+  int coarse_points = 160;
+  PnpRansacOptions ransac;  // max_error_px is also the inlier threshold of the refinement.
   void Check() const;
 };
 
@@ -78,6 +83,11 @@ class PoseTracker {
 
  private:
   std::vector<uint32_t> PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const;
+  // The projections matched in the wide radius (options_.coarse_points of them).
+  std::vector<ProjectedPoint> CoarseSubset(const std::vector<ProjectedPoint>& projected) const;
+  // RANSAC on the matches' observations (one refinement pass), timed into `fix`.
+  PnpResult SolveFromMatches(const QueryFrame& frame, const std::vector<PointMatch>& matches,
+                             PoseFix* fix) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
   void RefineAround(const QueryFrame& frame, const std::vector<uint32_t>& points,
                     const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const;
