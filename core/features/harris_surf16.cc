@@ -268,8 +268,11 @@ std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
   std::vector<int> order(keypoints.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   if (static_cast<int>(keypoints.size()) <= max_features) return order;
-  std::sort(order.begin(), order.end(),
-            [&](int a, int b) { return keypoints[a].response > keypoints[b].response; });
+  const auto stronger = [&](int a, int b) { return keypoints[a].response > keypoints[b].response; };
+  // Detection hands them over sorted already (MergeAcrossScales).
+  if (!std::is_sorted(order.begin(), order.end(), stronger)) {
+    std::sort(order.begin(), order.end(), stronger);
+  }
   std::vector<Eigen::Vector2f> pixels;
   pixels.reserve(order.size());
   for (int i : order) pixels.push_back(keypoints[i].pixel);
