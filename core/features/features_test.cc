@@ -250,6 +250,26 @@ TEST(HarrisSurf16Test, DescriptorsEqualTheirDefinitionInsideAndAtTheBorder) {
   }
 }
 
+TEST(SpreadOverGridTest, TakesTheBestPerCellAndNeverMoreThanAsked) {
+  // 100 pixels, best first, on a 10x10 lattice over a 320x240 image with a 4x3 grid.
+  std::vector<Eigen::Vector2f> pixels;
+  for (int i = 0; i < 100; ++i) pixels.emplace_back(16.0f + 32 * (i % 10), 12.0f + 24 * (i / 10));
+  for (int wanted : {3, 12, 50, 100, 200}) {
+    const std::vector<int> chosen = SpreadOverGrid(pixels, cv::Size(320, 240), 4, 3, wanted);
+    EXPECT_EQ(static_cast<int>(chosen.size()), std::min(wanted, 100)) << wanted;
+    EXPECT_EQ(std::set<int>(chosen.begin(), chosen.end()).size(), chosen.size()) << wanted;
+  }
+  // Twelve wanted, twelve cells: one per cell, the first (best) pixel of each.
+  const std::vector<int> one_per_cell = SpreadOverGrid(pixels, cv::Size(320, 240), 4, 3, 12);
+  std::set<int> cells;
+  for (int i : one_per_cell) {
+    cells.insert(static_cast<int>(pixels[i].x() * 4 / 320) +
+                 4 * static_cast<int>(pixels[i].y() * 3 / 240));
+  }
+  EXPECT_EQ(cells.size(), 12u);
+  EXPECT_EQ(one_per_cell.front(), 0);
+}
+
 TEST(FeatureSettingsTest, SettingsRoundTripAndUnknownsAreRefused) {
   const FeatureSettings settings = DefaultFeatureSettings("harris_surf16");
   EXPECT_EQ(settings.descriptor_dim, 16);

@@ -249,7 +249,8 @@ std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
     const int cy =
         std::clamp(static_cast<int>(p.y() * grid_rows / image_size.height), 0, grid_rows - 1);
     int& count = used[cy * grid_cols + cx];
-    if (count < quota) {
+    // With fewer items wanted than cells, the quota of 1 would otherwise take one per cell.
+    if (count < quota && static_cast<int>(selected.size()) < max_items) {
       ++count;
       selected.push_back(i);
     } else {

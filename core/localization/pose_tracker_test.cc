@@ -133,6 +133,27 @@ INSTANTIATE_TEST_SUITE_P(Modes, PoseTrackerModeTest,
                                            PredictionMode::kBruteForce),
                          [](const auto& info) { return PredictionModeName(info.param); });
 
+// RANSAC on a spread subset of the predicted points gives the pose that all of them give (the
+// final refinement re-matches every point either way); a subset too small for RANSAC falls
+// back to all points.
+TEST(PoseTrackerTest, CoarseSubsetGivesThePoseAndFallsBackToAllPoints) {
+  const auto map = TestMap();
+  const Rigid3d truth = TruePose(*map);
+  const View view = RenderView(*map, truth, 150, 5);
+  const QueryFrame frame(view.features, map->map().camera);
+  for (int coarse_points : {0, 160, 3}) {
+    PoseTrackerOptions options;
+    options.coarse_points = coarse_points;
+    options.matching.radius_px = 25.0;
+    const PoseTracker tracker(map, map->map().camera, options);
+    const PoseFix fix = tracker.Track(frame, Perturbed(truth));
+    ASSERT_TRUE(fix.success) << coarse_points;
+    EXPECT_TRUE(ApproxEqual(fix.cam_from_map, truth, 0.005, 0.1)) << coarse_points;
+    EXPECT_GT(fix.inliers, 100) << coarse_points;
+    EXPECT_GT(fix.ransac_iterations, 0) << coarse_points;
+  }
+}
+
 TEST(PoseTrackerTest, PredictionModesParseByName) {
   EXPECT_EQ(ParsePredictionMode("brute_force"), PredictionMode::kBruteForce);
   EXPECT_THROW(ParsePredictionMode("magic"), InputError);
