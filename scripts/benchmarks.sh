@@ -208,7 +208,8 @@ echo "== writing $REPORT"
   echo
   echo "Through gRPC on loopback, one frame in flight, raw 8-bit frames (\`visloc bench --server\`, first 300"
   echo "frames of the square): $(fmt "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" 1 2) ms per frame against $(fmt "$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 1 2) ms in-process in the same run"
-  echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x)."
+  echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x). Of the round trip, the server's own time per frame (its"
+  echo "\`timings.server_ms\`: conversion and the engine) is $(fmt "$(field "$WORK/bench_grpc.json" grpc_server_ms_per_frame_median)" 1 2) ms; the rest is the transport."
   echo
   echo "### Targets (ratios within one run)"
   echo

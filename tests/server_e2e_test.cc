@@ -319,6 +319,10 @@ TEST_F(ServerE2eTest, BenchMeasuresTheRoundTripThroughTheServer) {
        "10", "--relocalization-queries", "2", "--server", server.address(), "--json"});
   ASSERT_EQ(bench.exit_code, 0) << bench.err;
   EXPECT_GT(JsonNumber(bench.out, "grpc_ms_per_frame_median"), 0.0);
+  // The server's own share of the round trip: positive, and less than the whole.
+  EXPECT_GT(JsonNumber(bench.out, "grpc_server_ms_per_frame_median"), 0.0);
+  EXPECT_LT(JsonNumber(bench.out, "grpc_server_ms_per_frame_median"),
+            JsonNumber(bench.out, "grpc_ms_per_frame_median"));
   // The server answered the 10 raw frames of one session.
   server.Stop();
   EXPECT_THAT(server.Log(), HasSubstr("map=square frames=10 localized_fraction=1.000"));
