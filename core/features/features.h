@@ -63,6 +63,12 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
 FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,
                                      bool finest_scale_only);
 
+// Indices into `pixels` (listed best first) of at most `max_items`: the best of each cell of a
+// grid over the image up to an equal quota, then the best of the rest, in that order.
+std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
+                                const cv::Size& image_size, int grid_cols, int grid_rows,
+                                int max_items);
+
 // Makes OpenCV run every call on the calling thread. visloc parallelizes across sessions (one
 // engine worker per core); OpenCV's own thread pool on top of that oversubscribes the cores, and
 // on 320x240 images its hand-off costs more than the work it spreads (measured: 10% of a

@@ -235,34 +235,6 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
 
 }  // namespace
 
-std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
-                                const cv::Size& image_size, int grid_cols, int grid_rows,
-                                int max_items) {
-  const int cells = grid_cols * grid_rows;
-  const int quota = std::max(1, max_items / cells);
-  std::vector<int> used(cells, 0);
-  std::vector<int> selected, rest;
-  for (int i = 0; i < static_cast<int>(pixels.size()); ++i) {
-    const Eigen::Vector2f& p = pixels[i];
-    const int cx =
-        std::clamp(static_cast<int>(p.x() * grid_cols / image_size.width), 0, grid_cols - 1);
-    const int cy =
-        std::clamp(static_cast<int>(p.y() * grid_rows / image_size.height), 0, grid_rows - 1);
-    int& count = used[cy * grid_cols + cx];
-    // With fewer items wanted than cells, the quota of 1 would otherwise take one per cell.
-    if (count < quota && static_cast<int>(selected.size()) < max_items) {
-      ++count;
-      selected.push_back(i);
-    } else {
-      rest.push_back(i);
-    }
-  }
-  for (size_t i = 0; i < rest.size() && static_cast<int>(selected.size()) < max_items; ++i) {
-    selected.push_back(rest[i]);
-  }
-  return selected;
-}
-
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
                                      const cv::Size& image_size, int grid_cols, int grid_rows,
                                      int max_features) {

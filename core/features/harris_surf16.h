@@ -49,12 +49,6 @@ class HarrisSurf16Extractor final : public FeatureExtractor {
   FeatureSettings settings_;
 };
 
-// Indices into `pixels` (listed best first) of at most `max_items`: the best of each cell of a
-// grid over the image up to an equal quota, then the best of the rest, in that order.
-std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
-                                const cv::Size& image_size, int grid_cols, int grid_rows,
-                                int max_items);
-
 // Indices of at most `max_features` keypoints: the strongest of each grid cell up to an equal
 // quota, then the strongest of the rest.
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,

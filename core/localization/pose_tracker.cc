@@ -3,7 +3,6 @@
 #include <cmath>
 #include <numeric>
 
-#include "core/features/harris_surf16.h"  // SpreadOverGrid
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
