@@ -1,18 +1,21 @@
 #pragma once
 // Multi-scale Harris corners with upright 16-D SURF-like descriptors (seed paper 000, sec. 3.2).
 //
-// Detection: for each scale sigma_i of a small scale space at full resolution, the Harris
-// response R = det(M) - k tr(M)^2 of the structure tensor M (gradients at 0.7 sigma_i, window
-// sigma_i), non-maximum suppression in 3x3, a quadratic fit for the sub-pixel position, and a
+// Detection: for each scale sigma_i of a small scale space (sigma_i >= 2 px on the half-size
+// image), the Harris response R = det(M) - k tr(M)^2 of the structure tensor M (gradients of
+// the image smoothed at 0.7 sigma_i, in 8/16-bit integers; Gaussian window sigma_i truncated at
+// +-2 sigma), non-maximum suppression in 3x3, a quadratic fit for the sub-pixel position, and a
 // threshold relative to the strongest response. Corners found at several scales are merged
-// (strongest kept). An even spread is enforced by per-cell quotas on a grid.
+// (strongest kept, none within 2 px of a stronger one). An even spread is enforced by per-cell
+// quotas on a grid (SpreadOverGrid).
 //
 // Description (Bay et al., "SURF", CVIU 2008, reduced to 2x2 sub-regions): a square of side
 // 12 sigma around the corner, not rotated (upright), split into 2x2 sub-regions; in each,
 // Haar wavelet responses dx, dy of size 2 sigma at a 6x6 sample grid, Gaussian weighted, give
 // (sum dx, sum dy, sum |dx|, sum |dy|). The 16 values are normalized to unit length, which
 // makes the descriptor invariant to contrast changes. Haar responses come from an integral
-// image in constant time per sample.
+// image in constant time per sample; the smallest wavelet (2x2 pixels, the finest scale a query
+// uses) from a per-image response table, with the same values.
 
 #include <vector>
 
