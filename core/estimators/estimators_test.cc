@@ -68,6 +68,8 @@ TEST(P3PTest, QuarticRootsAreFoundAndPolished) {
   std::sort(roots.begin(), roots.end());
   EXPECT_NEAR(roots[0], -3.0, 1e-12);
   EXPECT_NEAR(roots[3], 3.0, 1e-12);
+  // Not a quartic: no roots rather than a division by zero.
+  EXPECT_EQ(SolveQuartic({0, 1, -3, 0, 2}, &roots), 0);
 }
 
 // Random poses and random point triplets in front of the camera: the true pose is always

@@ -36,29 +36,22 @@ double PolishQuarticRoot(const std::array<double, 5>& c, double x) {
   return x;
 }
 
-// The rigid motion taking the world triangle to the camera triangle (congruent up to noise):
-// orthonormal frames built on each triangle's first edge and normal.
-bool TriangleMotion(const std::array<Eigen::Vector3d, 3>& world,
-                    const std::array<Eigen::Vector3d, 3>& cam, Rigid3d* cam_from_world) {
-  const auto frame = [](const std::array<Eigen::Vector3d, 3>& p, Eigen::Matrix3d* axes) {
-    const Eigen::Vector3d e1 = p[1] - p[0];
-    const Eigen::Vector3d n = e1.cross(p[2] - p[0]);
-    if (e1.norm() < 1e-12 || n.norm() < 1e-12 * e1.squaredNorm()) return false;
-    axes->col(0) = e1.normalized();
-    axes->col(2) = n.normalized();
-    axes->col(1) = axes->col(2).cross(axes->col(0));
-    return true;
-  };
-  Eigen::Matrix3d world_axes, cam_axes;
-  if (!frame(world, &world_axes) || !frame(cam, &cam_axes)) return false;
-  const Eigen::Matrix3d rotation = cam_axes * world_axes.transpose();
-  *cam_from_world = Rigid3d(rotation, cam[0] - rotation * world[0]);
+// Orthonormal axes on a triangle: its first edge, the in-plane normal to it, the plane normal.
+// False for a degenerate (collinear or coincident) triangle.
+bool TriangleAxes(const std::array<Eigen::Vector3d, 3>& p, Eigen::Matrix3d* axes) {
+  const Eigen::Vector3d e1 = p[1] - p[0];
+  const Eigen::Vector3d n = e1.cross(p[2] - p[0]);
+  if (e1.norm() < 1e-12 || n.norm() < 1e-12 * e1.squaredNorm()) return false;
+  axes->col(0) = e1.normalized();
+  axes->col(2) = n.normalized();
+  axes->col(1) = axes->col(2).cross(axes->col(0));
   return true;
 }
 
 }  // namespace
 
 int SolveQuartic(const std::array<double, 5>& c, std::array<double, 4>* roots) {
+  if (c[0] == 0.0) return 0;  // Not a quartic (see the header).
   // Monic x^4 + b x^3 + cc x^2 + d x + e, then depressed with x = y - b/4:
   // y^4 + p y^2 + q y + r.
   const double b = c[1] / c[0], cc = c[2] / c[0], d = c[3] / c[0], e = c[4] / c[0];
@@ -122,6 +115,12 @@ std::vector<Rigid3d> SolveP3P(const std::array<Eigen::Vector3d, 3>& points_in_wo
            (1 - q) * cos_alpha * cos_gamma),
       (1 + p) * (1 + p) - 4 * a2 / b2 * cg2};
   if (std::abs(quartic[0]) < 1e-12 * (std::abs(quartic[4]) + 1e-300)) return {};
+  // The camera triangle is congruent to the world one by construction, so the motion between
+  // them is exact from the two triangles' axes. (AlignRigid, the general least-squares
+  // alignment, gives the same pose but costs 5x as much per hypothesis, in heap allocations and
+  // an SVD: BM_SolveP3P 1.6 us against 0.3 us.)
+  Eigen::Matrix3d world_axes;
+  if (!TriangleAxes(points_in_world, &world_axes)) return {};
   std::array<double, 4> roots;
   const int count = SolveQuartic(quartic, &roots);
   std::vector<Rigid3d> solutions;
@@ -136,8 +135,10 @@ std::vector<Rigid3d> SolveP3P(const std::array<Eigen::Vector3d, 3>& points_in_wo
     const double s1 = std::sqrt(s1_sq);
     const std::array<Eigen::Vector3d, 3> in_cam = {s1 * rays[0], u * s1 * rays[1],
                                                    v * s1 * rays[2]};
-    Rigid3d pose;
-    if (!TriangleMotion(points_in_world, in_cam, &pose)) continue;
+    Eigen::Matrix3d cam_axes;
+    if (!TriangleAxes(in_cam, &cam_axes)) continue;
+    const Eigen::Matrix3d rotation = cam_axes * world_axes.transpose();
+    const Rigid3d pose(rotation, in_cam[0] - rotation * points_in_world[0]);
     // Duplicate roots (a double root split by rounding) give the same pose.
     bool duplicate = false;
     for (const Rigid3d& s : solutions) {

@@ -26,8 +26,8 @@ namespace visloc {
 std::vector<Rigid3d> SolveP3P(const std::array<Eigen::Vector3d, 3>& points_in_world,
                               const std::array<Eigen::Vector2d, 3>& normalized);
 
-// The real roots of c[0] x^4 + c[1] x^3 + c[2] x^2 + c[3] x + c[4] (c[0] != 0), at most 4.
-// Returns their count; roots are in `roots[0..count)`.
+// The real roots of c[0] x^4 + c[1] x^3 + c[2] x^2 + c[3] x + c[4], at most 4. Returns their
+// count; roots are in `roots[0..count)`. With c[0] == 0 (not a quartic) it reports none.
 int SolveQuartic(const std::array<double, 5>& c, std::array<double, 4>* roots);
 
 }  // namespace visloc
