@@ -175,8 +175,9 @@ void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const c
     const std::vector<PoseObservation> observations =
         ToObservations(state_, frame, pairs, intrinsics_);
     pose = RefinePose(result.cam_from_world, observations, pnp.refine);
+    const PoseProjector projector(pose, pnp.refine);
     for (size_t j = 0; j < matches.size(); ++j) {
-      if (SquaredReprojectionErrorPx(pose, observations[j], pnp.refine) <= 4.0) {  // within 2 px
+      if (projector.SquaredErrorPx(observations[j]) <= 4.0) {  // within 2 px
         tracked.push_back(matches[j]);
       }
     }

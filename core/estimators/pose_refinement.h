@@ -86,11 +86,4 @@ class PoseProjector {
   double focal_sq_, baseline_m_, disparity_weight_;
 };
 
-// The same for a single observation.
-inline double SquaredReprojectionErrorPx(const Rigid3d& cam_from_world,
-                                         const PoseObservation& observation,
-                                         const PoseRefineOptions& options) {
-  return PoseProjector(cam_from_world, options).SquaredErrorPx(observation);
-}
-
 }  // namespace visloc

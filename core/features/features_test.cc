@@ -270,6 +270,11 @@ TEST(SpreadOverGridTest, TakesTheBestPerCellAndNeverMoreThanAsked) {
   EXPECT_EQ(one_per_cell.front(), 0);
 }
 
+TEST(FeaturesTest, OpenCvRunsOnTheCallingThreadAfterwards) {
+  RunOpenCvOnCallingThread();
+  EXPECT_EQ(cv::getNumThreads(), 1);
+}
+
 TEST(FeatureSettingsTest, SettingsRoundTripAndUnknownsAreRefused) {
   const FeatureSettings settings = DefaultFeatureSettings("harris_surf16");
   EXPECT_EQ(settings.descriptor_dim, 16);

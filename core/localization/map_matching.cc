@@ -51,15 +51,7 @@ std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<Project
   const cv::Mat& frame_descriptors = frame.features().descriptors;
   const float max_distance = options.MaxDistance(map.features.descriptor_type);
   KeypointClaims claims(frame.size());
-  // The map's descriptor rows are scattered over megabytes and the frame's feature extraction
-  // has just flushed the caches: fetch a few points ahead.
-  constexpr size_t kPrefetchAhead = 8;
-  for (size_t j = 0; j < projected.size(); ++j) {
-    if (j + kPrefetchAhead < projected.size()) {
-      __builtin_prefetch(
-          map.descriptors.ptr(static_cast<int>(projected[j + kPrefetchAhead].point)));
-    }
-    const ProjectedPoint& p = projected[j];
+  for (const ProjectedPoint& p : projected) {
     NearestTwo nearest;
     frame.ForEachWithin(p.pixel, options.radius_px, [&](int i) {
       nearest.Offer(

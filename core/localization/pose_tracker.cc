@@ -111,19 +111,18 @@ void PoseTracker::RefineAround(const QueryFrame& frame, const std::vector<uint32
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
 }
 
-std::vector<ProjectedPoint> PoseTracker::CoarseSubset(
-    const std::vector<ProjectedPoint>& projected) const {
+const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(
+    const std::vector<ProjectedPoint>& projected, std::vector<ProjectedPoint>* subset) const {
   const int wanted = options_.coarse_points;
   if (wanted == 0 || static_cast<int>(projected.size()) <= wanted) return projected;
   std::vector<Eigen::Vector2f> pixels;
   pixels.reserve(projected.size());
   for (const ProjectedPoint& p : projected) pixels.push_back(p.pixel.cast<float>());
-  std::vector<ProjectedPoint> subset;
-  subset.reserve(wanted);
+  subset->clear();
   for (int i : SpreadOverGrid(pixels, cv::Size(camera_.width(), camera_.height()), 8, 6, wanted)) {
-    subset.push_back(projected[i]);
+    subset->push_back(projected[i]);
   }
-  return subset;
+  return *subset;
 }
 
 PnpResult PoseTracker::SolveFromMatches(const QueryFrame& frame,
@@ -157,7 +156,8 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
     timer.Restart();
     const std::vector<ProjectedPoint> projected =
         ProjectPoints(map_->map(), camera_, prior_cam_from_map, points);
-    const std::vector<ProjectedPoint> coarse = CoarseSubset(projected);
+    std::vector<ProjectedPoint> subset;
+    const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, &subset);
     fix.times.project_ms += timer.ElapsedMs();
     timer.Restart();
     std::vector<PointMatch> matches = MatchProjected(map_->map(), coarse, frame, options_.matching);

@@ -83,8 +83,10 @@ class PoseTracker {
 
  private:
   std::vector<uint32_t> PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const;
-  // The projections matched in the wide radius (options_.coarse_points of them).
-  std::vector<ProjectedPoint> CoarseSubset(const std::vector<ProjectedPoint>& projected) const;
+  // The projections matched in the wide radius: `projected` itself when it has at most
+  // options_.coarse_points, else that many of them, written to `subset`.
+  const std::vector<ProjectedPoint>& CoarseSubset(const std::vector<ProjectedPoint>& projected,
+                                                  std::vector<ProjectedPoint>* subset) const;
   // RANSAC on the matches' observations (one refinement pass), timed into `fix`.
   PnpResult SolveFromMatches(const QueryFrame& frame, const std::vector<PointMatch>& matches,
                              PoseFix* fix) const;
