@@ -44,6 +44,7 @@ struct ModeRun {
   ErrorStats total_ms;
   // The part visibility prediction changes: predict + project + match + pose, per frame.
   ErrorStats map_search_ms;
+  ErrorStats predicted_points;  // Map points predicted (in view), per tracked frame.
 };
 
 ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
@@ -52,7 +53,7 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
   options.tracker.prediction = mode;
   Localizer localizer(map, dataset.left.camera, options);
   ModeRun run;
-  std::vector<double> totals, map_search;
+  std::vector<double> totals, map_search, predicted;
   int localized = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     FrameInput input;
@@ -63,11 +64,13 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
     totals.push_back(r.stats.times.total_ms);
     const StepTimings& t = r.stats.times;
     map_search.push_back(t.predict_ms + t.project_ms + t.match_ms + t.pose_ms);
+    if (r.stats.predicted > 0) predicted.push_back(r.stats.predicted);
     localized += r.has_pose && r.source != PoseSource::kMotion;
   }
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
   run.total_ms = ComputeErrorStats(totals);
   run.map_search_ms = ComputeErrorStats(map_search);
+  run.predicted_points = ComputeErrorStats(predicted);
   return run;
 }
 
@@ -211,6 +214,8 @@ int RunBench(const Args& raw_args) {
         .Field("no_visibility_ms_per_frame_median", transparent.total_ms.median)
         .Field("map_search_ms_median", visibility.map_search_ms.median)
         .Field("no_visibility_map_search_ms_median", transparent.map_search_ms.median)
+        .Field("predicted_points_median", visibility.predicted_points.median)
+        .Field("no_visibility_predicted_points_median", transparent.predicted_points.median)
         .Field("brute_force_ms_per_frame_median", brute.total_ms.median)
         .Field("orb_reference_ms_per_frame_median", orb.median)
         .Field("relocalization_ms_median", relocalization.ms.median)
@@ -252,6 +257,9 @@ int RunBench(const Args& raw_args) {
               "map search (predict..pose)", visibility.map_search_ms.median,
               visibility.map_search_ms.median / orb.median, transparent.map_search_ms.median,
               transparent.map_search_ms.median / visibility.map_search_ms.median);
+  std::printf("%-28s %10.0f %10s            (transparent world %.0f)\n",
+              "points predicted per frame", visibility.predicted_points.median, "",
+              transparent.predicted_points.median);
   std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.1fx one tracking frame)\n",
               "global relocalization/query", relocalization.ms.median,
               relocalization.ms.median / orb.median, 100 * relocalization.found_fraction,

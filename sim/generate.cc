@@ -25,7 +25,7 @@ namespace {
 
 std::string WorldKey(const RoomOptions& room) {
   return StrCat(room.seed, "/", static_cast<int>(room.layout), "/", room.people, "/", room.width_m,
-                "x", room.depth_m, "x", room.height_m, "/", room.texel_m);
+                "x", room.depth_m, "x", room.height_m, "/", room.texel_m, "/", room.suite);
 }
 
 bool IsCovered(const SequenceSpec& spec, double t) {

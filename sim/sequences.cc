@@ -37,9 +37,9 @@ StereoRig MakeRig(const RigOptions& options) {
 }
 
 const std::vector<std::string>& SequenceNames() {
-  static const std::vector<std::string> names = {"map_square", "query_square", "straight",
-                                                 "circle",     "kidnap",       "lowlight",
-                                                 "occluders",  "changed",      "outofmap"};
+  static const std::vector<std::string> names = {
+      "map_square", "query_square", "straight", "circle",    "kidnap",     "lowlight",
+      "occluders",  "changed",      "outofmap", "map_suite", "query_suite"};
   return names;
 }
 
@@ -50,6 +50,28 @@ namespace {
 WalkingPath SquarePath(double x0, double y0, const GaitOptions& gait) {
   WalkingPath path({x0, y0, 0.0}, gait);
   for (int side = 0; side < 4; ++side) path.Walk(2.0).Turn(M_PI / 2);
+  return path;
+}
+
+// From the crossing of the suite's lanes, a visit to one neighbouring room: walk 7.5 m through
+// its doorway (to about 3 m inside), look left, right and back, and walk back to the crossing,
+// ending turned around.
+void VisitRoom(WalkingPath* path) {
+  path->Walk(7.5).Turn(M_PI / 2).Turn(-M_PI).Turn(-M_PI / 2).Walk(7.5);
+}
+
+// The suite's mapping run: the mapping square in the centre room, then each of the four
+// neighbouring rooms in turn, back at the start facing east.
+WalkingPath SuiteTour(const GaitOptions& gait) {
+  WalkingPath path = SquarePath(-1.0, -1.0, gait);
+  // To the crossing (kSuiteLaneX, kSuiteLaneY), facing east.
+  path.Walk(1.0 + kSuiteLaneX).Turn(M_PI / 2).Walk(1.0 + kSuiteLaneY).Turn(-M_PI / 2);
+  VisitRoom(&path);  // East; back facing west.
+  VisitRoom(&path);  // West; back facing east.
+  path.Turn(M_PI / 2);
+  VisitRoom(&path);  // North; back facing south.
+  VisitRoom(&path);  // South; back facing north.
+  path.Turn(M_PI).Walk(1.0 + kSuiteLaneY).Turn(M_PI / 2);
   return path;
 }
 
@@ -108,6 +130,14 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
     spec.room.height_m = 2.7;
     spec.path = WalkingPath({0.0, -1.0, M_PI / 2}, gait);
     spec.path.Walk(2.0).Turn(-M_PI / 2).Walk(1.0);
+  } else if (name == "map_suite") {
+    spec.description = "mapping run in the five-room suite: the square, then every room";
+    spec.room.suite = true;
+    spec.path = SuiteTour(gait);
+  } else if (name == "query_suite") {
+    spec.description = "the offset square in the suite's centre room, walls hiding 4 rooms";
+    spec.room.suite = true;
+    spec.path = SquarePath(-0.7, -0.8, gait);
   } else {
     std::string known;
     for (const std::string& n : SequenceNames()) known += (known.empty() ? "" : ", ") + n;

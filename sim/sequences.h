@@ -44,7 +44,8 @@ struct SequenceSpec {
 };
 
 // Names in catalogue order: map_square, query_square, straight, circle, kidnap, lowlight,
-// occluders, changed, outofmap.
+// occluders, changed, outofmap, map_suite, query_suite. The suite sequences start where
+// map_square does, so a map built from map_suite has the same map frame.
 const std::vector<std::string>& SequenceNames();
 
 // Throws InputError for an unknown name (listing the known ones).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "core/util/check.h"
 #include "core/util/random.h"
@@ -77,6 +78,208 @@ std::vector<Box> RandomBoxes(const RoomOptions& options, Rng& rng) {
   return boxes;
 }
 
+// One room of the world, in world coordinates.
+struct RoomPlan {
+  Eigen::Vector2d centre_xy = Eigen::Vector2d::Zero();
+  double width_m = 8.0, depth_m = 8.0, height_m = 3.0, texel_m = 0.004;
+  uint64_t seed = 1;                         // Textures.
+  bool plain_stretch = false;                // The low-texture stretch on the north wall.
+  std::vector<Box> boxes;                    // Centres in world coordinates.
+  std::vector<Eigen::Vector2d> doorways_xy;  // Doorway centres on the walls' inner faces.
+  bool door_reveals = false;  // Close each doorway's passage through the wall thickness.
+};
+
+RoomPlan PlanRoom(const RoomOptions& options, const Eigen::Vector2d& centre_xy, uint64_t seed) {
+  RoomPlan plan;
+  plan.centre_xy = centre_xy;
+  plan.width_m = options.width_m;
+  plan.depth_m = options.depth_m;
+  plan.height_m = options.height_m;
+  plan.texel_m = options.texel_m;
+  plan.seed = seed;
+  return plan;
+}
+
+constexpr double kDoorWidthM = 1.0;
+constexpr double kDoorHeightM = 2.1;
+
+// A wall seen from inside its room: u runs left to right as seen from the room, v downwards;
+// its Normal() points out of the room.
+struct WallSpec {
+  Eigen::Vector3d top_left;
+  Eigen::Vector3d u_axis;
+  double length;
+};
+
+// Where along the wall (metres from its left end) a doorway of `plan` is centred, if any.
+std::optional<double> DoorwayAlong(const WallSpec& wall, const RoomPlan& plan) {
+  for (const Eigen::Vector2d& door : plan.doorways_xy) {
+    const Eigen::Vector2d offset = door - wall.top_left.head<2>();
+    const double along = offset.dot(wall.u_axis.head<2>());
+    const double across = (offset - along * wall.u_axis.head<2>()).norm();
+    if (across < 1e-6 && along > kDoorWidthM && along < wall.length - kDoorWidthM) return along;
+  }
+  return std::nullopt;
+}
+
+// The wall with a doorway: the pieces left and right of it and the lintel above, each textured
+// with its part of the one wall texture so the wall reads as one painted surface.
+void AppendWallWithDoorway(const WallSpec& wall, double height_m, const cv::Mat& albedo,
+                           double texel_m, double door_centre_m, World* world) {
+  const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+  const double u0 = door_centre_m - kDoorWidthM / 2, u1 = door_centre_m + kDoorWidthM / 2;
+  const double lintel_m = height_m - kDoorHeightM;
+  const auto columns = [&](double a, double b) {
+    return cv::Range(static_cast<int>(std::lround(a / texel_m)),
+                     static_cast<int>(std::lround(b / texel_m)));
+  };
+  const auto piece = [&](double u_start, double u_end, double v_end) {
+    const cv::Mat part = albedo(cv::Range(0, static_cast<int>(std::lround(v_end / texel_m))),
+                                columns(u_start, u_end))
+                             .clone();
+    const int texture = AddTexture(world, part, texel_m);
+    world->surfaces.push_back(MakeSurface(wall.top_left + u_start * wall.u_axis, wall.u_axis, down,
+                                          u_end - u_start, v_end, texture));
+  };
+  piece(0.0, u0, height_m);
+  piece(u1, wall.length, height_m);
+  piece(u0, u1, lintel_m);
+}
+
+// The doorway's passage through the wall: two jambs, the soffit and the threshold.
+void AppendDoorReveals(const WallSpec& wall, double height_m, double door_centre_m, int texture,
+                       World* world) {
+  const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d out = wall.u_axis.cross(down);
+  const double u0 = door_centre_m - kDoorWidthM / 2;
+  const Eigen::Vector3d door_top_left =
+      wall.top_left + u0 * wall.u_axis + (height_m - kDoorHeightM) * down;
+  for (double u : {0.0, kDoorWidthM}) {
+    world->surfaces.push_back(MakeSurface(door_top_left + u * wall.u_axis, out, down, kSuiteWallM,
+                                          kDoorHeightM, texture));
+  }
+  world->surfaces.push_back(
+      MakeSurface(door_top_left, wall.u_axis, out, kDoorWidthM, kSuiteWallM, texture));
+  world->surfaces.push_back(MakeSurface(door_top_left + kDoorHeightM * down, wall.u_axis, out,
+                                        kDoorWidthM, kSuiteWallM, texture));
+}
+
+void AppendRoom(const RoomPlan& plan, World* world) {
+  const double w = plan.width_m, d = plan.depth_m, h = plan.height_m;
+  const double texel = plan.texel_m;
+  const uint64_t seed = plan.seed;
+  const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d c(plan.centre_xy.x(), plan.centre_xy.y(), 0.0);
+  const WallSpec walls[4] = {
+      {c + Eigen::Vector3d(-w / 2, d / 2, h), x, w},   // north wall (y = +d/2), seen facing +y
+      {c + Eigen::Vector3d(w / 2, d / 2, h), -y, d},   // east wall (x = +w/2)
+      {c + Eigen::Vector3d(w / 2, -d / 2, h), -x, w},  // south wall
+      {c + Eigen::Vector3d(-w / 2, -d / 2, h), y, d},  // west wall
+  };
+  int reveal_texture = -1;
+  for (int i = 0; i < 4; ++i) {
+    cv::Mat albedo =
+        GenerateTexture(TextureStyle::kPosterWall, walls[i].length, h, texel, seed * 10 + i);
+    if (i == 0 && plan.plain_stretch) {
+      // The low-texture stretch: 3 m of freshly painted wall, floor to ceiling.
+      PaintPlain(&albedo, texel, 0.3 * w - 0.5, 0.3 * w + 2.5, 0.0, h, seed * 10 + 9);
+    }
+    const std::optional<double> door = DoorwayAlong(walls[i], plan);
+    if (!door) {
+      const int texture = AddTexture(world, albedo, texel);
+      world->surfaces.push_back(
+          MakeSurface(walls[i].top_left, walls[i].u_axis, -up, walls[i].length, h, texture));
+      continue;
+    }
+    AppendWallWithDoorway(walls[i], h, albedo, texel, *door, world);
+    if (plan.door_reveals) {
+      if (reveal_texture < 0) {
+        reveal_texture = AddTexture(
+            world,
+            GenerateTexture(TextureStyle::kPlain, kDoorWidthM, kDoorHeightM, texel, seed * 10 + 8),
+            texel);
+      }
+      AppendDoorReveals(walls[i], h, *door, reveal_texture, world);
+    }
+  }
+  const int floor = AddTexture(
+      world, GenerateTexture(TextureStyle::kFloor, w, d, texel * 1.5, seed * 10 + 5), texel * 1.5);
+  world->surfaces.push_back(MakeSurface(c + Eigen::Vector3d(-w / 2, -d / 2, 0), x, y, w, d, floor));
+  const int ceiling = AddTexture(
+      world, GenerateTexture(TextureStyle::kCeiling, w, d, texel * 2, seed * 10 + 6), texel * 2);
+  world->surfaces.push_back(
+      MakeSurface(c + Eigen::Vector3d(-w / 2, d / 2, h), x, -y, w, d, ceiling));
+  for (size_t i = 0; i < plan.boxes.size(); ++i) {
+    // Texture each box once, 1.5 m square, shared by its faces.
+    Box box = plan.boxes[i];
+    box.texture = AddTexture(
+        world, GenerateTexture(TextureStyle::kBox, 1.5, 1.5, texel, seed * 100 + i), texel);
+    AppendBoxFaces(box, &world->surfaces);
+  }
+}
+
+// Boxes of a neighbouring room: random, clear of the walking lanes through the doorways.
+std::vector<Box> LaneClearBoxes(const RoomPlan& plan, Rng& rng) {
+  std::vector<Box> boxes;
+  const double half_w = plan.width_m / 2 - 0.5, half_d = plan.depth_m / 2 - 0.5;
+  for (int attempt = 0; attempt < 300 && boxes.size() < 7; ++attempt) {
+    const Eigen::Vector2d center = plan.centre_xy + Eigen::Vector2d(rng.Uniform(-half_w, half_w),
+                                                                    rng.Uniform(-half_d, half_d));
+    const Eigen::Vector3d size(rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.5));
+    if (std::abs(center.x() - kSuiteLaneX) < 1.5 + size.x() / 2 ||
+        std::abs(center.y() - kSuiteLaneY) < 1.5 + size.y() / 2) {
+      continue;
+    }
+    boxes.push_back({center, size, 0});
+  }
+  return boxes;
+}
+
+// The suite's rooms north, east, south and west of the centre room, each with its own
+// textures and a doorway in the wall it shares with the centre room.
+void AppendNeighbours(const RoomOptions& options, World* world) {
+  const double w = options.width_m, d = options.depth_m, t = kSuiteWallM;
+  const Eigen::Vector2d centres[4] = {{0, d + t}, {w + t, 0}, {0, -(d + t)}, {-(w + t), 0}};
+  const Eigen::Vector2d doorways[4] = {{kSuiteLaneX, d / 2 + t},
+                                       {w / 2 + t, kSuiteLaneY},
+                                       {kSuiteLaneX, -(d / 2 + t)},
+                                       {-(w / 2 + t), kSuiteLaneY}};
+  for (int k = 0; k < 4; ++k) {
+    const uint64_t seed = options.seed * 100003 + 11 * (k + 1);
+    RoomPlan room = PlanRoom(options, centres[k], seed);
+    Rng rng(seed * 7919 + 17);
+    room.boxes = LaneClearBoxes(room, rng);
+    room.doorways_xy = {doorways[k]};
+    AppendRoom(room, world);
+  }
+}
+
+// People cross the room on lines outside the 2 m mapping square, at walking pace.
+void AppendPeople(uint64_t seed, double texel_m, World* world) {
+  const struct {
+    Eigen::Vector2d a, b;
+    double phase;
+  } paths[] = {
+      {{2.0, -3.0}, {2.0, 3.0}, 0.0},
+      {{-3.0, 2.0}, {3.0, 2.0}, 2.5},
+      {{-2.0, 3.0}, {-2.0, -3.0}, 5.0},
+      {{3.0, -2.0}, {-3.0, -2.0}, 1.2},
+  };
+  for (int i = 0; i < 4; ++i) {
+    Mover mover;
+    mover.box = {paths[i].a, {0.45, 0.3, 1.75}, 0};
+    mover.box.texture = AddTexture(
+        world, GenerateTexture(TextureStyle::kPerson, 1.2, 1.75, texel_m, seed * 1000 + i),
+        texel_m);
+    mover.start_xy = paths[i].a;
+    mover.end_xy = paths[i].b;
+    mover.speed_mps = 0.9;
+    mover.phase_s = paths[i].phase;
+    world->movers.push_back(mover);
+  }
+}
+
 }  // namespace
 
 void AppendBoxFaces(const Box& box, std::vector<Surface>* surfaces) {
@@ -123,88 +326,34 @@ World MakeRoom(const RoomOptions& options) {
   VISLOC_CHECK(options.width_m > 4.6 && options.depth_m > 4.6 && options.height_m > 2.0, "room ",
                options.width_m, "x", options.depth_m, "x", options.height_m,
                " leaves no space to walk");
+  VISLOC_CHECK(!(options.suite && options.people), "the suite has no people");
   World world;
   world.width_m = options.width_m;
   world.depth_m = options.depth_m;
   world.height_m = options.height_m;
-  const double w = options.width_m, d = options.depth_m, h = options.height_m;
-  const double texel = options.texel_m;
-  const uint64_t seed = options.seed;
-  Rng rng(seed * 7919 + 17);
-  const Eigen::Vector3d x = Eigen::Vector3d::UnitX(), y = Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-
-  // Walls, each seen from inside: u runs left to right as seen from the room, v downwards.
-  struct WallSpec {
-    Eigen::Vector3d top_left;
-    Eigen::Vector3d u_axis;
-    double length;
-  };
-  const WallSpec walls[4] = {
-      {{-w / 2, d / 2, h}, x, w},   // north wall (y = +d/2), seen facing +y
-      {{w / 2, d / 2, h}, -y, d},   // east wall (x = +w/2)
-      {{w / 2, -d / 2, h}, -x, w},  // south wall
-      {{-w / 2, -d / 2, h}, y, d},  // west wall
-  };
-  for (int i = 0; i < 4; ++i) {
-    cv::Mat albedo =
-        GenerateTexture(TextureStyle::kPosterWall, walls[i].length, h, texel, seed * 10 + i);
-    if (i == 0) {
-      // The low-texture stretch: 3 m of freshly painted wall, floor to ceiling.
-      PaintPlain(&albedo, texel, 0.3 * w - 0.5, 0.3 * w + 2.5, 0.0, h, seed * 10 + 9);
-    }
-    const int texture = AddTexture(&world, albedo, texel);
-    world.surfaces.push_back(
-        MakeSurface(walls[i].top_left, walls[i].u_axis, -up, walls[i].length, h, texture));
-  }
-  const int floor = AddTexture(
-      &world, GenerateTexture(TextureStyle::kFloor, w, d, texel * 1.5, seed * 10 + 5), texel * 1.5);
-  world.surfaces.push_back(MakeSurface({-w / 2, -d / 2, 0}, x, y, w, d, floor));
-  const int ceiling = AddTexture(
-      &world, GenerateTexture(TextureStyle::kCeiling, w, d, texel * 2, seed * 10 + 6), texel * 2);
-  world.surfaces.push_back(MakeSurface({-w / 2, d / 2, h}, x, -y, w, d, ceiling));
-
-  std::vector<Box> boxes;
+  Rng rng(options.seed * 7919 + 17);
+  RoomPlan centre = PlanRoom(options, Eigen::Vector2d::Zero(), options.seed);
+  centre.plain_stretch = true;
   switch (options.layout) {
     case RoomOptions::Layout::kReference:
-      boxes = ReferenceBoxes();
+      centre.boxes = ReferenceBoxes();
       break;
     case RoomOptions::Layout::kBoxesMoved:
-      boxes = MovedBoxes();
+      centre.boxes = MovedBoxes();
       break;
     case RoomOptions::Layout::kRandom:
-      boxes = RandomBoxes(options, rng);
+      centre.boxes = RandomBoxes(options, rng);
       break;
   }
-  for (size_t i = 0; i < boxes.size(); ++i) {
-    // Texture each box once, 1 m square, shared by its faces.
-    boxes[i].texture = AddTexture(
-        &world, GenerateTexture(TextureStyle::kBox, 1.5, 1.5, texel, seed * 100 + i), texel);
-    AppendBoxFaces(boxes[i], &world.surfaces);
+  if (options.suite) {
+    const double w = options.width_m, d = options.depth_m;
+    centre.doorways_xy = {
+        {kSuiteLaneX, d / 2}, {w / 2, kSuiteLaneY}, {kSuiteLaneX, -d / 2}, {-w / 2, kSuiteLaneY}};
+    centre.door_reveals = true;
   }
-  if (options.people) {
-    // People cross the room on lines outside the 2 m mapping square, at walking pace.
-    const struct {
-      Eigen::Vector2d a, b;
-      double phase;
-    } paths[] = {
-        {{2.0, -3.0}, {2.0, 3.0}, 0.0},
-        {{-3.0, 2.0}, {3.0, 2.0}, 2.5},
-        {{-2.0, 3.0}, {-2.0, -3.0}, 5.0},
-        {{3.0, -2.0}, {-3.0, -2.0}, 1.2},
-    };
-    for (int i = 0; i < 4; ++i) {
-      Mover mover;
-      mover.box = {paths[i].a, {0.45, 0.3, 1.75}, 0};
-      mover.box.texture = AddTexture(
-          &world, GenerateTexture(TextureStyle::kPerson, 1.2, 1.75, texel, seed * 1000 + i), texel);
-      mover.start_xy = paths[i].a;
-      mover.end_xy = paths[i].b;
-      mover.speed_mps = 0.9;
-      mover.phase_s = paths[i].phase;
-      world.movers.push_back(mover);
-    }
-  }
+  AppendRoom(centre, &world);
+  if (options.suite) AppendNeighbours(options, &world);
+  if (options.people) AppendPeople(options.seed, options.texel_m, &world);
   return world;
 }
 

@@ -3,7 +3,8 @@
 // box-shaped occluders that move on straight lines ("people").
 //
 // World frame: origin on the floor at the room's centre, z up, metres. The room spans
-// x in [-width/2, width/2], y in [-depth/2, depth/2], z in [0, height].
+// x in [-width/2, width/2], y in [-depth/2, depth/2], z in [0, height]. In the suite (several
+// rooms behind doorways) that room is the centre room; the others adjoin it.
 
 #include <cstdint>
 #include <memory>
@@ -69,11 +70,23 @@ struct RoomOptions {
   uint64_t seed = 1;       // Textures and, for a random layout, the boxes.
   enum class Layout { kReference, kBoxesMoved, kRandom } layout = Layout::kReference;
   bool people = false;  // Add people walking across the room.
+  // The suite: four more rooms of the same size adjoin the room to the north, east, south and
+  // west, each behind a 0.1 m wall with a 1 m x 2.1 m doorway. Most of what a camera's frustum
+  // holds is then hidden behind walls, as in a real building (seed paper 000, Sec. 5).
+  bool suite = false;
 };
+
+// The walking lanes of the suite: the doorways are centred on the lines x = kSuiteLaneX (north
+// and south walls) and y = kSuiteLaneY (east and west walls), and bands of +-1.5 m around these
+// lines are kept free of boxes in the neighbouring rooms, so a path along them walks through.
+inline constexpr double kSuiteLaneX = -0.5;
+inline constexpr double kSuiteLaneY = 0.5;
+inline constexpr double kSuiteWallM = 0.1;  // Wall thickness between rooms.
 
 // The default room: rich poster walls with a plain, low-texture stretch on the north wall,
 // tiled floor, panel ceiling, and boxes around the walking area (which is the disc of radius
-// ~2.2 m around the centre, kept free for the robot).
+// ~2.2 m around the centre, kept free for the robot). With `options.suite`, the room with its
+// four neighbours (their own textures and randomly placed boxes, the lanes kept free).
 World MakeRoom(const RoomOptions& options);
 
 // Appends the 5 visible faces (4 sides and the top) of `box` to `surfaces`.
