@@ -292,9 +292,9 @@ int RunBuild(const Args& args) {
         .Field("points", stats.points)
         .Field("observations", stats.observations)
         .Field("loop_closures", stats.loop_closures)
+        .Field("loop_adjustments", stats.loop_adjustments)
         .Field("tracking_failures", stats.tracking_failures)
         .Field("reprojection_rmse_px", stats.reprojection_rmse_px)
-        .Field("disparity_rmse_px", stats.disparity_rmse_px)
         .Field("disparity_rmse_px", stats.disparity_rmse_px)
         .Field("visibility_fit_rmse", stats.visibility.final_rmse)
         .Field("features_ms", stats.features_ms)
@@ -314,11 +314,11 @@ int RunBuild(const Args& args) {
               stats.frames, stats.keyframes, stats.points, stats.observations,
               stats.points ? static_cast<double>(stats.observations) / stats.points : 0.0);
   std::printf(
-      "  loop closures %d, tracking failures %d, reprojection RMSE %.3f px, disparity RMSE %.3f "
-      "px, "
-      "visibility fit RMSE %.3f (%d pairs)\n",
-      stats.loop_closures, stats.tracking_failures, stats.reprojection_rmse_px,
-      stats.disparity_rmse_px, stats.visibility.final_rmse, stats.visibility.pairs);
+      "  loop closures %d (%d re-adjusting every keyframe), tracking failures %d,\n"
+      "  reprojection RMSE %.3f px, disparity RMSE %.3f px, visibility fit RMSE %.3f (%d pairs)\n",
+      stats.loop_closures, stats.loop_adjustments, stats.tracking_failures,
+      stats.reprojection_rmse_px, stats.disparity_rmse_px, stats.visibility.final_rmse,
+      stats.visibility.pairs);
   std::printf(
       "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
       "%.1f s, "

@@ -18,6 +18,9 @@ void MapBuilderOptions::Check() const {
   VISLOC_CHECK(local_window >= 2 && local_free >= 1 && local_free < local_window,
                "local BA window ", local_window, " free ", local_free);
   VISLOC_CHECK(min_point_observations >= 1, "min_point_observations");
+  VISLOC_CHECK(loop_adjust_min_correction_m >= 0 && loop_adjust_min_correction_deg >= 0,
+               "loop adjustment thresholds ", loop_adjust_min_correction_m, " m ",
+               loop_adjust_min_correction_deg, " deg");
 }
 
 namespace {
@@ -311,7 +314,18 @@ void MapBuilder::TryLoopClosure() {
     }
     ++stats_.loop_closures;
     keyframes_since_loop_ = 0;
-    // Spread the correction over the whole trajectory now, while it is small.
+    // A large correction is spread over the whole trajectory now, while it is small enough for
+    // bundle adjustment to converge; the local window alone would bend the path at the closure.
+    // A small one (most closures: revisits of mapped places) is left to local bundle adjustment
+    // and to the global one at the end. Re-adjusting every keyframe at every closure made
+    // mapping quadratic in its length without making the map more accurate.
+    const double correction_m = (Center(result.cam_from_world) - center).norm();
+    const double correction_deg = AngleBetweenDeg(result.cam_from_world, current.cam_from_world);
+    if (correction_m < options_.loop_adjust_min_correction_m &&
+        correction_deg < options_.loop_adjust_min_correction_deg) {
+      return;
+    }
+    ++stats_.loop_adjustments;
     std::vector<int> all_free;
     for (int kk = 1; kk <= k; ++kk) all_free.push_back(kk);
     BundleAdjustmentOptions global = options_.local_ba;

@@ -45,6 +45,10 @@ struct MapBuilderOptions {
   int loop_min_keyframe_gap = 15;
   int loop_min_inliers = 25;
   int loop_cooldown_keyframes = 5;  // After a closure, the next few keyframes see the same loop.
+  // A closure whose pose correction (the current keyframe's pose from the old landmarks against
+  // its tracked pose) reaches either bound re-adjusts every keyframe at once.
+  double loop_adjust_min_correction_m = 0.05;
+  double loop_adjust_min_correction_deg = 1.0;
   int global_ba_iterations = 40;
   int min_point_observations = 2;  // Landmarks seen by fewer keyframes are left out.
   VisibilityLearningOptions visibility;
@@ -59,6 +63,7 @@ struct MapBuildStats {
   int points = 0;
   int observations = 0;
   int loop_closures = 0;
+  int loop_adjustments = 0;           // Closures large enough to re-adjust every keyframe at once.
   double reprojection_rmse_px = 0.0;  // Left image, after global BA.
   double disparity_rmse_px = 0.0;     // Predicted vs measured disparity, after global BA.
   VisibilityLearningStats visibility;

@@ -32,6 +32,13 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
       Visloc({"map", "build", "--dataset", dir.File("map_square"), "--out", map_path, "--json"});
   ASSERT_EQ(build.exit_code, 0) << build.err;
   EXPECT_THAT(build.out, HasSubstr("\"frames\":150"));
+  // Each key once (disparity_rmse_px was written twice).
+  for (const char* key : {"\"disparity_rmse_px\"", "\"loop_closures\"", "\"loop_adjustments\""}) {
+    size_t count = 0;
+    for (size_t at = build.out.find(key); at != std::string::npos; at = build.out.find(key, at + 1))
+      ++count;
+    EXPECT_EQ(count, 1u) << key;
+  }
   EXPECT_LT(JsonNumber(build.out, "map", "reprojection_rmse_px"), 0.5);
   EXPECT_EQ(JsonNumber(build.out, "map", "tracking_failures"), 0);
   EXPECT_EQ(Visloc({"map", "verify", map_path}).exit_code, 0);
