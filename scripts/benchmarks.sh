@@ -4,7 +4,8 @@
 # bench` (ratios to OpenCV's ORB measured in the same run), scaling by the Google Benchmark
 # microbenchmarks, server throughput by scripts/load.sh. Nothing in the report is typed by hand.
 #
-# Usage: scripts/benchmarks.sh [WORK_DIR=out/benchmarks]   (about 20 minutes on 2 cores)
+# Usage: scripts/benchmarks.sh [WORK_DIR=out/benchmarks]   (about 30 minutes on 2 cores from
+# scratch, 10 of them rendering and mapping the suite; sequences and maps in WORK_DIR are reused)
 # VISLOC_BENCH_QUICK=1 uses short sequences (a smoke test of the script, not for the report).
 set -euo pipefail
 cd "$(dirname "$0")/.."
