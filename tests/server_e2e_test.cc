@@ -323,6 +323,10 @@ TEST_F(ServerE2eTest, BenchMeasuresTheRoundTripThroughTheServer) {
   EXPECT_GT(JsonNumber(bench.out, "grpc_server_ms_per_frame_median"), 0.0);
   EXPECT_LT(JsonNumber(bench.out, "grpc_server_ms_per_frame_median"),
             JsonNumber(bench.out, "grpc_ms_per_frame_median"));
+  // Of the server's time, the engine's: positive, and at most all of it.
+  EXPECT_GT(JsonNumber(bench.out, "grpc_server_engine_ms_per_frame_median"), 0.0);
+  EXPECT_LE(JsonNumber(bench.out, "grpc_server_engine_ms_per_frame_median"),
+            JsonNumber(bench.out, "grpc_server_ms_per_frame_median"));
   // The server answered the 10 raw frames of one session.
   server.Stop();
   EXPECT_THAT(server.Log(), HasSubstr("map=square frames=10 localized_fraction=1.000"));
