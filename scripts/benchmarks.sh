@@ -242,6 +242,9 @@ echo "== writing $REPORT"
   echo "| localized | $(fmt "$(field "$sj" localized_fraction)" 100 1)% | $(fmt "$(field "$sj" no_visibility_localized_fraction)" 100 1)% | |"
   echo
   echo "The whole frame includes detection and description ($(fmt "$(field_in "$sj" detect median)" 1 3) + $(fmt "$(field_in "$sj" describe median)" 1 3) ms), which no map search changes."
+  echo "Brute-force matching against all $(field "$sj" map_points) descriptors takes $(fmt "$(field "$sj" brute_force_ms_per_frame_median)" 1 1) ms per frame. Global relocalization"
+  echo "in this $(field "$sj" map_keyframes)-keyframe map takes $(fmt "$(field "$sj" relocalization_ms_median)" 1 2) ms per query ($(fmt "$(field "$sj" relocalization_found_fraction)" 100 0)% found), against $(fmt "$(field "$WORK/bench320.json" relocalization_ms_median)" 1 2) ms in the"
+  echo "$(field "$WORK/bench320.json" map_keyframes)-keyframe room map."
   echo
   echo "Through gRPC on loopback, one frame in flight, raw 8-bit frames (\`visloc bench --server\`, first 300"
   echo "frames of the square): $(fmt "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" 1 2) ms per frame against $(fmt "$(field "$WORK/bench_grpc.json" ms_per_frame_median)" 1 2) ms in-process in the same run"
