@@ -117,7 +117,10 @@ std::optional<double> DoorwayAlong(const WallSpec& wall, const RoomPlan& plan) {
     const Eigen::Vector2d offset = door - wall.top_left.head<2>();
     const double along = offset.dot(wall.u_axis.head<2>());
     const double across = (offset - along * wall.u_axis.head<2>()).norm();
-    if (across < 1e-6 && along > kDoorWidthM && along < wall.length - kDoorWidthM) return along;
+    if (across > 1e-6 || along < 0 || along > wall.length) continue;
+    VISLOC_CHECK(along >= kDoorWidthM && along <= wall.length - kDoorWidthM, "a doorway ", along,
+                 " m along a ", wall.length, " m wall leaves no wall beside it");
+    return along;
   }
   return std::nullopt;
 }
