@@ -66,18 +66,6 @@ std::vector<Box> MovedBoxes() {
   return boxes;
 }
 
-std::vector<Box> RandomBoxes(const RoomOptions& options, Rng& rng) {
-  std::vector<Box> boxes;
-  const double half_w = options.width_m / 2 - 0.5, half_d = options.depth_m / 2 - 0.5;
-  for (int attempt = 0; attempt < 200 && boxes.size() < 7; ++attempt) {
-    const Eigen::Vector2d center(rng.Uniform(-half_w, half_w), rng.Uniform(-half_d, half_d));
-    if (center.norm() < 2.8) continue;
-    boxes.push_back(
-        {center, {rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.5)}, 0});
-  }
-  return boxes;
-}
-
 // One room of the world, in world coordinates.
 struct RoomPlan {
   Eigen::Vector2d centre_xy = Eigen::Vector2d::Zero();
@@ -222,21 +210,30 @@ void AppendRoom(const RoomPlan& plan, World* world) {
   }
 }
 
-// Boxes of a neighbouring room: random, clear of the walking lanes through the doorways.
-std::vector<Box> LaneClearBoxes(const RoomPlan& plan, Rng& rng) {
+// Up to 7 boxes at random in `plan`'s room, centres 0.5 m inside its walls, each kept where
+// `allowed(box)`. Every draw is a statement of its own, so the layout does not depend on the
+// compiler's order of evaluating arguments.
+template <typename Allowed>
+std::vector<Box> RandomBoxes(const RoomPlan& plan, Rng& rng, Allowed allowed) {
   std::vector<Box> boxes;
   const double half_w = plan.width_m / 2 - 0.5, half_d = plan.depth_m / 2 - 0.5;
   for (int attempt = 0; attempt < 300 && boxes.size() < 7; ++attempt) {
-    const Eigen::Vector2d center = plan.centre_xy + Eigen::Vector2d(rng.Uniform(-half_w, half_w),
-                                                                    rng.Uniform(-half_d, half_d));
-    const Eigen::Vector3d size(rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.0), rng.Uniform(0.4, 1.5));
-    if (std::abs(center.x() - kSuiteLaneX) < 1.5 + size.x() / 2 ||
-        std::abs(center.y() - kSuiteLaneY) < 1.5 + size.y() / 2) {
-      continue;
-    }
-    boxes.push_back({center, size, 0});
+    const double y = rng.Uniform(-half_d, half_d);
+    const double x = rng.Uniform(-half_w, half_w);
+    const double height = rng.Uniform(0.4, 1.5);
+    const double size_y = rng.Uniform(0.4, 1.0);
+    const double size_x = rng.Uniform(0.4, 1.0);
+    const Box box{plan.centre_xy + Eigen::Vector2d(x, y), Eigen::Vector3d(size_x, size_y, height),
+                  0};
+    if (allowed(box)) boxes.push_back(box);
   }
   return boxes;
+}
+
+// A box of a neighbouring room is kept out of the walking lanes through the doorways.
+bool ClearOfSuiteLanes(const Box& box) {
+  return std::abs(box.center_xy.x() - kSuiteLaneX) >= 1.5 + box.size_m.x() / 2 &&
+         std::abs(box.center_xy.y() - kSuiteLaneY) >= 1.5 + box.size_m.y() / 2;
 }
 
 // The suite's rooms north, east, south and west of the centre room, each with its own
@@ -252,7 +249,7 @@ void AppendNeighbours(const RoomOptions& options, World* world) {
     const uint64_t seed = options.seed * 100003 + 11 * (k + 1);
     RoomPlan room = PlanRoom(options, centres[k], seed);
     Rng rng(seed * 7919 + 17);
-    room.boxes = LaneClearBoxes(room, rng);
+    room.boxes = RandomBoxes(room, rng, ClearOfSuiteLanes);
     room.doorways_xy = {doorways[k]};
     AppendRoom(room, world);
   }
@@ -345,7 +342,9 @@ World MakeRoom(const RoomOptions& options) {
       centre.boxes = MovedBoxes();
       break;
     case RoomOptions::Layout::kRandom:
-      centre.boxes = RandomBoxes(options, rng);
+      // Clear of the disc where the robot walks.
+      centre.boxes =
+          RandomBoxes(centre, rng, [](const Box& b) { return b.center_xy.norm() >= 2.8; });
       break;
   }
   if (options.suite) {

@@ -115,10 +115,7 @@ TEST(SuiteTest, EveryPixelSeesASurfaceNearTheDoorways) {
 }
 
 TEST(SuiteTest, TheTourNeverWalksThroughAWallOrABox) {
-  RoomOptions options;
-  options.texel_m = 0.02;
-  options.suite = true;
-  const World suite = MakeRoom(options);
+  const World suite = MakeTestSuite();
   const SequenceSpec tour = MakeSequenceSpec("map_suite", 1);
   ASSERT_TRUE(tour.room.suite);
   const StereoRig rig = MakeRig(RigOptions{});

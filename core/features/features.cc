@@ -44,6 +44,7 @@ std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
 // backend in a way that crashes LeakSanitizer's exit-time scan (the ASan build of `visloc bench`
 // exited 1 with "Tracer caught signal 11").
 void RunOpenCvOnCallingThread() { cv::setNumThreads(1); }
+
 namespace {
 
 struct OrbOptions {
