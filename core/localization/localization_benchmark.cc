@@ -10,6 +10,7 @@
 
 #include "core/estimators/p3p.h"
 #include "core/estimators/pnp_ransac.h"
+#include "core/estimators/pose_refinement.h"
 #include "core/features/features.h"
 #include "core/features/harris_surf16.h"
 #include "core/localization/localizer.h"
@@ -189,6 +190,21 @@ void BM_PnpRansac(benchmark::State& state) {
   state.SetLabel(std::to_string(state.range(0)) + "% outliers");
 }
 BENCHMARK(BM_PnpRansac)->Arg(5)->Arg(30)->Arg(60)->Unit(benchmark::kMicrosecond);
+
+// Levenberg-Marquardt on all of a frame's inliers from a pose a few centimetres off: the last
+// step of every tracked frame (and of every RANSAC winner).
+void BM_RefinePose(benchmark::State& state) {
+  const auto observations = Observations(0.0);
+  PoseRefineOptions options;
+  options.focal_px = 160.0;
+  const Rigid3d truth = SolvePnpRansac(observations, PnpRansacOptions()).cam_from_world;
+  const Rigid3d start(truth.rotation, truth.translation + Eigen::Vector3d(0.03, -0.02, 0.04));
+  PoseRefineStats stats;
+  for (auto _ : state) benchmark::DoNotOptimize(RefinePose(start, observations, options, &stats));
+  state.counters["observations"] = static_cast<double>(observations.size());
+  state.counters["lm_iterations"] = stats.iterations;
+}
+BENCHMARK(BM_RefinePose)->Unit(benchmark::kMicrosecond);
 
 // Global relocalization against map size: synthetic maps of N keyframes (25 N points, each seen
 // by 4 keyframes, a 512-word vocabulary), one query view near keyframe N/2 with 100 clutter
