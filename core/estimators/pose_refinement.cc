@@ -95,10 +95,12 @@ NormalEquations Linearize(const Rigid3d& pose, const std::vector<PoseObservation
     sum.Add(u - o.normalized.x(), ju, huber, focal);
     sum.Add(v - o.normalized.y(), jv, huber, focal);
     if (o.has_right) {
-      const double ur = (p.x() - options.baseline_m) * iz;
-      double jr[6];
-      JacobianRow(Eigen::Vector3d(iz, 0, -ur * iz), p, jr);
-      sum.Add(ur - o.right_x_normalized, jr, huber, focal);
+      // The weighted disparity residual w (B / z - (x_left - x_right)) of the measured pair.
+      const double w = options.disparity_weight;
+      const double measured_disparity = o.normalized.x() - o.right_x_normalized;
+      double jd[6];
+      JacobianRow(Eigen::Vector3d(0, 0, -w * options.baseline_m * iz * iz), p, jd);
+      sum.Add(w * (options.baseline_m * iz - measured_disparity), jd, huber, focal);
     }
   }
   NormalEquations ne = sum;
