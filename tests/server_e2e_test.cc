@@ -327,6 +327,8 @@ TEST_F(ServerE2eTest, BenchMeasuresTheRoundTripThroughTheServer) {
   EXPECT_GT(JsonNumber(bench.out, "grpc_server_engine_ms_per_frame_median"), 0.0);
   EXPECT_LE(JsonNumber(bench.out, "grpc_server_engine_ms_per_frame_median"),
             JsonNumber(bench.out, "grpc_server_ms_per_frame_median"));
+  // The in-process reference, interleaved with the round trips, ran the same frames.
+  EXPECT_GT(JsonNumber(bench.out, "grpc_in_process_ms_per_frame_median"), 0.0);
   // The server answered the 10 raw frames of one session.
   server.Stop();
   EXPECT_THAT(server.Log(), HasSubstr("map=square frames=10 localized_fraction=1.000"));
