@@ -98,8 +98,13 @@ cp "$WORK/map320.db" "$WORK/maps/map320.db"
 build/server/visloc-server --maps "$WORK/maps" --listen 127.0.0.1:0 > "$WORK/server.out" 2> "$WORK/server.log" &
 server_pid=$!
 for _ in $(seq 100); do grep -q "listening on" "$WORK/server.out" 2>/dev/null && break; sleep 0.1; done
-$V bench --dataset "$WORK/seq320/query_square" --map "$WORK/map320.db" --frames 300 \
-  --server "$(sed -n 's/^listening on //p' "$WORK/server.out")" --json > "$WORK/bench_grpc.json"
+# Seven runs: one run's ratio moves by several percent with the shared machine's load. The report
+# quotes the run with the median ratio, and the range.
+for run in 1 2 3 4 5 6 7; do
+  $V bench --dataset "$WORK/seq320/query_square" --map "$WORK/map320.db" --frames 300 \
+    --relocalization-queries 1 --server "$(sed -n 's/^listening on //p' "$WORK/server.out")" \
+    --json > "$WORK/bench_grpc_$run.json"
+done
 kill -TERM "$server_pid"
 wait "$server_pid" || true
 
@@ -119,6 +124,16 @@ done
 bash scripts/load.sh "$WORK/map320.db" "$WORK/seq320/query_square" 16 15 150 newest | tail -1 > "$WORK/load16n.txt"
 
 fi  # VISLOC_BENCH_REPORT_ONLY
+
+# The gRPC ratio of each run (round trip / interleaved in-process), sorted; the median run is the
+# one the report quotes.
+grpc_ratios=$(for f in "$WORK"/bench_grpc_[0-9]*.json; do
+  awk -v a="$(field "$f" grpc_ms_per_frame_median)" -v b="$(field "$f" grpc_in_process_ms_per_frame_median)" \
+    -v f="$f" 'BEGIN{printf "%.4f %s\n", a/b, f}'
+done | sort -n)
+grpc_runs=$(echo "$grpc_ratios" | wc -l)
+cp "$(echo "$grpc_ratios" | sed -n "$(((grpc_runs + 1) / 2))p" | cut -d' ' -f2)" "$WORK/bench_grpc.json"
+grpc_range="$(echo "$grpc_ratios" | head -1 | awk '{printf "%.2f", $1}')-$(echo "$grpc_ratios" | tail -1 | awk '{printf "%.2f", $1}')"
 
 echo "== scaling curves"
 # CSVs for `visloc plot --curves`: first column x, each further column one curve.
@@ -251,6 +266,7 @@ echo "== writing $REPORT"
   echo "in blocks of 50 alternating with the round trips, so both see the same load of the shared machine"
   echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x). Of the round trip, the server's own time per frame (its"
   echo "\`timings.server_ms\`: conversion and the engine) is $(fmt "$(field "$WORK/bench_grpc.json" grpc_server_ms_per_frame_median)" 1 2) ms; the rest is the transport."
+  echo "This is the median of $grpc_runs runs (\`visloc bench --server\` repeated on one server); their ratios span ${grpc_range}x."
   echo
   echo "### Targets (ratios within one run)"
   echo
@@ -273,7 +289,7 @@ echo "== writing $REPORT"
   echo "| >= 3x faster than no visibility, the suite ($(field "$sj" map_points) points) | ${snv}x whole frame, ${snvs}x map search | map search $(verdict "$snvs" 3 ge), whole frame $(verdict "$snv" 3 ge) |"
   echo "| relocalization (~100 keyframes) <= 5x a tracking frame | ${rel}x | $(verdict "$rel" 5 le) |"
   echo "| relocalization far slower than linear in map size | ${growth}x the time for 100x the keyframes | $(verdict "$growth" 10 le) |"
-  echo "| through gRPC <= 1.2x in-process at 320x240 | ${grpc}x | $(verdict "$grpc" 1.2 le) |"
+  echo "| through gRPC <= 1.2x in-process at 320x240 | ${grpc}x (median of $grpc_runs runs; ${grpc_range}x) | $(verdict "$grpc" 1.2 le) |"
   echo
   echo "Initialization (the first frame, features included): $(awk -F, 'NR == 2 {print $19}' "$WORK/query_square.csv") ms on the square;"
   echo "the paper: 1,636.86 ms (Table 5) and 2,540.93 ms (Table 6)."
