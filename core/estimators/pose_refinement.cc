@@ -63,17 +63,6 @@ struct NormalEquations {
   }
 };
 
-// The row of a residual with respect to delta, given its derivative dr_dp with respect to the
-// camera point p: dr_dp [I | -[p]x].
-void JacobianRow(const Eigen::Vector3d& dr_dp, const Eigen::Vector3d& p, double (&j)[6]) {
-  j[0] = dr_dp.x();
-  j[1] = dr_dp.y();
-  j[2] = dr_dp.z();
-  j[3] = dr_dp.z() * p.y() - dr_dp.y() * p.z();
-  j[4] = dr_dp.x() * p.z() - dr_dp.z() * p.x();
-  j[5] = dr_dp.y() * p.x() - dr_dp.x() * p.y();
-}
-
 NormalEquations Linearize(const Rigid3d& pose, const std::vector<PoseObservation>& observations,
                           const PoseRefineOptions& options) {
   // The sums are a local copy, returned at the end: accumulated in the returned object itself
@@ -95,11 +84,12 @@ NormalEquations Linearize(const Rigid3d& pose, const std::vector<PoseObservation
     sum.Add(u - o.normalized.x(), ju, huber, focal);
     sum.Add(v - o.normalized.y(), jv, huber, focal);
     if (o.has_right) {
-      // The weighted disparity residual w (B / z - (x_left - x_right)) of the measured pair.
+      // The weighted disparity residual w (B / z - (x_left - x_right)) of the measured pair. It
+      // depends on z alone: d/dz = -w B / z^2, so its row is [0, 0, dz, dz y, -dz x, 0].
       const double w = options.disparity_weight;
       const double measured_disparity = o.normalized.x() - o.right_x_normalized;
-      double jd[6];
-      JacobianRow(Eigen::Vector3d(0, 0, -w * options.baseline_m * iz * iz), p, jd);
+      const double dz = -w * options.baseline_m * iz * iz;
+      const double jd[6] = {0.0, 0.0, dz, dz * p.y(), -dz * p.x(), 0.0};
       sum.Add(w * (options.baseline_m * iz - measured_disparity), jd, huber, focal);
     }
   }
