@@ -127,6 +127,11 @@ fi  # VISLOC_BENCH_REPORT_ONLY
 
 # The gRPC ratio of each run (round trip / interleaved in-process), sorted; the median run is the
 # one the report quotes.
+[[ -f $WORK/bench_grpc_1.json ]] || {
+  echo "benchmarks.sh: $WORK has no bench_grpc_N.json (runs older than the repeated gRPC runs);" \
+    "rerun without VISLOC_BENCH_REPORT_ONLY" >&2
+  exit 1
+}
 grpc_ratios=$(for f in "$WORK"/bench_grpc_[0-9]*.json; do
   awk -v a="$(field "$f" grpc_ms_per_frame_median)" -v b="$(field "$f" grpc_in_process_ms_per_frame_median)" \
     -v f="$f" 'BEGIN{printf "%.4f %s\n", a/b, f}'
