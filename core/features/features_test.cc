@@ -5,6 +5,8 @@
 
 #include <set>
 
+#include <opencv2/imgproc.hpp>
+
 #include "core/features/harris_surf16.h"
 #include "core/util/check.h"
 #include "sim/renderer.h"
@@ -246,6 +248,47 @@ TEST(HarrisSurf16Test, DescriptorsEqualTheirDefinitionInsideAndAtTheBorder) {
     for (int j = 0; j < 16; ++j) {
       EXPECT_NEAR(descriptors.at<float>(static_cast<int>(i), j), expected[j], 1e-5)
           << "keypoint " << keypoints[i].pixel.transpose() << " scale " << keypoints[i].scale_px;
+    }
+  }
+}
+
+// The Harris response by its definition, one OpenCV filter per step: 8-bit smoothing, Sobel
+// gradients, the tensor's products, their Gaussian window, det - k trace^2 (reflect-101 borders
+// throughout, OpenCV's default).
+cv::Mat ReferenceHarris(const cv::Mat& grey, double sigma, double k) {
+  const auto kernel = [](double s) {
+    const int half = std::max(2, static_cast<int>(std::lround(2.0 * s)));
+    return cv::Size(2 * half + 1, 2 * half + 1);
+  };
+  cv::Mat smoothed, ix, iy;
+  cv::GaussianBlur(grey, smoothed, kernel(0.7 * sigma), 0.7 * sigma);
+  cv::Sobel(smoothed, ix, CV_32F, 1, 0, 3);
+  cv::Sobel(smoothed, iy, CV_32F, 0, 1, 3);
+  cv::Mat ixx = ix.mul(ix), iyy = iy.mul(iy), ixy = ix.mul(iy);
+  for (cv::Mat* m : {&ixx, &iyy, &ixy}) cv::GaussianBlur(*m, *m, kernel(sigma), sigma);
+  const cv::Mat trace = ixx + iyy;
+  const double norm = std::pow(sigma, 4) / std::pow(8.0 * 255.0, 4);
+  return norm * (ixx.mul(iyy) - ixy.mul(ixy) - k * trace.mul(trace));
+}
+
+TEST(HarrisSurf16Test, ResponseEqualsItsDefinitionInsideAndAtTheBorder) {
+  // Odd sizes and windows of 5, 7 and 11 taps (the last not unrolled), on the rendered room and on
+  // a strip three rows high, where the window reflects more than once.
+  const cv::Mat room = Views().first(cv::Rect(3, 5, 61, 47)).clone();
+  const cv::Mat strip = Views().first(cv::Rect(40, 40, 33, 3)).clone();
+  for (const cv::Mat* image : {&room, &strip}) {
+    for (double sigma : {1.2, 1.6, 2.6}) {
+      const cv::Mat expected = ReferenceHarris(*image, sigma, 0.04);
+      float strongest = 0.0f;
+      const cv::Mat response = HarrisResponse(*image, sigma, 0.04, &strongest);
+      double expected_max = 0.0;
+      cv::minMaxLoc(expected, nullptr, &expected_max);
+      const double magnitude = cv::norm(expected, cv::NORM_INF);
+      ASSERT_GT(magnitude, 0.0);
+      // The strongest is never below 0: negative responses are never corners.
+      EXPECT_NEAR(strongest, std::max(expected_max, 0.0), 1e-5 * magnitude) << "sigma " << sigma;
+      EXPECT_LE(cv::norm(response, expected, cv::NORM_INF), 1e-5 * magnitude)
+          << "sigma " << sigma << ", " << image->cols << "x" << image->rows;
     }
   }
 }

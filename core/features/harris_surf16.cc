@@ -4,11 +4,17 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <optional>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <opencv2/imgproc.hpp>
 
 #include "core/util/check.h"
+#include "core/util/cpu_dispatch.h"
 #include "core/util/timer.h"
 
 namespace visloc {
@@ -39,17 +45,24 @@ HarrisSurf16Extractor::HarrisSurf16Extractor(const HarrisSurf16Options& options)
 
 namespace {
 
-// Odd Gaussian kernel width covering about +-2 sigma (at least 5 taps). The truncated window
-// is still smooth and symmetric, which is all the structure tensor needs, and OpenCV's default
-// (+-4 sigma for float images) costs twice the taps: the blurs are most of a detection.
-cv::Size GaussianKernel(double sigma) {
-  const int half = std::max(2, static_cast<int>(std::lround(2.0 * sigma)));
-  return cv::Size(2 * half + 1, 2 * half + 1);
+// Half width of a Gaussian kernel covering about +-2 sigma (at least 2: 5 taps). The truncated
+// window is still smooth and symmetric, which is all the structure tensor needs, and OpenCV's
+// default (+-4 sigma for float images) costs twice the taps: the blurs are most of a detection.
+int GaussianHalfWidth(double sigma) {
+  return std::max(2, static_cast<int>(std::lround(2.0 * sigma)));
+}
+
+// Index i of a row or column of n under OpenCV's default border (reflect-101: -1 -> 1,
+// n -> n - 2), for any i: a window wider than the image reflects more than once.
+int Reflect101(int i, int n) {
+  if (n == 1) return 0;
+  while (i < 0 || i >= n) i = i < 0 ? -i : 2 * (n - 1) - i;
+  return i;
 }
 
 // The largest value of a float row, in four independent lanes (vectorizable; one running max
 // would be a dependency chain).
-float RowMax(const float* row, int n) {
+inline float RowMax(const float* row, int n) {
   float lanes[4] = {row[0], row[0], row[0], row[0]};
   int x = 0;
   for (; x + 4 <= n; x += 4) {
@@ -59,54 +72,150 @@ float RowMax(const float* row, int n) {
   return std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3]));
 }
 
-// Harris response at one scale (CV_32F) of an 8-bit image, and its maximum. The derivatives are
-// taken in 8-bit and 16-bit integers (OpenCV's fixed-point Gaussian and Sobel, several times
-// faster than in float), and the element-wise steps are fused into contiguous single loops the
-// compiler vectorizes. Units match gradients of the image scaled to [0, 1] with a unit-gain
-// Sobel.
-cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_response) {
-  cv::Mat smoothed, ix, iy;
-  const double derivative_sigma = 0.7 * sigma;
-  cv::GaussianBlur(grey, smoothed, GaussianKernel(derivative_sigma), derivative_sigma);
-  cv::Sobel(smoothed, ix, CV_16S, 1, 0, 3);
-  cv::Sobel(smoothed, iy, CV_16S, 0, 1, 3);
-  cv::Mat ixx(ix.size(), CV_32F), iyy(ix.size(), CV_32F), ixy(ix.size(), CV_32F);
-  for (int y = 0; y < ix.rows; ++y) {
-    const int16_t* gx = ix.ptr<int16_t>(y);
-    const int16_t* gy = iy.ptr<int16_t>(y);
-    float* xx = ixx.ptr<float>(y);
-    float* yy = iyy.ptr<float>(y);
-    float* xy = ixy.ptr<float>(y);
-    for (int x = 0; x < ix.cols; ++x) {
-      const float fx = gx[x], fy = gy[x];
-      xx[x] = fx * fx;
-      yy[x] = fy * fy;
-      xy[x] = fx * fy;
+// 3x3 Sobel gradients (OpenCV's kernels: gx = [-1 0 1] across, [1 2 1] down) at column x of a
+// row of the smoothed image, from its rows above and below; columns left and right of x are
+// given, so the image's edges can pass reflected ones.
+inline void SobelAt(const uint8_t* above, const uint8_t* row, const uint8_t* below, int left, int x,
+                    int right, float* gx, float* gy) {
+  *gx = static_cast<float>((above[right] - above[left]) + 2 * (row[right] - row[left]) +
+                           (below[right] - below[left]));
+  *gy = static_cast<float>((below[left] + 2 * below[x] + below[right]) -
+                           (above[left] + 2 * above[x] + above[right]));
+}
+
+// The structure tensor's entries (gx^2, gy^2, gx gy) at columns [x0, x1) of a row of the
+// smoothed image, interior columns (x0 >= 1, x1 < cols). The gradients are exact integers
+// (|g| <= 1020), so the entries are too. Restricted pointers: the planes never overlap the image,
+// which the vectorizer cannot otherwise know (8-bit pointers may alias anything).
+inline void TensorEntries(const uint8_t* __restrict above, const uint8_t* __restrict row,
+                          const uint8_t* __restrict below, int x0, int x1, float* __restrict xx,
+                          float* __restrict yy, float* __restrict xy) {
+  for (int x = x0; x < x1; ++x) {
+    float gx, gy;
+    SobelAt(above, row, below, x - 1, x, x + 1, &gx, &gy);
+    xx[x] = gx * gx;
+    yy[x] = gy * gy;
+    xy[x] = gx * gy;
+  }
+}
+
+// The tensor's entries of image row y, written to three planes of `padded` floats from column
+// `half` on, with `half` reflected columns on either side for the window filter along the row.
+inline void TensorRow(const cv::Mat& smoothed, int y, int half, int padded, float* planes) {
+  const int rows = smoothed.rows, cols = smoothed.cols;
+  const uint8_t* above = smoothed.ptr<uint8_t>(Reflect101(y - 1, rows));
+  const uint8_t* row = smoothed.ptr<uint8_t>(y);
+  const uint8_t* below = smoothed.ptr<uint8_t>(Reflect101(y + 1, rows));
+  float* xx = planes + half;
+  float* yy = planes + padded + half;
+  float* xy = planes + 2 * padded + half;
+  TensorEntries(above, row, below, 1, cols - 1, xx, yy, xy);
+  for (int x : {0, cols - 1}) {
+    float gx, gy;
+    SobelAt(above, row, below, Reflect101(x - 1, cols), x, Reflect101(x + 1, cols), &gx, &gy);
+    xx[x] = gx * gx;
+    yy[x] = gy * gy;
+    xy[x] = gx * gy;
+  }
+  for (float* plane : {xx, yy, xy}) {
+    for (int j = 1; j <= half; ++j) {
+      plane[-j] = plane[Reflect101(-j, cols)];
+      plane[cols - 1 + j] = plane[Reflect101(cols - 1 + j, cols)];
     }
   }
-  const cv::Size window = GaussianKernel(sigma);
-  cv::GaussianBlur(ixx, ixx, window, sigma);
-  cv::GaussianBlur(iyy, iyy, window, sigma);
-  cv::GaussianBlur(ixy, ixy, window, sigma);
-  // det - k trace^2, scale-normalized by sigma^4 (a product of two squared first derivatives)
-  // so responses compare across scales; 1 / (8 * 255)^4 converts the integer gradients.
-  const float norm = static_cast<float>(std::pow(sigma, 4) / std::pow(8.0 * 255.0, 4));
-  const float kf = static_cast<float>(k);
-  cv::Mat response(ix.size(), CV_32F);
+}
+
+constexpr int kMaxWindow = 41;  // Window taps: sigma up to 10 px (a 20 px scale at half size).
+
+// Harris response R = det(M) - k tr(M)^2 of the smoothed 8-bit image, M the structure tensor
+// of 3x3 Sobel gradients weighted by the symmetric window `taps` (centre first, `half` + 1 of
+// them), with reflect-101 borders at every stage as OpenCV's filters have; scaled by `norm`.
+// Returns the largest response. Streamed: each image row's tensor entries are computed once and
+// filtered along the row into a ring holding the last 2 half + 1 rows, and a response row is the
+// weighted sum down the ring. Only the response is image-sized, and every loop is contiguous,
+// for the vectorizer. kHalf > 0 fixes `half` at compile time, so the tap loops unroll.
+template <int kHalf>
+VISLOC_AVX2_CLONE float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps, float k,
+                                   float norm, cv::Mat* response) {
+  const int half = kHalf > 0 ? kHalf : static_cast<int>(taps.size()) - 1;
+  const int rows = smoothed.rows, cols = smoothed.cols, window = 2 * half + 1;
+  const int padded = cols + 2 * half;
+  VISLOC_CHECK(window <= kMaxWindow, "window of ", window, " taps");
+  const float* g = taps.data();
+  std::vector<float> tensor(3 * static_cast<size_t>(padded));
+  std::vector<float> ring(3 * static_cast<size_t>(window) * cols),
+      sums(3 * static_cast<size_t>(cols));
+  std::vector<int> ring_row(window, -1);             // Image row each ring slot holds.
+  std::vector<const float*> rows_in_window(window);  // Slots of rows y - half ... y + half.
+  response->create(rows, cols, CV_32F);
   float strongest = 0.0f;
-  for (int y = 0; y < ix.rows; ++y) {
-    const float* xx = ixx.ptr<float>(y);
-    const float* yy = iyy.ptr<float>(y);
-    const float* xy = ixy.ptr<float>(y);
-    float* r = response.ptr<float>(y);
-    for (int x = 0; x < ix.cols; ++x) {
-      const float trace = xx[x] + yy[x];
-      r[x] = norm * (xx[x] * yy[x] - xy[x] * xy[x] - kf * trace * trace);
+  for (int y = 0; y < rows; ++y) {
+    for (int j = -half; j <= half; ++j) {
+      // Rows a window needs at once are distinct modulo its size, reflected ones included.
+      const int image_row = Reflect101(y + j, rows), slot = image_row % window;
+      float* filtered = &ring[3 * static_cast<size_t>(slot) * cols];
+      if (ring_row[slot] != image_row) {
+        TensorRow(smoothed, image_row, half, padded, tensor.data());
+        for (int c = 0; c < 3; ++c) {
+          const float* in = &tensor[c * static_cast<size_t>(padded) + half];
+          float* out = filtered + c * cols;
+          for (int x = 0; x < cols; ++x) {
+            float acc = g[0] * in[x];
+            for (int t = 1; t <= half; ++t) acc += g[t] * (in[x - t] + in[x + t]);
+            out[x] = acc;
+          }
+        }
+        ring_row[slot] = image_row;
+      }
+      rows_in_window[j + half] = filtered;
     }
-    strongest = std::max(strongest, RowMax(r, ix.cols));
+    for (int c = 0; c < 3; ++c) {
+      const float* in[kMaxWindow];  // in[half + t]: plane c of row y + t.
+      for (int j = 0; j < window; ++j) in[j] = rows_in_window[j] + c * cols;
+      float* out = &sums[c * static_cast<size_t>(cols)];
+      for (int x = 0; x < cols; ++x) {
+        float acc = g[0] * in[half][x];
+        for (int t = 1; t <= half; ++t) acc += g[t] * (in[half - t][x] + in[half + t][x]);
+        out[x] = acc;
+      }
+    }
+    const float* sxx = sums.data();
+    const float* syy = sxx + cols;
+    const float* sxy = syy + cols;
+    float* r = response->ptr<float>(y);
+    for (int x = 0; x < cols; ++x) {
+      const float trace = sxx[x] + syy[x];
+      r[x] = norm * (sxx[x] * syy[x] - sxy[x] * sxy[x] - k * trace * trace);
+    }
+    strongest = std::max(strongest, RowMax(r, cols));
   }
-  *max_response = strongest;
-  return response;
+  return strongest;
+}
+
+// The largest of the 8 neighbours of each pixel x in [x0, x1) of row `mid`.
+VISLOC_AVX2_CLONE void NeighbourMax(const float* up, const float* mid, const float* down, int x0,
+                                    int x1, float* out) {
+  for (int x = x0; x < x1; ++x) {
+    const float above = std::max(std::max(up[x - 1], up[x]), up[x + 1]);
+    const float below = std::max(std::max(down[x - 1], down[x]), down[x + 1]);
+    out[x] = std::max(std::max(above, below), std::max(mid[x - 1], mid[x + 1]));
+  }
+}
+
+// Bit i set when pixel i of four is a corner candidate: at least `threshold`, and no smaller than
+// any neighbour.
+inline int CandidateMask4(const float* response, const float* neighbour_max, float threshold) {
+#if defined(__SSE2__)
+  const __m128 v = _mm_loadu_ps(response);
+  return _mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(v, _mm_set1_ps(threshold)),
+                                    _mm_cmpge_ps(v, _mm_loadu_ps(neighbour_max))));
+#else
+  int mask = 0;
+  for (int i = 0; i < 4; ++i) {
+    mask |= (response[i] >= threshold && response[i] >= neighbour_max[i]) << i;
+  }
+  return mask;
+#endif
 }
 
 // Local maxima above `threshold` (no 8-neighbour is larger), refined to sub-pixel by a separable
@@ -115,42 +224,36 @@ cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_r
 // full-resolution pixels 2i and 2i+1 average into half-resolution pixel i, centred at 2i + 0.5).
 void FindMaxima(const cv::Mat& response, float threshold, double sigma, int border, int level_scale,
                 std::vector<Keypoint>* out) {
-  cv::Mat dilated;  // 3x3 maximum: a vectorized pass, then one test per pixel.
-  cv::dilate(response, dilated, cv::Mat());
   const float offset = 0.5f * (level_scale - 1);
   border = std::max(border, 1);
-  std::vector<uint8_t> candidate(response.cols + 8, 0);  // Padded for 8-byte reads.
+  const int x0 = border, x1 = response.cols - border;
+  if (x1 <= x0) return;
+  // Padded so the last group of four reads inside.
+  std::vector<float> neighbour_max(response.cols + 4, std::numeric_limits<float>::infinity());
   for (int y = border; y < response.rows - border; ++y) {
     const float* r = response.ptr<float>(y);
-    const float* d = dilated.ptr<float>(y);
     const float* up = response.ptr<float>(y - 1);
     const float* down = response.ptr<float>(y + 1);
-    // The test as a vectorizable pass writing flags; about 1% of pixels pass, so the scan
-    // below skips eight pixels at a time.
-    for (int x = border; x < response.cols - border; ++x) {
-      candidate[x] = (r[x] >= threshold) & (r[x] >= d[x]);
-    }
-    for (int x = border; x < response.cols - border; ++x) {
-      if ((x & 7) == 0) {
-        uint64_t eight;
-        std::memcpy(&eight, &candidate[x], 8);
-        if (eight == 0) {
-          x += 7;
-          continue;
-        }
+    NeighbourMax(up, r, down, x0, x1, neighbour_max.data());
+    // About 1% of pixels pass, four tested at once; reading past x1 is harmless, those bits are
+    // dropped.
+    for (int group = x0; group < x1; group += 4) {
+      int mask = CandidateMask4(r + group, neighbour_max.data() + group, threshold);
+      if (group + 4 > x1) mask &= (1 << (x1 - group)) - 1;
+      for (; mask != 0; mask &= mask - 1) {
+        const int x = group + __builtin_ctz(mask);
+        const float v = r[x];
+        const float dx = 0.5f * (r[x + 1] - r[x - 1]), dxx = r[x + 1] - 2 * v + r[x - 1];
+        const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * v + up[x];
+        const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
+        const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
+        Keypoint keypoint;
+        keypoint.pixel =
+            Eigen::Vector2f((x + ox) * level_scale + offset, (y + oy) * level_scale + offset);
+        keypoint.scale_px = static_cast<float>(sigma);
+        keypoint.response = v;
+        out->push_back(keypoint);
       }
-      if (!candidate[x]) continue;
-      const float v = r[x];
-      const float dx = 0.5f * (r[x + 1] - r[x - 1]), dxx = r[x + 1] - 2 * v + r[x - 1];
-      const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * v + up[x];
-      const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
-      const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
-      Keypoint keypoint;
-      keypoint.pixel =
-          Eigen::Vector2f((x + ox) * level_scale + offset, (y + oy) * level_scale + offset);
-      keypoint.scale_px = static_cast<float>(sigma);
-      keypoint.response = v;
-      out->push_back(keypoint);
     }
   }
 }
@@ -234,6 +337,35 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
 }
 
 }  // namespace
+
+// The image is smoothed in 8-bit fixed point (OpenCV, several times faster than in float); the
+// gradients and the tensor follow in one streamed pass (HarrisRows).
+cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_response) {
+  cv::Mat smoothed;
+  const double derivative_sigma = 0.7 * sigma;
+  const int derivative_half = GaussianHalfWidth(derivative_sigma);
+  cv::GaussianBlur(grey, smoothed, cv::Size(2 * derivative_half + 1, 2 * derivative_half + 1),
+                   derivative_sigma);
+  const int half = GaussianHalfWidth(sigma);
+  const cv::Mat kernel = cv::getGaussianKernel(2 * half + 1, sigma, CV_32F);
+  const std::vector<float> taps(kernel.ptr<float>(half), kernel.ptr<float>(half) + half + 1);
+  // det - k trace^2, scale-normalized by sigma^4 (a product of two squared first derivatives)
+  // so responses compare across scales; 1 / (8 * 255)^4 converts the integer gradients.
+  const float norm = static_cast<float>(std::pow(sigma, 4) / std::pow(8.0 * 255.0, 4));
+  const float kf = static_cast<float>(k);
+  cv::Mat response;
+  switch (half) {  // The windows of the default scales unrolled; others read `taps`.
+    case 2:
+      *max_response = HarrisRows<2>(smoothed, taps, kf, norm, &response);
+      break;
+    case 3:
+      *max_response = HarrisRows<3>(smoothed, taps, kf, norm, &response);
+      break;
+    default:
+      *max_response = HarrisRows<0>(smoothed, taps, kf, norm, &response);
+  }
+  return response;
+}
 
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
                                      const cv::Size& image_size, int grid_cols, int grid_rows,

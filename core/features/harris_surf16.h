@@ -52,6 +52,14 @@ class HarrisSurf16Extractor final : public FeatureExtractor {
   FeatureSettings settings_;
 };
 
+// Harris response (CV_32F, the image's size) at Gaussian scale `sigma_px` of an 8-bit image:
+// det(M) - k tr(M)^2 of the structure tensor M of 3x3 Sobel gradients of the image smoothed at
+// 0.7 sigma, weighted by a Gaussian window of sigma (both truncated at +-2 sigma, at least 5
+// taps), with OpenCV's reflect-101 border at every stage. Scale-normalized by sigma^4, in units of
+// gradients of the image scaled to [0, 1]. `strongest` receives the largest value, or 0 when
+// none is positive. sigma_px up to 10.
+cv::Mat HarrisResponse(const cv::Mat& grey, double sigma_px, double k, float* strongest);
+
 // Indices of at most `max_features` keypoints: the strongest of each grid cell up to an equal
 // quota, then the strongest of the rest.
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
