@@ -520,37 +520,52 @@ class BoxSums {
 // descriptors do not depend on which path computed them.
 class SmallHaar {
  public:
-  explicit SmallHaar(const cv::Mat& grey) : dx_(grey.size(), CV_16S), dy_(grey.size(), CV_16S) {
-    dx_.row(0).setTo(0);
-    dy_.row(0).setTo(0);
+  // (dx, dy) pairs, adjacent so that one 32-bit load reads a sample.
+  explicit SmallHaar(const cv::Mat& grey) : pairs_(grey.size(), CV_16SC2) {
+    pairs_.row(0).setTo(0);
     for (int y = 1; y < grey.rows; ++y) {
-      const uint8_t* above = grey.ptr<uint8_t>(y - 1);
-      const uint8_t* row = grey.ptr<uint8_t>(y);
-      int16_t* dx = dx_.ptr<int16_t>(y);
-      int16_t* dy = dy_.ptr<int16_t>(y);
-      dx[0] = dy[0] = 0;
-      for (int x = 1; x < grey.cols; ++x) {
-        // Pixels a b / c d around the sample point (x, y), which is d's top-left corner.
-        const int a = above[x - 1], b = above[x], c = row[x - 1], d = row[x];
-        dx[x] = static_cast<int16_t>((b + d) - (a + c));
-        dy[x] = static_cast<int16_t>((c + d) - (a + b));
-      }
+      Row(grey.ptr<uint8_t>(y - 1), grey.ptr<uint8_t>(y), grey.cols, pairs_.ptr<int16_t>(y));
     }
   }
   // True when samples at x in [x0, x1] and y in [y0, y1] have their whole wavelet inside.
   bool Contains(int x0, int y0, int x1, int y1) const {
-    return x0 >= 1 && y0 >= 1 && x1 < dx_.cols && y1 < dx_.rows;
+    return x0 >= 1 && y0 >= 1 && x1 < pairs_.cols && y1 < pairs_.rows;
   }
   void Haar(int x, int y, float* dx, float* dy) const {
-    *dx = dx_.ptr<int16_t>(y)[x];
-    *dy = dy_.ptr<int16_t>(y)[x];
+    const int16_t* pair = pairs_.ptr<int16_t>(y) + 2 * x;
+    *dx = pair[0];
+    *dy = pair[1];
   }
+  // Row y's pairs, each (dx | dy << 16) in a little-endian 32-bit word.
+  const int32_t* PairRow(int y) const { return pairs_.ptr<int32_t>(y); }
 
  private:
-  cv::Mat dx_, dy_;
+  // Restricted: the pairs never overlap the image (8-bit pointers may alias anything).
+  static void Row(const uint8_t* __restrict above, const uint8_t* __restrict row, int cols,
+                  int16_t* __restrict pairs) {
+    pairs[0] = pairs[1] = 0;
+    for (int x = 1; x < cols; ++x) {
+      // Pixels a b / c d around the sample point (x, y), which is d's top-left corner.
+      const int a = above[x - 1], b = above[x], c = row[x - 1], d = row[x];
+      pairs[2 * x] = static_cast<int16_t>((b + d) - (a + c));
+      pairs[2 * x + 1] = static_cast<int16_t>((c + d) - (a + b));
+    }
+  }
+
+  cv::Mat pairs_;
 };
 
 inline int RoundToInt(double v) { return static_cast<int>(std::floor(v + 0.5)); }
+
+// The descriptor from its 16 sums: unit length (contrast invariance), or as is when all vanish.
+void Normalize(const std::array<float, 16>& sums, float* descriptor) {
+  double norm = 0;
+  for (int j = 0; j < 16; ++j) norm += sums[j] * sums[j];
+  norm = std::sqrt(norm);
+  for (int j = 0; j < 16; ++j) {
+    descriptor[j] = norm > 1e-12 ? static_cast<float>(sums[j] / norm) : sums[j];
+  }
+}
 
 // The descriptor of one keypoint from its sample grid (xs, ys) and the wavelet responses
 // `haar(x, y, &dx, &dy)`: per sub-region (sum dx, sum dy, sum |dx|, sum |dy|), Gaussian
@@ -583,13 +598,41 @@ void DescribeOne(const DescriptorPattern& pattern, const std::array<int, kSample
       for (int c = 0; c < 4; ++c) cell[c] += even[c] + odd[c];
     }
   }
-  double norm = 0;
-  for (int j = 0; j < 16; ++j) norm += sums[j] * sums[j];
-  norm = std::sqrt(norm);
-  for (int j = 0; j < 16; ++j) {
-    descriptor[j] = norm > 1e-12 ? static_cast<float>(sums[j] / norm) : sums[j];
-  }
+  Normalize(sums, descriptor);
 }
+
+#if defined(__SSE2__)
+// DescribeOne for the smallest wavelet, with a sample's four values (dx, dy, |dx|, |dy|) in one
+// SSE2 register. Each value goes through the same operations as in DescribeOne, in the same
+// order, so the descriptor has the same bits, in about half the instructions.
+void DescribeOneSmall(const DescriptorPattern& pattern, const std::array<int, kSamplesPerSide>& xs,
+                      const std::array<int, kSamplesPerSide>& ys, const SmallHaar& small,
+                      float* descriptor) {
+  const __m128 abs_upper = _mm_castsi128_ps(_mm_set_epi32(0x7fffffff, 0x7fffffff, -1, -1));
+  const auto sample = [&](const int32_t* row, int x) {
+    const __m128i pair = _mm_cvtsi32_si128(row[x]);
+    // Sign-extend the two 16-bit values: (dx, dy) as 32-bit integers in lanes 0 and 1.
+    const __m128i wide = _mm_srai_epi32(_mm_unpacklo_epi16(pair, pair), 16);
+    const __m128 values = _mm_cvtepi32_ps(wide);
+    return _mm_and_ps(_mm_movelh_ps(values, values), abs_upper);
+  };
+  std::array<float, 16> sums{};
+  for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+    const int32_t* row = small.PairRow(ys[sy]);
+    const float* weights = &pattern.weights[sy * kSamplesPerSide];
+    for (int column = 0; column < 2; ++column) {
+      __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
+      for (int sx = 6 * column; sx < 6 * column + 6; sx += 2) {
+        even = _mm_add_ps(even, _mm_mul_ps(_mm_set1_ps(weights[sx]), sample(row, xs[sx])));
+        odd = _mm_add_ps(odd, _mm_mul_ps(_mm_set1_ps(weights[sx + 1]), sample(row, xs[sx + 1])));
+      }
+      float* cell = &sums[4 * ((sy / 6) * 2 + column)];
+      _mm_storeu_ps(cell, _mm_add_ps(_mm_loadu_ps(cell), _mm_add_ps(even, odd)));
+    }
+  }
+  Normalize(sums, descriptor);
+}
+#endif
 
 }  // namespace
 
@@ -618,9 +661,13 @@ cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
     if (half == 1) {
       if (!small) small.emplace(grey);
       if (small->Contains(xs.front(), ys.front(), xs.back(), ys.back())) {
+#if defined(__SSE2__)
+        DescribeOneSmall(*pattern, xs, ys, *small, d);
+#else
         DescribeOne(
             *pattern, xs, ys,
             [&](int x, int y, float* dx, float* dy) { small->Haar(x, y, dx, dy); }, d);
+#endif
         continue;
       }
     }

@@ -68,12 +68,14 @@ BENCHMARK(BM_DetectHarrisSurf16)->ArgsProduct({{320, 640}, {0, 1}})->Unit(benchm
 void BM_DescribeHarrisSurf16(benchmark::State& state) {
   const cv::Mat image =
       TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
-  const HarrisSurf16Extractor extractor(ExtractorOptions(false));
+  const HarrisSurf16Extractor extractor(ExtractorOptions(state.range(1) == 1));
   const std::vector<Keypoint> keypoints = extractor.Detect(image);
   for (auto _ : state) benchmark::DoNotOptimize(extractor.Describe(image, keypoints));
   state.counters["features"] = static_cast<double>(keypoints.size());
 }
-BENCHMARK(BM_DescribeHarrisSurf16)->Arg(320)->Arg(640)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DescribeHarrisSurf16)
+    ->ArgsProduct({{320, 640}, {0, 1}})
+    ->Unit(benchmark::kMillisecond);
 
 void BM_OrbReference(benchmark::State& state) {
   const cv::Mat image =
