@@ -1,6 +1,7 @@
 #include "core/localization/map_matching.h"
 
 #include <limits>
+#include <optional>
 
 #include "core/map/descriptor.h"
 
@@ -70,13 +71,23 @@ std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint
   const float max_distance = options.MaxDistance(map.features.descriptor_type);
   // Keypoint -> nearest point with the ratio test, then one keypoint per point.
   std::vector<PointMatch> per_point(points.size(), {0u, -1, std::numeric_limits<float>::max()});
+  // 16-float descriptors (harris_surf16) go eight points at a time through their columns.
+  std::optional<Float16Columns> columns;
+  if (map.descriptors.type() == CV_32F && map.descriptors.cols == 16) {
+    columns.emplace(map.descriptors, points);
+  }
+  std::vector<float> distances(points.size());
   for (int i = 0; i < static_cast<int>(frame.size()); ++i) {
-    NearestTwo nearest;
-    for (size_t j = 0; j < points.size(); ++j) {
-      nearest.Offer(
-          DescriptorDistance(frame_descriptors, i, map.descriptors, static_cast<int>(points[j])),
-          static_cast<int>(j));
+    if (columns) {
+      columns->Distances(frame_descriptors.ptr<float>(i), distances.data());
+    } else {
+      for (size_t j = 0; j < points.size(); ++j) {
+        distances[j] =
+            DescriptorDistance(frame_descriptors, i, map.descriptors, static_cast<int>(points[j]));
+      }
     }
+    NearestTwo nearest;
+    for (size_t j = 0; j < points.size(); ++j) nearest.Offer(distances[j], static_cast<int>(j));
     if (!nearest.Distinctive(options.ratio, max_distance)) continue;
     PointMatch& claim = per_point[nearest.best_index];
     if (nearest.best < claim.distance) claim = {points[nearest.best_index], i, nearest.best};

@@ -68,6 +68,24 @@ TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
   EXPECT_FLOAT_EQ(DescriptorDistance(floats, 1, floats, 1), 0.0f);
 }
 
+TEST(DescriptorDistanceTest, ColumnsGiveTheSameDistancesBitForBit) {
+  cv::Mat descriptors(37, 16, CV_32F);  // 37: the vector loop and its remainder.
+  cv::randu(descriptors, -1.0f, 1.0f);
+  const std::vector<uint32_t> rows = {5, 0, 36, 12, 12, 7, 30, 1, 2, 3, 33, 20, 18, 9, 4};
+  const Float16Columns columns(descriptors, rows);
+  ASSERT_EQ(columns.size(), static_cast<int>(rows.size()));
+  std::vector<float> distances(rows.size());
+  for (int query = 0; query < descriptors.rows; ++query) {
+    columns.Distances(descriptors.ptr<float>(query), distances.data());
+    for (size_t j = 0; j < rows.size(); ++j) {
+      const float expected =
+          DescriptorDistance(descriptors, query, descriptors, static_cast<int>(rows[j]));
+      EXPECT_EQ(distances[j], expected) << "query " << query << ", row " << rows[j];
+    }
+  }
+  EXPECT_THROW(Float16Columns(cv::Mat(3, 32, CV_8U), {0}), std::exception);
+}
+
 TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
   SyntheticMapOptions options;
   options.keyframes = 20;
