@@ -4,7 +4,10 @@
 // resolved once through an ifunc), so one binary runs everywhere and uses 8-float vectors where
 // it can. Only for hot loops the compiler vectorizes. FMA is not enabled: each element goes
 // through the same IEEE operations in both versions, which therefore give the same bits.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+//
+// Not under ThreadSanitizer: the loader runs the clones' resolvers before TSan's runtime is up,
+// and the instrumented resolvers crash the program at start.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_THREAD__)
 #define VISLOC_AVX2_CLONE __attribute__((target_clones("avx2", "default")))
 #else
 #define VISLOC_AVX2_CLONE
