@@ -291,6 +291,10 @@ TEST(HarrisSurf16Test, ResponseEqualsItsDefinitionInsideAndAtTheBorder) {
           << "sigma " << sigma << ", " << image->cols << "x" << image->rows;
     }
   }
+  float strongest = 0.0f;
+  EXPECT_THROW(HarrisResponse(cv::Mat(8, 8, CV_8UC3), 1.2, 0.04, &strongest), std::exception);
+  EXPECT_THROW(HarrisResponse(room, 12.0, 0.04, &strongest), std::exception);  // 49 taps.
+  EXPECT_THROW(HarrisResponse(room, 0.0, 0.04, &strongest), std::exception);
 }
 
 TEST(SpreadOverGridTest, TakesTheBestPerCellAndNeverMoreThanAsked) {

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <optional>
 
@@ -139,8 +138,7 @@ VISLOC_AVX2_CLONE float HarrisRows(const cv::Mat& smoothed, const std::vector<fl
                                    float norm, cv::Mat* response) {
   const int half = kHalf > 0 ? kHalf : static_cast<int>(taps.size()) - 1;
   const int rows = smoothed.rows, cols = smoothed.cols, window = 2 * half + 1;
-  const int padded = cols + 2 * half;
-  VISLOC_CHECK(window <= kMaxWindow, "window of ", window, " taps");
+  const int padded = cols + 2 * half;  // window <= kMaxWindow: HarrisResponse checks.
   const float* g = taps.data();
   std::vector<float> tensor(3 * static_cast<size_t>(padded));
   std::vector<float> ring(3 * static_cast<size_t>(window) * cols),
@@ -341,12 +339,16 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
 // The image is smoothed in 8-bit fixed point (OpenCV, several times faster than in float); the
 // gradients and the tensor follow in one streamed pass (HarrisRows).
 cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_response) {
+  VISLOC_CHECK(grey.type() == CV_8UC1 && !grey.empty(),
+               "the Harris response needs an 8-bit grey image");
+  const int half = GaussianHalfWidth(sigma);
+  VISLOC_CHECK(sigma > 0 && 2 * half + 1 <= kMaxWindow, "Harris scale ", sigma,
+               " px: from 0 to 10 px");
   cv::Mat smoothed;
   const double derivative_sigma = 0.7 * sigma;
   const int derivative_half = GaussianHalfWidth(derivative_sigma);
   cv::GaussianBlur(grey, smoothed, cv::Size(2 * derivative_half + 1, 2 * derivative_half + 1),
                    derivative_sigma);
-  const int half = GaussianHalfWidth(sigma);
   const cv::Mat kernel = cv::getGaussianKernel(2 * half + 1, sigma, CV_32F);
   const std::vector<float> taps(kernel.ptr<float>(half), kernel.ptr<float>(half) + half + 1);
   // det - k trace^2, scale-normalized by sigma^4 (a product of two squared first derivatives)

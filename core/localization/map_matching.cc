@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "core/map/descriptor.h"
+#include "core/util/check.h"
 
 namespace visloc {
 namespace {
@@ -75,6 +76,9 @@ std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint
   std::optional<Float16Columns> columns;
   if (map.descriptors.type() == CV_32F && map.descriptors.cols == 16) {
     columns.emplace(map.descriptors, points);
+    VISLOC_CHECK(
+        frame.size() == 0 || (frame_descriptors.type() == CV_32F && frame_descriptors.cols == 16),
+        "the frame's descriptors are not the map's (16 floats)");
   }
   std::vector<float> distances(points.size());
   for (int i = 0; i < static_cast<int>(frame.size()); ++i) {

@@ -15,6 +15,8 @@ Float16Columns::Float16Columns(const cv::Mat& descriptors, const std::vector<uin
     : count_(static_cast<int>(rows.size())), columns_(16 * rows.size()) {
   VISLOC_CHECK(descriptors.type() == CV_32F && descriptors.cols == 16, "16-float descriptors");
   for (int j = 0; j < count_; ++j) {
+    VISLOC_CHECK(rows[j] < static_cast<uint32_t>(descriptors.rows), "descriptor row ", rows[j],
+                 " of ", descriptors.rows);
     const float* row = descriptors.ptr<float>(static_cast<int>(rows[j]));
     for (int d = 0; d < 16; ++d) columns_[d * count_ + j] = row[d];
   }

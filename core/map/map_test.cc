@@ -84,6 +84,7 @@ TEST(DescriptorDistanceTest, ColumnsGiveTheSameDistancesBitForBit) {
     }
   }
   EXPECT_THROW(Float16Columns(cv::Mat(3, 32, CV_8U), {0}), std::exception);
+  EXPECT_THROW(Float16Columns(descriptors, {37}), std::exception);  // Past the last row.
 }
 
 TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {
