@@ -124,58 +124,96 @@ struct GrpcRun {
   ErrorStats server_ms;      // The server's own time per frame (LocalizeResponse.timings).
   ErrorStats engine_ms;      // Of that, the engine's (timings.total_ms).
   ErrorStats in_process_ms;  // The same frames in-process, interleaved with the round trips.
+  // The same bytes on a second stream, declared one column narrower than the camera: the
+  // server parses and copies each frame, rejects it (STATUS_ERROR) and answers with no engine
+  // work. This is the floor a frame's round trip can reach on this machine and gRPC build.
+  ErrorStats no_engine_ms;
 };
+
+// Opens a Localize stream on `map_name` with the dataset's camera and the default options.
+std::unique_ptr<grpc::ClientReaderWriter<v1::LocalizeRequest, v1::LocalizeResponse>> StartSession(
+    v1::Localization::Stub* stub, grpc::ClientContext* context, const Connection& server,
+    const std::string& map_name, const PinholeCamera& camera) {
+  server.Prepare(context);
+  auto stream = stub->Localize(context);
+  v1::LocalizeRequest start;
+  start.mutable_start()->set_map_name(map_name);
+  proto::ToProto(camera, start.mutable_start()->mutable_camera());
+  stream->Write(start);
+  return stream;
+}
+
+// A raw 8-bit frame request; `declared_width` < image.cols leaves the pixels as they are.
+v1::LocalizeRequest RawFrameRequest(const cv::Mat& image, int64_t timestamp_ns,
+                                    int declared_width) {
+  v1::LocalizeRequest request;
+  request.mutable_frame()->set_timestamp_ns(timestamp_ns);
+  v1::RawImage* raw = request.mutable_frame()->mutable_raw();
+  raw->set_width(declared_width);
+  raw->set_height(image.rows);
+  raw->set_stride(static_cast<uint32_t>(image.step[0]));
+  raw->set_pixels(image.data, image.step[0] * image.rows);
+  return request;
+}
 
 // One frame in flight: send, wait for the answer, send the next. Frames go as raw 8-bit grey
 // (as a robot's camera driver delivers them), so the figure is the transport's overhead, not
-// PNG decoding. An in-process session runs the same frames in alternating blocks of 50, so
-// that the ratio of the two compares runs under the same load of a shared machine (measured
-// minutes apart, one run's median moved by up to 30% from the other's).
+// PNG decoding. An in-process session runs the same frames in alternating blocks of 50, and so
+// does a stream of frames the server answers without engine work, so that the ratios compare
+// runs under the same load of a shared machine (measured minutes apart, one run's median moved
+// by up to 30% from the other's).
 GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
                  const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
                  const std::vector<cv::Mat>& images) {
+  const PinholeCamera& camera = dataset.left.camera;
   auto stub = v1::Localization::NewStub(server.OpenChannel());
-  grpc::ClientContext context;
-  server.Prepare(&context);
-  auto stream = stub->Localize(&context);
-  v1::LocalizeRequest start;
-  start.mutable_start()->set_map_name(map_name);
-  proto::ToProto(dataset.left.camera, start.mutable_start()->mutable_camera());
-  stream->Write(start);
+  grpc::ClientContext tracking_context, no_engine_context;
+  auto tracking = StartSession(stub.get(), &tracking_context, server, map_name, camera);
+  auto no_engine = StartSession(stub.get(), &no_engine_context, server, map_name, camera);
   // The server's session options are the defaults too (an empty SessionOptions).
-  Localizer in_process(map, dataset.left.camera, LocalizerOptions());
-  std::vector<double> ms, server_ms, engine_ms, in_process_ms;
-  const auto round_trip = [&](size_t i) {
-    const cv::Mat& image = images[i];
-    v1::LocalizeRequest request;
-    request.mutable_frame()->set_timestamp_ns(dataset.frames[i].timestamp_ns);
-    v1::RawImage* raw = request.mutable_frame()->mutable_raw();
-    raw->set_width(image.cols);
-    raw->set_height(image.rows);
-    raw->set_stride(static_cast<uint32_t>(image.step[0]));
-    raw->set_pixels(image.data, image.step[0] * image.rows);
-    v1::LocalizeResponse response;
+  Localizer in_process(map, camera, LocalizerOptions());
+  std::vector<double> ms, server_ms, engine_ms, in_process_ms, no_engine_ms;
+  // Sends one frame and waits for its answer; false once the stream has broken.
+  const auto round_trip = [](auto* stream, const v1::LocalizeRequest& request,
+                             v1::LocalizeResponse* response, std::vector<double>* round_trip_ms) {
     Timer timer;
-    if (!stream->Write(request) || !stream->Read(&response)) return false;
-    ms.push_back(timer.ElapsedMs());
-    server_ms.push_back(response.timings().server_ms());
-    engine_ms.push_back(response.timings().total_ms());
+    if (!stream->Write(request) || !stream->Read(response)) return false;
+    round_trip_ms->push_back(timer.ElapsedMs());
     return true;
   };
   constexpr size_t kBlock = 50;
   bool open = true;
   for (size_t begin = 0; begin < images.size() && open; begin += kBlock) {
     const size_t end = std::min(images.size(), begin + kBlock);
-    for (size_t i = begin; i < end && open; ++i) open = round_trip(i);
+    v1::LocalizeResponse response;
+    for (size_t i = begin; i < end && open; ++i) {
+      const int64_t stamp_ns = dataset.frames[i].timestamp_ns;
+      open = round_trip(tracking.get(), RawFrameRequest(images[i], stamp_ns, images[i].cols),
+                        &response, &ms);
+      if (!open) break;
+      server_ms.push_back(response.timings().server_ms());
+      engine_ms.push_back(response.timings().total_ms());
+    }
+    for (size_t i = begin; i < end && open; ++i) {
+      const int64_t stamp_ns = dataset.frames[i].timestamp_ns;
+      open = round_trip(no_engine.get(), RawFrameRequest(images[i], stamp_ns, images[i].cols - 1),
+                        &response, &no_engine_ms);
+      if (open && response.status() != v1::STATUS_ERROR) {
+        throw std::runtime_error(
+            "bench: the server ran the engine on a frame narrower than its "
+            "camera");
+      }
+    }
     for (size_t i = begin; i < end; ++i) {
       in_process_ms.push_back(
           in_process.Process(InputFor(dataset, images, i)).stats.times.total_ms);
     }
   }
-  stream->WritesDone();
-  CheckCall(stream->Finish(), server.server);
+  for (auto* stream : {tracking.get(), no_engine.get()}) stream->WritesDone();
+  CheckCall(tracking->Finish(), server.server);
+  CheckCall(no_engine->Finish(), server.server);
   return GrpcRun{ComputeErrorStats(ms), ComputeErrorStats(server_ms), ComputeErrorStats(engine_ms),
-                 ComputeErrorStats(in_process_ms)};
+                 ComputeErrorStats(in_process_ms), ComputeErrorStats(no_engine_ms)};
 }
 
 }  // namespace
@@ -251,7 +289,8 @@ int RunBench(const Args& raw_args) {
       out.Field("grpc_ms_per_frame_median", grpc->round_trip_ms.median)
           .Field("grpc_server_ms_per_frame_median", grpc->server_ms.median)
           .Field("grpc_server_engine_ms_per_frame_median", grpc->engine_ms.median)
-          .Field("grpc_in_process_ms_per_frame_median", grpc->in_process_ms.median);
+          .Field("grpc_in_process_ms_per_frame_median", grpc->in_process_ms.median)
+          .Field("grpc_no_engine_ms_per_frame_median", grpc->no_engine_ms.median);
     }
     out.Key("steps").BeginObject();
     for (const StepSummary& step : steps) {
@@ -292,12 +331,17 @@ int RunBench(const Args& raw_args) {
               relocalization.ms.median / ours);
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;
+    const double in_process = grpc->in_process_ms.median;
     std::printf(
         "%-28s %10.3f %10.2f            (%.2fx the interleaved in-process %.3f ms; the "
         "server's own %.3f ms, its engine %.3f ms)\n",
-        "through gRPC (round trip)", round_trip, round_trip / orb.median,
-        round_trip / grpc->in_process_ms.median, grpc->in_process_ms.median, grpc->server_ms.median,
-        grpc->engine_ms.median);
+        "through gRPC (round trip)", round_trip, round_trip / orb.median, round_trip / in_process,
+        in_process, grpc->server_ms.median, grpc->engine_ms.median);
+    std::printf(
+        "%-28s %10.3f %10.2f            (the same bytes answered without engine work: "
+        "%.2fx the in-process frame)\n",
+        "gRPC floor (no engine)", grpc->no_engine_ms.median, grpc->no_engine_ms.median / orb.median,
+        grpc->no_engine_ms.median / in_process);
   }
   return 0;
 }
