@@ -280,7 +280,7 @@ echo "== writing $REPORT"
   echo "In the same run a second stream sent the same frames declared one column narrower than the camera."
   echo "The server parsed and copied each one, rejected it (\`STATUS_ERROR\`) and answered with no engine work:"
   echo "$(fmt "$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" 1 3) ms per round trip, $(ratio "$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" "$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)")x the in-process frame. That is the floor of a frame's"
-  echo "round trip through this server's gRPC $(pkg-config --modversion grpc++ 2>/dev/null) transport on this machine: everything but the engine."
+  echo "round trip through this server (gRPC $(pkg-config --modversion grpc++ 2>/dev/null), synchronous API) on this machine: everything but the engine."
   echo "A ratio below $(awk -v a="$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", 1 + a/b}')x would need a faster transport, not a faster engine: a faster engine raises the ratio."
   echo
   echo "### Targets (ratios within one run)"
