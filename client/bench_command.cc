@@ -126,7 +126,7 @@ struct GrpcRun {
   ErrorStats in_process_ms;  // The same frames in-process, interleaved with the round trips.
   // The same bytes on a second stream, declared one column narrower than the camera: the
   // server parses and copies each frame, rejects it (STATUS_ERROR) and answers with no engine
-  // work. This is the floor a frame's round trip can reach on this machine and gRPC build.
+  // work. This is the floor a frame's round trip through this server can reach on this machine.
   ErrorStats no_engine_ms;
 };
 
@@ -183,6 +183,7 @@ GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
   };
   constexpr size_t kBlock = 50;
   bool open = true;
+  bool floor_refused_all = true;  // Else the floor stream's figure is not a floor.
   for (size_t begin = 0; begin < images.size() && open; begin += kBlock) {
     const size_t end = std::min(images.size(), begin + kBlock);
     v1::LocalizeResponse response;
@@ -198,11 +199,7 @@ GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
       const int64_t stamp_ns = dataset.frames[i].timestamp_ns;
       open = round_trip(no_engine.get(), RawFrameRequest(images[i], stamp_ns, images[i].cols - 1),
                         &response, &no_engine_ms);
-      if (open && response.status() != v1::STATUS_ERROR) {
-        throw std::runtime_error(
-            "bench: the server ran the engine on a frame narrower than its "
-            "camera");
-      }
+      floor_refused_all &= !open || response.status() == v1::STATUS_ERROR;
     }
     for (size_t i = begin; i < end; ++i) {
       in_process_ms.push_back(
@@ -212,6 +209,11 @@ GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
   for (auto* stream : {tracking.get(), no_engine.get()}) stream->WritesDone();
   CheckCall(tracking->Finish(), server.server);
   CheckCall(no_engine->Finish(), server.server);
+  if (!floor_refused_all) {
+    throw std::runtime_error(
+        "bench: the server did not refuse a frame narrower than its camera, so the no-engine "
+        "round trip is not a floor");
+  }
   return GrpcRun{ComputeErrorStats(ms), ComputeErrorStats(server_ms), ComputeErrorStats(engine_ms),
                  ComputeErrorStats(in_process_ms), ComputeErrorStats(no_engine_ms)};
 }

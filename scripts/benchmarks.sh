@@ -271,17 +271,20 @@ echo "== writing $REPORT"
   echo
   ratio() { awk -v a="$1" -v b="$2" 'BEGIN{printf "%.2f", a/b}'; }
   verdict() { awk -v v="$1" -v t="$2" -v op="$3" 'BEGIN{ok = op == "le" ? v <= t : v >= t; print ok ? "met" : "not met"}'; }
+  grpc=$(ratio "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" "$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)")
+  # The ratio a frame would have if the server added nothing to the engine but the floor.
+  grpc_floor=$(awk -v a="$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", 1 + a/b}')
   echo "Through gRPC on loopback, one frame in flight, raw 8-bit frames (\`visloc bench --server\`, first 300"
   echo "frames of the square): $(fmt "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" 1 2) ms per frame against $(fmt "$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 1 2) ms in-process, the same frames run"
   echo "in blocks of 50 alternating with the round trips, so both see the same load of the shared machine"
-  echo "($(awk -v a="$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", a/b}')x). Of the round trip, the server's own time per frame (its"
+  echo "(${grpc}x). Of the round trip, the server's own time per frame (its"
   echo "\`timings.server_ms\`: conversion and the engine) is $(fmt "$(field "$WORK/bench_grpc.json" grpc_server_ms_per_frame_median)" 1 2) ms; the rest is the transport."
   echo "This is the median of $grpc_runs runs (\`visloc bench --server\` repeated on one server); their ratios span ${grpc_range}x."
   echo "In the same run a second stream sent the same frames declared one column narrower than the camera."
   echo "The server parsed and copied each one, rejected it (\`STATUS_ERROR\`) and answered with no engine work:"
   echo "$(fmt "$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" 1 3) ms per round trip, $(ratio "$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" "$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)")x the in-process frame. That is the floor of a frame's"
   echo "round trip through this server (gRPC $(pkg-config --modversion grpc++ 2>/dev/null), synchronous API) on this machine: everything but the engine."
-  echo "A ratio below $(awk -v a="$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", 1 + a/b}')x would need a faster transport, not a faster engine: a faster engine raises the ratio."
+  echo "A ratio below ${grpc_floor}x would need a faster transport, not a faster engine: a faster engine raises the ratio."
   echo
   echo "### Targets (ratios within one run)"
   echo
@@ -293,7 +296,6 @@ echo "== writing $REPORT"
   snvs=$(ratio "$(field "$sj" no_visibility_map_search_ms_median)" "$(field "$sj" map_search_ms_median)")
   rel=$(ratio "$(field "$WORK/bench320.json" relocalization_ms_median)" "$(field "$WORK/bench320.json" ms_per_frame_median)")
   growth=$(csv_column "$WORK/micro_RelocalizeScaling.csv" BM_RelocalizeScaling "real_time" | awk -F, 'NR == 1 {a = $2} {b = $2} END {printf "%.2f", b / a}')
-  grpc=$(ratio "$(field "$WORK/bench_grpc.json" grpc_ms_per_frame_median)" "$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)")
   echo "| target | measured | |"
   echo "|---|---|---|"
   echo "| tracking per frame at 320x240 <= 0.5x the ORB reference | ${t320}x | $(verdict "$t320" 0.5 le) |"
@@ -302,7 +304,6 @@ echo "== writing $REPORT"
   echo "| >= 3x faster than no visibility, the suite ($(field "$sj" map_points) points) | ${snv}x whole frame, ${snvs}x map search | map search $(verdict "$snvs" 3 ge), whole frame $(verdict "$snv" 3 ge) |"
   echo "| relocalization (~100 keyframes) <= 5x a tracking frame | ${rel}x | $(verdict "$rel" 5 le) |"
   echo "| relocalization far slower than linear in map size | ${growth}x the time for 100x the keyframes | $(verdict "$growth" 10 le) |"
-  grpc_floor=$(awk -v a="$(field "$WORK/bench_grpc.json" grpc_no_engine_ms_per_frame_median)" -v b="$(field "$WORK/bench_grpc.json" grpc_in_process_ms_per_frame_median)" 'BEGIN{printf "%.2f", 1 + a/b}')
   echo "| through gRPC <= 1.2x in-process at 320x240 | ${grpc}x (median of $grpc_runs runs; ${grpc_range}x); the transport floor alone: ${grpc_floor}x | $(verdict "$grpc" 1.2 le) |"
   echo
   echo "Initialization (the first frame, features included): $(awk -F, 'NR == 2 {print $19}' "$WORK/query_square.csv") ms on the square;"
