@@ -11,7 +11,6 @@
 // Both spread features evenly over the image (per-cell quotas), as the paper's "intelligent
 // management" of features does.
 
-#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,22 +18,10 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "core/map/descriptor.h"  // DescriptorDistance
-#include "core/map/map.h"
+#include "core/features/descriptor.h"
+#include "core/features/feature_types.h"
 
 namespace visloc {
-
-struct Keypoint {
-  Eigen::Vector2f pixel = Eigen::Vector2f::Zero();  // Sub-pixel position, image pixels.
-  float scale_px = 1.0f;  // Detection scale (Gaussian sigma for Harris, size/2 for ORB).
-  float response = 0.0f;  // Detector response: larger is stronger.
-};
-
-struct FeatureSet {
-  std::vector<Keypoint> keypoints;
-  cv::Mat descriptors;  // One row per keypoint: CV_32F (float32) or CV_8U (binary).
-  size_t size() const { return keypoints.size(); }
-};
 
 struct ExtractStats {
   double detect_ms = 0.0;
@@ -75,26 +62,5 @@ std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
 // detection in TBB and the scheduler). Programs call it once at start; timings then mean one
 // core per frame, for the ORB reference too.
 void RunOpenCvOnCallingThread();
-
-// Keeps the nearest and second-nearest candidates of a descriptor search, for Lowe's ratio test
-// (a match is distinctive when best < ratio * second).
-struct NearestTwo {
-  float best = std::numeric_limits<float>::max();
-  float second = std::numeric_limits<float>::max();
-  int best_index = -1;
-  void Offer(float distance, int index) {
-    if (distance < best) {
-      second = best;
-      best = distance;
-      best_index = index;
-    } else if (distance < second) {
-      second = distance;
-    }
-  }
-  // True when there is a best candidate within `max_distance` that passes the ratio test.
-  bool Distinctive(float ratio, float max_distance) const {
-    return best_index >= 0 && best <= max_distance && best <= ratio * second;
-  }
-};
 
 }  // namespace visloc

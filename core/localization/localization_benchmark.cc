@@ -146,7 +146,7 @@ void BM_ProjectAndMatch(benchmark::State& state) {
   size_t matches = 0;
   for (auto _ : state) {
     const auto projected = ProjectPoints(s.map->map(), s.map->map().camera, s.cam_from_map, points);
-    matches = MatchProjected(s.map->map(), projected, frame, MatchOptions{}).size();
+    matches = MatchProjected(s.map->map(), projected, frame, 15.0, DescriptorMatchOptions{}).size();
   }
   state.counters["points"] = static_cast<double>(points.size());
   state.counters["matches"] = static_cast<double>(matches);

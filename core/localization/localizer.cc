@@ -93,7 +93,7 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCa
   options_.Check();
   if (options_.scale_radii_with_width) {
     const double scale = camera_.width() / 320.0;
-    options_.tracker.matching.radius_px *= scale;
+    options_.tracker.search_radius_px *= scale;
     options_.tracker.refine_radius_px *= scale;
     options_.relocalization.verify_radius_px *= scale;
   }

@@ -3,35 +3,10 @@
 #include <limits>
 #include <optional>
 
-#include "core/map/descriptor.h"
+#include "core/features/descriptor.h"
 #include "core/util/check.h"
 
 namespace visloc {
-namespace {
-
-// Keeps, per keypoint, the closest map point that claimed it.
-class KeypointClaims {
- public:
-  explicit KeypointClaims(size_t keypoints)
-      : best_(keypoints, {0u, std::numeric_limits<float>::max()}), claimed_(keypoints, 0) {}
-  void Offer(uint32_t point, int feature, float distance) {
-    if (distance < best_[feature].second) best_[feature] = {point, distance};
-    claimed_[feature] = 1;
-  }
-  std::vector<PointMatch> Matches() const {
-    std::vector<PointMatch> matches;
-    for (size_t i = 0; i < best_.size(); ++i) {
-      if (claimed_[i]) matches.push_back({best_[i].first, static_cast<int>(i), best_[i].second});
-    }
-    return matches;
-  }
-
- private:
-  std::vector<std::pair<uint32_t, float>> best_;
-  std::vector<char> claimed_;
-};
-
-}  // namespace
 
 std::vector<ProjectedPoint> ProjectPoints(const Map& map, const PinholeCamera& camera,
                                           const Rigid3d& cam_from_map,
@@ -49,25 +24,23 @@ std::vector<ProjectedPoint> ProjectPoints(const Map& map, const PinholeCamera& c
 }
 
 std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<ProjectedPoint>& projected,
-                                       const QueryFrame& frame, const MatchOptions& options) {
-  const cv::Mat& frame_descriptors = frame.features().descriptors;
-  const float max_distance = options.MaxDistance(map.features.descriptor_type);
-  KeypointClaims claims(frame.size());
-  for (const ProjectedPoint& p : projected) {
-    NearestTwo nearest;
-    frame.ForEachWithin(p.pixel, options.radius_px, [&](int i) {
-      nearest.Offer(
-          DescriptorDistance(map.descriptors, static_cast<int>(p.point), frame_descriptors, i), i);
-    });
-    if (nearest.Distinctive(options.ratio, max_distance)) {
-      claims.Offer(p.point, nearest.best_index, nearest.best);
-    }
+                                       const QueryFrame& frame, double radius_px,
+                                       const DescriptorMatchOptions& options) {
+  std::vector<GuidedQuery> queries(projected.size());
+  for (size_t q = 0; q < projected.size(); ++q) {
+    queries[q] = {&map.descriptors, static_cast<int>(projected[q].point), projected[q].pixel};
   }
-  return claims.Matches();
+  std::vector<PointMatch> matches;
+  for (const GuidedMatch& m :
+       MatchGuided(queries, frame.grid(), frame.features().descriptors, radius_px, options)) {
+    matches.push_back({projected[m.query].point, m.keypoint, m.distance});
+  }
+  return matches;
 }
 
 std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint32_t>& points,
-                                          const QueryFrame& frame, const MatchOptions& options) {
+                                          const QueryFrame& frame,
+                                          const DescriptorMatchOptions& options) {
   const cv::Mat& frame_descriptors = frame.features().descriptors;
   const float max_distance = options.MaxDistance(map.features.descriptor_type);
   // Keypoint -> nearest point with the ratio test, then one keypoint per point.

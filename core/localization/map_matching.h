@@ -20,16 +20,6 @@
 
 namespace visloc {
 
-struct MatchOptions {
-  double radius_px = 15.0;            // Guided search radius (paper: 15 px at 320x240).
-  float max_float_distance = 0.6f;    // L2 between unit-norm float descriptors.
-  float max_binary_distance = 80.0f;  // Hamming bits, of 256.
-  float ratio = 0.85f;                // Best must be below ratio * second best.
-  float MaxDistance(DescriptorType type) const {
-    return type == DescriptorType::kBinary ? max_binary_distance : max_float_distance;
-  }
-};
-
 struct ProjectedPoint {
   uint32_t point = 0;
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // Raw (distorted) image pixels.
@@ -47,12 +37,15 @@ std::vector<ProjectedPoint> ProjectPoints(const Map& map, const PinholeCamera& c
                                           const Rigid3d& cam_from_map,
                                           const std::vector<uint32_t>& points);
 
-// Guided matching of projected points to the frame's keypoints within options.radius_px.
+// Guided matching (MatchGuided) of projected points to the frame's keypoints within
+// `radius_px` of their projections.
 std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<ProjectedPoint>& projected,
-                                       const QueryFrame& frame, const MatchOptions& options);
+                                       const QueryFrame& frame, double radius_px,
+                                       const DescriptorMatchOptions& options);
 
 // Unguided matching of all the frame's keypoints against `points` by descriptor alone.
 std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint32_t>& points,
-                                          const QueryFrame& frame, const MatchOptions& options);
+                                          const QueryFrame& frame,
+                                          const DescriptorMatchOptions& options);
 
 }  // namespace visloc

@@ -32,9 +32,9 @@ PredictionMode ParsePredictionMode(const std::string& name) {
 void PoseTrackerOptions::Check() const {
   visibility.Check();
   ransac.Check();
-  VISLOC_CHECK(matching.radius_px > 0 && refine_radius_px > 0, "search radii ", matching.radius_px,
+  matching.Check();
+  VISLOC_CHECK(search_radius_px > 0 && refine_radius_px > 0, "search radii ", search_radius_px,
                " ", refine_radius_px);
-  VISLOC_CHECK(matching.ratio > 0 && matching.ratio <= 1, "ratio ", matching.ratio);
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
 }
 
@@ -85,9 +85,8 @@ void PoseTracker::RefineAround(const QueryFrame& frame, const std::vector<uint32
       ProjectPoints(map_->map(), camera_, cam_from_map, points);
   fix->times.project_ms += timer.ElapsedMs();
   timer.Restart();
-  MatchOptions matching = options_.matching;
-  matching.radius_px = radius_px;
-  const std::vector<PointMatch> matches = MatchProjected(map_->map(), projected, frame, matching);
+  const std::vector<PointMatch> matches =
+      MatchProjected(map_->map(), projected, frame, radius_px, options_.matching);
   fix->times.match_ms += timer.ElapsedMs();
   timer.Restart();
   const std::vector<PoseObservation> observations = Observations(frame, matches);
@@ -160,12 +159,13 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
     const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, &subset);
     fix.times.project_ms += timer.ElapsedMs();
     timer.Restart();
-    std::vector<PointMatch> matches = MatchProjected(map_->map(), coarse, frame, options_.matching);
+    std::vector<PointMatch> matches = MatchProjected(map_->map(), coarse, frame, options_.search_radius_px, options_.matching);
     fix.times.match_ms += timer.ElapsedMs();
     ransac = SolveFromMatches(frame, matches, &fix);
     if (!ransac.success && coarse.size() < projected.size()) {
       timer.Restart();
-      matches = MatchProjected(map_->map(), projected, frame, options_.matching);
+      matches = MatchProjected(map_->map(), projected, frame, options_.search_radius_px,
+                               options_.matching);
       fix.times.match_ms += timer.ElapsedMs();
       ransac = SolveFromMatches(frame, matches, &fix);
     }

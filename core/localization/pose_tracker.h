@@ -31,7 +31,8 @@ PredictionMode ParsePredictionMode(const std::string& name);
 struct PoseTrackerOptions {
   PredictionMode prediction = PredictionMode::kVisibility;
   VisibilityOptions visibility;
-  MatchOptions matching;          // radius_px: the guided search radius.
+  double search_radius_px = 15.0;  // Guided search radius (paper: 15 px at 320x240).
+  DescriptorMatchOptions matching;
   double refine_radius_px = 4.0;  // Tight re-matching radius around the RANSAC pose.
   // Points matched in the wide radius for RANSAC: the most probably visible, spread over the
   // image (0: all). A RANSAC pose from a couple of hundred matches is as good as from all of

@@ -87,13 +87,13 @@ TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
   std::vector<uint32_t> all(map->point_count());
   for (uint32_t j = 0; j < all.size(); ++j) all[j] = j;
   const auto projected = ProjectPoints(map->map(), map->map().camera, truth, all);
-  const auto matches = MatchProjected(map->map(), projected, frame, MatchOptions{});
+  const auto matches = MatchProjected(map->map(), projected, frame, 15.0, DescriptorMatchOptions{});
   ASSERT_GT(matches.size(), 150u);
   int correct = 0;
   for (const PointMatch& m : matches)
     correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);
   EXPECT_GE(correct, static_cast<int>(0.99 * matches.size()));
-  const auto unguided = MatchByDescriptor(map->map(), all, frame, MatchOptions{});
+  const auto unguided = MatchByDescriptor(map->map(), all, frame, DescriptorMatchOptions{});
   int unguided_correct = 0;
   for (const PointMatch& m : unguided) {
     unguided_correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);
@@ -111,7 +111,7 @@ TEST_P(PoseTrackerModeTest, RecoversThePoseFromAnOffPrior) {
   const QueryFrame frame(view.features, map->map().camera);
   PoseTrackerOptions options;
   options.prediction = GetParam();
-  options.matching.radius_px = 25.0;
+  options.search_radius_px = 25.0;
   const PoseTracker tracker(map, map->map().camera, options);
   const PoseFix fix = tracker.Track(frame, Perturbed(truth));
   ASSERT_TRUE(fix.success) << PredictionModeName(GetParam());
@@ -144,7 +144,7 @@ TEST(PoseTrackerTest, CoarseSubsetGivesThePoseAndFallsBackToAllPoints) {
   for (int coarse_points : {0, 160, 3}) {
     PoseTrackerOptions options;
     options.coarse_points = coarse_points;
-    options.matching.radius_px = 25.0;
+    options.search_radius_px = 25.0;
     const PoseTracker tracker(map, map->map().camera, options);
     const PoseFix fix = tracker.Track(frame, Perturbed(truth));
     ASSERT_TRUE(fix.success) << coarse_points;

@@ -15,6 +15,7 @@ void RelocalizationOptions::Check() const {
   VISLOC_CHECK(min_verified_inlier_ratio >= 0 && min_verified_inlier_ratio <= 1,
                "relocalization inlier ratio ", min_verified_inlier_ratio);
   VISLOC_CHECK(verify_radius_px > 0, "verify radius ", verify_radius_px);
+  matching.Check();
 }
 
 Relocalizer::Relocalizer(const PoseTracker& tracker, const RelocalizationOptions& options)

@@ -26,7 +26,7 @@ struct RelocalizationOptions {
   double min_verified_inlier_ratio = 0.5;
   int strong_inliers = 80;        // Stop at the first candidate this well supported.
   double verify_radius_px = 8.0;  // Re-matching radius around the RANSAC pose's projections.
-  MatchOptions matching;          // Descriptor thresholds for step 1 (radius unused).
+  DescriptorMatchOptions matching;  // Descriptor thresholds for step 1.
   int ransac_iterations = 300;
   void Check() const;
 };

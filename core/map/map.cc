@@ -7,16 +7,6 @@
 
 namespace visloc {
 
-std::string ToString(DescriptorType type) {
-  return type == DescriptorType::kFloat32 ? "float32" : "binary";
-}
-
-DescriptorType ParseDescriptorType(const std::string& text) {
-  if (text == "float32") return DescriptorType::kFloat32;
-  if (text == "binary") return DescriptorType::kBinary;
-  throw InputError(StrCat("unknown descriptor type '", text, "' (expected float32 or binary)"));
-}
-
 namespace {
 
 bool Finite(const Eigen::Vector3d& v) { return v.allFinite(); }

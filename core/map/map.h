@@ -15,25 +15,10 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera/pinhole_camera.h"
+#include "core/features/feature_types.h"
 #include "core/geometry/rigid3.h"
 
 namespace visloc {
-
-// How descriptors are compared: float vectors by L2 distance, bit strings by Hamming distance.
-enum class DescriptorType { kFloat32, kBinary };
-std::string ToString(DescriptorType type);
-// "float32" or "binary"; throws InputError otherwise.
-DescriptorType ParseDescriptorType(const std::string& text);
-
-// The detector/descriptor a map was built with. Localization must use the same settings.
-struct FeatureSettings {
-  std::string kind;  // e.g. "harris_surf16" (the paper's) or "orb"
-  DescriptorType descriptor_type = DescriptorType::kFloat32;
-  int descriptor_dim = 0;  // Floats (kFloat32) or bytes (kBinary) per descriptor.
-  std::vector<std::pair<std::string, double>> params;  // Detector/descriptor parameters.
-  // The OpenCV type of one descriptor row: CV_32F or CV_8U.
-  int cv_type() const { return descriptor_type == DescriptorType::kFloat32 ? CV_32F : CV_8U; }
-};
 
 struct MapMetadata {
   std::string name;

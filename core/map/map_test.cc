@@ -3,7 +3,6 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "core/map/descriptor.h"
 #include "core/map/localization_map.h"
 #include "core/map/synthetic_map.h"
 #include "core/map/vocabulary.h"
@@ -56,35 +55,6 @@ TEST(MapTest, FindsEachKindOfProblem) {
   EXPECT_THAT(FindMapProblems(bad_kernel),
               ElementsAre("visibility kernel metric is 3x3 for 2 cues"));
   EXPECT_FALSE(MapsEqual(good, bad_kernel));
-}
-
-TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
-  cv::Mat bits(2, 32, CV_8U, cv::Scalar(0));
-  bits.at<uint8_t>(1, 0) = 0b1011;  // 3 bits differ
-  bits.at<uint8_t>(1, 31) = 0xFF;   // 8 more
-  EXPECT_FLOAT_EQ(DescriptorDistance(bits, 0, bits, 1), 11.0f);
-  cv::Mat floats = (cv::Mat_<float>(2, 2) << 0.0f, 0.0f, 3.0f, 4.0f);
-  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 0, floats, 1), 5.0f);
-  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 1, floats, 1), 0.0f);
-}
-
-TEST(DescriptorDistanceTest, ColumnsGiveTheSameDistancesBitForBit) {
-  cv::Mat descriptors(37, 16, CV_32F);  // 37: the vector loop and its remainder.
-  cv::randu(descriptors, -1.0f, 1.0f);
-  const std::vector<uint32_t> rows = {5, 0, 36, 12, 12, 7, 30, 1, 2, 3, 33, 20, 18, 9, 4};
-  const Float16Columns columns(descriptors, rows);
-  ASSERT_EQ(columns.size(), static_cast<int>(rows.size()));
-  std::vector<float> distances(rows.size());
-  for (int query = 0; query < descriptors.rows; ++query) {
-    columns.Distances(descriptors.ptr<float>(query), distances.data());
-    for (size_t j = 0; j < rows.size(); ++j) {
-      const float expected =
-          DescriptorDistance(descriptors, query, descriptors, static_cast<int>(rows[j]));
-      EXPECT_EQ(distances[j], expected) << "query " << query << ", row " << rows[j];
-    }
-  }
-  EXPECT_THROW(Float16Columns(cv::Mat(3, 32, CV_8U), {0}), std::exception);
-  EXPECT_THROW(Float16Columns(descriptors, {37}), std::exception);  // Past the last row.
 }
 
 TEST(LocalizationMapTest, VisibilityListsMatchTheObservations) {

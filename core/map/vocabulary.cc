@@ -4,7 +4,7 @@
 #include <cmath>
 #include <map>
 
-#include "core/map/descriptor.h"
+#include "core/features/descriptor.h"
 #include "core/util/check.h"
 
 namespace visloc {

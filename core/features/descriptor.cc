@@ -1,4 +1,4 @@
-#include "core/map/descriptor.h"
+#include "core/features/descriptor.h"
 
 #include <opencv2/core/hal/hal.hpp>
 

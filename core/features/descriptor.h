@@ -1,7 +1,7 @@
 #pragma once
 // Distance between descriptor rows, the one implementation every matcher and the vocabulary
-// use: L2 for float rows (CV_32F), Hamming for binary rows (CV_8U). It sits with the map model
-// because descriptors are part of it; core/features re-exports it.
+// use: L2 for float rows (CV_32F), Hamming for binary rows (CV_8U). Part of the feature types
+// (below the map model, whose points carry descriptors).
 //
 // Inline, with a fixed-length path for the 16-float rows of harris_surf16: guided matching calls
 // it thousands of times per frame (BM_DescriptorDistance/0: 8.6 ns out of line, 7.6 ns now).

@@ -1,0 +1,96 @@
+#include "core/features/feature_types.h"
+
+#include <gtest/gtest.h>
+
+#include "core/features/descriptor.h"
+#include "core/features/guided_matching.h"
+#include "core/util/check.h"
+
+namespace visloc {
+namespace {
+
+TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
+  cv::Mat bits(2, 32, CV_8U, cv::Scalar(0));
+  bits.at<uint8_t>(1, 0) = 0b1011;  // 3 bits differ
+  bits.at<uint8_t>(1, 31) = 0xFF;   // 8 more
+  EXPECT_FLOAT_EQ(DescriptorDistance(bits, 0, bits, 1), 11.0f);
+  cv::Mat floats = (cv::Mat_<float>(2, 2) << 0.0f, 0.0f, 3.0f, 4.0f);
+  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 0, floats, 1), 5.0f);
+  EXPECT_FLOAT_EQ(DescriptorDistance(floats, 1, floats, 1), 0.0f);
+}
+
+TEST(DescriptorDistanceTest, ColumnsGiveTheSameDistancesBitForBit) {
+  cv::Mat descriptors(37, 16, CV_32F);  // 37: the vector loop and its remainder.
+  cv::randu(descriptors, -1.0f, 1.0f);
+  const std::vector<uint32_t> rows = {5, 0, 36, 12, 12, 7, 30, 1, 2, 3, 33, 20, 18, 9, 4};
+  const Float16Columns columns(descriptors, rows);
+  ASSERT_EQ(columns.size(), static_cast<int>(rows.size()));
+  std::vector<float> distances(rows.size());
+  for (int query = 0; query < descriptors.rows; ++query) {
+    columns.Distances(descriptors.ptr<float>(query), distances.data());
+    for (size_t j = 0; j < rows.size(); ++j) {
+      const float expected =
+          DescriptorDistance(descriptors, query, descriptors, static_cast<int>(rows[j]));
+      EXPECT_EQ(distances[j], expected) << "query " << query << ", row " << rows[j];
+    }
+  }
+  EXPECT_THROW(Float16Columns(cv::Mat(3, 32, CV_8U), {0}), std::exception);
+  EXPECT_THROW(Float16Columns(descriptors, {37}), std::exception);  // Past the last row.
+}
+
+TEST(GuidedMatchingTest, FindsTheNearestDescriptorWithinTheRadiusOnly) {
+  // Keypoints along a row, 10 px apart; descriptors are one-hot, so each query has exactly one
+  // keypoint at distance 0 and all others at sqrt(2).
+  std::vector<Eigen::Vector2f> pixels;
+  cv::Mat keypoint_descriptors(6, 16, CV_32F, cv::Scalar(0));
+  for (int i = 0; i < 6; ++i) {
+    pixels.emplace_back(20.0f + 10.0f * i, 30.0f);
+    keypoint_descriptors.at<float>(i, i) = 1.0f;
+  }
+  const KeypointGrid grid(pixels, 100, 60, 16);
+  int visited = 0;
+  grid.ForEachWithin(Eigen::Vector2d(40, 30), 10.5, [&](int) { ++visited; });
+  EXPECT_EQ(visited, 3);  // 30, 40 and 50 px
+
+  const cv::Mat query_descriptors = keypoint_descriptors.clone();
+  std::vector<GuidedQuery> queries = {
+      {&query_descriptors, 2, Eigen::Vector2d(42, 31)},  // keypoint 2 at 40 px: found
+      {&query_descriptors, 5, Eigen::Vector2d(20, 30)},  // keypoint 5 is 50 px away: not found
+  };
+  const std::vector<GuidedMatch> matches =
+      MatchGuided(queries, grid, keypoint_descriptors, 15.0, DescriptorMatchOptions{});
+  ASSERT_EQ(matches.size(), 1u);
+  EXPECT_EQ(matches[0].query, 0);
+  EXPECT_EQ(matches[0].keypoint, 2);
+  EXPECT_FLOAT_EQ(matches[0].distance, 0.0f);
+}
+
+TEST(GuidedMatchingTest, OneQueryPerKeypointTheClosestWins) {
+  const std::vector<Eigen::Vector2f> pixels = {{10, 10}, {50, 50}};
+  cv::Mat keypoint_descriptors(2, 16, CV_32F, cv::Scalar(0));
+  keypoint_descriptors.at<float>(0, 0) = 1.0f;
+  keypoint_descriptors.at<float>(1, 1) = 1.0f;
+  cv::Mat query_descriptors(2, 16, CV_32F, cv::Scalar(0));
+  query_descriptors.at<float>(0, 0) = 0.9f;  // distance 0.1 to keypoint 0
+  query_descriptors.at<float>(1, 0) = 0.8f;  // distance 0.2 to keypoint 0
+  const KeypointGrid grid(pixels, 64, 64, 8);
+  const std::vector<GuidedMatch> matches =
+      MatchGuided({{&query_descriptors, 0, {10, 10}}, {&query_descriptors, 1, {11, 10}}}, grid,
+                  keypoint_descriptors, 5.0, DescriptorMatchOptions{});
+  ASSERT_EQ(matches.size(), 1u);
+  EXPECT_EQ(matches[0].query, 0);
+  EXPECT_NEAR(matches[0].distance, 0.1f, 1e-6);
+}
+
+TEST(DescriptorMatchOptionsTest, RefusesRatiosAndDistancesOutOfRange) {
+  DescriptorMatchOptions options;
+  EXPECT_NO_THROW(options.Check());
+  options.ratio = 1.5f;
+  EXPECT_THROW(options.Check(), CheckError);
+  options = {};
+  options.max_float_distance = -1.0f;
+  EXPECT_THROW(options.Check(), CheckError);
+}
+
+}  // namespace
+}  // namespace visloc

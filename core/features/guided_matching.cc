@@ -1,0 +1,58 @@
+#include "core/features/guided_matching.h"
+
+#include <limits>
+
+#include "core/features/descriptor.h"
+#include "core/util/check.h"
+
+namespace visloc {
+
+KeypointGrid::KeypointGrid(std::vector<Eigen::Vector2f> pixels, int width, int height, int cell_px)
+    : pixels_(std::move(pixels)), cell_px_(cell_px) {
+  VISLOC_CHECK(cell_px > 0 && width > 0 && height > 0, "grid cell ", cell_px, " image ", width,
+               "x", height);
+  cols_ = width / cell_px_ + 1;
+  rows_ = height / cell_px_ + 1;
+  const int n = static_cast<int>(pixels_.size());
+  std::vector<int> cell_of(n);
+  cell_start_.assign(cols_ * rows_ + 1, 0);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2f& p = pixels_[i];
+    const int x = std::clamp(static_cast<int>(p.x()) / cell_px_, 0, cols_ - 1);
+    const int y = std::clamp(static_cast<int>(p.y()) / cell_px_, 0, rows_ - 1);
+    cell_of[i] = y * cols_ + x;
+    ++cell_start_[cell_of[i] + 1];
+  }
+  for (size_t c = 1; c < cell_start_.size(); ++c) cell_start_[c] += cell_start_[c - 1];
+  cell_items_.resize(n);
+  std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (int i = 0; i < n; ++i) cell_items_[fill[cell_of[i]]++] = i;
+}
+
+std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
+                                     const KeypointGrid& grid,
+                                     const cv::Mat& keypoint_descriptors, double radius_px,
+                                     const DescriptorMatchOptions& options) {
+  const float max_distance = options.MaxDistance(keypoint_descriptors.type() == CV_8U
+                                                     ? DescriptorType::kBinary
+                                                     : DescriptorType::kFloat32);
+  // Per keypoint, the closest query that claimed it.
+  std::vector<GuidedMatch> claims(grid.size(), {-1, 0, std::numeric_limits<float>::max()});
+  for (int q = 0; q < static_cast<int>(queries.size()); ++q) {
+    const GuidedQuery& query = queries[q];
+    NearestTwo nearest;
+    grid.ForEachWithin(query.pixel, radius_px, [&](int i) {
+      nearest.Offer(DescriptorDistance(*query.descriptors, query.row, keypoint_descriptors, i), i);
+    });
+    if (!nearest.Distinctive(options.ratio, max_distance)) continue;
+    GuidedMatch& claim = claims[nearest.best_index];
+    if (nearest.best < claim.distance) claim = {q, nearest.best_index, nearest.best};
+  }
+  std::vector<GuidedMatch> matches;
+  for (const GuidedMatch& claim : claims) {
+    if (claim.query >= 0) matches.push_back(claim);
+  }
+  return matches;
+}
+
+}  // namespace visloc

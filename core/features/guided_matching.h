@@ -1,0 +1,85 @@
+#pragma once
+// Guided descriptor matching, the one matcher that tracking uses in both mapping and
+// localization: scene points whose image position is predicted (projected with a prior pose)
+// are matched to the keypoints within a search radius of the prediction (seed paper 000,
+// sec. 5). A match must pass DescriptorMatchOptions (distance and ratio test), and each keypoint
+// keeps only the closest point that claims it (one point per keypoint).
+
+#include <algorithm>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "core/features/feature_types.h"
+
+namespace visloc {
+
+// Keypoint positions bucketed in square cells, for radius searches.
+class KeypointGrid {
+ public:
+  KeypointGrid() = default;
+  // `pixels` in an image of `width` x `height`; positions outside it go to the border cells.
+  KeypointGrid(std::vector<Eigen::Vector2f> pixels, int width, int height, int cell_px);
+
+  size_t size() const { return pixels_.size(); }
+  const Eigen::Vector2f& pixel(int i) const { return pixels_[i]; }
+
+  // Calls visit(i) for every keypoint within `radius_px` of `center_px`.
+  template <typename Visit>
+  void ForEachWithin(const Eigen::Vector2d& center_px, double radius_px, Visit&& visit) const;
+
+ private:
+  std::vector<Eigen::Vector2f> pixels_;
+  int cell_px_ = 1;
+  int cols_ = 0;
+  int rows_ = 0;
+  std::vector<int> cell_start_;  // CSR over cells (cols_ * rows_ + 1 entries).
+  std::vector<int> cell_items_;
+};
+
+// A scene point to find: its descriptor (row `row` of `descriptors`) and where it should be.
+struct GuidedQuery {
+  const cv::Mat* descriptors = nullptr;
+  int row = 0;
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+};
+
+struct GuidedMatch {
+  int query = 0;     // Index into the queries.
+  int keypoint = 0;  // Index into the grid's keypoints (and rows of their descriptors).
+  float distance = 0.0f;
+};
+
+// Matches each query to the nearest keypoint (in descriptor space) within `radius_px` of its
+// predicted pixel. Results are ordered by keypoint. Query and keypoint descriptors must be of
+// the same type and width.
+std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
+                                     const KeypointGrid& grid,
+                                     const cv::Mat& keypoint_descriptors, double radius_px,
+                                     const DescriptorMatchOptions& options);
+
+template <typename Visit>
+void KeypointGrid::ForEachWithin(const Eigen::Vector2d& center_px, double radius_px,
+                                 Visit&& visit) const {
+  if (cols_ == 0) return;
+  const int x0 = std::max(0, static_cast<int>((center_px.x() - radius_px) / cell_px_));
+  const int x1 = std::min(cols_ - 1, static_cast<int>((center_px.x() + radius_px) / cell_px_));
+  const int y0 = std::max(0, static_cast<int>((center_px.y() - radius_px) / cell_px_));
+  const int y1 = std::min(rows_ - 1, static_cast<int>((center_px.y() + radius_px) / cell_px_));
+  const float cx = static_cast<float>(center_px.x()), cy = static_cast<float>(center_px.y());
+  const float r2 = static_cast<float>(radius_px * radius_px);
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const int cell = y * cols_ + x;
+      for (int j = cell_start_[cell]; j < cell_start_[cell + 1]; ++j) {
+        const int i = cell_items_[j];
+        const Eigen::Vector2f& p = pixels_[i];
+        const float dx = p.x() - cx, dy = p.y() - cy;
+        if (dx * dx + dy * dy <= r2) visit(i);
+      }
+    }
+  }
+}
+
+}  // namespace visloc
