@@ -16,7 +16,7 @@
 #include "dataset/dataset.h"
 #include "dataset/ply.h"
 #include "dataset/tum.h"
-#include "mapping/map_builder.h"
+#include "mapping/dataset_mapping.h"
 #include "mapstore/map_directory.h"
 #include "mapstore/map_store.h"
 
@@ -250,19 +250,19 @@ int RunBuild(const Args& args) {
   parser.AddFlag("trajectory", &trajectory,
                  "also write the estimated frame poses (TUM, map frame)");
   mapping::MapBuilderOptions options;
-  parser.AddFlag("keyframe-translation", &options.keyframe_translation_m,
+  parser.AddFlag("keyframe-translation", &options.keyframes.translation_m,
                  "new keyframe after this many metres");
-  parser.AddFlag("keyframe-rotation", &options.keyframe_rotation_deg,
+  parser.AddFlag("keyframe-rotation", &options.keyframes.rotation_deg,
                  "new keyframe after this many degrees");
   int loop_closure = 1;
   parser.AddFlag("loop-closure", &loop_closure, "1 to close loops, 0 not to");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
   if (frames < 0) throw UsageError("--frames must not be negative");
-  if (!(options.keyframe_translation_m > 0) || !(options.keyframe_rotation_deg > 0)) {
+  if (!(options.keyframes.translation_m > 0) || !(options.keyframes.rotation_deg > 0)) {
     throw UsageError("keyframe thresholds must be positive");
   }
-  options.loop_closure = loop_closure != 0;
+  options.loop_closure.enabled = loop_closure != 0;
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   Dataset dataset = ReadDataset(

@@ -7,7 +7,7 @@
 #include "core/util/random.h"
 #include "core/util/temp_dir.h"
 #include "dataset/tum.h"
-#include "mapping/map_builder.h"
+#include "mapping/dataset_mapping.h"
 #include "mapping/reprojection_cost.h"
 #include "mapping/stereo_frame.h"
 #include "mapping/visibility_learning.h"
@@ -132,7 +132,7 @@ TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
       sim::SequenceGenerator(options).Generate("map_square", dir.path());
   const Dataset dataset = ReadDataset(generated.dir);
   MapBuilderOptions builder_options;
-  builder_options.loop_closure = false;
+  builder_options.loop_closure.enabled = false;
   MapBuildStats stats;
   Trajectory estimate;
   const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test"}, &stats, &estimate);

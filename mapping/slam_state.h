@@ -9,7 +9,8 @@
 
 #include <Eigen/Core>
 
-#include "core/features/features.h"
+#include "core/features/feature_types.h"
+#include "core/features/guided_matching.h"
 #include "core/geometry/rigid3.h"
 
 namespace visloc::mapping {
@@ -19,6 +20,7 @@ struct SlamKeyframe {
   Rigid3d cam_from_world;
   FeatureSet features;                     // Raw left image keypoints and descriptors.
   std::vector<Eigen::Vector2d> left_rect;  // Rectified keypoint positions.
+  KeypointGrid grid;                       // The rectified positions, for radius searches.
   std::vector<double> right_x_rect;        // Stereo match x (rectified), NaN when none.
   std::vector<int> landmark;               // Landmark of each keypoint, -1 when none.
 };

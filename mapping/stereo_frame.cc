@@ -7,9 +7,23 @@
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
+#include "core/util/check.h"
+
 namespace visloc::mapping {
 
+void StereoMatchOptions::Check() const {
+  matching.Check();
+  VISLOC_CHECK(max_row_difference_px > 0 && min_depth_m > 0 && max_depth_m > min_depth_m,
+               "stereo limits: rows ", max_row_difference_px, " px, depth ", min_depth_m, "-",
+               max_depth_m, " m");
+  VISLOC_CHECK(refine_patch_radius_px >= 0 && refine_max_shift_px > 0, "disparity refinement ",
+               refine_patch_radius_px, " px, ", refine_max_shift_px, " px");
+}
+
 namespace {
+
+// Cell of the frames' keypoint grids; radius searches of any size visit the cells they touch.
+constexpr int kGridCellPx = 16;
 
 inline float Bilinear(const cv::Mat& image, double x, double y) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -83,6 +97,7 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& r
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options) {
+  options.Check();
   StereoFrame frame;
   frame.left = extractor.Extract(left_raw);
   const FeatureSet right = extractor.Extract(right_raw);
@@ -90,14 +105,16 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
   const double f = rect.fx(), baseline = rectifier.baseline_m();
   const double min_disparity = f * baseline / options.max_depth_m;
   const double max_disparity = f * baseline / options.min_depth_m;
-  const float max_distance = extractor.settings().descriptor_type == DescriptorType::kBinary
-                                 ? options.max_descriptor_distance * 256.0f * 0.25f / 0.6f
-                                 : options.max_descriptor_distance;
+  const float max_distance = options.matching.MaxDistance(extractor.settings().descriptor_type);
 
   const size_t n = frame.left.size();
   frame.left_rect.resize(n);
-  for (size_t i = 0; i < n; ++i)
+  std::vector<Eigen::Vector2f> grid_pixels(n);
+  for (size_t i = 0; i < n; ++i) {
     frame.left_rect[i] = rectifier.RectifyLeftPixel(frame.left.keypoints[i].pixel.cast<double>());
+    grid_pixels[i] = frame.left_rect[i].cast<float>();
+  }
+  frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
   // Right keypoints sorted by rectified row for a band search.
   std::vector<std::pair<double, int>> right_rows;
   std::vector<Eigen::Vector2d> right_rect(right.size());
@@ -123,7 +140,7 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
       nearest.Offer(
           DescriptorDistance(frame.left.descriptors, static_cast<int>(i), right.descriptors, j), j);
     }
-    if (!nearest.Distinctive(options.ratio, max_distance)) continue;
+    if (!nearest.Distinctive(options.matching.ratio, max_distance)) continue;
     const int best_j = nearest.best_index;
     const float best = nearest.best;
     left_to_right[i] = best_j;

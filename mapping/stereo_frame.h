@@ -14,6 +14,7 @@
 
 #include "core/camera/stereo_rectifier.h"
 #include "core/features/features.h"
+#include "core/features/guided_matching.h"
 
 namespace visloc::mapping {
 
@@ -21,19 +22,22 @@ struct StereoMatchOptions {
   double max_row_difference_px = 1.0;    // Rectified rows must agree (calibration residual).
   double min_depth_m = 0.3;              // Nearer points are out of range.
   double max_depth_m = 12.0;             // Farther points have too little disparity to triangulate.
-  float ratio = 0.8f;                    // Best / second-best descriptor distance.
-  float max_descriptor_distance = 0.6f;  // For unit float descriptors; binary: bits * 0.25.
+  // Left and right descriptors of one point, seen from a few centimetres apart at the same
+  // moment, are closer than across frames: stricter than tracking.
+  DescriptorMatchOptions matching{0.6f, 64.0f, 0.8f};
   // Disparity refinement: the left patch is aligned along the right image's row by Gauss-Newton
   // on the zero-mean SSD, with the disparity allowed to vary linearly across the patch (slanted
   // surfaces); this measures disparity to a few hundredths of a pixel where independent corner
   // positions disagree by a tenth. 0 disables it.
   int refine_patch_radius_px = 7;
   double refine_max_shift_px = 1.0;  // Larger corrections mean a wrong match: rejected.
+  void Check() const;
 };
 
 struct StereoFrame {
   FeatureSet left;                             // Raw left image features.
   std::vector<Eigen::Vector2d> left_rect;      // Rectified positions of left keypoints.
+  KeypointGrid grid;                           // left_rect, for radius searches.
   std::vector<double> right_x_rect;            // Matched right rectified x, or NaN.
   std::vector<Eigen::Vector3d> point_in_rect;  // Triangulated point (rectified left frame), or NaN.
   int stereo_matches = 0;
@@ -41,10 +45,11 @@ struct StereoFrame {
 };
 
 // Refines disparity `d` of rectified left pixel (x, y) by aligning a (2r+1)^2 patch of `left`
-// with `right` along the row (both CV_32F rectified images). Returns false when the patch
-// leaves the image or the alignment does not converge.
-bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, double x, double y, int radius,
-                     double* d);
+// with `right` along the row (both CV_32F rectified images; `right_gradient_x` is the right
+// image's central-difference x gradient). Returns false when the patch leaves the image or the
+// alignment does not converge.
+bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& right_gradient_x,
+                     double x, double y, int radius, double* d);
 
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,

@@ -7,7 +7,7 @@
 #include "core/geometry/trajectory.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
-#include "mapping/map_builder.h"
+#include "mapping/dataset_mapping.h"
 
 namespace visloc {
 namespace {
@@ -38,8 +38,8 @@ TEST(LoopClosureTest, OnlyLargeCorrectionsReadjustEveryKeyframe) {
   // The simulator's drift around the square is millimetres: below the default bounds.
   const LoopRun gated = BuildSquare(mapping::MapBuilderOptions{});
   mapping::MapBuilderOptions always;
-  always.loop_adjust_min_correction_m = 0.0;
-  always.loop_adjust_min_correction_deg = 0.0;
+  always.loop_closure.adjust_min_correction_m = 0.0;
+  always.loop_closure.adjust_min_correction_deg = 0.0;
   const LoopRun adjusted = BuildSquare(always);
   std::printf("loop closures %d / %d, adjustments %d / %d, rmse %.2f / %.2f cm\n",
               gated.stats.loop_closures, adjusted.stats.loop_closures, gated.stats.loop_adjustments,

@@ -1,0 +1,88 @@
+#include "mapping/frame_tracker.h"
+
+#include <cmath>
+
+#include "core/util/check.h"
+
+namespace visloc::mapping {
+
+void TrackingOptions::Check() const {
+  matching.Check();
+  VISLOC_CHECK(search_radius_px > 0 && refine_radius_px > 0, "tracking radii ", search_radius_px,
+               ", ", refine_radius_px, " px");
+  VISLOC_CHECK(max_error_px > 0 && min_inliers >= 4, "tracking thresholds ", max_error_px, " px, ",
+               min_inliers, " inliers");
+}
+
+std::vector<PoseObservation> LandmarkObservations(const SlamState& state,
+                                                  const std::vector<Eigen::Vector2d>& left_rect,
+                                                  const std::vector<double>& right_x_rect,
+                                                  const std::vector<LandmarkMatch>& matches,
+                                                  const RectifiedIntrinsics& k) {
+  std::vector<PoseObservation> observations;
+  observations.reserve(matches.size());
+  for (const LandmarkMatch& m : matches) {
+    PoseObservation o;
+    o.point_in_world = state.landmarks[m.landmark].position_in_world;
+    o.normalized = Eigen::Vector2d((left_rect[m.feature].x() - k.cx) / k.f,
+                                   (left_rect[m.feature].y() - k.cy) / k.f);
+    if (std::isfinite(right_x_rect[m.feature])) {
+      o.has_right = true;
+      o.right_x_normalized = (right_x_rect[m.feature] - k.cx) / k.f;
+    }
+    observations.push_back(o);
+  }
+  return observations;
+}
+
+FrameTracker::FrameTracker(const TrackingOptions& options, const PinholeCamera& rectified_camera,
+                           const RectifiedIntrinsics& intrinsics, double disparity_weight)
+    : options_(options), rectified_camera_(rectified_camera), intrinsics_(intrinsics) {
+  options_.Check();
+  const double scale = ResolutionScale(rectified_camera.width());
+  options_.search_radius_px *= scale;
+  options_.refine_radius_px *= scale;
+  pnp_.max_error_px = options_.max_error_px;
+  pnp_.min_inliers = options_.min_inliers;
+  pnp_.refine.focal_px = intrinsics.f;
+  pnp_.refine.baseline_m = intrinsics.baseline_m;
+  pnp_.refine.disparity_weight = disparity_weight;
+}
+
+std::vector<LandmarkMatch> FrameTracker::Match(const SlamState& state, const StereoFrame& frame,
+                                               const Rigid3d& cam_from_world,
+                                               const std::vector<int>& landmarks,
+                                               double radius_px) const {
+  return MatchLandmarks(state, frame.grid, frame.left.descriptors, rectified_camera_,
+                        cam_from_world, landmarks, radius_px, options_.matching);
+}
+
+TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame,
+                                const Rigid3d& predicted, const std::vector<int>& landmarks,
+                                uint64_t seed) const {
+  TrackResult result;
+  result.cam_from_world = predicted;
+  std::vector<LandmarkMatch> matches =
+      Match(state, frame, predicted, landmarks, options_.search_radius_px);
+  PnpRansacOptions pnp = pnp_;
+  pnp.seed = seed;
+  const PnpResult ransac = SolvePnpRansac(
+      LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
+  if (!ransac.success) return result;
+  // Re-match with the estimated pose in a tight radius: more tracks, fewer outliers.
+  matches = Match(state, frame, ransac.cam_from_world, landmarks, options_.refine_radius_px);
+  const std::vector<PoseObservation> observations =
+      LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_);
+  result.success = true;
+  result.cam_from_world = RefinePose(ransac.cam_from_world, observations, pnp.refine);
+  const PoseProjector projector(result.cam_from_world, pnp.refine);
+  const double max_error_sq = options_.max_error_px * options_.max_error_px;
+  for (size_t j = 0; j < matches.size(); ++j) {
+    if (projector.SquaredErrorPx(observations[j]) <= max_error_sq) {
+      result.tracked.push_back(matches[j]);
+    }
+  }
+  return result;
+}
+
+}  // namespace visloc::mapping
