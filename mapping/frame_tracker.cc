@@ -35,11 +35,11 @@ std::vector<PoseObservation> LandmarkObservations(const SlamState& state,
   return observations;
 }
 
-FrameTracker::FrameTracker(const TrackingOptions& options, const PinholeCamera& rectified_camera,
+FrameTracker::FrameTracker(const TrackingOptions& options, const RectifiedView& view,
                            const RectifiedIntrinsics& intrinsics, double disparity_weight)
-    : options_(options), rectified_camera_(rectified_camera), intrinsics_(intrinsics) {
+    : options_(options), view_(view), intrinsics_(intrinsics) {
   options_.Check();
-  const double scale = ResolutionScale(rectified_camera.width());
+  const double scale = ResolutionScale(view.camera.width());
   options_.search_radius_px *= scale;
   options_.refine_radius_px *= scale;
   pnp_.max_error_px = options_.max_error_px;
@@ -52,9 +52,10 @@ FrameTracker::FrameTracker(const TrackingOptions& options, const PinholeCamera& 
 std::vector<LandmarkMatch> FrameTracker::Match(const SlamState& state, const StereoFrame& frame,
                                                const Rigid3d& cam_from_world,
                                                const std::vector<int>& landmarks,
-                                               double radius_px) const {
-  return MatchLandmarks(state, frame.grid, frame.left.descriptors, rectified_camera_,
-                        cam_from_world, landmarks, radius_px, options_.matching);
+                                               double radius_px,
+                                               std::vector<int>* in_view) const {
+  return MatchLandmarks(state, frame.grid, frame.left.descriptors, view_, cam_from_world,
+                        landmarks, radius_px, options_.matching, in_view);
 }
 
 TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame,
@@ -70,7 +71,8 @@ TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame
       LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
   if (!ransac.success) return result;
   // Re-match with the estimated pose in a tight radius: more tracks, fewer outliers.
-  matches = Match(state, frame, ransac.cam_from_world, landmarks, options_.refine_radius_px);
+  matches = Match(state, frame, ransac.cam_from_world, landmarks, options_.refine_radius_px,
+                  &result.in_view);
   const std::vector<PoseObservation> observations =
       LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_);
   result.success = true;

@@ -31,13 +31,14 @@ struct TrackResult {
   bool success = false;
   Rigid3d cam_from_world;              // The prediction when tracking failed.
   std::vector<LandmarkMatch> tracked;  // Matches within max_error_px of the refined pose.
+  std::vector<int> in_view;            // Landmarks that project into the view at that pose.
 };
 
 class FrameTracker {
  public:
-  // `rectified_camera` and `intrinsics` describe the rectified left camera; `disparity_weight`
-  // weighs the disparity residuals as bundle adjustment does.
-  FrameTracker(const TrackingOptions& options, const PinholeCamera& rectified_camera,
+  // `view` and `intrinsics` describe the rectified left camera; `disparity_weight` weighs the
+  // disparity residuals as bundle adjustment does.
+  FrameTracker(const TrackingOptions& options, const RectifiedView& view,
                const RectifiedIntrinsics& intrinsics, double disparity_weight);
 
   // Tracks `frame` from the `predicted` pose against `landmarks` of `state`. `seed` makes the
@@ -48,15 +49,15 @@ class FrameTracker {
   // The PnP options tracking uses (loop closure verifies with the same, other thresholds aside).
   const PnpRansacOptions& pnp() const { return pnp_; }
   const TrackingOptions& options() const { return options_; }
-  const PinholeCamera& rectified_camera() const { return rectified_camera_; }
+  const RectifiedView& view() const { return view_; }
 
  private:
   std::vector<LandmarkMatch> Match(const SlamState& state, const StereoFrame& frame,
                                    const Rigid3d& cam_from_world, const std::vector<int>& landmarks,
-                                   double radius_px) const;
+                                   double radius_px, std::vector<int>* in_view = nullptr) const;
 
   TrackingOptions options_;  // Radii scaled to the image width.
-  PinholeCamera rectified_camera_;
+  RectifiedView view_;
   RectifiedIntrinsics intrinsics_;
   PnpRansacOptions pnp_;
 };

@@ -2,12 +2,19 @@
 
 namespace visloc::mapping {
 
+RectifiedView ViewOf(const StereoRectifier& rectifier) {
+  const Eigen::Vector2d size(rectifier.canvas_size().width, rectifier.canvas_size().height);
+  const Eigen::Vector2d low = -rectifier.canvas_offset_px() - Eigen::Vector2d(0.5, 0.5);
+  return {rectifier.rectified_camera(), Eigen::AlignedBox2d(low, low + size)};
+}
+
 std::vector<LandmarkMatch> MatchLandmarks(const SlamState& state, const KeypointGrid& grid,
-                                          const cv::Mat& descriptors,
-                                          const PinholeCamera& rectified_camera,
+                                          const cv::Mat& descriptors, const RectifiedView& view,
                                           const Rigid3d& cam_from_world,
                                           const std::vector<int>& landmarks, double radius_px,
-                                          const DescriptorMatchOptions& options) {
+                                          const DescriptorMatchOptions& options,
+                                          std::vector<int>* in_view) {
+  if (in_view) in_view->clear();
   std::vector<GuidedQuery> queries;
   std::vector<int> query_landmark;
   for (int l : landmarks) {
@@ -15,7 +22,8 @@ std::vector<LandmarkMatch> MatchLandmarks(const SlamState& state, const Keypoint
     const Eigen::Vector3d p = cam_from_world * landmark.position_in_world;
     if (p.z() < 0.1) continue;  // Behind, or too close to project stably.
     Eigen::Vector2d projected;
-    if (!rectified_camera.Project(p, &projected) || !rectified_camera.IsInImage(projected)) continue;
+    if (!view.camera.Project(p, &projected) || !view.region.contains(projected)) continue;
+    if (in_view) in_view->push_back(l);
     const auto& [k, i] = landmark.observations.back();
     queries.push_back({&state.keyframes[k].features.descriptors, i, projected});
     query_landmark.push_back(l);

@@ -6,7 +6,10 @@
 
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "core/camera/pinhole_camera.h"
+#include "core/camera/stereo_rectifier.h"
 #include "core/features/guided_matching.h"
 #include "core/geometry/rigid3.h"
 #include "mapping/slam_state.h"
@@ -18,13 +21,22 @@ struct LandmarkMatch {
   int feature;  // Keypoint index in the view.
 };
 
-// `grid` holds the view's rectified keypoints and `descriptors` their descriptors;
-// `rectified_camera` is the rectified left camera (no distortion).
+// Where a view's keypoints can be, in rectified pixels of the left camera: the rectified
+// camera (no distortion) and the region its raw image covers, which reaches beyond the
+// rectified image's bounds at the corners of a distorted lens (StereoRectifier's canvas).
+struct RectifiedView {
+  PinholeCamera camera;
+  Eigen::AlignedBox2d region;
+};
+RectifiedView ViewOf(const StereoRectifier& rectifier);
+
+// `grid` holds the view's rectified keypoints and `descriptors` their descriptors. When
+// `in_view` is given, it receives the landmarks that project into the view's region.
 std::vector<LandmarkMatch> MatchLandmarks(const SlamState& state, const KeypointGrid& grid,
-                                          const cv::Mat& descriptors,
-                                          const PinholeCamera& rectified_camera,
+                                          const cv::Mat& descriptors, const RectifiedView& view,
                                           const Rigid3d& cam_from_world,
                                           const std::vector<int>& landmarks, double radius_px,
-                                          const DescriptorMatchOptions& options);
+                                          const DescriptorMatchOptions& options,
+                                          std::vector<int>* in_view = nullptr);
 
 }  // namespace visloc::mapping

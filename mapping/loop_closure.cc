@@ -28,7 +28,7 @@ LoopCloser::LoopCloser(const LoopClosureOptions& options, const FrameTracker& tr
       intrinsics_(intrinsics),
       ba_options_(ba_options) {
   options_.Check();
-  options_.search_radius_px *= ResolutionScale(tracker.rectified_camera().width());
+  options_.search_radius_px *= ResolutionScale(tracker.view().camera.width());
 }
 
 std::vector<int> LoopCloser::OldLandmarks(const SlamState& state, int j, int k) const {
@@ -83,7 +83,7 @@ LoopClosureEvent LoopCloser::TryClose(SlamState* state) {
   std::sort(candidates.begin(), candidates.end());
   for (size_t c = 0; c < std::min<size_t>(options_.max_candidates, candidates.size()); ++c) {
     const std::vector<LandmarkMatch> matches = MatchLandmarks(
-        *state, current.grid, current.features.descriptors, tracker_.rectified_camera(),
+        *state, current.grid, current.features.descriptors, tracker_.view(),
         current.cam_from_world, OldLandmarks(*state, candidates[c].second, k),
         options_.search_radius_px, tracker_.options().matching);
     if (static_cast<int>(matches.size()) < options_.min_inliers) continue;

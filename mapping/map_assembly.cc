@@ -10,7 +10,10 @@
 namespace visloc::mapping {
 
 void AssemblyOptions::Check() const {
-  VISLOC_CHECK(min_point_observations >= 1, "min_point_observations ", min_point_observations);
+  VISLOC_CHECK(min_views >= 1 && cull_min_frames_in_view >= 1 && cull_min_found_ratio >= 0 &&
+                   cull_min_found_ratio <= 1,
+               "map point thresholds: ", min_views, " views, culled below ", cull_min_found_ratio,
+               " of ", cull_min_frames_in_view, " frames");
 }
 
 namespace {
@@ -35,6 +38,21 @@ int MedoidObservation(const SlamState& state, const Landmark& landmark) {
   return best;
 }
 
+// The views of a landmark: two per keyframe observation with a stereo match, else one.
+int CountViews(const SlamState& state, const Landmark& landmark) {
+  int views = 0;
+  for (const auto& [k, i] : landmark.observations) {
+    views += std::isfinite(state.keyframes[k].right_x_rect[i]) ? 2 : 1;
+  }
+  return views;
+}
+
+bool Unconfirmed(const Landmark& landmark, const AssemblyOptions& options) {
+  return landmark.observations.size() == 1 &&
+         landmark.frames_in_view >= options.cull_min_frames_in_view &&
+         landmark.frames_found < options.cull_min_found_ratio * landmark.frames_in_view;
+}
+
 // Points from the landmarks kept, with their descriptors; point_of_landmark maps landmark ids
 // to point ids (-1 when left out).
 void AddPoints(const SlamState& state, const Rigid3d& map_from_world,
@@ -46,8 +64,9 @@ void AddPoints(const SlamState& state, const Rigid3d& map_from_world,
   int error_count = 0, disparity_count = 0;
   for (size_t l = 0; l < state.landmarks.size(); ++l) {
     const Landmark& landmark = state.landmarks[l];
-    if (landmark.culled ||
-        static_cast<int>(landmark.observations.size()) < options.min_point_observations) {
+    if (landmark.culled || CountViews(state, landmark) < options.min_views) continue;
+    if (Unconfirmed(landmark, options)) {
+      ++stats->culled_unconfirmed;
       continue;
     }
     (*point_of_landmark)[l] = static_cast<int>(map->points.size());

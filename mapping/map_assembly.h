@@ -15,7 +15,15 @@
 namespace visloc::mapping {
 
 struct AssemblyOptions {
-  int min_point_observations = 2;  // Landmarks seen by fewer keyframes are left out.
+  // A landmark becomes a map point when its views count at least this many: a keyframe
+  // observation with a stereo match counts two (both cameras saw the point and measured its
+  // depth), one without. So a single stereo keyframe is a map of its own.
+  int min_views = 2;
+  // A landmark observed by one keyframe only, that tracking then expected in at least
+  // `cull_min_frames_in_view` frames but found in fewer than `cull_min_found_ratio` of them, was
+  // a mismatch or something that moved: left out (as ORB-SLAM culls its new points).
+  int cull_min_frames_in_view = 5;
+  double cull_min_found_ratio = 0.25;
   VisibilityLearningOptions visibility;
   VocabularyOptions vocabulary;
   void Check() const;
@@ -23,6 +31,7 @@ struct AssemblyOptions {
 
 struct AssemblyStats {
   int points = 0;
+  int culled_unconfirmed = 0;  // Single-keyframe landmarks rarely found again.
   int observations = 0;
   double reprojection_rmse_px = 0.0;  // Left image, over the map's observations.
   double disparity_rmse_px = 0.0;     // Predicted vs measured disparity.

@@ -41,7 +41,7 @@ MapBuilder::MapBuilder(const PinholeCamera& left, const PinholeCamera& right,
       rectifier_(left, right, right_from_left),
       intrinsics_(IntrinsicsOf(rectifier_)),
       extractor_(CreateFeatureExtractor(options.features)),
-      tracker_(options.tracking, rectifier_.rectified_camera(), intrinsics_,
+      tracker_(options.tracking, ViewOf(rectifier_), intrinsics_,
                options.local_ba.disparity_weight),
       loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_,
                    options.local_ba) {}
@@ -72,6 +72,8 @@ void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const c
       tracker_.Track(state_, frame, predicted, RecentLandmarks(state_, options_.keyframes.window),
                      static_cast<uint64_t>(stats_.frames));
   if (!track.success) ++stats_.tracking_failures;
+  for (int l : track.in_view) ++state_.landmarks[l].frames_in_view;
+  for (const LandmarkMatch& m : track.tracked) ++state_.landmarks[m.landmark].frames_found;
   const Rigid3d& pose = track.cam_from_world;
   last_tracked_ = static_cast<int>(track.tracked.size());
   velocity_ = pose * last_cam_from_world_.Inverse();

@@ -113,8 +113,8 @@ TEST(StereoFrameTest, TriangulatedDepthMatchesTheRenderedDepth) {
       std::count_if(errors_px.begin(), errors_px.end(), [](double e) { return e > 1.0; });
   std::printf(
       "%d stereo matches of %zu features; median disparity error %.3f px, %zu beyond 1 px\n",
-      frame.stereo_matches, frame.left.size(), errors_px[errors_px.size() / 2], wrong);
-  EXPECT_GT(frame.stereo_matches, 200);
+      frame.stereo_matches(), frame.left.size(), errors_px[errors_px.size() / 2], wrong);
+  EXPECT_GT(frame.stereo_matches(), 200);
   EXPECT_LT(errors_px[errors_px.size() / 2], 0.15);
   EXPECT_LT(static_cast<double>(wrong) / errors_px.size(), 0.03);
 }
@@ -163,6 +163,76 @@ TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
   Dataset dataset = ReadDataset(generated.dir);
   dataset.right.reset();
   EXPECT_THROW(BuildMap(dataset, MapBuilderOptions{}, {"m", 0, "", ""}, nullptr), InputError);
+}
+
+TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
+  // A robot that stands still maps from one keyframe: its stereo points have measured depth.
+  TempDir dir;
+  sim::GenerateOptions options;
+  options.max_frames = 1;
+  options.contact_sheet = false;
+  const sim::GenerateStats generated =
+      sim::SequenceGenerator(options).Generate("map_square", dir.path());
+  const Dataset dataset = ReadDataset(generated.dir);
+  MapBuildStats stats;
+  const Map map = BuildMap(dataset, MapBuilderOptions{}, {"one", 0, "test", "test"}, &stats);
+  EXPECT_EQ(stats.keyframes, 1);
+  EXPECT_GT(stats.points, 400);
+  EXPECT_EQ(stats.observations, stats.points);
+  EXPECT_TRUE(FindMapProblems(map).empty());
+}
+
+// A hand-made state of two keyframes for the assembly's point rules.
+SlamState TwoKeyframes() {
+  SlamState state;
+  for (int k = 0; k < 2; ++k) {
+    SlamKeyframe keyframe;
+    keyframe.cam_from_world = Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.1 * k, 0, 0));
+    keyframe.features.descriptors = cv::Mat(4, 16, CV_32F, cv::Scalar(0.25f));
+    keyframe.features.keypoints.resize(4);
+    for (int i = 0; i < 4; ++i) {
+      const Eigen::Vector3d point(0.2 * i - 0.3, 0.1, 2.0);
+      const Eigen::Vector3d in_cam = keyframe.cam_from_world * point;
+      keyframe.left_rect.emplace_back(kIntrinsics.f * in_cam.x() / in_cam.z() + kIntrinsics.cx,
+                                      kIntrinsics.f * in_cam.y() / in_cam.z() + kIntrinsics.cy);
+      keyframe.right_x_rect.push_back(keyframe.left_rect.back().x() -
+                                      kIntrinsics.f * kIntrinsics.baseline_m / in_cam.z());
+      keyframe.features.keypoints[i].pixel = keyframe.left_rect.back().cast<float>();
+    }
+    keyframe.landmark.assign(4, -1);
+    state.keyframes.push_back(std::move(keyframe));
+  }
+  for (int i = 0; i < 4; ++i) {
+    Landmark landmark;
+    landmark.position_in_world = Eigen::Vector3d(0.2 * i - 0.3, 0.1, 2.0);
+    state.landmarks.push_back(landmark);
+  }
+  return state;
+}
+
+TEST(MapAssemblyTest, StereoViewsCountTwiceAndUnconfirmedLandmarksAreLeftOut) {
+  SlamState state = TwoKeyframes();
+  state.Observe(0, 0, 0);  // stereo, one keyframe: two views, kept
+  state.Observe(1, 0, 1);  // mono, one keyframe: one view, left out
+  state.keyframes[0].right_x_rect[1] = std::numeric_limits<double>::quiet_NaN();
+  state.Observe(2, 0, 2);  // stereo, one keyframe, expected in 10 frames, found in 1: left out
+  state.landmarks[2].frames_in_view = 10;
+  state.landmarks[2].frames_found = 1;
+  state.Observe(3, 0, 3);  // two keyframes: kept however rarely found in frames
+  state.Observe(3, 1, 3);
+  state.landmarks[3].frames_in_view = 10;
+  AssemblyStats stats;
+  const Map map = AssembleMap(state, PinholeCamera(320, 240, 160, 160, 159.5, 119.5),
+                              DefaultFeatureSettings("harris_surf16"), {"m", 0, "", ""},
+                              Rigid3d::Identity(), Rigid3d::Identity(), kIntrinsics,
+                              AssemblyOptions{}, &stats);
+  ASSERT_EQ(map.points.size(), 2u);
+  EXPECT_TRUE(map.points[0].position_in_map.isApprox(state.landmarks[0].position_in_world));
+  EXPECT_TRUE(map.points[1].position_in_map.isApprox(state.landmarks[3].position_in_world));
+  EXPECT_EQ(map.points[1].observation_count, 2u);
+  EXPECT_EQ(stats.culled_unconfirmed, 1);
+  EXPECT_EQ(stats.observations, 3);
+  EXPECT_LT(stats.reprojection_rmse_px, 1e-9);
 }
 
 TEST(VisibilityLearningTest, KernelRanksKeyframePairsByOverlap) {

@@ -29,6 +29,10 @@ struct Landmark {
   Eigen::Vector3d position_in_world = Eigen::Vector3d::Zero();
   std::vector<std::pair<int, int>> observations;  // (keyframe, keypoint index)
   bool culled = false;
+  // Tracked frames (keyframes or not) in whose view the landmark projected, and in how many of
+  // them it was found: how reliable it is beyond its keyframe observations.
+  int frames_in_view = 0;
+  int frames_found = 0;
 };
 
 struct SlamState {

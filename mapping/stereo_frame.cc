@@ -12,10 +12,12 @@
 namespace visloc::mapping {
 
 void StereoMatchOptions::Check() const {
-  matching.Check();
-  VISLOC_CHECK(max_row_difference_px > 0 && min_depth_m > 0 && max_depth_m > min_depth_m,
-               "stereo limits: rows ", max_row_difference_px, " px, depth ", min_depth_m, "-",
-               max_depth_m, " m");
+  VISLOC_CHECK(min_depth_m > 0 && min_disparity_px > 0, "stereo range: depth from ", min_depth_m,
+               " m, disparity from ", min_disparity_px, " px");
+  VISLOC_CHECK(patch_radius_px >= 1 && min_zncc > 0 && min_zncc < 1 && uniqueness > 0 &&
+                   uniqueness <= 1,
+               "stereo correlation: radius ", patch_radius_px, " px, ZNCC ", min_zncc,
+               ", uniqueness ", uniqueness);
   VISLOC_CHECK(refine_patch_radius_px >= 0 && refine_max_shift_px > 0, "disparity refinement ",
                refine_patch_radius_px, " px, ", refine_max_shift_px, " px");
 }
@@ -94,98 +96,161 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& r
   return true;
 }
 
+namespace {
+
+// The rectified pair on the canvas (StereoRectifier::Rectify), as the correlation search and the
+// refinement need them.
+struct RectifiedPair {
+  cv::Mat left, right;                      // 8-bit.
+  cv::Mat left_f, right_f, right_gradient;  // CV_32F, for the refinement.
+  cv::Mat right_sum, right_sum_sq;          // Integral images of `right` (CV_32S, CV_64F).
+};
+
+RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                      const StereoRectifier& rectifier, bool refine) {
+  RectifiedPair pair;
+  rectifier.Rectify(left_raw, right_raw, &pair.left, &pair.right);
+  cv::integral(pair.right, pair.right_sum, pair.right_sum_sq, CV_32S, CV_64F);
+  if (refine) {
+    pair.left.convertTo(pair.left_f, CV_32F);
+    pair.right.convertTo(pair.right_f, CV_32F);
+    // Central difference, as the alignment's linearization assumes.
+    const cv::Mat kernel = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
+    cv::filter2D(pair.right_f, pair.right_gradient, CV_32F, kernel, cv::Point(-1, -1), 0,
+                 cv::BORDER_REPLICATE);
+  }
+  return pair;
+}
+
+// The best integer disparity of the left patch centred at canvas pixel (x, y), by ZNCC along the
+// right image's row over [d_min, d_max], with its sub-pixel offset from a parabola through the
+// neighbouring correlations. Returns false (and counts why) when none is strong and unique.
+bool SearchRow(const RectifiedPair& pair, int x, int y, int d_min, int d_max,
+               const StereoMatchOptions& options, std::vector<double>* scores, double* disparity,
+               StereoMatchStats* stats) {
+  const int r = options.patch_radius_px, side = 2 * r + 1, n = side * side;
+  double left_sum = 0, left_sum_sq = 0;
+  for (int v = -r; v <= r; ++v) {
+    const uchar* row = pair.left.ptr<uchar>(y + v) + x;
+    for (int u = -r; u <= r; ++u) {
+      left_sum += row[u];
+      left_sum_sq += row[u] * row[u];
+    }
+  }
+  const double left_var = left_sum_sq - left_sum * left_sum / n;
+  if (left_var < n) {  // Flat: less than one grey level of deviation per pixel.
+    ++stats->weak;
+    return false;
+  }
+  scores->assign(d_max - d_min + 1, -1.0);
+  int best = -1;
+  for (int d = d_min; d <= d_max; ++d) {
+    const int xr = x - d;
+    const int x0 = xr - r, y0 = y - r;
+    const double right_sum = pair.right_sum.at<int>(y0 + side, x0 + side) -
+                             pair.right_sum.at<int>(y0, x0 + side) -
+                             pair.right_sum.at<int>(y0 + side, x0) + pair.right_sum.at<int>(y0, x0);
+    const double right_sum_sq =
+        pair.right_sum_sq.at<double>(y0 + side, x0 + side) -
+        pair.right_sum_sq.at<double>(y0, x0 + side) - pair.right_sum_sq.at<double>(y0 + side, x0) +
+        pair.right_sum_sq.at<double>(y0, x0);
+    const double right_var = right_sum_sq - right_sum * right_sum / n;
+    if (right_var < n) continue;
+    int cross = 0;
+    for (int v = -r; v <= r; ++v) {
+      const uchar* a = pair.left.ptr<uchar>(y + v) + x;
+      const uchar* b = pair.right.ptr<uchar>(y + v) + xr;
+      for (int u = -r; u <= r; ++u) cross += a[u] * b[u];
+    }
+    const double score = (cross - left_sum * right_sum / n) / std::sqrt(left_var * right_var);
+    (*scores)[d - d_min] = score;
+    if (best < 0 || score > (*scores)[best - d_min]) best = d;
+  }
+  if (best < 0 || (*scores)[best - d_min] < options.min_zncc) {
+    ++stats->weak;
+    return false;
+  }
+  const double top = (*scores)[best - d_min];
+  double second = -1.0;
+  for (int d = d_min; d <= d_max; ++d) {
+    if (std::abs(d - best) > 1) second = std::max(second, (*scores)[d - d_min]);
+  }
+  if (1.0 - top > options.uniqueness * (1.0 - second)) {
+    ++stats->ambiguous;
+    return false;
+  }
+  double offset = 0.0;
+  if (best > d_min && best < d_max) {
+    const double before = (*scores)[best - 1 - d_min], after = (*scores)[best + 1 - d_min];
+    const double curvature = before - 2 * top + after;
+    if (curvature < 0) offset = std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5);
+  }
+  *disparity = best + offset;
+  return true;
+}
+
+}  // namespace
+
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options) {
   options.Check();
   StereoFrame frame;
   frame.left = extractor.Extract(left_raw);
-  const FeatureSet right = extractor.Extract(right_raw);
   const PinholeCamera& rect = rectifier.rectified_camera();
   const double f = rect.fx(), baseline = rectifier.baseline_m();
-  const double min_disparity = f * baseline / options.max_depth_m;
   const double max_disparity = f * baseline / options.min_depth_m;
-  const float max_distance = options.matching.MaxDistance(extractor.settings().descriptor_type);
+  const bool refine = options.refine_patch_radius_px > 0;
+  const RectifiedPair pair = Rectify(left_raw, right_raw, rectifier, refine);
+  const Eigen::Vector2d offset = rectifier.canvas_offset_px();
+  // Patches must lie inside the canvas, and refinement needs a margin of its own.
+  const int margin =
+      std::max(options.patch_radius_px, options.refine_patch_radius_px + 2) + 1;
 
   const size_t n = frame.left.size();
-  frame.left_rect.resize(n);
-  std::vector<Eigen::Vector2f> grid_pixels(n);
-  for (size_t i = 0; i < n; ++i) {
-    frame.left_rect[i] = rectifier.RectifyLeftPixel(frame.left.keypoints[i].pixel.cast<double>());
-    grid_pixels[i] = frame.left_rect[i].cast<float>();
-  }
-  frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
-  // Right keypoints sorted by rectified row for a band search.
-  std::vector<std::pair<double, int>> right_rows;
-  std::vector<Eigen::Vector2d> right_rect(right.size());
-  for (size_t j = 0; j < right.size(); ++j) {
-    right_rect[j] = rectifier.RectifyRightPixel(right.keypoints[j].pixel.cast<double>());
-    right_rows.emplace_back(right_rect[j].y(), static_cast<int>(j));
-  }
-  std::sort(right_rows.begin(), right_rows.end());
-
-  // Best right candidate per left keypoint (ratio test), then a mutual check.
-  std::vector<int> left_to_right(n, -1);
-  std::vector<int> right_best_left(right.size(), -1);
-  std::vector<float> right_best_distance(right.size(), std::numeric_limits<float>::max());
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d& l = frame.left_rect[i];
-    auto it = std::lower_bound(right_rows.begin(), right_rows.end(),
-                               std::make_pair(l.y() - options.max_row_difference_px, -1));
-    NearestTwo nearest;
-    for (; it != right_rows.end() && it->first <= l.y() + options.max_row_difference_px; ++it) {
-      const int j = it->second;
-      const double disparity = l.x() - right_rect[j].x();
-      if (disparity < min_disparity || disparity > max_disparity) continue;
-      nearest.Offer(
-          DescriptorDistance(frame.left.descriptors, static_cast<int>(i), right.descriptors, j), j);
-    }
-    if (!nearest.Distinctive(options.matching.ratio, max_distance)) continue;
-    const int best_j = nearest.best_index;
-    const float best = nearest.best;
-    left_to_right[i] = best_j;
-    if (best < right_best_distance[best_j]) {
-      right_best_distance[best_j] = best;
-      right_best_left[best_j] = static_cast<int>(i);
-    }
-  }
-
-  cv::Mat left_rect_image, right_rect_image, right_gradient_x;
-  if (options.refine_patch_radius_px > 0) {
-    cv::Mat left_8u, right_8u;
-    rectifier.Rectify(left_raw, right_raw, &left_8u, &right_8u);
-    left_8u.convertTo(left_rect_image, CV_32F);
-    right_8u.convertTo(right_rect_image, CV_32F);
-    // Central difference, as the alignment's linearization assumes.
-    const cv::Mat kernel = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
-    cv::filter2D(right_rect_image, right_gradient_x, CV_32F, kernel, cv::Point(-1, -1), 0,
-                 cv::BORDER_REPLICATE);
-  }
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  frame.left_rect.resize(n);
   frame.right_x_rect.assign(n, nan);
   frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
+  frame.stats.keypoints = static_cast<int>(n);
+  std::vector<Eigen::Vector2f> grid_pixels(n);
+  std::vector<double> scores;
   for (size_t i = 0; i < n; ++i) {
-    const int j = left_to_right[i];
-    if (j < 0 || right_best_left[j] != static_cast<int>(i)) continue;
-    const Eigen::Vector2d& l = frame.left_rect[i];
-    double disparity = l.x() - right_rect[j].x();
-    if (options.refine_patch_radius_px > 0) {
+    const Eigen::Vector2d l =
+        rectifier.RectifyLeftPixel(frame.left.keypoints[i].pixel.cast<double>());
+    frame.left_rect[i] = l;
+    grid_pixels[i] = l.cast<float>();
+    const Eigen::Vector2d c = l + offset;  // On the canvas.
+    const int x = static_cast<int>(std::lround(c.x())), y = static_cast<int>(std::lround(c.y()));
+    if (y < margin || y >= pair.left.rows - margin || x >= pair.left.cols - margin) continue;
+    const int d_min = static_cast<int>(std::floor(options.min_disparity_px));
+    const int d_max = std::min(static_cast<int>(std::ceil(max_disparity)), x - margin);
+    if (d_max < d_min + 2) continue;
+    ++frame.stats.searched;
+    double disparity = 0;
+    if (!SearchRow(pair, x, y, d_min, d_max, options, &scores, &disparity, &frame.stats)) continue;
+    disparity += c.x() - x;  // The keypoint's own position on the correlation's row.
+    if (refine) {
       double refined = disparity;
-      if (!RefineDisparity(left_rect_image, right_rect_image, right_gradient_x, l.x(), l.y(),
+      if (!RefineDisparity(pair.left_f, pair.right_f, pair.right_gradient, c.x(), c.y(),
                            options.refine_patch_radius_px, &refined) ||
-          std::abs(refined - disparity) > options.refine_max_shift_px || refined < min_disparity ||
-          refined > max_disparity) {
+          std::abs(refined - disparity) > options.refine_max_shift_px) {
+        ++frame.stats.refine_rejected;
         continue;
       }
       disparity = refined;
     }
-    const double v = l.y();
+    if (disparity < options.min_disparity_px || disparity > max_disparity) {
+      ++frame.stats.out_of_range;
+      continue;
+    }
     const double z = f * baseline / disparity;
     frame.right_x_rect[i] = l.x() - disparity;
     frame.point_in_rect[i] =
-        Eigen::Vector3d((l.x() - rect.cx()) * z / f, (v - rect.cy()) * z / rect.fy(), z);
-    ++frame.stereo_matches;
+        Eigen::Vector3d((l.x() - rect.cx()) * z / f, (l.y() - rect.cy()) * z / rect.fy(), z);
+    ++frame.stats.matched;
   }
+  frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
   return frame;
 }
 

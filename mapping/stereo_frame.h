@@ -1,11 +1,18 @@
 #pragma once
-// One stereo frame prepared for mapping: features of the raw left and right images, their
-// rectified positions, stereo matches along rectified rows and the triangulated points.
+// One stereo frame prepared for mapping: features of the raw left image, their rectified
+// positions, their matches along the rectified right image's rows and the triangulated points.
 //
-// Descriptors are computed on the raw images (as localization will see them); geometry uses
+// Descriptors are computed on the raw left image (as localization will see it); geometry uses
 // rectified coordinates, in which the right camera is the left one shifted by the baseline
 // along +x (seed paper 000, eqs. 1-3):
 //   Z = f B / d,  X = (u - cx) Z / f,  Y = (v - cy) Z / f,  d = u_left - u_right.
+//
+// Each left keypoint is searched for along its row of the rectified right image by zero-mean
+// normalized cross-correlation (ZNCC) of a small patch, not among keypoints detected
+// independently in the right image: a corner the right detector ranks differently, or that a
+// per-cell quota leaves out, still has its match, and ZNCC does not depend on the two cameras'
+// exposure. The best disparity must correlate strongly and clearly better than any other
+// (repetitive texture is refused), and is then refined to a few hundredths of a pixel.
 
 #include <vector>
 
@@ -19,19 +26,35 @@
 namespace visloc::mapping {
 
 struct StereoMatchOptions {
-  double max_row_difference_px = 1.0;    // Rectified rows must agree (calibration residual).
-  double min_depth_m = 0.3;              // Nearer points are out of range.
-  double max_depth_m = 12.0;             // Farther points have too little disparity to triangulate.
-  // Left and right descriptors of one point, seen from a few centimetres apart at the same
-  // moment, are closer than across frames: stricter than tracking.
-  DescriptorMatchOptions matching{0.6f, 64.0f, 0.8f};
+  double min_depth_m = 0.3;  // Nearer points are out of range: the largest disparity searched.
+  // The smallest disparity accepted. A limit in pixels, not metres: how far a rig triangulates
+  // grows with its focal length and baseline (KITTI: 386 m at 1 px, the generated humanoid head
+  // 23 m), while depth precision is set by the disparity's error (~0.05 px after refinement: 5%
+  // of the depth at 1 px).
+  double min_disparity_px = 1.0;
+  int patch_radius_px = 3;  // ZNCC window: (2r + 1)^2 pixels.
+  double min_zncc = 0.8;    // The best disparity's correlation.
+  // Uniqueness: (1 - best) <= uniqueness * (1 - second best), the second best more than a pixel
+  // from the best.
+  double uniqueness = 0.5;
   // Disparity refinement: the left patch is aligned along the right image's row by Gauss-Newton
   // on the zero-mean SSD, with the disparity allowed to vary linearly across the patch (slanted
-  // surfaces); this measures disparity to a few hundredths of a pixel where independent corner
-  // positions disagree by a tenth. 0 disables it.
+  // surfaces); this measures disparity to a few hundredths of a pixel where the correlation
+  // peak is good to a tenth.
   int refine_patch_radius_px = 7;
   double refine_max_shift_px = 1.0;  // Larger corrections mean a wrong match: rejected.
   void Check() const;
+};
+
+// What happened to a frame's left keypoints, for diagnostics (dataset check, build failures).
+struct StereoMatchStats {
+  int keypoints = 0;        // Left keypoints.
+  int searched = 0;         // With a full patch on the rectified canvas and a disparity range.
+  int weak = 0;             // Best correlation below min_zncc.
+  int ambiguous = 0;        // Failed the uniqueness test.
+  int refine_rejected = 0;  // Refinement failed or moved the disparity too far.
+  int out_of_range = 0;     // The refined disparity left [min_disparity_px, max disparity].
+  int matched = 0;
 };
 
 struct StereoFrame {
@@ -40,7 +63,8 @@ struct StereoFrame {
   KeypointGrid grid;                           // left_rect, for radius searches.
   std::vector<double> right_x_rect;            // Matched right rectified x, or NaN.
   std::vector<Eigen::Vector3d> point_in_rect;  // Triangulated point (rectified left frame), or NaN.
-  int stereo_matches = 0;
+  StereoMatchStats stats;
+  int stereo_matches() const { return stats.matched; }
   bool HasDepth(size_t i) const { return point_in_rect[i].allFinite(); }
 };
 

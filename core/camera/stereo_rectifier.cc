@@ -53,10 +53,37 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
   baseline_m_ = std::abs(p2.at<double>(0, 3) / f);
   rect_from_left_ = ToQuaternion(r1);
   rect_from_right_ = ToQuaternion(r2);
-  cv::initUndistortRectifyMap(CameraMatrix(left), DistortionCoefficients(left), r1, p1, size,
-                              CV_32FC1, left_map_x_, left_map_y_);
-  cv::initUndistortRectifyMap(CameraMatrix(right), DistortionCoefficients(right), r2, p2, size,
-                              CV_32FC1, right_map_x_, right_map_y_);
+  // The canvas: the rectified bounding box of both raw images' borders, at most half an image
+  // beyond the valid region on each side.
+  Eigen::Vector2d low(0, 0), high(left.width() - 1, left.height() - 1);
+  for (const bool is_left : {true, false}) {
+    const int w = left.width(), h = left.height();
+    for (int t = 0; t <= 64; ++t) {
+      const double x = (w - 1) * t / 64.0, y = (h - 1) * t / 64.0;
+      for (const Eigen::Vector2d& raw : {Eigen::Vector2d(x, 0), Eigen::Vector2d(x, h - 1),
+                                         Eigen::Vector2d(0, y), Eigen::Vector2d(w - 1, y)}) {
+        const Eigen::Vector2d rect = is_left ? RectifyLeftPixel(raw) : RectifyRightPixel(raw);
+        low = low.cwiseMin(rect);
+        high = high.cwiseMax(rect);
+      }
+    }
+  }
+  const Eigen::Vector2d limit(left.width() / 2.0, left.height() / 2.0);
+  canvas_offset_px_ = (-low).cwiseMin(limit).array().ceil().matrix();
+  const Eigen::Vector2d beyond =
+      (high - Eigen::Vector2d(left.width() - 1, left.height() - 1)).cwiseMin(limit);
+  canvas_size_ = cv::Size(left.width() + static_cast<int>(canvas_offset_px_.x()) +
+                              static_cast<int>(std::ceil(beyond.x())),
+                          left.height() + static_cast<int>(canvas_offset_px_.y()) +
+                              static_cast<int>(std::ceil(beyond.y())));
+  for (cv::Mat* p : {&p1, &p2}) {
+    p->at<double>(0, 2) += canvas_offset_px_.x();
+    p->at<double>(1, 2) += canvas_offset_px_.y();
+  }
+  cv::initUndistortRectifyMap(CameraMatrix(left), DistortionCoefficients(left), r1, p1,
+                              canvas_size_, CV_32FC1, left_map_x_, left_map_y_);
+  cv::initUndistortRectifyMap(CameraMatrix(right), DistortionCoefficients(right), r2, p2,
+                              canvas_size_, CV_32FC1, right_map_x_, right_map_y_);
 }
 
 void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect,

@@ -27,10 +27,15 @@ class StereoRectifier {
   // Rotation from the raw left camera frame into the rectified left camera frame.
   const Eigen::Quaterniond& rect_from_left() const { return rect_from_left_; }
 
-  // Remaps raw images (8-bit, the calibrated size) to rectified images. Throws CheckError on
-  // a size mismatch.
+  // Remaps raw images (8-bit, the calibrated size) to rectified images on a canvas that holds
+  // every raw pixel: `rectified_camera()` keeps only the region valid in both views (OpenCV's
+  // alpha = 0), which would cut off the corners of a distorted lens, where many keypoints are.
+  // Rectified pixel p is canvas pixel p + canvas_offset_px(). Throws CheckError on a size
+  // mismatch.
   void Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect,
                cv::Mat* right_rect) const;
+  const Eigen::Vector2d& canvas_offset_px() const { return canvas_offset_px_; }
+  cv::Size canvas_size() const { return canvas_size_; }
   // Maps a raw pixel of the left or right image to its rectified pixel.
   Eigen::Vector2d RectifyLeftPixel(const Eigen::Vector2d& raw_pixel) const;
   Eigen::Vector2d RectifyRightPixel(const Eigen::Vector2d& raw_pixel) const;
@@ -42,6 +47,8 @@ class StereoRectifier {
   double baseline_m_ = 0.0;
   Eigen::Quaterniond rect_from_left_;
   Eigen::Quaterniond rect_from_right_;
+  Eigen::Vector2d canvas_offset_px_ = Eigen::Vector2d::Zero();
+  cv::Size canvas_size_;
   cv::Mat left_map_x_, left_map_y_, right_map_x_, right_map_y_;
 };
 

@@ -69,12 +69,38 @@ TEST(StereoRectifierTest, RectifiedImagesAlignAFeatureOnOneRow) {
   };
   cv::Mat left_rect, right_rect;
   rectifier.Rectify(draw(left_px), draw(right_px), &left_rect, &right_rect);
+  EXPECT_EQ(left_rect.size(), right_rect.size());
   const cv::Moments ml = cv::moments(left_rect);
   const cv::Moments mr = cv::moments(right_rect);
   EXPECT_NEAR(ml.m01 / ml.m00, mr.m01 / mr.m00, 0.1);
   EXPECT_THROW(rectifier.Rectify(cv::Mat(10, 10, CV_8UC1), cv::Mat(10, 10, CV_8UC1), &left_rect,
                                  &right_rect),
                CheckError);
+}
+
+TEST(StereoRectifierTest, TheCanvasKeepsTheCornersOfADistortedImage) {
+  // Strong barrel distortion (EuRoC's k1 = -0.28): the region valid in both rectified views
+  // loses the raw image's corners, where keypoints are; the canvas keeps them.
+  const PinholeCamera left{752, 480, 458.7, 457.3, 367.2, 248.4, {-0.28, 0.07, 0.0, 0.0}};
+  const PinholeCamera right{752, 480, 457.6, 456.1, 380.0, 255.2, {-0.28, 0.07, 0.0, 0.0}};
+  const StereoRectifier rectifier(left, right, Rigid3d(RotationFromRollPitchYaw(0.0, 0.0, 0.0),
+                                                       Eigen::Vector3d(-0.11, 0.0, 0.0)));
+  const Eigen::Vector2d corner_raw(20.0, 20.0);
+  const Eigen::Vector2d corner_rect = rectifier.RectifyLeftPixel(corner_raw);
+  EXPECT_FALSE(rectifier.rectified_camera().IsInImage(corner_rect));
+  const Eigen::Vector2d on_canvas = corner_rect + rectifier.canvas_offset_px();
+  ASSERT_GT(on_canvas.x(), 0);
+  ASSERT_GT(on_canvas.y(), 0);
+  ASSERT_LT(on_canvas.x(), rectifier.canvas_size().width - 1);
+  ASSERT_LT(on_canvas.y(), rectifier.canvas_size().height - 1);
+  cv::Mat left_raw(480, 752, CV_8UC1, cv::Scalar(0));
+  cv::circle(left_raw, cv::Point(20, 20), 3, cv::Scalar(255), cv::FILLED);
+  cv::Mat left_rect, right_rect;
+  rectifier.Rectify(left_raw, left_raw, &left_rect, &right_rect);
+  EXPECT_EQ(left_rect.size(), rectifier.canvas_size());
+  const cv::Moments m = cv::moments(left_rect);
+  EXPECT_NEAR(m.m10 / m.m00, on_canvas.x(), 0.5);
+  EXPECT_NEAR(m.m01 / m.m00, on_canvas.y(), 0.5);
 }
 
 }  // namespace
