@@ -32,6 +32,16 @@ const MapBuilderOptions& Checked(const MapBuilderOptions& options) {
   return options;
 }
 
+FeatureSettings FeaturesFor(const MapBuilderOptions& options, const PinholeCamera& camera) {
+  if (!options.scale_feature_count) return options.features;
+  int count = 0;
+  for (const auto& [name, value] : options.features.params) {
+    if (name == "max_features") count = static_cast<int>(value);
+  }
+  return WithMaxFeatures(options.features,
+                         FeatureCountForImage(count, camera.width(), camera.height()));
+}
+
 }  // namespace
 
 MapBuilder::MapBuilder(const PinholeCamera& left, const PinholeCamera& right,
@@ -40,7 +50,7 @@ MapBuilder::MapBuilder(const PinholeCamera& left, const PinholeCamera& right,
       options_(Checked(options)),
       rectifier_(left, right, right_from_left),
       intrinsics_(IntrinsicsOf(rectifier_)),
-      extractor_(CreateFeatureExtractor(options.features)),
+      extractor_(CreateFeatureExtractor(FeaturesFor(options, left))),
       tracker_(options.tracking, ViewOf(rectifier_), intrinsics_,
                options.local_ba.disparity_weight),
       loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_,

@@ -31,6 +31,9 @@ namespace visloc::mapping {
 
 struct MapBuilderOptions {
   FeatureSettings features = DefaultFeatureSettings("harris_surf16");
+  // features' max_features is the count at 320x240, scaled to the images (FeatureCountForImage);
+  // false keeps it as given.
+  bool scale_feature_count = true;
   StereoMatchOptions stereo;
   TrackingOptions tracking;
   KeyframeOptions keyframes;

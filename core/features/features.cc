@@ -1,6 +1,7 @@
 #include "core/features/features.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 
@@ -161,7 +162,12 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
       }
     }
     params.Read("harris_k", &options.harris_k);
+    // Settings recorded before cell thresholds existed detect as they did: image-wide only.
+    if (!settings.params.empty() && !params.Has("cell_relative_threshold")) {
+      options.cell_relative_threshold = 0.0;
+    }
     params.Read("relative_threshold", &options.relative_threshold);
+    params.Read("cell_relative_threshold", &options.cell_relative_threshold);
     params.Read("max_features", &options.max_features);
     params.Read("grid_cols", &options.grid_cols);
     params.Read("grid_rows", &options.grid_rows);
@@ -182,6 +188,28 @@ std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& 
   }
   throw InputError(
       StrCat("unknown feature kind '", settings.kind, "' (expected harris_surf16 or orb)"));
+}
+
+FeatureSettings WithMaxFeatures(const FeatureSettings& settings, int max_features) {
+  VISLOC_CHECK(max_features > 0, "max_features ", max_features);
+  FeatureSettings scaled = settings;
+  bool found = false;
+  for (auto& [name, value] : scaled.params) {
+    if (name == "max_features") {
+      value = max_features;
+      found = true;
+    }
+  }
+  VISLOC_CHECK(found, settings.kind, " settings have no max_features");
+  return scaled;
+}
+
+int FeatureCountForImage(int count_at_320x240, int width, int height, int max_count) {
+  VISLOC_CHECK(count_at_320x240 > 0 && width > 0 && height > 0, "feature count ",
+               count_at_320x240, " for ", width, "x", height);
+  const double scale = std::sqrt(static_cast<double>(width) * height / (320.0 * 240.0));
+  return std::clamp(static_cast<int>(std::lround(count_at_320x240 * scale)),
+                    std::min(count_at_320x240, max_count), max_count);
 }
 
 FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,

@@ -42,6 +42,14 @@ FeatureSettings DefaultFeatureSettings(const std::string& kind);
 // Creates the extractor for settings read from a map (unknown parameters are an InputError).
 std::unique_ptr<FeatureExtractor> CreateFeatureExtractor(const FeatureSettings& settings);
 
+// The same settings with `max_features` corners per image.
+FeatureSettings WithMaxFeatures(const FeatureSettings& settings, int max_features);
+// The corner count for a `width` x `height` image, given the count for 320x240 (the paper's
+// resolution): scaled with the image's side length (the square root of its area), up to
+// `max_count`. A 752x480 image of a real scene holds structure at twice the density the paper's
+// 600 corners cover at 320x240, and a fixed count would leave most of it unused.
+int FeatureCountForImage(int count_at_320x240, int width, int height, int max_count = 1500);
+
 // The settings for query images of a localization session: the map's detector and descriptor
 // (so descriptors stay comparable), with at most `max_features` corners (0 keeps the map's) and,
 // when `finest_scale_only`, detection at the finest scale only. The seed paper does the same

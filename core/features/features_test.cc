@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <set>
 
 #include <opencv2/imgproc.hpp>
@@ -124,10 +125,46 @@ TEST_P(FeatureKindTest, EvenlySpreadRepeatableAndMatchable) {
   EXPECT_GT(quality.repeatability, 0.5);
   EXPECT_LT(quality.median_error_px, 0.5);
   EXPECT_GT(quality.matched, 100);
-  EXPECT_GT(quality.precision, 0.9);
+  // Harris keeps corners of weak contrast wherever a cell has nothing stronger (real images
+  // need them: FindsCornersInLowContrastNextToHighContrast); in the rendered room they match a
+  // little less precisely than the strong ones (0.89 against 0.90 with only the strongest).
+  EXPECT_GT(quality.precision, 0.87);
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, FeatureKindTest, ::testing::Values("harris_surf16", "orb"));
+
+// A real image mixes strong and weak contrast: a checkerboard beside a dull floor. Corners of
+// the weak half must be found too, not only the strongest of the image.
+TEST(HarrisSurf16Test, FindsCornersInLowContrastNextToHighContrast) {
+  cv::Mat image(240, 320, CV_8UC1);
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) {
+      const bool dark = ((x / 12) + (y / 12)) % 2 == 0;
+      // Left: black and white. Right: two greys 20 levels apart.
+      image.at<uint8_t>(y, x) = x < 160 ? (dark ? 10 : 245) : (dark ? 118 : 138);
+    }
+  }
+  const FeatureSet features =
+      CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"))->Extract(image);
+  int right = 0;
+  for (const Keypoint& k : features.keypoints) right += k.pixel.x() > 170;
+  std::printf("%zu corners, %d in the low-contrast half\n", features.size(), right);
+  EXPECT_GT(right, 100);
+  // Maps recorded before cell thresholds keep their image-wide threshold.
+  FeatureSettings legacy = DefaultFeatureSettings("harris_surf16");
+  legacy.params.erase(
+      std::remove_if(legacy.params.begin(), legacy.params.end(),
+                     [](const auto& p) { return p.first == "cell_relative_threshold"; }),
+      legacy.params.end());
+  for (auto& [name, value] : legacy.params) {
+    if (name == "relative_threshold") value = 0.005;
+  }
+  int legacy_right = 0;
+  for (const Keypoint& k : CreateFeatureExtractor(legacy)->Extract(image).keypoints) {
+    legacy_right += k.pixel.x() > 170;
+  }
+  EXPECT_EQ(legacy_right, 0);
+}
 
 // A localization session detects at the finest scale only; its corners must still find the
 // map's (all-scale) corners and descriptors.
@@ -135,8 +172,13 @@ TEST(QueryFeatureSettingsTest, FinestScaleQueryMatchesAllScaleMapFeatures) {
   const FeatureSettings map_settings = DefaultFeatureSettings("harris_surf16");
   const FeatureSettings query_settings = QueryFeatureSettings(map_settings, 600, true);
   const std::vector<std::pair<std::string, double>> expected_params = {
-      {"scale_0", 1.2},      {"harris_k", 0.04}, {"relative_threshold", 0.005},
-      {"max_features", 600}, {"grid_cols", 8},   {"grid_rows", 6},
+      {"scale_0", 1.2},
+      {"harris_k", 0.04},
+      {"relative_threshold", 1e-5},
+      {"cell_relative_threshold", 1e-4},
+      {"max_features", 600},
+      {"grid_cols", 8},
+      {"grid_rows", 6},
       {"border_px", 8}};
   EXPECT_EQ(query_settings.params, expected_params);
   EXPECT_EQ(QueryFeatureSettings(map_settings, 0, false).params, map_settings.params);

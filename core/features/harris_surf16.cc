@@ -22,7 +22,9 @@ void HarrisSurf16Options::Check() const {
   VISLOC_CHECK(!scales_px.empty(), "no scales");
   for (double s : scales_px) VISLOC_CHECK(s > 0.3 && s < 20, "scale ", s);
   VISLOC_CHECK(max_features > 0 && grid_cols > 0 && grid_rows > 0, "feature quotas");
-  VISLOC_CHECK(relative_threshold >= 0 && relative_threshold < 1, "threshold ", relative_threshold);
+  VISLOC_CHECK(relative_threshold >= 0 && relative_threshold < 1 && cell_relative_threshold >= 0 &&
+                   cell_relative_threshold < 1,
+               "thresholds ", relative_threshold, ", ", cell_relative_threshold);
 }
 
 HarrisSurf16Extractor::HarrisSurf16Extractor(const HarrisSurf16Options& options)
@@ -36,6 +38,7 @@ HarrisSurf16Extractor::HarrisSurf16Extractor(const HarrisSurf16Options& options)
   }
   settings_.params.emplace_back("harris_k", options_.harris_k);
   settings_.params.emplace_back("relative_threshold", options_.relative_threshold);
+  settings_.params.emplace_back("cell_relative_threshold", options_.cell_relative_threshold);
   settings_.params.emplace_back("max_features", options_.max_features);
   settings_.params.emplace_back("grid_cols", options_.grid_cols);
   settings_.params.emplace_back("grid_rows", options_.grid_rows);
@@ -334,6 +337,30 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
   return kept;
 }
 
+// The keypoints whose response reaches `relative` of the strongest in their grid cell.
+std::vector<Keypoint> KeepStrongInCell(std::vector<Keypoint> keypoints, const cv::Size& size,
+                                       int grid_cols, int grid_rows, double relative) {
+  if (relative <= 0) return keypoints;
+  const auto cell_of = [&](const Keypoint& k) {
+    const int cx = std::clamp(static_cast<int>(k.pixel.x() * grid_cols / size.width), 0,
+                              grid_cols - 1);
+    const int cy = std::clamp(static_cast<int>(k.pixel.y() * grid_rows / size.height), 0,
+                              grid_rows - 1);
+    return cy * grid_cols + cx;
+  };
+  std::vector<float> strongest(grid_cols * grid_rows, 0.0f);
+  for (const Keypoint& k : keypoints) {
+    float& s = strongest[cell_of(k)];
+    s = std::max(s, k.response);
+  }
+  std::vector<Keypoint> kept;
+  kept.reserve(keypoints.size());
+  for (const Keypoint& k : keypoints) {
+    if (k.response >= relative * strongest[cell_of(k)]) kept.push_back(k);
+  }
+  return kept;
+}
+
 }  // namespace
 
 // The image is smoothed in 8-bit fixed point (OpenCV, several times faster than in float); the
@@ -432,6 +459,8 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   VISLOC_CHECK(level_scales[finest] == 1, "the finest scale must be below 2 px");
   LocalizeAtFinestScale(responses[finest], &keypoints, options_.scales_px[finest]);
   keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
+  keypoints = KeepStrongInCell(std::move(keypoints), grey.size(), options_.grid_cols,
+                               options_.grid_rows, options_.cell_relative_threshold);
   if (detected) *detected = static_cast<int>(keypoints.size());
   return SelectEvenly(std::move(keypoints), grey.size(), options_.grid_cols, options_.grid_rows,
                       options_.max_features);

@@ -5,7 +5,8 @@
 // image), the Harris response R = det(M) - k tr(M)^2 of the structure tensor M (gradients of
 // the image smoothed at 0.7 sigma_i, in 8/16-bit integers; Gaussian window sigma_i truncated at
 // +-2 sigma), non-maximum suppression in 3x3, a quadratic fit for the sub-pixel position, and a
-// threshold relative to the strongest response. Corners found at several scales are merged
+// threshold relative to the strongest response in the corner's grid cell and in the image.
+// Corners found at several scales are merged
 // (strongest kept, none within 2 px of a stronger one). An even spread is enforced by per-cell
 // quotas on a grid (SpreadOverGrid).
 //
@@ -28,7 +29,15 @@ namespace visloc {
 struct HarrisSurf16Options {
   std::vector<double> scales_px = {1.2, 2.0, 3.2};  // Gaussian sigmas of the scale space.
   double harris_k = 0.04;
-  double relative_threshold = 0.005;  // Of the strongest response in the image.
+  // A corner's response must reach `cell_relative_threshold` of the strongest in its quota cell
+  // (grid_cols x grid_rows) and `relative_threshold` of the strongest in the image. The
+  // response grows with the fourth power of contrast, so these are tiny: 1e-4 is a tenth of
+  // the cell's strongest contrast, 1e-5 a eighteenth of the image's. Contrast varies across a
+  // real image (a checkerboard beside a dull floor): relative to the image alone, the strong
+  // parts leave the weak ones without corners. The image-wide floor keeps noise in flat cells
+  // out. Maps made before cell thresholds record none (0 turns it off) and 0.005.
+  double relative_threshold = 1e-5;
+  double cell_relative_threshold = 1e-4;
   int max_features = 600;
   int grid_cols = 8;  // Quota cells across the image.
   int grid_rows = 6;
