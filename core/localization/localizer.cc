@@ -178,7 +178,7 @@ void Localizer::ApplyPlane() {
 }
 
 void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource source,
-                       int64_t timestamp_ns, LocalizationResult* result) {
+                       int64_t timestamp_ns, LocalizationResult* result, bool restart_filter) {
   const Rigid3d measured = fix.cam_from_map.Inverse();
   // Floor the measurement noise: the refinement's covariance ignores map point errors.
   Matrix6d noise = fix.covariance;
@@ -190,8 +190,12 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
     filter_.Reset(measured, noise);
     velocity_valid_ = false;
   } else {
-    filter_.UpdatePose(measured, noise);
-    ApplyPlane();
+    if (restart_filter) {
+      filter_.Reset(measured, noise);  // The prediction was wrong: nothing of it to keep.
+    } else {
+      filter_.UpdatePose(measured, noise);
+      ApplyPlane();
+    }
     if (ever_localized_ && since_fix_s > 0 && since_fix_s <= 0.5) {
       velocity_ = LogSe3(last_fix_map_from_cam_.Inverse() * measured) / since_fix_s;
       velocity_valid_ = true;
@@ -302,6 +306,14 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
       } else if (Consistent(fix.cam_from_map.Inverse(), *prior, sigma)) {
         Accept(fix, strong(fix) ? TrackingStatus::kTracking : TrackingStatus::kLimited,
                PoseSource::kTracking, input.timestamp_ns, &result);
+        accepted = true;
+      } else if (!velocity_valid_ && !motion.from_sensors && strong(fix) &&
+                 fix.inliers >= options_.relocalization.strong_inliers) {
+        // The prior knew no velocity (the first frames after a fix) and the camera moved
+        // further than a walking robot would: a car's 0.8 m a frame. A fix this well supported,
+        // found by tracking from the last pose, is that motion, not a jump to hold back.
+        Accept(fix, TrackingStatus::kTracking, PoseSource::kTracking, input.timestamp_ns, &result,
+               /*restart_filter=*/true);
         accepted = true;
       } else {
         pending_ = Pending{fix.cam_from_map.Inverse()};

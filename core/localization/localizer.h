@@ -180,8 +180,10 @@ class Localizer {
   Motion PredictMotion(const FrameInput& input, double dt_s) const;
   bool Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected, double sigma_m) const;
   PoseFix TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
+  // Takes a fix: the filter is fused with it, or restarted from it (a relocalization, or a
+  // motion the prediction did not foresee), and the velocity follows from the previous fix.
   void Accept(const PoseFix& fix, TrackingStatus status, PoseSource source, int64_t timestamp_ns,
-              LocalizationResult* result);
+              LocalizationResult* result, bool restart_filter = false);
   void ApplyPlane();
   static void CopyFixStats(const PoseFix& fix, FrameStats* stats);
 
