@@ -82,6 +82,29 @@ void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options) {
   PrintRow("rotation", eval.rpe.rotation_deg, 1.0, "deg");
 }
 
+std::string ToJson(const TrajectorySpread& spread) {
+  JsonWriter json;
+  json.BeginObject().Field("poses", static_cast<int64_t>(spread.poses));
+  json.Key("mean_position")
+      .BeginObject()
+      .Field("x", spread.mean_position.x())
+      .Field("y", spread.mean_position.y())
+      .Field("z", spread.mean_position.z())
+      .EndObject();
+  json.Key("spread").BeginObject();
+  WriteStats(json, "position_m", spread.position_m);
+  WriteStats(json, "rotation_deg", spread.rotation_deg);
+  json.EndObject().EndObject();
+  return json.str();
+}
+
+void PrintHuman(const TrajectorySpread& spread) {
+  std::printf("%zu poses about (%.4f, %.4f, %.4f) m:\n", spread.poses, spread.mean_position.x(),
+              spread.mean_position.y(), spread.mean_position.z());
+  PrintRow("position", spread.position_m, 1000.0, "mm");
+  PrintRow("rotation", spread.rotation_deg, 1.0, "deg");
+}
+
 }  // namespace
 
 int RunEval(const Args& args) {
@@ -91,9 +114,13 @@ int RunEval(const Args& args) {
   ArgParser parser("visloc eval",
                    "Compares an estimated TUM trajectory with ground truth: ATE (no alignment, and "
                    "with --align after SE(3) Umeyama alignment), RPE over --delta seconds, and "
-                   "coverage (share of ground-truth poses with an estimate).");
-  parser.AddFlag("gt", &gt_path, "ground-truth TUM file", /*required=*/true);
+                   "coverage (share of ground-truth poses with an estimate). With --spread and no "
+                   "ground truth: how far the poses scatter about their mean (the jitter of a "
+                   "camera that stands still).");
+  bool spread = false;
+  parser.AddFlag("gt", &gt_path, "ground-truth TUM file (required unless --spread)");
   parser.AddFlag("est", &est_path, "estimated TUM file", /*required=*/true);
+  parser.AddSwitch("spread", &spread, "deviations of the poses from their mean pose");
   parser.AddSwitch("align", &options.align, "also report ATE after SE(3) alignment");
   parser.AddFlag("delta", &options.rpe_delta_s, "RPE interval in seconds");
   parser.AddFlag("max-dt", &options.max_time_diff_s, "association tolerance in seconds");
@@ -101,8 +128,20 @@ int RunEval(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (options.rpe_delta_s <= 0) throw UsageError("--delta must be positive");
   if (options.max_time_diff_s < 0) throw UsageError("--max-dt must not be negative");
-  const Trajectory gt = ReadTum(gt_path);
   const Trajectory est = ReadTum(est_path);
+  if (spread) {
+    if (!gt_path.empty()) throw UsageError("--spread takes no --gt");
+    if (est.empty()) throw InputError(est_path + ": no poses");
+    const TrajectorySpread result = ComputeSpread(est);
+    if (json) {
+      std::cout << ToJson(result) << "\n";
+    } else {
+      PrintHuman(result);
+    }
+    return 0;
+  }
+  if (gt_path.empty()) throw UsageError("--gt is required (or --spread)");
+  const Trajectory gt = ReadTum(gt_path);
   if (gt.empty()) throw InputError(gt_path + ": no poses");
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, options);
   if (json) {

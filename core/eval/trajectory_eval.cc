@@ -136,4 +136,27 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
   return result;
 }
 
+TrajectorySpread ComputeSpread(const Trajectory& poses) {
+  TrajectorySpread spread;
+  spread.poses = poses.size();
+  if (poses.empty()) return spread;
+  Eigen::Vector4d quaternion_sum = Eigen::Vector4d::Zero();
+  const Eigen::Vector4d first = poses.front().pose.rotation.coeffs();
+  for (const StampedPose& p : poses) {
+    spread.mean_position += p.pose.translation;
+    const Eigen::Vector4d q = p.pose.rotation.coeffs();
+    quaternion_sum += q.dot(first) < 0 ? -q : q;  // q and -q are the same rotation
+  }
+  spread.mean_position /= static_cast<double>(poses.size());
+  const Eigen::Quaterniond mean_rotation = Eigen::Quaterniond(quaternion_sum).normalized();
+  std::vector<double> position, rotation;
+  for (const StampedPose& p : poses) {
+    position.push_back((p.pose.translation - spread.mean_position).norm());
+    rotation.push_back(RotationAngleDeg(mean_rotation.inverse() * p.pose.rotation));
+  }
+  spread.position_m = ComputeErrorStats(std::move(position));
+  spread.rotation_deg = ComputeErrorStats(std::move(rotation));
+  return spread;
+}
+
 }  // namespace visloc

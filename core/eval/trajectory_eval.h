@@ -68,4 +68,16 @@ std::vector<std::pair<size_t, size_t>> AssociateByTime(const Trajectory& gt, con
 TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
                                         const EvalOptions& options);
 
+// How far the poses of a trajectory scatter about their mean: the jitter of a camera that stands
+// still, with no ground truth needed. Deviations of each position from the mean position (m)
+// and of each rotation from the mean rotation (deg; the normalized mean of sign-aligned
+// quaternions, which is the rotation mean for rotations this close together).
+struct TrajectorySpread {
+  size_t poses = 0;
+  Eigen::Vector3d mean_position = Eigen::Vector3d::Zero();
+  ErrorStats position_m;
+  ErrorStats rotation_deg;
+};
+TrajectorySpread ComputeSpread(const Trajectory& poses);
+
 }  // namespace visloc

@@ -86,5 +86,25 @@ TEST(TrajectoryEvalTest, ErrorStatsOfKnownList) {
   EXPECT_DOUBLE_EQ(stats.rmse, std::sqrt(30.0 / 4.0));
 }
 
+TEST(TrajectorySpreadTest, DeviationsFromTheMeanPoseOfAStillCamera) {
+  // Four poses at the corners of a 2 mm square around (1, 2, 3), turned +-0.1 deg about z.
+  Trajectory poses;
+  const double d = 0.001, a = 0.1 * M_PI / 180.0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d offset(i % 2 ? d : -d, i / 2 ? d : -d, 0.0);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(i % 2 ? a : -a, Eigen::Vector3d::UnitZ()));
+    // The sign of a quaternion does not change its rotation.
+    poses.push_back({i, Rigid3d(i == 3 ? Eigen::Quaterniond(-q.coeffs()) : q,
+                                Eigen::Vector3d(1, 2, 3) + offset)});
+  }
+  const TrajectorySpread spread = ComputeSpread(poses);
+  EXPECT_EQ(spread.poses, 4u);
+  EXPECT_TRUE(spread.mean_position.isApprox(Eigen::Vector3d(1, 2, 3), 1e-12));
+  EXPECT_NEAR(spread.position_m.max, std::sqrt(2.0) * d, 1e-12);
+  EXPECT_NEAR(spread.rotation_deg.max, 0.1, 1e-9);
+  EXPECT_NEAR(spread.rotation_deg.min, 0.1, 1e-9);
+  EXPECT_EQ(ComputeSpread({}).poses, 0u);
+}
+
 }  // namespace
 }  // namespace visloc
