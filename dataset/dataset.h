@@ -44,6 +44,13 @@ struct ImuSample {
   Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
 };
 
+// How the left and right images were paired into stereo frames (by timestamp).
+struct StereoPairing {
+  int unpaired_left = 0;   // Left images with no right image close enough in time: left out.
+  int unpaired_right = 0;  // Right images with no left image: left out.
+  int64_t max_offset_ns = 0;  // Largest time difference within a pair.
+};
+
 struct Dataset {
   std::string root;
   DatasetFormat format = DatasetFormat::kEuroc;
@@ -53,6 +60,7 @@ struct Dataset {
   std::vector<ImuSample> imu;       // Empty when the dataset has none.
   Trajectory odom_from_cam;         // Odometry's camera poses; only relative motion matters.
   Trajectory world_from_body;       // Ground truth; empty when the dataset has none.
+  StereoPairing pairing;            // Stereo datasets only.
 
   bool has_stereo() const { return right.has_value(); }
   // Maps left-camera coordinates into the right camera. Requires has_stereo().

@@ -174,6 +174,35 @@ Trajectory ReadPoseCsv(const std::string& path, bool quaternion_w_first) {
   return trajectory;
 }
 
+// Cameras of a stereo rig are triggered together; a recording may still list an image one
+// camera dropped, or stamp the two a little apart.
+constexpr int64_t kMaxPairOffsetNs = 2'000'000;
+
+// Pairs each left image with the right image nearest in time, both lists sorted by time; images
+// without a partner within kMaxPairOffsetNs are counted and left out.
+std::vector<FrameRecord> PairByTimestamp(
+    const std::vector<std::pair<int64_t, std::string>>& left,
+    const std::vector<std::pair<int64_t, std::string>>& right, StereoPairing* pairing) {
+  std::vector<FrameRecord> frames;
+  size_t j = 0;
+  for (const auto& [timestamp, path] : left) {
+    while (j < right.size() && right[j].first < timestamp - kMaxPairOffsetNs) {
+      ++pairing->unpaired_right;
+      ++j;
+    }
+    if (j < right.size() && std::abs(right[j].first - timestamp) <= kMaxPairOffsetNs) {
+      pairing->max_offset_ns =
+          std::max(pairing->max_offset_ns, std::abs(right[j].first - timestamp));
+      frames.push_back({timestamp, path, right[j].second});
+      ++j;
+    } else {
+      ++pairing->unpaired_left;
+    }
+  }
+  pairing->unpaired_right += static_cast<int>(right.size() - j);
+  return frames;
+}
+
 }  // namespace
 
 Dataset ReadEuroc(const std::string& dir) {
@@ -189,26 +218,22 @@ Dataset ReadEuroc(const std::string& dir) {
   if (fs::is_directory(mav0 + "/cam1")) {
     dataset.right = ReadCameraYaml(mav0 + "/cam1/sensor.yaml");
     right_images = ReadCameraCsv(mav0 + "/cam1");
-    if (right_images.size() != left_images.size()) {
-      throw InputError(StrCat(mav0, "/cam1/data.csv: ", right_images.size(),
-                              " images but cam0 has ", left_images.size()));
-    }
     const PinholeCamera& l = dataset.left.camera;
     const PinholeCamera& r = dataset.right->camera;
     if (l.width() != r.width() || l.height() != r.height()) {
       throw InputError(StrCat(mav0, "/cam1/sensor.yaml: resolution differs from cam0"));
     }
   }
-  for (size_t i = 0; i < left_images.size(); ++i) {
-    FrameRecord frame{left_images[i].first, left_images[i].second, ""};
-    if (dataset.right) {
-      if (right_images[i].first != frame.timestamp_ns) {
-        throw InputError(StrCat(mav0, "/cam1/data.csv: image ", i + 1, " has timestamp ",
-                                right_images[i].first, " but cam0's is ", frame.timestamp_ns));
-      }
-      frame.right_path = right_images[i].second;
+  if (!dataset.right) {
+    for (const auto& [timestamp, path] : left_images) {
+      dataset.frames.push_back({timestamp, path, ""});
     }
-    dataset.frames.push_back(std::move(frame));
+  } else {
+    dataset.frames = PairByTimestamp(left_images, right_images, &dataset.pairing);
+    if (dataset.frames.empty()) {
+      throw InputError(StrCat(mav0, ": no cam0 image has a cam1 image within ",
+                              kMaxPairOffsetNs / 1e6, " ms"));
+    }
   }
   if (fs::is_regular_file(mav0 + "/imu0/data.csv"))
     dataset.imu = ReadImuCsv(mav0 + "/imu0/data.csv");

@@ -130,15 +130,41 @@ TEST(EurocTest, BadCsvRowNamesFileAndLine) {
   EXPECT_EQ(ExpectReadError(dir.path()), csv + ":4: expected 7 fields, found 2");
 }
 
-TEST(EurocTest, ImageCountMismatchIsReported) {
+TEST(EurocTest, ImagesArePairedByTimeAndUnpairedOnesCounted) {
   TempDir dir;
   WriteSequence(dir.path());
+  // cam1 lost its last image and stamps the others 1 ms late; cam0 lost its second.
   const std::string csv = dir.path() + "/mav0/cam1/data.csv";
   auto lines = ReadTextLines(csv);
-  std::string out;
-  for (size_t i = 0; i + 1 < lines.size(); ++i) out += lines[i].text + "\n";
+  std::string out = lines[0].text + "\n";
+  for (size_t i = 1; i + 1 < lines.size(); ++i) {
+    const std::string& text = lines[i].text;
+    const int64_t t = std::stoll(text.substr(0, text.find(',')));
+    out += std::to_string(t + 1'000'000) + text.substr(text.find(',')) + "\n";
+  }
   std::ofstream(csv) << out;
-  EXPECT_THAT(ExpectReadError(dir.path()), HasSubstr("cam1/data.csv: 4 images but cam0 has 5"));
+  const std::string cam0 = dir.path() + "/mav0/cam0/data.csv";
+  lines = ReadTextLines(cam0);
+  out.clear();
+  for (size_t i = 0; i < lines.size(); ++i) {
+    if (i != 2) out += lines[i].text + "\n";
+  }
+  std::ofstream(cam0) << out;
+  const Dataset dataset = ReadDataset(dir.path());
+  EXPECT_EQ(dataset.frames.size(), 3u);  // 5 frames, less cam0's second and cam1's last
+  EXPECT_EQ(dataset.pairing.unpaired_left, 1);
+  EXPECT_EQ(dataset.pairing.unpaired_right, 1);
+  EXPECT_EQ(dataset.pairing.max_offset_ns, 1'000'000);
+  // Nothing within the tolerance: a clear refusal.
+  lines = ReadTextLines(csv);
+  out = lines[0].text + "\n";
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::string& text = lines[i].text;
+    const int64_t t = std::stoll(text.substr(0, text.find(',')));
+    out += std::to_string(t + 10'000'000) + text.substr(text.find(',')) + "\n";
+  }
+  std::ofstream(csv) << out;
+  EXPECT_THAT(ExpectReadError(dir.path()), HasSubstr("no cam0 image has a cam1 image within 2 ms"));
 }
 
 TEST(EurocTest, NonMonotonicTimestampsNameTheLine) {
