@@ -13,6 +13,7 @@ using Args = std::vector<std::string>;
 int RunSim(const Args& args);
 int RunEval(const Args& args);
 int RunMap(const Args& args);
+int RunDataset(const Args& args);
 int RunLocalize(const Args& args);
 int RunStream(const Args& args);
 int RunRelocalize(const Args& args);

@@ -128,9 +128,10 @@ int RunEval(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (options.rpe_delta_s <= 0) throw UsageError("--delta must be positive");
   if (options.max_time_diff_s < 0) throw UsageError("--max-dt must not be negative");
+  if (spread && !gt_path.empty()) throw UsageError("--spread takes no --gt");
+  if (!spread && gt_path.empty()) throw UsageError("missing --gt");
   const Trajectory est = ReadTum(est_path);
   if (spread) {
-    if (!gt_path.empty()) throw UsageError("--spread takes no --gt");
     if (est.empty()) throw InputError(est_path + ": no poses");
     const TrajectorySpread result = ComputeSpread(est);
     if (json) {
@@ -140,7 +141,6 @@ int RunEval(const Args& args) {
     }
     return 0;
   }
-  if (gt_path.empty()) throw UsageError("--gt is required (or --spread)");
   const Trajectory gt = ReadTum(gt_path);
   if (gt.empty()) throw InputError(gt_path + ": no poses");
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, options);

@@ -249,26 +249,41 @@ int RunBuild(const Args& args) {
   parser.AddFlag("frames", &frames, "use only the first N frames (0: all)");
   parser.AddFlag("trajectory", &trajectory,
                  "also write the estimated frame poses (TUM, map frame)");
-  mapping::MapBuilderOptions options;
-  parser.AddFlag("keyframe-translation", &options.keyframes.translation_m,
+  mapping::DatasetMappingOptions options;
+  parser.AddFlag("keyframe-translation", &options.builder.keyframes.translation_m,
                  "new keyframe after this many metres");
-  parser.AddFlag("keyframe-rotation", &options.keyframes.rotation_deg,
+  parser.AddFlag("keyframe-rotation", &options.builder.keyframes.rotation_deg,
                  "new keyframe after this many degrees");
   int loop_closure = 1;
   parser.AddFlag("loop-closure", &loop_closure, "1 to close loops, 0 not to");
+  int max_features = 0;
+  parser.AddFlag("max-features", &max_features,
+                 "corners per image (default: 600 at 320x240, more for larger images)");
+  parser.AddFlag("min-points", &options.min_points,
+                 "refuse to write a map with fewer points, saying why");
+  parser.AddFlag("check-frames", &options.check_frames,
+                 "frames on which the rig is checked before the build (0: no check)");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
   if (frames < 0) throw UsageError("--frames must not be negative");
-  if (!(options.keyframes.translation_m > 0) || !(options.keyframes.rotation_deg > 0)) {
+  if (!(options.builder.keyframes.translation_m > 0) ||
+      !(options.builder.keyframes.rotation_deg > 0)) {
     throw UsageError("keyframe thresholds must be positive");
   }
-  options.loop_closure.enabled = loop_closure != 0;
+  if (max_features < 0 || options.min_points < 0 || options.check_frames < 0) {
+    throw UsageError("--max-features, --min-points and --check-frames must not be negative");
+  }
+  options.builder.loop_closure.enabled = loop_closure != 0;
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   Dataset dataset = ReadDataset(
       dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
   if (frames > 0 && frames < static_cast<int>(dataset.frames.size())) dataset.frames.resize(frames);
-  options.features = DefaultFeatureSettings(features);
+  options.builder.features = DefaultFeatureSettings(features);
+  if (max_features > 0) {
+    options.builder.features = WithMaxFeatures(options.builder.features, max_features);
+    options.builder.scale_feature_count = false;
+  }
   MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
                        fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build"};
   mapping::MapBuildStats stats;

@@ -10,7 +10,7 @@
 
 #include "core/camera/pinhole_camera.h"
 #include "core/camera/stereo_rectifier.h"
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 #include "core/geometry/rigid3.h"
 #include "mapping/slam_state.h"
 

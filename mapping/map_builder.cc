@@ -34,12 +34,7 @@ const MapBuilderOptions& Checked(const MapBuilderOptions& options) {
 
 FeatureSettings FeaturesFor(const MapBuilderOptions& options, const PinholeCamera& camera) {
   if (!options.scale_feature_count) return options.features;
-  int count = 0;
-  for (const auto& [name, value] : options.features.params) {
-    if (name == "max_features") count = static_cast<int>(value);
-  }
-  return WithMaxFeatures(options.features,
-                         FeatureCountForImage(count, camera.width(), camera.height()));
+  return FeatureSettingsForImage(options.features, camera.width(), camera.height());
 }
 
 }  // namespace

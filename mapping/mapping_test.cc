@@ -131,8 +131,8 @@ TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
   const sim::GenerateStats generated =
       sim::SequenceGenerator(options).Generate("map_square", dir.path());
   const Dataset dataset = ReadDataset(generated.dir);
-  MapBuilderOptions builder_options;
-  builder_options.loop_closure.enabled = false;
+  DatasetMappingOptions builder_options;
+  builder_options.builder.loop_closure.enabled = false;
   MapBuildStats stats;
   Trajectory estimate;
   const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test"}, &stats, &estimate);
@@ -162,7 +162,7 @@ TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
       sim::SequenceGenerator(options).Generate("straight", dir.path());
   Dataset dataset = ReadDataset(generated.dir);
   dataset.right.reset();
-  EXPECT_THROW(BuildMap(dataset, MapBuilderOptions{}, {"m", 0, "", ""}, nullptr), InputError);
+  EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", ""}, nullptr), InputError);
 }
 
 TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
@@ -175,7 +175,7 @@ TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
       sim::SequenceGenerator(options).Generate("map_square", dir.path());
   const Dataset dataset = ReadDataset(generated.dir);
   MapBuildStats stats;
-  const Map map = BuildMap(dataset, MapBuilderOptions{}, {"one", 0, "test", "test"}, &stats);
+  const Map map = BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test"}, &stats);
   EXPECT_EQ(stats.keyframes, 1);
   EXPECT_GT(stats.points, 400);
   EXPECT_EQ(stats.observations, stats.points);

@@ -10,7 +10,7 @@
 #include <Eigen/Core>
 
 #include "core/features/feature_types.h"
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 #include "core/geometry/rigid3.h"
 
 namespace visloc::mapping {

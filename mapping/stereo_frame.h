@@ -21,7 +21,7 @@
 
 #include "core/camera/stereo_rectifier.h"
 #include "core/features/features.h"
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 
 namespace visloc::mapping {
 

@@ -5,7 +5,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "core/util/temp_dir.h"
+#include "dataset/dataset.h"
+#include "dataset/euroc.h"
 #include "mapstore/map_store.h"
 #include "sim/sequences.h"
 #include "sim/world.h"
@@ -82,6 +86,69 @@ TEST(MapBuildE2eTest, MonocularOrMissingDatasetsAreRefusedClearly) {
       {"map", "build", "--dataset", dir.path(), "--out", dir.File("m.db"), "--name", "../x"});
   EXPECT_EQ(bad_name.exit_code, 1);
   EXPECT_THAT(bad_name.err, HasSubstr("invalid map name '../x'"));
+}
+
+// A rig whose calibration is wrong must be caught before a build, with the reason, and a map too
+// small to localize in is never written by surprise.
+class RigCheckE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_EQ(Visloc({"sim", "--out", dir_.path(), "--sequence", "map_square", "--frames", "3",
+                      "--no-contact-sheet"})
+                  .exit_code,
+              0);
+    dataset_ = dir_.File("map_square");
+  }
+  // Rewrites the sensor.yaml files (the images stay).
+  void WriteCalibration(const CameraInfo& left, const CameraInfo& right) {
+    EurocWriter(dataset_, left, right);
+  }
+  TempDir dir_;
+  std::string dataset_;
+};
+
+TEST_F(RigCheckE2eTest, ASoundRigPassesAndAWrongT_BSIsNamed) {
+  const ProcessResult good = Visloc({"dataset", "check", dataset_, "--json"});
+  ASSERT_EQ(good.exit_code, 0) << good.out << good.err;
+  EXPECT_THAT(good.out, HasSubstr("\"ok\":true"));
+  EXPECT_LT(JsonNumber(good.out, "row_difference_median_px"), 0.2);
+  EXPECT_NEAR(JsonNumber(good.out, "baseline_m"), 0.144, 1e-6);
+
+  // cam1 turned by 1.5 deg about its x axis: rows 4 px apart at 320x240.
+  const Dataset dataset = ReadDataset(dataset_);
+  CameraInfo turned = *dataset.right;
+  turned.body_from_cam = turned.body_from_cam *
+                         Rigid3d(RotationFromRollPitchYaw(1.5 * M_PI / 180, 0, 0),
+                                 Eigen::Vector3d::Zero());
+  WriteCalibration(dataset.left, turned);
+  const ProcessResult bad = Visloc({"dataset", "check", dataset_});
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_THAT(bad.out, HasSubstr("this rig would not map"));
+  EXPECT_THAT(bad.err, HasSubstr("check cam1's T_BS"));
+  const ProcessResult build =
+      Visloc({"map", "build", "--dataset", dataset_, "--out", dir_.File("bad.db")});
+  EXPECT_EQ(build.exit_code, 1);
+  EXPECT_THAT(build.err, HasSubstr("this rig would not map: left/right matches are"));
+  EXPECT_FALSE(std::filesystem::exists(dir_.File("bad.db")));
+
+  // The two cameras' calibrations swapped.
+  WriteCalibration(*dataset.right, dataset.left);
+  const ProcessResult swapped = Visloc({"dataset", "check", dataset_});
+  EXPECT_EQ(swapped.exit_code, 1);
+  EXPECT_THAT(swapped.err, HasSubstr("swapped"));
+}
+
+TEST_F(RigCheckE2eTest, AMapBelowTheMinimumIsRefusedWithTheEvidence) {
+  const ProcessResult build = Visloc({"map", "build", "--dataset", dataset_, "--out",
+                                      dir_.File("small.db"), "--min-points", "100000"});
+  EXPECT_EQ(build.exit_code, 1);
+  EXPECT_THAT(build.err, HasSubstr("fewer than 100000 (--min-points): stereo: "));
+  EXPECT_THAT(build.err, HasSubstr("left keypoints matched per frame"));
+  EXPECT_FALSE(std::filesystem::exists(dir_.File("small.db")));
+  const ProcessResult ok = Visloc(
+      {"map", "build", "--dataset", dataset_, "--out", dir_.File("small.db"), "--json"});
+  ASSERT_EQ(ok.exit_code, 0) << ok.err;
+  EXPECT_GT(JsonNumber(ok.out, "points"), 400);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/util/check.h"
+#include "core/util/strings.h"
 
 namespace visloc {
 namespace {
@@ -37,6 +38,16 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
                "stereo cameras differ in size: ", left.width(), "x", left.height(), " vs ",
                right.width(), "x", right.height());
   VISLOC_CHECK(right_from_left.translation.norm() > 1e-6, "stereo baseline is zero");
+  // The rectified pair puts the right camera at +x of the left one (d = u_left - u_right > 0).
+  const Eigen::Vector3d right_in_left = right_from_left.Inverse().translation;
+  if (std::abs(right_in_left.y()) > std::abs(right_in_left.x())) {
+    throw InputError(StrCat("the right camera sits ", FormatFixed(right_in_left.y(), 3),
+                            " m below the left one: vertical stereo rigs are not supported"));
+  }
+  if (right_in_left.x() <= 0) {
+    throw InputError(StrCat("the right camera sits ", FormatFixed(-right_in_left.x(), 3),
+                            " m to the left of the left one: are the two cameras swapped?"));
+  }
   cv::Mat rotation, translation;
   cv::eigen2cv(Eigen::Matrix3d(right_from_left.rotation.toRotationMatrix()), rotation);
   cv::eigen2cv(Eigen::Vector3d(right_from_left.translation), translation);

@@ -18,7 +18,8 @@ namespace visloc {
 class StereoRectifier {
  public:
   // `right_from_left` maps left-camera coordinates into the right camera (metres). Throws
-  // CheckError when the cameras differ in size or the baseline is degenerate.
+  // CheckError when the cameras differ in size or the baseline is degenerate, InputError when
+  // the right camera is not to the right of the left one (swapped cameras, a vertical rig).
   StereoRectifier(const PinholeCamera& left, const PinholeCamera& right,
                   const Rigid3d& right_from_left);
 

@@ -78,6 +78,21 @@ TEST(StereoRectifierTest, RectifiedImagesAlignAFeatureOnOneRow) {
                CheckError);
 }
 
+TEST(StereoRectifierTest, SwappedOrVerticalRigsAreRefused) {
+  const Rig rig;
+  try {
+    StereoRectifier(rig.right, rig.left, rig.right_from_left.Inverse());
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(),
+                 "the right camera sits 0.144 m to the left of the left one: are the two cameras "
+                 "swapped?");
+  }
+  EXPECT_THROW(StereoRectifier(rig.left, rig.right,
+                               Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0.1, 0))),
+               InputError);
+}
+
 TEST(StereoRectifierTest, TheCanvasKeepsTheCornersOfADistortedImage) {
   // Strong barrel distortion (EuRoC's k1 = -0.28): the region valid in both rectified views
   // loses the raw image's corners, where keypoints are; the canvas keeps them.

@@ -3,7 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "core/features/descriptor.h"
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 #include "core/util/check.h"
 
 namespace visloc {
@@ -80,6 +80,22 @@ TEST(GuidedMatchingTest, OneQueryPerKeypointTheClosestWins) {
   ASSERT_EQ(matches.size(), 1u);
   EXPECT_EQ(matches[0].query, 0);
   EXPECT_NEAR(matches[0].distance, 0.1f, 1e-6);
+}
+
+TEST(MutualNearestTest, KeepsPairsThatChooseEachOther) {
+  cv::Mat a(3, 16, CV_32F, cv::Scalar(0)), b(3, 16, CV_32F, cv::Scalar(0));
+  a.at<float>(0, 0) = 1;  // a0 ~ b1
+  b.at<float>(1, 0) = 0.95f;
+  a.at<float>(1, 1) = 1;  // a1 ~ b0, but a2 is as close to b0: b0's choice is ambiguous
+  a.at<float>(2, 1) = 0.98f;
+  a.at<float>(2, 3) = 0.02f;
+  b.at<float>(0, 1) = 0.99f;
+  b.at<float>(0, 3) = 0.01f;
+  b.at<float>(2, 2) = 1;  // b2 matches nothing
+  const auto pairs = MatchMutualNearest(a, b, DescriptorMatchOptions{});
+  ASSERT_EQ(pairs.size(), 1u);
+  EXPECT_EQ(pairs[0], std::make_pair(0, 1));
+  EXPECT_TRUE(MatchMutualNearest(cv::Mat(), b, DescriptorMatchOptions{}).empty());
 }
 
 TEST(DescriptorMatchOptionsTest, RefusesRatiosAndDistancesOutOfRange) {

@@ -212,6 +212,14 @@ int FeatureCountForImage(int count_at_320x240, int width, int height, int max_co
                     std::min(count_at_320x240, max_count), max_count);
 }
 
+FeatureSettings FeatureSettingsForImage(const FeatureSettings& settings, int width, int height) {
+  int count = 0;
+  for (const auto& [name, value] : settings.params) {
+    if (name == "max_features") count = static_cast<int>(value);
+  }
+  return WithMaxFeatures(settings, FeatureCountForImage(count, width, height));
+}
+
 FeatureSettings QueryFeatureSettings(const FeatureSettings& map_settings, int max_features,
                                      bool finest_scale_only) {
   VISLOC_CHECK(max_features >= 0, "max_features ", max_features);

@@ -49,6 +49,8 @@ FeatureSettings WithMaxFeatures(const FeatureSettings& settings, int max_feature
 // `max_count`. A 752x480 image of a real scene holds structure at twice the density the paper's
 // 600 corners cover at 320x240, and a fixed count would leave most of it unused.
 int FeatureCountForImage(int count_at_320x240, int width, int height, int max_count = 1500);
+// `settings` whose max_features is the count at 320x240, with the count for the image size.
+FeatureSettings FeatureSettingsForImage(const FeatureSettings& settings, int width, int height);
 
 // The settings for query images of a localization session: the map's detector and descriptor
 // (so descriptors stay comparable), with at most `max_features` corners (0 keeps the map's) and,

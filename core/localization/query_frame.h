@@ -9,7 +9,7 @@
 
 #include "core/camera/pinhole_camera.h"
 #include "core/features/features.h"
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 
 namespace visloc {
 

@@ -1,4 +1,4 @@
-#include "core/features/guided_matching.h"
+#include "core/features/descriptor_matching.h"
 
 #include <limits>
 
@@ -53,6 +53,31 @@ std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
     if (claim.query >= 0) matches.push_back(claim);
   }
   return matches;
+}
+
+std::vector<std::pair<int, int>> MatchMutualNearest(const cv::Mat& a, const cv::Mat& b,
+                                                    const DescriptorMatchOptions& options) {
+  if (a.empty() || b.empty()) return {};
+  VISLOC_CHECK(a.type() == b.type() && a.cols == b.cols, "descriptor sets differ in type or width");
+  const float max_distance =
+      options.MaxDistance(a.type() == CV_8U ? DescriptorType::kBinary : DescriptorType::kFloat32);
+  std::vector<NearestTwo> from_a(a.rows), from_b(b.rows);
+  for (int i = 0; i < a.rows; ++i) {
+    for (int j = 0; j < b.rows; ++j) {
+      const float distance = DescriptorDistance(a, i, b, j);
+      from_a[i].Offer(distance, j);
+      from_b[j].Offer(distance, i);
+    }
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (int i = 0; i < a.rows; ++i) {
+    const int j = from_a[i].best_index;
+    if (!from_a[i].Distinctive(options.ratio, max_distance)) continue;
+    if (from_b[j].best_index == i && from_b[j].Distinctive(options.ratio, max_distance)) {
+      pairs.emplace_back(i, j);
+    }
+  }
+  return pairs;
 }
 
 }  // namespace visloc

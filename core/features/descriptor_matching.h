@@ -1,9 +1,13 @@
 #pragma once
-// Guided descriptor matching, the one matcher that tracking uses in both mapping and
-// localization: scene points whose image position is predicted (projected with a prior pose)
-// are matched to the keypoints within a search radius of the prediction (seed paper 000,
-// sec. 5). A match must pass DescriptorMatchOptions (distance and ratio test), and each keypoint
-// keeps only the closest point that claims it (one point per keypoint).
+// Descriptor matching shared by mapping and localization.
+//
+// Guided (MatchGuided), the one matcher tracking uses in both: scene points whose image position
+// is predicted (projected with a prior pose) are matched to the keypoints within a search radius
+// of the prediction (seed paper 000, sec. 5). A match must pass DescriptorMatchOptions (distance
+// and ratio test), and each keypoint keeps only the closest point that claims it.
+//
+// Unguided (MatchMutualNearest): two descriptor sets with no geometry at all, for checks that
+// must not assume what they measure (a rig's calibration).
 
 #include <algorithm>
 #include <vector>
@@ -58,6 +62,11 @@ std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
                                      const KeypointGrid& grid,
                                      const cv::Mat& keypoint_descriptors, double radius_px,
                                      const DescriptorMatchOptions& options);
+
+// Pairs (a, b) of rows of `a` and `b` that are each other's nearest neighbour and pass
+// DescriptorMatchOptions in both directions. Brute force: for diagnostics, not per-frame work.
+std::vector<std::pair<int, int>> MatchMutualNearest(const cv::Mat& a, const cv::Mat& b,
+                                                    const DescriptorMatchOptions& options);
 
 template <typename Visit>
 void KeypointGrid::ForEachWithin(const Eigen::Vector2d& center_px, double radius_px,

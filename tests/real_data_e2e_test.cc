@@ -1,0 +1,139 @@
+// End-to-end on real recordings (../shared/real, read in place; tests/CMakeLists.txt names the
+// folder): what a lab's first hour with visloc does. A real stereo rig (EuRoC: two cameras with
+// their own intrinsics, radial-tangential lenses and T_BS, to be rectified) and the simplest one
+// (KITTI: rectified, no distortion, a car at 8 m/s) must check, map, localize in-process and
+// through the real server, and relocalize a single frame.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "core/util/temp_dir.h"
+#include "dataset/dataset.h"
+#include "dataset/tum.h"
+#include "tests/support/e2e.h"
+#include "tests/support/process.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::JsonNumber;
+using testing::ProcessResult;
+using testing::ServerProcess;
+using testing::Visloc;
+
+const std::string kReal = VISLOC_REAL_DATA;
+const std::string kEuroc = kReal + "/euroc_v1_01_micro";
+const std::string kKitti = kReal + "/kitti00_first11";
+
+class RealDataE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!std::filesystem::is_directory(kEuroc) || !std::filesystem::is_directory(kKitti)) {
+      GTEST_SKIP() << "no real recordings at " << kReal << " (set VISLOC_REAL_DATA)";
+    }
+  }
+  TempDir dir_{"visloc_real"};
+};
+
+// The spread of a still camera's poses: {position max m, rotation max deg}.
+std::pair<double, double> Spread(const std::string& trajectory) {
+  const ProcessResult spread = Visloc({"eval", "--est", trajectory, "--spread", "--json"});
+  EXPECT_EQ(spread.exit_code, 0) << spread.err;
+  return {JsonNumber(spread.out, "position_m", "max"), JsonNumber(spread.out, "rotation_deg", "max")};
+}
+
+TEST_F(RealDataE2eTest, EurocChecksMapsAndLocalizesEveryFrameInProcessAndThroughTheServer) {
+  const ProcessResult check = Visloc({"dataset", "check", kEuroc, "--json"});
+  ASSERT_EQ(check.exit_code, 0) << check.out << check.err;
+  EXPECT_LT(JsonNumber(check.out, "row_difference_median_px"), 0.5);
+  EXPECT_GT(JsonNumber(check.out, "stereo_matches_median"), 500);
+  EXPECT_NEAR(JsonNumber(check.out, "baseline_m"), 0.110, 0.001);
+
+  // The camera stands still: one keyframe, whose stereo points are the map.
+  const std::string map = dir_.File("maps/euroc.db");
+  std::filesystem::create_directories(dir_.File("maps"));
+  const ProcessResult build =
+      Visloc({"map", "build", "--dataset", kEuroc, "--out", map, "--json"});
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  const double points = JsonNumber(build.out, "points");
+  std::printf("EuRoC map: %.0f points, %.0f keyframes\n", points,
+              JsonNumber(build.out, "keyframes"));
+  EXPECT_GE(points, 500);
+  EXPECT_EQ(JsonNumber(build.out, "tracking_failures"), 0);
+  EXPECT_EQ(Visloc({"map", "verify", map}).exit_code, 0);
+
+  const std::string local = dir_.File("local.tum");
+  const ProcessResult localize = Visloc(
+      {"localize", "--map", map, "--dataset", kEuroc, "--trajectory", local, "--json"});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  EXPECT_EQ(JsonNumber(localize.out, "frames"), 95);
+  EXPECT_EQ(JsonNumber(localize.out, "localized_fraction"), 1.0);
+  const auto [position_m, rotation_deg] = Spread(local);
+  std::printf("in-process spread: %.2f mm, %.3f deg\n", 1e3 * position_m, rotation_deg);
+  EXPECT_LE(position_m, 0.005);
+  EXPECT_LE(rotation_deg, 0.2);
+
+  ServerProcess server(VISLOC_SERVER_PATH, dir_.File("maps"));
+  const std::string streamed = dir_.File("stream.tum");
+  const ProcessResult stream =
+      Visloc({"stream", "--server", server.address(), "--map", "euroc", "--dataset", kEuroc,
+              "--rate", "0", "--trajectory", streamed, "--json"});
+  ASSERT_EQ(stream.exit_code, 0) << stream.err;
+  EXPECT_EQ(JsonNumber(stream.out, "errors"), 0);
+  EXPECT_EQ(JsonNumber(stream.out, "localized_fraction"), 1.0);
+  const auto [stream_position_m, stream_rotation_deg] = Spread(streamed);
+  EXPECT_LE(stream_position_m, 0.005);
+  EXPECT_LE(stream_rotation_deg, 0.2);
+
+  // One real frame, no session: where was it taken?
+  const Dataset dataset = ReadDataset(kEuroc);
+  const ProcessResult single =
+      Visloc({"relocalize", "--server", server.address(), "--map", "euroc", "--dataset", kEuroc,
+              dataset.frames[50].left_path, "--json"});
+  ASSERT_EQ(single.exit_code, 0) << single.out << single.err;
+  EXPECT_GT(JsonNumber(single.out, "inliers"), 100);
+  const Trajectory in_process = ReadTum(local);
+  const double x = JsonNumber(single.out, "tx"), y = JsonNumber(single.out, "ty"),
+               z = JsonNumber(single.out, "tz");
+  EXPECT_LT((Eigen::Vector3d(x, y, z) - in_process[50].pose.translation).norm(), 0.01);
+}
+
+TEST_F(RealDataE2eTest, OrbMapsTheEurocSnippetToo) {
+  const ProcessResult build = Visloc({"map", "build", "--dataset", kEuroc, "--features", "orb",
+                                      "--out", dir_.File("orb.db"), "--json"});
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  std::printf("EuRoC ORB map: %.0f points\n", JsonNumber(build.out, "points"));
+  EXPECT_GE(JsonNumber(build.out, "points"), 500);
+}
+
+TEST_F(RealDataE2eTest, KittiTracksEveryFrameAndMovesLikeACar) {
+  const std::string map = dir_.File("kitti.db");
+  const std::string frames = dir_.File("frames.tum");
+  const ProcessResult build = Visloc({"map", "build", "--dataset", kKitti, "--out", map,
+                                      "--trajectory", frames, "--json"});
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_EQ(JsonNumber(build.out, "tracking_failures"), 0);
+  EXPECT_GE(JsonNumber(build.out, "points"), 1000);
+  // Forward (the camera's z) at about 0.8 m a frame, hardly sideways or up.
+  const Trajectory poses = ReadTum(frames);
+  ASSERT_EQ(poses.size(), 11u);
+  for (size_t i = 1; i < poses.size(); ++i) {
+    const Eigen::Vector3d step = poses[i].pose.translation - poses[i - 1].pose.translation;
+    EXPECT_GT(step.z(), 0.6) << "frame " << i;
+    EXPECT_LT(step.z(), 0.9) << "frame " << i;
+    EXPECT_LT(std::hypot(step.x(), step.y()), 0.1) << "frame " << i;
+  }
+  std::printf("KITTI: %.2f m forward over 10 frames\n",
+              poses.back().pose.translation.z() - poses.front().pose.translation.z());
+  const ProcessResult localize =
+      Visloc({"localize", "--map", map, "--dataset", kKitti, "--json"});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  EXPECT_EQ(JsonNumber(localize.out, "localized_fraction"), 1.0);
+  EXPECT_EQ(JsonNumber(localize.out, "statuses", "tracking"), 10);
+}
+
+}  // namespace
+}  // namespace visloc
