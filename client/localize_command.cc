@@ -29,7 +29,7 @@ struct LocalizeArgs {
   bool json = false, all_scales = false;
   int frames = 0;
   int k = 10;
-  int max_features = 0;
+  int max_features = LocalizerOptions{}.max_query_features;
   double threshold = 0.2;
 };
 
@@ -81,7 +81,7 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("mode", &args.mode, "visibility, transparent or brute_force (baselines)");
   parser.AddFlag("k", &args.k, "visibility: nearest keyframes K");
   parser.AddFlag("threshold", &args.threshold, "visibility: probability threshold P_t");
-  parser.AddFlag("max-features", &args.max_features, "keypoints per image (0: the map's setting)");
+  parser.AddFlag("max-features", &args.max_features, "keypoints per image (0: the map's own count)");
   parser.AddSwitch("all-scales", &args.all_scales,
                    "detect at all of the map's scales (default: the finest only, faster)");
   parser.AddFlag("blackout", &args.blackout,
