@@ -97,7 +97,7 @@ struct RelocalizationRun {
 };
 
 RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap>& map,
-                                     const PinholeCamera& camera,
+                                     const Camera& camera,
                                      const std::vector<cv::Mat>& images, int queries) {
   const LocalizerOptions options;
   const PoseTracker tracker(map, camera, options.tracker);
@@ -133,7 +133,7 @@ struct GrpcRun {
 // Opens a Localize stream on `map_name` with the dataset's camera and the default options.
 std::unique_ptr<grpc::ClientReaderWriter<v1::LocalizeRequest, v1::LocalizeResponse>> StartSession(
     v1::Localization::Stub* stub, grpc::ClientContext* context, const Connection& server,
-    const std::string& map_name, const PinholeCamera& camera) {
+    const std::string& map_name, const Camera& camera) {
   server.Prepare(context);
   auto stream = stub->Localize(context);
   v1::LocalizeRequest start;
@@ -165,7 +165,7 @@ v1::LocalizeRequest RawFrameRequest(const cv::Mat& image, int64_t timestamp_ns,
 GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
                  const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
                  const std::vector<cv::Mat>& images) {
-  const PinholeCamera& camera = dataset.left.camera;
+  const Camera& camera = dataset.left.camera;
   auto stub = v1::Localization::NewStub(server.OpenChannel());
   grpc::ClientContext tracking_context, no_engine_context;
   auto tracking = StartSession(stub.get(), &tracking_context, server, map_name, camera);
@@ -247,7 +247,7 @@ int RunBench(const Args& raw_args) {
   const size_t count =
       frames > 0 ? std::min<size_t>(frames, dataset.frames.size()) : dataset.frames.size();
   std::vector<cv::Mat> images;
-  const PinholeCamera& camera = dataset.left.camera;
+  const Camera& camera = dataset.left.camera;
   for (size_t i = 0; i < count; ++i) {
     images.push_back(LoadGreyImage(dataset.frames[i].left_path, camera.width(), camera.height()));
   }

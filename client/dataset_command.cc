@@ -16,17 +16,9 @@
 namespace visloc::cli {
 namespace {
 
-std::string DistortionText(const PinholeCamera& camera) {
-  const RadTanDistortion& d = camera.distortion();
-  return StrCat("radial-tangential k1 ", FormatFixed(d.k1, 4), " k2 ", FormatFixed(d.k2, 4),
-                " p1 ", FormatFixed(d.p1, 5), " p2 ", FormatFixed(d.p2, 5));
-}
-
 void PrintCamera(const char* name, const CameraInfo& info) {
-  const PinholeCamera& c = info.camera;
   const Eigen::Vector3d& t = info.body_from_cam.translation;
-  std::printf("%s: pinhole %dx%d, fx %.2f fy %.2f cx %.2f cy %.2f, %s\n", name, c.width(),
-              c.height(), c.fx(), c.fy(), c.cx(), c.cy(), DistortionText(c).c_str());
+  std::printf("%s: %s\n", name, ToString(info.camera).c_str());
   std::printf("      T_BS: translation (%.4f, %.4f, %.4f) m, rotation %.2f deg\n", t.x(), t.y(),
               t.z(), RotationAngleDeg(info.body_from_cam.rotation));
 }

@@ -50,7 +50,7 @@ FrameInput MakeFrameInput(const Dataset& dataset, size_t index, const LocalizeAr
                           const std::optional<std::pair<double, double>>& blackout) {
   FrameInput input =
       DatasetFrameInput(dataset, index, args.odometry, args.odometry && !args.no_gyro);
-  const PinholeCamera& camera = dataset.left.camera;
+  const Camera& camera = dataset.left.camera;
   input.image = LoadGreyImage(dataset.frames[index].left_path, camera.width(), camera.height());
   const double t_s = NsToSeconds(input.timestamp_ns - dataset.frames.front().timestamp_ns);
   if (blackout && t_s >= blackout->first && t_s < blackout->second) {

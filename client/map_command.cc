@@ -77,7 +77,7 @@ void WriteBox(JsonWriter& json, const std::string& key, const Eigen::AlignedBox3
 }
 
 void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
-  const PinholeCamera& c = info.camera;
+  const Camera& c = info.camera;
   json.BeginObject()
       .Field("name", info.metadata.name)
       .Field("path", info.path)
@@ -88,10 +88,13 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
       .Field("builder", info.metadata.builder)
       .Key("camera")
       .BeginObject()
-      .Field("model", "pinhole-radtan")
+      .Field("model", mapstore::CameraModelName(c.lens().model))
+      .Field("lens_model", LensModelName(c.lens().model))
       .Field("width", c.width())
       .Field("height", c.height());
-  const char* names[8] = {"fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2"};
+  const auto lens_names = LensCoefficientNames(c.lens().model);
+  const char* names[8] = {"fx", "fy", "cx", "cy", lens_names[0], lens_names[1], lens_names[2],
+                          lens_names[3]};
   const auto params = c.Params();
   for (int i = 0; i < 8; ++i) json.Field(names[i], params[i]);
   json.EndObject()
@@ -119,15 +122,11 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
 }
 
 void PrintInfo(const MapInfo& info) {
-  const PinholeCamera& c = info.camera;
-  const RadTanDistortion& d = c.distortion();
   std::printf("map           %s (schema %d, %s, %s)\n", info.metadata.name.c_str(),
               info.schema_version, FormatBytes(info.file_bytes).c_str(), info.path.c_str());
   std::printf("created       %s from %s by %s\n", FormatTime(info.metadata.created_unix_s).c_str(),
               info.metadata.source_dataset.c_str(), info.metadata.builder.c_str());
-  std::printf(
-      "camera        %dx%d pinhole fx %.2f fy %.2f cx %.2f cy %.2f, radtan %.4g %.4g %.4g %.4g\n",
-      c.width(), c.height(), c.fx(), c.fy(), c.cx(), c.cy(), d.k1, d.k2, d.p1, d.p2);
+  std::printf("camera        %s\n", ToString(info.camera).c_str());
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);
   std::printf("keyframes     %zu, centres %s\n", info.keyframes,

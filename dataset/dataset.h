@@ -14,7 +14,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/geometry/trajectory.h"
 
@@ -26,7 +26,7 @@ std::string ToString(DatasetFormat format);
 DatasetFormat ParseDatasetFormat(const std::string& text);
 
 struct CameraInfo {
-  PinholeCamera camera;
+  Camera camera;
   Rigid3d body_from_cam;
   double rate_hz = 0.0;
 };

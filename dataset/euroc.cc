@@ -72,25 +72,30 @@ CameraInfo ReadCameraYaml(const std::string& path) {
     }
     const std::vector<double> resolution = ReadNumbers(path, root, "resolution", 2);
     const std::vector<double> k = ReadNumbers(path, root, "intrinsics", 4);
-    RadTanDistortion distortion;
+    // Kalibr and EuRoC: radial-tangential (radtan) or equidistant (fisheye, Kannala-Brandt).
+    Lens lens;
     if (root["distortion_model"]) {
       const std::string distortion_model = ReadString(path, root, "distortion_model");
-      if (distortion_model != "radial-tangential" && distortion_model != "radtan" &&
-          distortion_model != "none") {
-        throw InputError(StrCat(path, ": unsupported distortion_model '", distortion_model,
-                                "' (expected radial-tangential)"));
-      }
       if (distortion_model != "none") {
+        LensModel model;
+        try {
+          model = ParseLensModel(distortion_model);
+        } catch (const InputError&) {
+          ThrowAtLine(path, root["distortion_model"].Mark().line + 1,
+                      StrCat("unsupported distortion_model '", distortion_model,
+                             "' (expected radial-tangential, equidistant or none)"));
+        }
         const std::vector<double> d = ReadNumbers(path, root, "distortion_coefficients", 4);
-        distortion = {d[0], d[1], d[2], d[3]};
+        lens = model == LensModel::kEquidistant ? Lens::Equidistant(d[0], d[1], d[2], d[3])
+                                                : Lens(d[0], d[1], d[2], d[3]);
       }
     }
     if (resolution[0] < 1 || resolution[1] < 1 || k[0] <= 0 || k[1] <= 0) {
       throw InputError(StrCat(path, ": invalid resolution or focal length"));
     }
     CameraInfo info;
-    info.camera = PinholeCamera(static_cast<int>(resolution[0]), static_cast<int>(resolution[1]),
-                                k[0], k[1], k[2], k[3], distortion);
+    info.camera = Camera(static_cast<int>(resolution[0]), static_cast<int>(resolution[1]),
+                                k[0], k[1], k[2], k[3], lens);
     info.body_from_cam = ReadTransform(path, root);
     if (root["rate_hz"]) {
       const auto rate = ParseDouble(root["rate_hz"].Scalar());
@@ -218,8 +223,8 @@ Dataset ReadEuroc(const std::string& dir) {
   if (fs::is_directory(mav0 + "/cam1")) {
     dataset.right = ReadCameraYaml(mav0 + "/cam1/sensor.yaml");
     right_images = ReadCameraCsv(mav0 + "/cam1");
-    const PinholeCamera& l = dataset.left.camera;
-    const PinholeCamera& r = dataset.right->camera;
+    const Camera& l = dataset.left.camera;
+    const Camera& r = dataset.right->camera;
     if (l.width() != r.width() || l.height() != r.height()) {
       throw InputError(StrCat(mav0, "/cam1/sensor.yaml: resolution differs from cam0"));
     }
@@ -264,12 +269,11 @@ void WriteCameraYaml(const std::string& path, const CameraInfo& info, const std:
   for (int r = 0; r < 4; ++r) {
     for (int c = 0; c < 4; ++c) data[r * 4 + c] = t_bs(r, c);
   }
-  const PinholeCamera& cam = info.camera;
+  const Camera& cam = info.camera;
   const double resolution[2] = {static_cast<double>(cam.width()),
                                 static_cast<double>(cam.height())};
   const double intrinsics[4] = {cam.fx(), cam.fy(), cam.cx(), cam.cy()};
-  const RadTanDistortion& d = cam.distortion();
-  const double distortion[4] = {d.k1, d.k2, d.p1, d.p2};
+  const double* distortion = cam.lens().coefficients.data();
   std::string out =
       "# General sensor definitions.\nsensor_type: camera\ncomment: " + comment +
       "\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n  cols: 4\n  rows: 4\n"
@@ -277,7 +281,8 @@ void WriteCameraYaml(const std::string& path, const CameraInfo& info, const std:
       FormatNumbers(data, 16) + "\n\n# Camera specific definitions.\n" +
       "rate_hz: " + StrCat(info.rate_hz) + "\nresolution: " + FormatNumbers(resolution, 2) +
       "\ncamera_model: pinhole\nintrinsics: " + FormatNumbers(intrinsics, 4) +
-      " #fu, fv, cu, cv\n" + "distortion_model: radial-tangential\ndistortion_coefficients: " +
+      " #fu, fv, cu, cv\n" + "distortion_model: " + LensModelName(cam.lens().model) +
+      "\ndistortion_coefficients: " +
       FormatNumbers(distortion, 4) + "\n";
   WriteFileAtomically(path, out);
 }

@@ -20,7 +20,7 @@ using ::testing::HasSubstr;
 
 CameraInfo LeftCamera() {
   CameraInfo info;
-  info.camera = PinholeCamera(64, 48, 40.5, 40.25, 31.5, 23.5, {-0.1, 0.01, 0.001, -0.002});
+  info.camera = Camera(64, 48, 40.5, 40.25, 31.5, 23.5, {-0.1, 0.01, 0.001, -0.002});
   info.body_from_cam =
       Rigid3d(RotationFromRollPitchYaw(-M_PI / 2, 0, -M_PI / 2), Eigen::Vector3d(0.0, 0.072, 0.0));
   info.rate_hz = 15;

@@ -104,7 +104,7 @@ Dataset ReadKitti(const std::string& dir) {
   const cv::Mat first = cv::imread(dataset.frames[0].left_path, cv::IMREAD_GRAYSCALE);
   if (first.empty()) throw InputError(StrCat(dataset.frames[0].left_path, ": cannot decode image"));
   dataset.left.camera =
-      PinholeCamera(first.cols, first.rows, p0(0, 0), p0(1, 1), p0(0, 2), p0(1, 2));
+      Camera(first.cols, first.rows, p0(0, 0), p0(1, 1), p0(0, 2), p0(1, 2));
   if (timestamps.size() > 1) {
     dataset.left.rate_hz = (timestamps.size() - 1) / NsToSeconds(timestamps.back() - timestamps[0]);
   }
@@ -136,7 +136,7 @@ Dataset ReadKitti(const std::string& dir) {
   return dataset;
 }
 
-void WriteKittiCalibration(const std::string& dir, const PinholeCamera& camera, double baseline_m) {
+void WriteKittiCalibration(const std::string& dir, const Camera& camera, double baseline_m) {
   fs::create_directories(fs::path(dir) / "image_0");
   fs::create_directories(fs::path(dir) / "image_1");
   std::string out;

@@ -25,7 +25,7 @@ Dataset ReadKitti(const std::string& dir);
 // Writes a rectified stereo sequence in the KITTI layout (times, calib, images, poses.txt).
 // `left_cam_poses` holds the left camera's poses in its first frame, one per frame, or is
 // empty. Used by the simulator and the reader's tests.
-void WriteKittiCalibration(const std::string& dir, const PinholeCamera& camera, double baseline_m);
+void WriteKittiCalibration(const std::string& dir, const Camera& camera, double baseline_m);
 void WriteKittiFrame(const std::string& dir, int index, const cv::Mat& left, const cv::Mat& right);
 void WriteKittiTimesAndPoses(const std::string& dir, const std::vector<int64_t>& timestamps_ns,
                              const Trajectory& left_cam_poses);

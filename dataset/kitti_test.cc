@@ -15,7 +15,7 @@ namespace {
 using ::testing::HasSubstr;
 
 void WriteSequence(const std::string& dir, int frames) {
-  const PinholeCamera camera(64, 48, 40.0, 40.0, 31.5, 23.5);
+  const Camera camera(64, 48, 40.0, 40.0, 31.5, 23.5);
   WriteKittiCalibration(dir, camera, 0.144);
   std::vector<int64_t> times;
   Trajectory poses;

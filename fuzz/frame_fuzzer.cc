@@ -32,8 +32,8 @@ const std::shared_ptr<const LocalizationMap>& SmallMap() {
 }
 
 // A small session camera keeps each input fast; frames of any other size must be refused.
-const PinholeCamera& SessionCamera() {
-  static const PinholeCamera camera(64, 48, 40.0, 40.0, 31.5, 23.5);
+const Camera& SessionCamera() {
+  static const Camera camera(64, 48, 40.0, 40.0, 31.5, 23.5);
   return camera;
 }
 
@@ -51,7 +51,7 @@ void FuzzSessionStart(const std::string& bytes) {
   proto::WireLimits limits;
   limits.max_image_width = 256;  // The server allows 4096; smaller keeps the fuzzer fast.
   limits.max_image_height = 256;
-  const PinholeCamera camera = proto::FromProto(start.camera(), limits);
+  const Camera camera = proto::FromProto(start.camera(), limits);
   const LocalizerOptions options = proto::FromProto(start.options());
   Localizer localizer(SmallMap(), camera, options);
 }

@@ -44,7 +44,7 @@ std::string Tagged(int tag, const std::string& rest) {
   return std::string(1, static_cast<char>(tag)) + rest;
 }
 
-const PinholeCamera kCamera(64, 48, 40.0, 40.0, 31.5, 23.5);
+const Camera kCamera(64, 48, 40.0, 40.0, 31.5, 23.5);
 
 v1::Frame RawFrame(int64_t timestamp_ns) {
   const cv::Mat image = Texture(kCamera.width(), kCamera.height());

@@ -117,7 +117,7 @@ DatasetCheck CheckDataset(const Dataset& dataset, const DatasetCheckOptions& opt
     check.problems.push_back("no right camera (cam1 / image_1): map building needs stereo");
     return check;
   }
-  const PinholeCamera& left = dataset.left.camera;
+  const Camera& left = dataset.left.camera;
   const StereoRectifier rectifier(left, dataset.right->camera, dataset.right_from_left());
   check.rectified_focal_px = rectifier.rectified_camera().fx();
   check.baseline_m = rectifier.baseline_m();

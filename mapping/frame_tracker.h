@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/estimators/pnp_ransac.h"
 #include "mapping/landmark_matching.h"
 #include "mapping/reprojection_cost.h"

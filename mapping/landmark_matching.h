@@ -8,7 +8,7 @@
 
 #include <Eigen/Geometry>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/camera/stereo_rectifier.h"
 #include "core/features/descriptor_matching.h"
 #include "core/geometry/rigid3.h"
@@ -25,7 +25,7 @@ struct LandmarkMatch {
 // camera (no distortion) and the region its raw image covers, which reaches beyond the
 // rectified image's bounds at the corners of a distorted lens (StereoRectifier's canvas).
 struct RectifiedView {
-  PinholeCamera camera;
+  Camera camera;
   Eigen::AlignedBox2d region;
 };
 RectifiedView ViewOf(const StereoRectifier& rectifier);

@@ -7,7 +7,7 @@
 
 #include <vector>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "mapping/bundle_adjustment.h"
 #include "mapping/frame_tracker.h"
 #include "mapping/slam_state.h"

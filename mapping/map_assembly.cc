@@ -102,7 +102,7 @@ void AddPoints(const SlamState& state, const Rigid3d& map_from_world,
 
 }  // namespace
 
-Map AssembleMap(const SlamState& state, const PinholeCamera& raw_left_camera,
+Map AssembleMap(const SlamState& state, const Camera& raw_left_camera,
                 const FeatureSettings& features, const MapMetadata& metadata,
                 const Rigid3d& map_from_world, const Rigid3d& rect_from_raw,
                 const RectifiedIntrinsics& intrinsics, const AssemblyOptions& options,

@@ -40,7 +40,7 @@ struct AssemblyStats {
 
 // `map_from_world` takes the SLAM world frame (rectified left camera of the first frame) to the
 // map frame, and `rect_from_raw` the raw left camera into the rectified one.
-Map AssembleMap(const SlamState& state, const PinholeCamera& raw_left_camera,
+Map AssembleMap(const SlamState& state, const Camera& raw_left_camera,
                 const FeatureSettings& features, const MapMetadata& metadata,
                 const Rigid3d& map_from_world, const Rigid3d& rect_from_raw,
                 const RectifiedIntrinsics& intrinsics, const AssemblyOptions& options,

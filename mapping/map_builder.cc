@@ -23,7 +23,7 @@ Rigid3d RotationOnly(const Eigen::Quaterniond& rotation) {
 }
 
 RectifiedIntrinsics IntrinsicsOf(const StereoRectifier& rectifier) {
-  const PinholeCamera& rect = rectifier.rectified_camera();
+  const Camera& rect = rectifier.rectified_camera();
   return {rect.fx(), rect.cx(), rect.cy(), rectifier.baseline_m()};
 }
 
@@ -32,14 +32,14 @@ const MapBuilderOptions& Checked(const MapBuilderOptions& options) {
   return options;
 }
 
-FeatureSettings FeaturesFor(const MapBuilderOptions& options, const PinholeCamera& camera) {
+FeatureSettings FeaturesFor(const MapBuilderOptions& options, const Camera& camera) {
   if (!options.scale_feature_count) return options.features;
   return FeatureSettingsForImage(options.features, camera.width(), camera.height());
 }
 
 }  // namespace
 
-MapBuilder::MapBuilder(const PinholeCamera& left, const PinholeCamera& right,
+MapBuilder::MapBuilder(const Camera& left, const Camera& right,
                        const Rigid3d& right_from_left, const MapBuilderOptions& options)
     : left_(left),
       options_(Checked(options)),

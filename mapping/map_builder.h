@@ -62,7 +62,7 @@ struct MapBuildStats {
 class MapBuilder {
  public:
   // The calibrated pair: raw cameras and the right camera's pose from the left one.
-  MapBuilder(const PinholeCamera& left, const PinholeCamera& right, const Rigid3d& right_from_left,
+  MapBuilder(const Camera& left, const Camera& right, const Rigid3d& right_from_left,
              const MapBuilderOptions& options);
 
   // Processes one stereo frame (raw 8-bit grey images of the calibrated size).
@@ -82,7 +82,7 @@ class MapBuilder {
   Rigid3d MapFromWorld() const;
   Rigid3d RectFromRaw() const;
 
-  PinholeCamera left_;
+  Camera left_;
   MapBuilderOptions options_;
   StereoRectifier rectifier_;
   RectifiedIntrinsics intrinsics_;

@@ -222,7 +222,7 @@ TEST(MapAssemblyTest, StereoViewsCountTwiceAndUnconfirmedLandmarksAreLeftOut) {
   state.Observe(3, 1, 3);
   state.landmarks[3].frames_in_view = 10;
   AssemblyStats stats;
-  const Map map = AssembleMap(state, PinholeCamera(320, 240, 160, 160, 159.5, 119.5),
+  const Map map = AssembleMap(state, Camera(320, 240, 160, 160, 159.5, 119.5),
                               DefaultFeatureSettings("harris_surf16"), {"m", 0, "", ""},
                               Rigid3d::Identity(), Rigid3d::Identity(), kIntrinsics,
                               AssemblyOptions{}, &stats);

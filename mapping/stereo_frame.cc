@@ -189,6 +189,26 @@ bool SearchRow(const RectifiedPair& pair, int x, int y, int d_min, int d_max,
   return true;
 }
 
+// The keypoints the rectified camera sees, on the canvas, with their rectified positions: a
+// fisheye's rim lies beyond any pinhole view (mapping works in rectified coordinates).
+FeatureSet KeepRectifiable(FeatureSet features, const StereoRectifier& rectifier,
+                           std::vector<Eigen::Vector2d>* rectified) {
+  const Eigen::Vector2d low = -rectifier.canvas_offset_px();
+  const Eigen::Vector2d high =
+      low + Eigen::Vector2d(rectifier.canvas_size().width - 1, rectifier.canvas_size().height - 1);
+  std::vector<int> kept;
+  rectified->clear();
+  for (size_t i = 0; i < features.size(); ++i) {
+    const Eigen::Vector2d p = rectifier.RectifyLeftPixel(features.keypoints[i].pixel.cast<double>());
+    if (!p.allFinite() || (p.array() < low.array()).any() || (p.array() > high.array()).any()) {
+      continue;
+    }
+    kept.push_back(static_cast<int>(i));
+    rectified->push_back(p);
+  }
+  return kept.size() == features.size() ? std::move(features) : features.Subset(kept);
+}
+
 }  // namespace
 
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
@@ -196,8 +216,8 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const StereoMatchOptions& options) {
   options.Check();
   StereoFrame frame;
-  frame.left = extractor.Extract(left_raw);
-  const PinholeCamera& rect = rectifier.rectified_camera();
+  frame.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame.left_rect);
+  const Camera& rect = rectifier.rectified_camera();
   const double f = rect.fx(), baseline = rectifier.baseline_m();
   const double max_disparity = f * baseline / options.min_depth_m;
   const bool refine = options.refine_patch_radius_px > 0;
@@ -209,16 +229,13 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
 
   const size_t n = frame.left.size();
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  frame.left_rect.resize(n);
   frame.right_x_rect.assign(n, nan);
   frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
   frame.stats.keypoints = static_cast<int>(n);
   std::vector<Eigen::Vector2f> grid_pixels(n);
   std::vector<double> scores;
   for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d l =
-        rectifier.RectifyLeftPixel(frame.left.keypoints[i].pixel.cast<double>());
-    frame.left_rect[i] = l;
+    const Eigen::Vector2d& l = frame.left_rect[i];
     grid_pixels[i] = l.cast<float>();
     const Eigen::Vector2d c = l + offset;  // On the canvas.
     const int x = static_cast<int>(std::lround(c.x())), y = static_cast<int>(std::lround(c.y()));

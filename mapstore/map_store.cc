@@ -131,6 +131,14 @@ class Crc {
   uint32_t crc_ = 0;
 };
 
+}  // namespace
+
+const char* CameraModelName(LensModel model) {
+  return model == LensModel::kEquidistant ? "pinhole-equidistant" : "pinhole-radtan";
+}
+
+namespace {
+
 uint32_t ContentChecksum(const Map& map) {
   Crc crc;
   crc.Text(map.metadata.name);
@@ -140,6 +148,10 @@ uint32_t ContentChecksum(const Map& map) {
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());
+  // Radial-tangential maps checksum as before lens models existed.
+  if (map.camera.lens().model != LensModel::kRadialTangential) {
+    crc.Text(CameraModelName(map.camera.lens().model));
+  }
   crc.Text(map.features.kind);
   crc.Pod(map.features.descriptor_type);
   crc.Pod(map.features.descriptor_dim);
@@ -242,10 +254,11 @@ void WriteMeta(Database& db, const Map& map) {
 void WriteCameraAndFeatures(Database& db, const Map& map) {
   const auto p = map.camera.Params();
   Statement camera =
-      db.Prepare("INSERT INTO camera VALUES (0, 'pinhole-radtan', ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
-  camera.Bind(1, static_cast<int64_t>(map.camera.width()))
-      .Bind(2, static_cast<int64_t>(map.camera.height()));
-  for (int i = 0; i < 8; ++i) camera.Bind(3 + i, p[i]);
+      db.Prepare("INSERT INTO camera VALUES (0, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+  camera.Bind(1, std::string(CameraModelName(map.camera.lens().model)))
+      .Bind(2, static_cast<int64_t>(map.camera.width()))
+      .Bind(3, static_cast<int64_t>(map.camera.height()));
+  for (int i = 0; i < 8; ++i) camera.Bind(4 + i, p[i]);
   camera.Run();
   db.Prepare("INSERT INTO features VALUES (0, ?, ?, ?)")
       .Bind(1, map.features.kind)
@@ -409,15 +422,19 @@ void ReadCameraAndFeatures(Database& db, Map* map) {
   Statement camera =
       db.Prepare("SELECT model, width, height, fx, fy, cx, cy, k1, k2, p1, p2 FROM camera");
   if (!camera.Step()) throw InputError(db.path() + ": no camera");
-  if (camera.ColumnText(0) != "pinhole-radtan") {
-    throw InputError(StrCat(db.path(), ": unsupported camera model '", camera.ColumnText(0), "'"));
+  const std::string model = camera.ColumnText(0);
+  if (model != CameraModelName(LensModel::kRadialTangential) &&
+      model != CameraModelName(LensModel::kEquidistant)) {
+    throw InputError(StrCat(db.path(), ": unsupported camera model '", model, "'"));
   }
   double p[8];
   for (int i = 0; i < 8; ++i) p[i] = camera.ColumnDouble(3 + i);
+  const Lens lens = model == CameraModelName(LensModel::kEquidistant)
+                        ? Lens::Equidistant(p[4], p[5], p[6], p[7])
+                        : Lens(p[4], p[5], p[6], p[7]);
   try {
-    map->camera = PinholeCamera(static_cast<int>(camera.ColumnInt64(1)),
-                                static_cast<int>(camera.ColumnInt64(2)), p[0], p[1], p[2], p[3],
-                                {p[4], p[5], p[6], p[7]});
+    map->camera = Camera(static_cast<int>(camera.ColumnInt64(1)),
+                         static_cast<int>(camera.ColumnInt64(2)), p[0], p[1], p[2], p[3], lens);
   } catch (const CheckError& e) {
     throw InputError(StrCat(db.path(), ": invalid camera: ", e.what()));
   }

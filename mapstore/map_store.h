@@ -26,6 +26,10 @@ namespace visloc::mapstore {
 // message saying a newer visloc wrote them.
 constexpr int kMapSchemaVersion = 1;
 
+// The camera table's model column: "pinhole-radtan" (k1 k2 p1 p2 in the k1, k2, p1, p2
+// columns) or "pinhole-equidistant" (fisheye; k1 k2 k3 k4 in the same four columns).
+const char* CameraModelName(LensModel model);
+
 struct SaveMapOptions {
   // SQLite page size: large pages load BLOB-heavy maps with fewer reads; small ones keep tiny
   // maps (fuzzing seeds, tests) small on disk. A power of two from 512 to 65536.
@@ -46,7 +50,7 @@ struct MapInfo {
   uint64_t file_bytes = 0;
   int schema_version = kMapSchemaVersion;
   MapMetadata metadata;
-  PinholeCamera camera;
+  Camera camera;
   FeatureSettings features;
   size_t keyframes = 0;
   size_t points = 0;

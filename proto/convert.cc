@@ -71,7 +71,7 @@ Rigid3d FromProto(const v1::Pose& p, const char* field) {
   return Rigid3d(q, t);
 }
 
-void ToProto(const PinholeCamera& camera, v1::CameraModel* out) {
+void ToProto(const Camera& camera, v1::CameraModel* out) {
   out->set_width(camera.width());
   out->set_height(camera.height());
   out->set_fx(camera.fx());
@@ -79,11 +79,12 @@ void ToProto(const PinholeCamera& camera, v1::CameraModel* out) {
   out->set_cx(camera.cx());
   out->set_cy(camera.cy());
   out->clear_distortion();
-  const RadTanDistortion& d = camera.distortion();
-  for (double v : {d.k1, d.k2, d.p1, d.p2}) out->add_distortion(v);
+  for (double v : camera.lens().coefficients) out->add_distortion(v);
+  out->set_lens_model(camera.lens().model == LensModel::kEquidistant ? v1::EQUIDISTANT
+                                                                     : v1::RADIAL_TANGENTIAL);
 }
 
-PinholeCamera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
+Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
   if (c.width() == 0 || c.height() == 0 ||
       c.width() > static_cast<uint32_t>(limits.max_image_width) ||
       c.height() > static_cast<uint32_t>(limits.max_image_height)) {
@@ -95,19 +96,30 @@ PinholeCamera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
     throw InputError(StrCat("camera: focal lengths must be positive and finite (fx ", c.fx(),
                             ", fy ", c.fy(), ")"));
   }
-  RadTanDistortion distortion;
-  if (c.distortion_size() == 4) {
-    distortion = {c.distortion(0), c.distortion(1), c.distortion(2), c.distortion(3)};
+  Lens lens;
+  if (c.lens_model() == v1::EQUIDISTANT) {
+    if (c.distortion_size() != 4) {
+      throw InputError(StrCat("camera: an equidistant lens needs 4 distortion values (k1 k2 k3 k4), got ",
+                              c.distortion_size()));
+    }
+    lens = Lens::Equidistant(c.distortion(0), c.distortion(1), c.distortion(2), c.distortion(3));
+  } else if (c.lens_model() != v1::RADIAL_TANGENTIAL) {
+    throw InputError(StrCat("camera: unknown lens model ", static_cast<int>(c.lens_model())));
+  } else if (c.distortion_size() == 4) {
+    lens = Lens(c.distortion(0), c.distortion(1), c.distortion(2), c.distortion(3));
   } else if (c.distortion_size() != 0) {
     throw InputError(
         StrCat("camera: distortion needs 0 or 4 values (k1 k2 p1 p2), got ", c.distortion_size()));
   }
-  return PinholeCamera(static_cast<int>(c.width()), static_cast<int>(c.height()), c.fx(), c.fy(),
-                       c.cx(), c.cy(), distortion);
+  for (double k : lens.coefficients) {
+    if (!std::isfinite(k)) throw InputError("camera: distortion values must be finite");
+  }
+  return Camera(static_cast<int>(c.width()), static_cast<int>(c.height()), c.fx(), c.fy(), c.cx(),
+                c.cy(), lens);
 }
 
 cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw,
-                    const PinholeCamera& camera) {
+                    const Camera& camera) {
   cv::Mat grey;
   if (raw) {
     const uint32_t stride = raw->stride() == 0 ? raw->width() : raw->stride();
@@ -138,7 +150,7 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw,
   return grey;
 }
 
-FrameInput FromProto(const v1::Frame& frame, const PinholeCamera& camera) {
+FrameInput FromProto(const v1::Frame& frame, const Camera& camera) {
   FrameInput input;
   input.timestamp_ns = frame.timestamp_ns();
   input.image = DecodeImage(frame.encoded(), frame.has_raw() ? &frame.raw() : nullptr, camera);

@@ -5,7 +5,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/localization/localizer.h"
 #include "visloc/v1/visloc.pb.h"
@@ -24,13 +24,13 @@ void ToProto(const Rigid3d& pose, v1::Pose* out);
 // Throws InputError for non-finite values or a zero quaternion (normalized otherwise).
 Rigid3d FromProto(const v1::Pose& pose, const char* field);
 
-void ToProto(const PinholeCamera& camera, v1::CameraModel* out);
-PinholeCamera FromProto(const v1::CameraModel& camera, const WireLimits& limits);
+void ToProto(const Camera& camera, v1::CameraModel* out);
+Camera FromProto(const v1::CameraModel& camera, const WireLimits& limits);
 
 // Decodes a frame's image to 8-bit grey of exactly the camera's size.
 cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw,
-                    const PinholeCamera& camera);
-FrameInput FromProto(const v1::Frame& frame, const PinholeCamera& camera);
+                    const Camera& camera);
+FrameInput FromProto(const v1::Frame& frame, const Camera& camera);
 void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Frame* out);
 
 LocalizerOptions FromProto(const v1::SessionOptions& options);

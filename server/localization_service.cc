@@ -80,7 +80,7 @@ class Session {
 
  private:
   WorkPermits* workers_;
-  PinholeCamera camera_;
+  Camera camera_;
   Localizer localizer_;
   SessionTally tally_;
 };
@@ -227,7 +227,7 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     auto map = maps_->Acquire(request->map_name());
     const WorkPermit permit(&workers_);
     // Without a camera model the image is taken to come from the map's own camera.
-    const PinholeCamera camera = request->has_camera()
+    const Camera camera = request->has_camera()
                                      ? proto::FromProto(request->camera(), limits_.wire)
                                      : map->map().camera;
     const cv::Mat image =

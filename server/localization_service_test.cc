@@ -37,7 +37,7 @@ TEST(LocalizationServiceTest, ConcurrentSessionsShareTheWorkerPermits) {
   const std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   const auto channel = server->InProcessChannel(grpc::ChannelArguments());
 
-  const PinholeCamera camera(160, 120, 80.0, 80.0, 79.5, 59.5);
+  const Camera camera(160, 120, 80.0, 80.0, 79.5, 59.5);
   cv::Mat image(camera.height(), camera.width(), CV_8UC1);
   cv::randu(image, 0, 255);
   constexpr int kSessions = 4, kFrames = 10;

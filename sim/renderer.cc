@@ -25,7 +25,7 @@ struct CamSurface {
 
 }  // namespace
 
-Renderer::Renderer(const PinholeCamera& camera, int supersample)
+Renderer::Renderer(const Camera& camera, int supersample)
     : camera_(camera), supersample_(supersample) {
   VISLOC_CHECK(supersample >= 1 && supersample <= 8, "supersample ", supersample);
   samples_x_ = camera.width() * supersample;

@@ -1,7 +1,7 @@
 #pragma once
 // Exact rendering of the planar world by per-sample ray casting.
 //
-// Every image sample's viewing ray comes from the camera model (PinholeCamera::Unproject), so
+// Every image sample's viewing ray comes from the camera model (Camera::Unproject), so
 // lens distortion is reproduced exactly and a 3D point's rendered position is where the camera
 // model projects it. Each ray is intersected with every surface whose image footprint it lies
 // in (ray-plane intersection, nearest hit wins: a z-buffer), the texture is sampled with a
@@ -13,7 +13,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/util/random.h"
 #include "sim/world.h"
@@ -23,7 +23,7 @@ namespace visloc::sim {
 class Renderer {
  public:
   // `supersample` samples per pixel side (1 = one ray through each pixel centre).
-  Renderer(const PinholeCamera& camera, int supersample);
+  Renderer(const Camera& camera, int supersample);
 
   // Radiance (CV_32FC1, [0, 1]) of `world` at `time_s` seen from `world_from_cam`. With
   // `depth`, also writes the z-depth (metres, CV_32FC1) of the sample nearest each pixel
@@ -31,7 +31,7 @@ class Renderer {
   cv::Mat RenderRadiance(const World& world, const Rigid3d& world_from_cam, double time_s,
                          cv::Mat* depth = nullptr) const;
 
-  const PinholeCamera& camera() const { return camera_; }
+  const Camera& camera() const { return camera_; }
 
  private:
   struct SampleRange {
@@ -39,7 +39,7 @@ class Renderer {
   };
   bool SurfaceRange(const Surface& surface_in_cam, SampleRange* range) const;
 
-  PinholeCamera camera_;
+  Camera camera_;
   int supersample_;
   int samples_x_, samples_y_;
   std::vector<float> ray_x_, ray_y_;  // Viewing ray (x, y, 1) per sample, row-major.

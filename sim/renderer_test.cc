@@ -77,7 +77,7 @@ TEST_P(RendererProjectionTest, RenderedPointLandsWhereTheCameraModelProjectsIt) 
   const bool distorted = GetParam();
   RigOptions rig_options;
   rig_options.distortion = distorted;
-  const PinholeCamera camera = MakeRig(rig_options).left.camera;
+  const Camera camera = MakeRig(rig_options).left.camera;
   const DiscWall scene;
   const Renderer renderer(camera, /*supersample=*/2);
   const Rigid3d world_from_cam = CameraPose();
@@ -130,7 +130,7 @@ TEST(RendererTest, DepthBufferKeepsTheNearestSurface) {
   // A 40 cm box face 1 m in front of the camera hides the wall behind it.
   Box box{{0.1, 1.2}, {0.4, 0.4, 2.0}, 0};
   AppendBoxFaces(box, &scene.world.surfaces);
-  const PinholeCamera camera = PinholeCamera::FromHorizontalFov(320, 240, 90);
+  const Camera camera = Camera::FromHorizontalFov(320, 240, 90);
   Eigen::Matrix3d world_from_cam;
   world_from_cam << 1, 0, 0, 0, 0, 1, 0, -1, 0;
   cv::Mat depth;

@@ -11,9 +11,9 @@ StereoRig MakeRig(const RigOptions& options) {
                options.height);
   VISLOC_CHECK(options.fps > 0 && options.baseline_m > 0, "fps ", options.fps, " baseline ",
                options.baseline_m);
-  const PinholeCamera ideal =
-      PinholeCamera::FromHorizontalFov(options.width, options.height, options.horizontal_fov_deg);
-  RadTanDistortion left_distortion, right_distortion;
+  const Camera ideal =
+      Camera::FromHorizontalFov(options.width, options.height, options.horizontal_fov_deg);
+  Lens left_distortion, right_distortion;
   if (options.distortion) {
     left_distortion = {-0.12, 0.018, 4e-4, -3e-4};
     right_distortion = {-0.11, 0.016, -2e-4, 5e-4};
@@ -24,13 +24,13 @@ StereoRig MakeRig(const RigOptions& options) {
       -1, 0, 0,                       //
       0, -1, 0;
   StereoRig rig;
-  rig.left.camera = PinholeCamera(options.width, options.height, ideal.fx(), ideal.fy(), ideal.cx(),
+  rig.left.camera = Camera(options.width, options.height, ideal.fx(), ideal.fy(), ideal.cx(),
                                   ideal.cy(), left_distortion);
   rig.left.body_from_cam =
       Rigid3d(body_from_cam_rotation, Eigen::Vector3d(0, options.baseline_m / 2, 0));
   rig.left.rate_hz = options.fps;
   rig.right = rig.left;
-  rig.right.camera = PinholeCamera(options.width, options.height, ideal.fx(), ideal.fy(),
+  rig.right.camera = Camera(options.width, options.height, ideal.fx(), ideal.fy(),
                                    ideal.cx(), ideal.cy(), right_distortion);
   rig.right.body_from_cam.translation = Eigen::Vector3d(0, -options.baseline_m / 2, 0);
   return rig;

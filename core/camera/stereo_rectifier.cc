@@ -1,6 +1,7 @@
 #include "core/camera/stereo_rectifier.h"
 
 #include <cmath>
+#include <limits>
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -12,15 +13,31 @@
 namespace visloc {
 namespace {
 
-cv::Mat CameraMatrix(const PinholeCamera& camera) {
+cv::Mat CameraMatrix(const Camera& camera) {
   cv::Mat k;
   cv::eigen2cv(camera.K(), k);
   return k;
 }
 
-cv::Mat DistortionCoefficients(const PinholeCamera& camera) {
-  const RadTanDistortion& d = camera.distortion();
-  return (cv::Mat_<double>(1, 4) << d.k1, d.k2, d.p1, d.p2);
+// k1 k2 p1 p2 for cv::, k1 k2 k3 k4 for cv::fisheye:: (the lens's own four coefficients).
+cv::Mat DistortionCoefficients(const Camera& camera) {
+  const auto& k = camera.lens().coefficients;
+  return (cv::Mat_<double>(1, 4) << k[0], k[1], k[2], k[3]);
+}
+
+bool IsFisheye(const Camera& camera) { return camera.lens().model == LensModel::kEquidistant; }
+
+void UndistortRectifyMap(const Camera& camera, const cv::Mat& rect_from_raw,
+                         const cv::Mat& projection, const cv::Size& size, cv::Mat* map_x,
+                         cv::Mat* map_y) {
+  if (IsFisheye(camera)) {
+    cv::fisheye::initUndistortRectifyMap(CameraMatrix(camera), DistortionCoefficients(camera),
+                                         rect_from_raw, projection, size, CV_32FC1, *map_x,
+                                         *map_y);
+  } else {
+    cv::initUndistortRectifyMap(CameraMatrix(camera), DistortionCoefficients(camera),
+                                rect_from_raw, projection, size, CV_32FC1, *map_x, *map_y);
+  }
 }
 
 Eigen::Quaterniond ToQuaternion(const cv::Mat& rotation) {
@@ -31,7 +48,7 @@ Eigen::Quaterniond ToQuaternion(const cv::Mat& rotation) {
 
 }  // namespace
 
-StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera& right,
+StereoRectifier::StereoRectifier(const Camera& left, const Camera& right,
                                  const Rigid3d& right_from_left)
     : left_(left), right_(right) {
   VISLOC_CHECK(left.width() == right.width() && left.height() == right.height(),
@@ -53,12 +70,24 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
   cv::eigen2cv(Eigen::Vector3d(right_from_left.translation), translation);
   const cv::Size size(left.width(), left.height());
   cv::Mat r1, r2, p1, p2, q;
-  // alpha = 0 crops to valid pixels only, so no black borders produce spurious features.
-  cv::stereoRectify(CameraMatrix(left), DistortionCoefficients(left), CameraMatrix(right),
-                    DistortionCoefficients(right), size, rotation, translation, r1, r2, p1, p2, q,
-                    cv::CALIB_ZERO_DISPARITY, /*alpha=*/0.0, size);
+  if (IsFisheye(left) != IsFisheye(right)) {
+    throw InputError("a stereo pair of a fisheye and an ordinary lens is not supported");
+  }
+  if (IsFisheye(left)) {
+    // A pinhole view of the fisheyes' common field: balance 0 keeps only valid pixels, and the
+    // rays too far off axis for a pinhole are left to the canvas below (or dropped).
+    cv::fisheye::stereoRectify(CameraMatrix(left), DistortionCoefficients(left),
+                               CameraMatrix(right), DistortionCoefficients(right), size, rotation,
+                               translation, r1, r2, p1, p2, q, cv::CALIB_ZERO_DISPARITY, size,
+                               /*balance=*/0.0, /*fov_scale=*/1.0);
+  } else {
+    // alpha = 0 crops to valid pixels only, so no black borders produce spurious features.
+    cv::stereoRectify(CameraMatrix(left), DistortionCoefficients(left), CameraMatrix(right),
+                      DistortionCoefficients(right), size, rotation, translation, r1, r2, p1, p2,
+                      q, cv::CALIB_ZERO_DISPARITY, /*alpha=*/0.0, size);
+  }
   const double f = p1.at<double>(0, 0);
-  rectified_camera_ = PinholeCamera(left.width(), left.height(), f, p1.at<double>(1, 1),
+  rectified_camera_ = Camera(left.width(), left.height(), f, p1.at<double>(1, 1),
                                     p1.at<double>(0, 2), p1.at<double>(1, 2));
   // P2(0, 3) = -f * B for a right camera displaced along +x in the rectified frame.
   baseline_m_ = std::abs(p2.at<double>(0, 3) / f);
@@ -74,6 +103,7 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
       for (const Eigen::Vector2d& raw : {Eigen::Vector2d(x, 0), Eigen::Vector2d(x, h - 1),
                                          Eigen::Vector2d(0, y), Eigen::Vector2d(w - 1, y)}) {
         const Eigen::Vector2d rect = is_left ? RectifyLeftPixel(raw) : RectifyRightPixel(raw);
+        if (!rect.allFinite()) continue;  // A fisheye's rim, beyond 90 degrees.
         low = low.cwiseMin(rect);
         high = high.cwiseMax(rect);
       }
@@ -91,10 +121,8 @@ StereoRectifier::StereoRectifier(const PinholeCamera& left, const PinholeCamera&
     p->at<double>(0, 2) += canvas_offset_px_.x();
     p->at<double>(1, 2) += canvas_offset_px_.y();
   }
-  cv::initUndistortRectifyMap(CameraMatrix(left), DistortionCoefficients(left), r1, p1,
-                              canvas_size_, CV_32FC1, left_map_x_, left_map_y_);
-  cv::initUndistortRectifyMap(CameraMatrix(right), DistortionCoefficients(right), r2, p2,
-                              canvas_size_, CV_32FC1, right_map_x_, right_map_y_);
+  UndistortRectifyMap(left, r1, p1, canvas_size_, &left_map_x_, &left_map_y_);
+  UndistortRectifyMap(right, r2, p2, canvas_size_, &right_map_x_, &right_map_y_);
 }
 
 void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw, cv::Mat* left_rect,
@@ -107,12 +135,11 @@ void StereoRectifier::Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
 }
 
 namespace {
-Eigen::Vector2d RectifyPixel(const PinholeCamera& raw, const Eigen::Quaterniond& rect_from_raw,
-                             const PinholeCamera& rectified, const Eigen::Vector2d& pixel) {
+Eigen::Vector2d RectifyPixel(const Camera& raw, const Eigen::Quaterniond& rect_from_raw,
+                             const Camera& rectified, const Eigen::Vector2d& pixel) {
   const Eigen::Vector3d ray_in_rect = rect_from_raw * raw.Unproject(pixel);
-  Eigen::Vector2d rect_pixel;
-  VISLOC_CHECK(rectified.Project(ray_in_rect, &rect_pixel), "pixel ", pixel.transpose(),
-               " maps behind the rectified camera");
+  Eigen::Vector2d rect_pixel = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  if (ray_in_rect.allFinite()) rectified.Project(ray_in_rect, &rect_pixel);
   return rect_pixel;
 }
 }  // namespace

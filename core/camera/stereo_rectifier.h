@@ -10,7 +10,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 
 namespace visloc {
@@ -20,10 +20,10 @@ class StereoRectifier {
   // `right_from_left` maps left-camera coordinates into the right camera (metres). Throws
   // CheckError when the cameras differ in size or the baseline is degenerate, InputError when
   // the right camera is not to the right of the left one (swapped cameras, a vertical rig).
-  StereoRectifier(const PinholeCamera& left, const PinholeCamera& right,
+  StereoRectifier(const Camera& left, const Camera& right,
                   const Rigid3d& right_from_left);
 
-  const PinholeCamera& rectified_camera() const { return rectified_camera_; }
+  const Camera& rectified_camera() const { return rectified_camera_; }
   double baseline_m() const { return baseline_m_; }
   // Rotation from the raw left camera frame into the rectified left camera frame.
   const Eigen::Quaterniond& rect_from_left() const { return rect_from_left_; }
@@ -37,14 +37,15 @@ class StereoRectifier {
                cv::Mat* right_rect) const;
   const Eigen::Vector2d& canvas_offset_px() const { return canvas_offset_px_; }
   cv::Size canvas_size() const { return canvas_size_; }
-  // Maps a raw pixel of the left or right image to its rectified pixel.
+  // Maps a raw pixel of the left or right image to its rectified pixel; NaN for a fisheye
+  // pixel whose ray the rectified (pinhole) camera cannot see.
   Eigen::Vector2d RectifyLeftPixel(const Eigen::Vector2d& raw_pixel) const;
   Eigen::Vector2d RectifyRightPixel(const Eigen::Vector2d& raw_pixel) const;
 
  private:
-  PinholeCamera left_;
-  PinholeCamera right_;
-  PinholeCamera rectified_camera_;
+  Camera left_;
+  Camera right_;
+  Camera rectified_camera_;
   double baseline_m_ = 0.0;
   Eigen::Quaterniond rect_from_left_;
   Eigen::Quaterniond rect_from_right_;

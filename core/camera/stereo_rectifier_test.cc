@@ -13,14 +13,14 @@ namespace {
 // A realistic, imperfect rig: different distortion per camera, a small relative rotation and a
 // baseline that is not purely along x.
 struct Rig {
-  PinholeCamera left{640, 480, 400.0, 402.0, 322.0, 238.0, {-0.20, 0.05, 0.001, -0.0005}};
-  PinholeCamera right{640, 480, 398.0, 399.0, 318.0, 244.0, {-0.18, 0.04, -0.0008, 0.0004}};
+  Camera left{640, 480, 400.0, 402.0, 322.0, 238.0, {-0.20, 0.05, 0.001, -0.0005}};
+  Camera right{640, 480, 398.0, 399.0, 318.0, 244.0, {-0.18, 0.04, -0.0008, 0.0004}};
   Rigid3d right_from_left{RotationFromRollPitchYaw(0.01, -0.015, 0.008),
                           Eigen::Vector3d(-0.144, 0.003, -0.002)};
 };
 
-TEST(StereoRectifierTest, CorrespondingPointsShareARow) {
-  const Rig rig;
+// Rows agree and depth follows from disparity, for ordinary and fisheye lenses.
+void ExpectRowsAgree(const Rig& rig) {
   const StereoRectifier rectifier(rig.left, rig.right, rig.right_from_left);
   EXPECT_NEAR(rectifier.baseline_m(), rig.right_from_left.translation.norm(), 1e-9);
   Rng rng(3);
@@ -38,6 +38,7 @@ TEST(StereoRectifierTest, CorrespondingPointsShareARow) {
     }
     const Eigen::Vector2d left_rect = rectifier.RectifyLeftPixel(left_px);
     const Eigen::Vector2d right_rect = rectifier.RectifyRightPixel(right_px);
+    if (!left_rect.allFinite() || !right_rect.allFinite()) continue;
     worst_row_px = std::max(worst_row_px, std::abs(left_rect.y() - right_rect.y()));
     // Depth from disparity (paper eq. 1) in the rectified frame.
     const double disparity = left_rect.x() - right_rect.x();
@@ -51,6 +52,17 @@ TEST(StereoRectifierTest, CorrespondingPointsShareARow) {
   EXPECT_GT(checked, 200);
   EXPECT_LT(worst_row_px, 0.1);
   EXPECT_LT(worst_depth_rel, 1e-6);
+}
+
+TEST(StereoRectifierTest, CorrespondingPointsShareARow) { ExpectRowsAgree(Rig{}); }
+
+TEST(StereoRectifierTest, FisheyePointsShareARowToo) {
+  Rig rig;
+  rig.left = Camera(640, 480, 200.0, 201.0, 322.0, 238.0,
+                    Lens::Equidistant(0.012, -0.004, 0.001, -0.0002));
+  rig.right = Camera(640, 480, 199.0, 199.5, 318.0, 244.0,
+                     Lens::Equidistant(0.010, -0.003, 0.0008, -0.0001));
+  ExpectRowsAgree(rig);
 }
 
 TEST(StereoRectifierTest, RectifiedImagesAlignAFeatureOnOneRow) {
@@ -96,8 +108,8 @@ TEST(StereoRectifierTest, SwappedOrVerticalRigsAreRefused) {
 TEST(StereoRectifierTest, TheCanvasKeepsTheCornersOfADistortedImage) {
   // Strong barrel distortion (EuRoC's k1 = -0.28): the region valid in both rectified views
   // loses the raw image's corners, where keypoints are; the canvas keeps them.
-  const PinholeCamera left{752, 480, 458.7, 457.3, 367.2, 248.4, {-0.28, 0.07, 0.0, 0.0}};
-  const PinholeCamera right{752, 480, 457.6, 456.1, 380.0, 255.2, {-0.28, 0.07, 0.0, 0.0}};
+  const Camera left{752, 480, 458.7, 457.3, 367.2, 248.4, {-0.28, 0.07, 0.0, 0.0}};
+  const Camera right{752, 480, 457.6, 456.1, 380.0, 255.2, {-0.28, 0.07, 0.0, 0.0}};
   const StereoRectifier rectifier(left, right, Rigid3d(RotationFromRollPitchYaw(0.0, 0.0, 0.0),
                                                        Eigen::Vector3d(-0.11, 0.0, 0.0)));
   const Eigen::Vector2d corner_raw(20.0, 20.0);

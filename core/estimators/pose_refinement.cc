@@ -78,11 +78,12 @@ NormalEquations Linearize(const Rigid3d& pose, const std::vector<PoseObservation
     const double u = p.x() * iz, v = p.y() * iz;
     // The rows of u = x/z and v = y/z in closed form: [1/z, 0, -u/z, -uv, 1+u^2, -v] and
     // [0, 1/z, -v/z, -(1+v^2), uv, u].
-    const double uv = u * v;
-    const double ju[6] = {iz, 0.0, -u * iz, -uv, 1.0 + u * u, -v};
-    const double jv[6] = {0.0, iz, -v * iz, -(1.0 + v * v), uv, u};
-    sum.Add(u - o.normalized.x(), ju, huber, focal);
-    sum.Add(v - o.normalized.y(), jv, huber, focal);
+    // Both rows and residuals are weighed by the lens's pixel scale there (1 for a pinhole).
+    const double uv = u * v, s = o.pixel_scale;
+    const double ju[6] = {s * iz, 0.0, -s * u * iz, -s * uv, s * (1.0 + u * u), -s * v};
+    const double jv[6] = {0.0, s * iz, -s * v * iz, -s * (1.0 + v * v), s * uv, s * u};
+    sum.Add(s * (u - o.normalized.x()), ju, huber, focal);
+    sum.Add(s * (v - o.normalized.y()), jv, huber, focal);
     if (o.has_right) {
       // The weighted disparity residual w (B / z - (x_left - x_right)) of the measured pair. It
       // depends on z alone: d/dz = -w B / z^2, so its row is [0, 0, dz, dz y, -dz x, 0].

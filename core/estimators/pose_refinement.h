@@ -25,6 +25,10 @@ struct PoseObservation {
   Eigen::Vector2d normalized = Eigen::Vector2d::Zero();  // Left camera, undistorted (x/z, y/z).
   bool has_right = false;
   double right_x_normalized = 0.0;  // Rectified right camera's x/z (baseline along +x).
+  // Pixels per focal length of normalized error at this observation (Camera::PixelScale): 1 for
+  // a pinhole; towards a fisheye's rim a pixel spans more normalized units, so its error is
+  // weighed down to what it is in the image.
+  double pixel_scale = 1.0;
 };
 
 struct PoseRefineOptions {
@@ -71,7 +75,7 @@ class PoseProjector {
     if (p.z() <= 1e-6) return std::numeric_limits<double>::infinity();
     const double iz = 1.0 / p.z();
     const double ex = p.x() * iz - o.normalized.x(), ey = p.y() * iz - o.normalized.y();
-    double squared = ex * ex + ey * ey;
+    double squared = (ex * ex + ey * ey) * (o.pixel_scale * o.pixel_scale);
     if (o.has_right) {
       const double ed =
           disparity_weight_ * (baseline_m_ * iz - (o.normalized.x() - o.right_x_normalized));

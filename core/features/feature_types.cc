@@ -14,6 +14,17 @@ DescriptorType ParseDescriptorType(const std::string& text) {
   throw InputError(StrCat("unknown descriptor type '", text, "' (expected float32 or binary)"));
 }
 
+FeatureSet FeatureSet::Subset(const std::vector<int>& indices) const {
+  FeatureSet subset;
+  subset.keypoints.reserve(indices.size());
+  subset.descriptors = cv::Mat(static_cast<int>(indices.size()), descriptors.cols, descriptors.type());
+  for (size_t j = 0; j < indices.size(); ++j) {
+    subset.keypoints.push_back(keypoints[indices[j]]);
+    descriptors.row(indices[j]).copyTo(subset.descriptors.row(static_cast<int>(j)));
+  }
+  return subset;
+}
+
 void DescriptorMatchOptions::Check() const {
   VISLOC_CHECK(max_float_distance > 0 && max_binary_distance > 0, "descriptor distance limits ",
                max_float_distance, ", ", max_binary_distance);

@@ -40,6 +40,8 @@ struct FeatureSet {
   std::vector<Keypoint> keypoints;
   cv::Mat descriptors;  // One row per keypoint: CV_32F (float32) or CV_8U (binary).
   size_t size() const { return keypoints.size(); }
+  // The keypoints `indices` (ascending) with their descriptors.
+  FeatureSet Subset(const std::vector<int>& indices) const;
 };
 
 // When two descriptors are taken to show the same scene point: close enough, and clearly closer

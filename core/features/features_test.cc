@@ -18,7 +18,7 @@ namespace {
 
 // Two views of the simulated room 5 cm apart, with the first view's depth.
 struct ViewPair {
-  PinholeCamera camera;
+  Camera camera;
   cv::Mat first, second, first_depth;
   Rigid3d world_from_first, world_from_second;
 };

@@ -86,7 +86,7 @@ std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const Localiz
   return std::make_pair(normal, normal.dot(mean));
 }
 
-Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
                      const LocalizerOptions& options, const std::optional<Rigid3d>& body_from_cam)
     : map_(std::move(map)), camera_(camera), options_(options) {
   VISLOC_CHECK(map_ != nullptr, "no map");

@@ -28,7 +28,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/features/features.h"
 #include "core/localization/motion_filter.h"
 #include "core/localization/pose_tracker.h"
@@ -161,7 +161,7 @@ class Localizer {
   // `camera` is the query camera (it may differ from the map's). `body_from_cam` places the
   // camera on the body whose gyro is given; without it gyro samples are ignored. Throws
   // CheckError for a map without a visibility kernel or appearance index.
-  Localizer(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+  Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
             const LocalizerOptions& options,
             const std::optional<Rigid3d>& body_from_cam = std::nullopt);
 
@@ -192,7 +192,7 @@ class Localizer {
   static void CopyFixStats(const PoseFix& fix, FrameStats* stats);
 
   std::shared_ptr<const LocalizationMap> map_;
-  PinholeCamera camera_;
+  Camera camera_;
   LocalizerOptions options_;
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
   std::unique_ptr<FeatureExtractor> extractor_;

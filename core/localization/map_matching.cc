@@ -8,7 +8,7 @@
 
 namespace visloc {
 
-std::vector<ProjectedPoint> ProjectPoints(const Map& map, const PinholeCamera& camera,
+std::vector<ProjectedPoint> ProjectPoints(const Map& map, const Camera& camera,
                                           const Rigid3d& cam_from_map,
                                           const std::vector<uint32_t>& points) {
   std::vector<ProjectedPoint> projected;

@@ -13,7 +13,7 @@
 
 #include <Eigen/Core>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/localization/query_frame.h"
 #include "core/map/map.h"
@@ -33,7 +33,7 @@ struct PointMatch {
 
 // The points (ids into map.points) that lie in front of the camera at `cam_from_map` and
 // project inside its image.
-std::vector<ProjectedPoint> ProjectPoints(const Map& map, const PinholeCamera& camera,
+std::vector<ProjectedPoint> ProjectPoints(const Map& map, const Camera& camera,
                                           const Rigid3d& cam_from_map,
                                           const std::vector<uint32_t>& points);
 

@@ -38,7 +38,7 @@ void PoseTrackerOptions::Check() const {
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
 }
 
-PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
                          const PoseTrackerOptions& options)
     : map_(std::move(map)), camera_(camera), options_(options) {
   VISLOC_CHECK(map_ != nullptr, "no map");
@@ -59,6 +59,7 @@ std::vector<PoseObservation> PoseTracker::Observations(
   for (size_t m = 0; m < matches.size(); ++m) {
     observations[m].point_in_world = map_->map().points[matches[m].point].position_in_map;
     observations[m].normalized = frame.normalized(matches[m].feature);
+    observations[m].pixel_scale = frame.pixel_scale(matches[m].feature);
   }
   return observations;
 }

@@ -9,7 +9,7 @@
 #include <memory>
 #include <vector>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/estimators/pnp_ransac.h"
 #include "core/localization/map_matching.h"
 #include "core/localization/query_frame.h"
@@ -66,7 +66,7 @@ struct PoseFix {
 
 class PoseTracker {
  public:
-  PoseTracker(std::shared_ptr<const LocalizationMap> map, const PinholeCamera& camera,
+  PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
               const PoseTrackerOptions& options);
 
   // Full guided estimation from a prior pose.
@@ -76,7 +76,7 @@ class PoseTracker {
   PoseFix Polish(const QueryFrame& frame, const Rigid3d& cam_from_map, double radius_px) const;
 
   const PoseTrackerOptions& options() const { return options_; }
-  const PinholeCamera& camera() const { return camera_; }
+  const Camera& camera() const { return camera_; }
   const LocalizationMap& map() const { return *map_; }
   // Undistorted normalized observations of matched points, for the pose solvers.
   std::vector<PoseObservation> Observations(const QueryFrame& frame,
@@ -96,7 +96,7 @@ class PoseTracker {
                     const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const;
 
   std::shared_ptr<const LocalizationMap> map_;
-  PinholeCamera camera_;
+  Camera camera_;
   PoseTrackerOptions options_;
   std::unique_ptr<VisibilityPredictor> predictor_;
   std::vector<uint32_t> all_points_;  // For the brute-force baseline.

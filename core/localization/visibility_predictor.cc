@@ -76,7 +76,7 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
 }
 
 std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
-                                              const PinholeCamera& camera,
+                                              const Camera& camera,
                                               const Rigid3d& map_from_cam) {
   const Rigid3d cam_from_map = map_from_cam.Inverse();
   std::vector<uint32_t> visible;

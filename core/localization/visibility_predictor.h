@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/map/localization_map.h"
 
@@ -56,7 +56,7 @@ class VisibilityPredictor {
 // The transparent-world baseline: every point in front of `camera` at `map_from_cam` whose
 // projection falls inside the image.
 std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
-                                              const PinholeCamera& camera,
+                                              const Camera& camera,
                                               const Rigid3d& map_from_cam);
 
 }  // namespace visloc

@@ -60,7 +60,7 @@ TEST(VisibilityPredictorTest, ProbabilitiesVoteOverNeighboursAndThresholdPrunes)
 
 TEST(VisibilityPredictorTest, TransparentWorldIsEveryPointInViewAndNothingElse) {
   const LocalizationMap map(TestMap());
-  const PinholeCamera& camera = map.map().camera;
+  const Camera& camera = map.map().camera;
   const Rigid3d pose = map.map().keyframes[5].map_from_cam;
   const auto transparent = PredictTransparentWorld(map, camera, pose);
   const std::set<uint32_t> returned(transparent.begin(), transparent.end());

@@ -4,7 +4,7 @@
 //
 // Frames and units: the map frame is the left camera frame of the mapping sequence's first frame
 // (product.md), metres. Keyframe poses are `map_from_cam` of the raw (unrectified) left camera.
-// Pixels are in the map camera's raw, distorted image (PinholeCamera's convention).
+// Pixels are in the map camera's raw, distorted image (Camera's convention).
 
 #include <cstdint>
 #include <string>
@@ -14,7 +14,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "core/camera/pinhole_camera.h"
+#include "core/camera/camera.h"
 #include "core/features/feature_types.h"
 #include "core/geometry/rigid3.h"
 
@@ -76,7 +76,7 @@ struct AppearanceIndex {
 
 struct Map {
   MapMetadata metadata;
-  PinholeCamera camera;  // The map (left) camera.
+  Camera camera;  // The map (left) camera.
   FeatureSettings features;
   std::vector<Keyframe> keyframes;
   std::vector<MapPoint> points;

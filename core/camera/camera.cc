@@ -1,0 +1,212 @@
+#include "core/camera/camera.h"
+
+#include <cmath>
+#include <limits>
+
+#include <Eigen/LU>
+
+#include "core/util/check.h"
+#include "core/util/strings.h"
+
+namespace visloc {
+
+const char* LensModelName(LensModel model) {
+  return model == LensModel::kEquidistant ? "equidistant" : "radial-tangential";
+}
+
+LensModel ParseLensModel(const std::string& name) {
+  if (name == "radial-tangential" || name == "radtan") return LensModel::kRadialTangential;
+  if (name == "equidistant") return LensModel::kEquidistant;
+  throw InputError(StrCat("unknown lens model '", name,
+                          "' (expected radial-tangential or equidistant)"));
+}
+
+std::array<const char*, 4> LensCoefficientNames(LensModel model) {
+  if (model == LensModel::kEquidistant) return {"k1", "k2", "k3", "k4"};
+  return {"k1", "k2", "p1", "p2"};
+}
+
+Lens Lens::Equidistant(double k1, double k2, double k3, double k4) {
+  Lens lens;
+  lens.model = LensModel::kEquidistant;
+  lens.coefficients = {k1, k2, k3, k4};
+  return lens;
+}
+
+bool Lens::IsIdeal() const {
+  return model == LensModel::kRadialTangential && coefficients == std::array<double, 4>{};
+}
+
+bool Lens::operator==(const Lens& other) const {
+  return model == other.model && coefficients == other.coefficients;
+}
+
+Camera::Camera(int width, int height, double fx, double fy, double cx, double cy, const Lens& lens)
+    : width_(width), height_(height), fx_(fx), fy_(fy), cx_(cx), cy_(cy), lens_(lens) {
+  VISLOC_CHECK(width > 0 && height > 0, "image size ", width, "x", height);
+  VISLOC_CHECK(fx > 0 && fy > 0 && std::isfinite(fx) && std::isfinite(fy), "focal length ", fx,
+               ", ", fy);
+  VISLOC_CHECK(std::isfinite(cx) && std::isfinite(cy), "principal point ", cx, ", ", cy);
+  for (double k : lens.coefficients) VISLOC_CHECK(std::isfinite(k), "lens coefficient ", k);
+}
+
+Camera Camera::FromHorizontalFov(int width, int height, double horizontal_fov_deg) {
+  VISLOC_CHECK(horizontal_fov_deg > 0 && horizontal_fov_deg < 180, "fov ", horizontal_fov_deg);
+  const double f = 0.5 * width / std::tan(0.5 * horizontal_fov_deg * M_PI / 180.0);
+  return Camera(width, height, f, f, 0.5 * (width - 1), 0.5 * (height - 1));
+}
+
+Camera Camera::FisheyeFromDiagonalFov(int width, int height, double diagonal_fov_deg) {
+  VISLOC_CHECK(diagonal_fov_deg > 0 && diagonal_fov_deg < 180, "fov ", diagonal_fov_deg);
+  const double half_diagonal_px = 0.5 * std::hypot(width, height);
+  const double f = half_diagonal_px / (0.5 * diagonal_fov_deg * M_PI / 180.0);
+  return Camera(width, height, f, f, 0.5 * (width - 1), 0.5 * (height - 1),
+                Lens::Equidistant(0, 0, 0, 0));
+}
+
+Eigen::Matrix3d Camera::K() const {
+  Eigen::Matrix3d k;
+  k << fx_, 0, cx_, 0, fy_, cy_, 0, 0, 1;
+  return k;
+}
+
+std::array<double, 8> Camera::Params() const {
+  const auto& k = lens_.coefficients;
+  return {fx_, fy_, cx_, cy_, k[0], k[1], k[2], k[3]};
+}
+
+bool Camera::Project(const Eigen::Vector3d& point_in_cam, Eigen::Vector2d* pixel) const {
+  if (point_in_cam.z() <= 1e-9) return false;
+  const Eigen::Vector2d distorted = Distort(point_in_cam.head<2>() / point_in_cam.z());
+  *pixel = Eigen::Vector2d(fx_ * distorted.x() + cx_, fy_ * distorted.y() + cy_);
+  return true;
+}
+
+Eigen::Vector3d Camera::Unproject(const Eigen::Vector2d& pixel) const {
+  const Eigen::Vector2d distorted((pixel.x() - cx_) / fx_, (pixel.y() - cy_) / fy_);
+  const Eigen::Vector2d normalized = Undistort(distorted);
+  return Eigen::Vector3d(normalized.x(), normalized.y(), 1.0);
+}
+
+namespace {
+
+// Kannala-Brandt: theta_d(theta) and its derivative.
+double ThetaDistorted(const std::array<double, 4>& k, double theta) {
+  const double t2 = theta * theta;
+  return theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+}
+
+double ThetaDistortedDerivative(const std::array<double, 4>& k, double theta) {
+  const double t2 = theta * theta;
+  return 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
+}
+
+}  // namespace
+
+Eigen::Vector2d Camera::Distort(const Eigen::Vector2d& normalized) const {
+  const auto& k = lens_.coefficients;
+  const double x = normalized.x();
+  const double y = normalized.y();
+  const double r2 = x * x + y * y;
+  if (lens_.model == LensModel::kEquidistant) {
+    const double r = std::sqrt(r2);
+    if (r < 1e-12) return normalized;
+    return normalized * (ThetaDistorted(k, std::atan(r)) / r);
+  }
+  if (lens_.IsIdeal()) return normalized;
+  const auto& [k1, k2, p1, p2] = k;
+  const double radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+  return Eigen::Vector2d(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+                         y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
+}
+
+Eigen::Matrix2d Camera::DistortJacobian(const Eigen::Vector2d& normalized) const {
+  const auto& k = lens_.coefficients;
+  const double x = normalized.x();
+  const double y = normalized.y();
+  const double r2 = x * x + y * y;
+  Eigen::Matrix2d jacobian;
+  if (lens_.model == LensModel::kEquidistant) {
+    // (x, y) -> g(r) (x, y) with g = theta_d(atan r) / r:
+    // J = g I + g'(r) / r (x, y)(x, y)^T.
+    const double r = std::sqrt(r2);
+    if (r < 1e-9) return Eigen::Matrix2d::Identity();
+    const double theta = std::atan(r);
+    const double g = ThetaDistorted(k, theta) / r;
+    const double dg_dr = (ThetaDistortedDerivative(k, theta) / (1.0 + r2) - g) / r;
+    jacobian = g * Eigen::Matrix2d::Identity() + (dg_dr / r) * normalized * normalized.transpose();
+    return jacobian;
+  }
+  const auto& [k1, k2, p1, p2] = k;
+  const double radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+  const double d_radial_d_r2 = k1 + 2.0 * k2 * r2;
+  jacobian(0, 0) = radial + 2.0 * x * x * d_radial_d_r2 + 2.0 * p1 * y + 6.0 * p2 * x;
+  jacobian(0, 1) = 2.0 * x * y * d_radial_d_r2 + 2.0 * p1 * x + 2.0 * p2 * y;
+  jacobian(1, 0) = jacobian(0, 1);
+  jacobian(1, 1) = radial + 2.0 * y * y * d_radial_d_r2 + 6.0 * p1 * y + 2.0 * p2 * x;
+  return jacobian;
+}
+
+Eigen::Vector2d Camera::Undistort(const Eigen::Vector2d& distorted_normalized) const {
+  if (lens_.model == LensModel::kEquidistant) {
+    // Solve theta_d(theta) = |distorted| for theta in [0, pi/2), then r = tan(theta).
+    const auto& k = lens_.coefficients;
+    const double theta_d = distorted_normalized.norm();
+    if (theta_d < 1e-12) return distorted_normalized;
+    double theta = std::min(theta_d, 1.5);
+    for (int iteration = 0; iteration < 20; ++iteration) {
+      const double step =
+          (ThetaDistorted(k, theta) - theta_d) / ThetaDistortedDerivative(k, theta);
+      theta -= step;
+      if (std::abs(step) < 1e-14) break;
+    }
+    if (!(theta >= 0.0 && theta < 0.5 * M_PI - 1e-6)) {
+      return Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+    }
+    return distorted_normalized * (std::tan(theta) / theta_d);
+  }
+  if (lens_.IsIdeal()) return distorted_normalized;
+  Eigen::Vector2d estimate = distorted_normalized;
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    const Eigen::Matrix2d j = DistortJacobian(estimate);
+    const Eigen::Vector2d residual = Distort(estimate) - distorted_normalized;
+    // The 2x2 inverse in closed form.
+    const double det = j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0);
+    const Eigen::Vector2d step(( j(1, 1) * residual.x() - j(0, 1) * residual.y()) / det,
+                               (-j(1, 0) * residual.x() + j(0, 0) * residual.y()) / det);
+    estimate -= step;
+    if (step.squaredNorm() < 1e-28) break;
+  }
+  return estimate;
+}
+
+double Camera::PixelScale(const Eigen::Vector2d& normalized) const {
+  if (lens_.IsIdeal()) return 1.0;
+  return std::sqrt(std::abs(DistortJacobian(normalized).determinant()));
+}
+
+bool Camera::IsInImage(const Eigen::Vector2d& pixel, double margin_px) const {
+  return pixel.x() >= -0.5 + margin_px && pixel.y() >= -0.5 + margin_px &&
+         pixel.x() <= width_ - 0.5 - margin_px && pixel.y() <= height_ - 0.5 - margin_px;
+}
+
+Camera Camera::Scaled(double factor) const {
+  VISLOC_CHECK(factor > 0, "scale factor ", factor);
+  // Pixel centres: the continuous coordinate u + 0.5 scales, so cx' = (cx + 0.5) f - 0.5.
+  return Camera(static_cast<int>(std::lround(width_ * factor)),
+                static_cast<int>(std::lround(height_ * factor)), fx_ * factor, fy_ * factor,
+                (cx_ + 0.5) * factor - 0.5, (cy_ + 0.5) * factor - 0.5, lens_);
+}
+
+std::string ToString(const Camera& camera) {
+  const auto& k = camera.lens().coefficients;
+  const auto names = LensCoefficientNames(camera.lens().model);
+  std::string text = StrCat(camera.width(), "x", camera.height(), " fx ",
+                            FormatFixed(camera.fx(), 2), " fy ", FormatFixed(camera.fy(), 2),
+                            " cx ", FormatFixed(camera.cx(), 2), " cy ",
+                            FormatFixed(camera.cy(), 2), ", ", LensModelName(camera.lens().model));
+  for (int i = 0; i < 4; ++i) text += StrCat(" ", names[i], " ", FormatFixed(k[i], 5));
+  return text;
+}
+
+}  // namespace visloc
