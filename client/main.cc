@@ -21,6 +21,7 @@ namespace {
 const std::vector<Subcommand> kCommands = {
     {"sim", "render synthetic stereo sequences with exact ground truth", RunSim},
     {"eval", "accuracy of a trajectory against ground truth (ATE, RPE, coverage)", RunEval},
+    {"calibrate", "calibrate a camera or a stereo pair from chessboard images", RunCalibrate},
     {"dataset", "inspect a dataset: will this stereo rig map? (check)", RunDataset},
     {"map", "build and manage maps: build, info, verify, export, list, delete, rename", RunMap},
     {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},

@@ -7,6 +7,7 @@
 #include "core/util/json.h"
 #include "core/util/strings.h"
 #include "core/util/timer.h"
+#include "sim/board_views.h"
 #include "sim/generate.h"
 
 namespace visloc::cli {
@@ -14,14 +15,11 @@ namespace {
 
 // "320x240" -> (320, 240).
 void ParseResolution(const std::string& text, int* width, int* height) {
-  const auto parts = Split(ToLower(text), 'x');
-  const auto w = parts.size() == 2 ? ParseInt64(parts[0]) : std::nullopt;
-  const auto h = parts.size() == 2 ? ParseInt64(parts[1]) : std::nullopt;
-  if (!w || !h || *w < 16 || *h < 16 || *w > 4096 || *h > 4096) {
+  const auto size = ParseDimensions(text, 16, 4096);
+  if (!size) {
     throw UsageError("--resolution expects WIDTHxHEIGHT between 16 and 4096, got '" + text + "'");
   }
-  *width = static_cast<int>(*w);
-  *height = static_cast<int>(*h);
+  std::tie(*width, *height) = *size;
 }
 
 std::vector<std::string> SelectSequences(const std::string& selection) {
@@ -56,7 +54,23 @@ int RunSim(const Args& args) {
   parser.AddFlag("seed", &seed, "seed for textures, noise and odometry drift");
   parser.AddFlag("supersample", &options.supersample, "anti-aliasing samples per pixel side (1-8)");
   parser.AddFlag("format", &format, "dataset layout: euroc or kitti");
-  parser.AddSwitch("distortion", &options.rig.distortion, "add radial-tangential lens distortion");
+  parser.AddSwitch("distortion", &options.rig.distortion,
+                   "lens distortion (radial-tangential; with --lens fisheye, k1..k4)");
+  std::string lens = "pinhole";
+  parser.AddFlag("lens", &lens, "pinhole or fisheye (equidistant)");
+  parser.AddFlag("fisheye-fov", &options.rig.fisheye_fov_deg,
+                 "the fisheye's field of view across the image diagonal, degrees (below 180)");
+  bool realistic = false;
+  parser.AddSwitch("realistic", &realistic,
+                   "what real cameras do: two cameras with their own intrinsics, a slightly "
+                   "turned rig, auto-exposure changes, vignetting and motion blur");
+  std::string board;
+  sim::BoardViewOptions board_views;
+  parser.AddFlag("board", &board,
+                 "instead of sequences, chessboard views for calibration: inner corners "
+                 "COLSxROWS (left/, right/ and the true truth/cam0|cam1/sensor.yaml)");
+  parser.AddFlag("square", &board_views.square_m, "the chessboard's square side, metres");
+  parser.AddFlag("views", &board_views.views, "chessboard views to render");
   parser.AddSwitch("no-contact-sheet", &no_sheet, "do not write contact_sheet.png");
   parser.AddSwitch("list", &list, "list the sequences and exit");
   parser.AddSwitch("json", &json, "print a JSON summary");
@@ -76,10 +90,39 @@ int RunSim(const Args& args) {
   if (seed < 0) throw UsageError("--seed must not be negative");
   options.seed = static_cast<uint64_t>(seed);
   options.format = ParseDatasetFormat(format);
-  if (options.format == DatasetFormat::kKitti && options.rig.distortion) {
-    throw UsageError("KITTI sequences are rectified: --distortion needs --format euroc");
+  if (lens != "pinhole" && lens != "fisheye") throw UsageError("--lens must be pinhole or fisheye");
+  options.rig.fisheye = lens == "fisheye";
+  if (!(options.rig.fisheye_fov_deg >= 90 && options.rig.fisheye_fov_deg < 180)) {
+    throw UsageError("--fisheye-fov must be in [90, 180)");
+  }
+  if (realistic) {
+    options.rig.imperfect = true;
+    options.effects = sim::CameraEffects{};
+  }
+  if (options.format == DatasetFormat::kKitti) {
+    const char* flag = options.rig.distortion ? "--distortion"
+                       : options.rig.fisheye  ? "--lens fisheye"
+                       : realistic            ? "--realistic"
+                                              : nullptr;
+    if (flag) throw UsageError(StrCat("KITTI sequences are rectified: ", flag, " needs --format euroc"));
   }
   options.contact_sheet = !no_sheet;
+  if (!board.empty()) {
+    const auto corners = ParseDimensions(board, 3, 100);
+    if (!corners || corners->first == corners->second) {
+      throw UsageError("--board wants COLSxROWS inner corners, 3 to 100 each and different");
+    }
+    std::tie(board_views.cols, board_views.rows) = *corners;
+    if (!(board_views.square_m > 0) || board_views.views < 1) {
+      throw UsageError("--square must be positive and --views at least 1");
+    }
+    board_views.seed = options.seed;
+    board_views.supersample = options.supersample;
+    const sim::BoardViewStats stats = sim::GenerateBoardViews(options.rig, board_views, out_dir);
+    std::printf("%d chessboard views (%d poses drawn) -> %s/left, %s/right, %s/truth\n",
+                stats.views, stats.attempts, out_dir.c_str(), out_dir.c_str(), out_dir.c_str());
+    return 0;
+  }
   const std::vector<std::string> names = SelectSequences(sequences);
 
   sim::SequenceGenerator generator(options);

@@ -43,7 +43,7 @@ cv::Mat LoadGreyImage(const std::string& path, int expected_width, int expected_
   if (!std::filesystem::is_regular_file(path)) throw InputError(StrCat(path, ": no such image"));
   cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (image.empty()) throw InputError(StrCat(path, ": cannot decode image"));
-  if (image.cols != expected_width || image.rows != expected_height) {
+  if (expected_width > 0 && (image.cols != expected_width || image.rows != expected_height)) {
     throw InputError(StrCat(path, ": image is ", image.cols, "x", image.rows,
                             " but the calibration says ", expected_width, "x", expected_height));
   }

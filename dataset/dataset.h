@@ -71,7 +71,8 @@ struct Dataset {
 };
 
 // Decodes an image file (PNG or JPEG, grey or colour) to 8-bit grey. Throws InputError naming
-// the file when it is missing, undecodable, or not `expected_width` x `expected_height`.
+// the file when it is missing, undecodable, or not `expected_width` x `expected_height` (0 x 0:
+// any size).
 cv::Mat LoadGreyImage(const std::string& path, int expected_width, int expected_height);
 
 // Reads a dataset; without `format` the layout is detected (mav0/ for EuRoC, image_0/ for

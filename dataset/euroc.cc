@@ -63,7 +63,9 @@ YAML::Node LoadYaml(const std::string& path) {
   }
 }
 
-CameraInfo ReadCameraYaml(const std::string& path) {
+}  // namespace
+
+CameraInfo ReadSensorYaml(const std::string& path) {
   const YAML::Node root = LoadYaml(path);
   try {
     const std::string model = ReadString(path, root, "camera_model");
@@ -107,6 +109,8 @@ CameraInfo ReadCameraYaml(const std::string& path) {
     ThrowAtLine(path, e.mark.line + 1, e.msg);
   }
 }
+
+namespace {
 
 void RequireIncreasing(const std::string& path, const DataRow& row, int64_t previous,
                        int64_t current, bool first) {
@@ -217,11 +221,11 @@ Dataset ReadEuroc(const std::string& dir) {
   Dataset dataset;
   dataset.root = dir;
   dataset.format = DatasetFormat::kEuroc;
-  dataset.left = ReadCameraYaml(mav0 + "/cam0/sensor.yaml");
+  dataset.left = ReadSensorYaml(mav0 + "/cam0/sensor.yaml");
   const auto left_images = ReadCameraCsv(mav0 + "/cam0");
   std::vector<std::pair<int64_t, std::string>> right_images;
   if (fs::is_directory(mav0 + "/cam1")) {
-    dataset.right = ReadCameraYaml(mav0 + "/cam1/sensor.yaml");
+    dataset.right = ReadSensorYaml(mav0 + "/cam1/sensor.yaml");
     right_images = ReadCameraCsv(mav0 + "/cam1");
     const Camera& l = dataset.left.camera;
     const Camera& r = dataset.right->camera;
@@ -263,7 +267,9 @@ std::string FormatNumbers(const double* values, int count) {
   return out + "]";
 }
 
-void WriteCameraYaml(const std::string& path, const CameraInfo& info, const std::string& comment) {
+}  // namespace
+
+void WriteSensorYaml(const std::string& path, const CameraInfo& info, const std::string& comment) {
   const Eigen::Matrix4d t_bs = info.body_from_cam.ToMatrix4();
   double data[16];
   for (int r = 0; r < 4; ++r) {
@@ -279,13 +285,16 @@ void WriteCameraYaml(const std::string& path, const CameraInfo& info, const std:
       "\n\n# Sensor extrinsics wrt. the body-frame.\nT_BS:\n  cols: 4\n  rows: 4\n"
       "  data: " +
       FormatNumbers(data, 16) + "\n\n# Camera specific definitions.\n" +
-      "rate_hz: " + StrCat(info.rate_hz) + "\nresolution: " + FormatNumbers(resolution, 2) +
+      (info.rate_hz > 0 ? "rate_hz: " + StrCat(info.rate_hz) + "\n" : std::string()) +
+      "resolution: " + FormatNumbers(resolution, 2) +
       "\ncamera_model: pinhole\nintrinsics: " + FormatNumbers(intrinsics, 4) +
       " #fu, fv, cu, cv\n" + "distortion_model: " + LensModelName(cam.lens().model) +
       "\ndistortion_coefficients: " +
       FormatNumbers(distortion, 4) + "\n";
   WriteFileAtomically(path, out);
 }
+
+namespace {
 
 void MakeDirectories(const std::string& path) {
   std::error_code error;
@@ -299,10 +308,10 @@ EurocWriter::EurocWriter(const std::string& dir, const CameraInfo& left,
                          const std::optional<CameraInfo>& right)
     : mav0_(dir + "/mav0"), left_(left), right_(right) {
   MakeDirectories(mav0_ + "/cam0/data");
-  WriteCameraYaml(mav0_ + "/cam0/sensor.yaml", left_, "left camera (reference)");
+  WriteSensorYaml(mav0_ + "/cam0/sensor.yaml", left_, "left camera (reference)");
   if (right_) {
     MakeDirectories(mav0_ + "/cam1/data");
-    WriteCameraYaml(mav0_ + "/cam1/sensor.yaml", *right_, "right camera");
+    WriteSensorYaml(mav0_ + "/cam1/sensor.yaml", *right_, "right camera");
   }
 }
 

@@ -8,8 +8,8 @@
 //   DIR/mav0/state_groundtruth_estimate0/data.csv                 ground truth (optional)
 //
 // sensor.yaml carries T_BS (body_from_sensor, row-major 4x4), rate_hz, resolution [w, h],
-// camera_model (pinhole), intrinsics [fu, fv, cu, cv], distortion_model (radial-tangential)
-// and distortion_coefficients [k1, k2, p1, p2].
+// camera_model (pinhole), intrinsics [fu, fv, cu, cv], distortion_model (radial-tangential
+// or equidistant) and distortion_coefficients [k1, k2, p1, p2] or [k1, k2, k3, k4].
 
 #include <string>
 
@@ -20,6 +20,11 @@
 namespace visloc {
 
 Dataset ReadEuroc(const std::string& dir);
+
+// Writes one camera's sensor.yaml (atomically). `comment` names the camera.
+void WriteSensorYaml(const std::string& path, const CameraInfo& info, const std::string& comment);
+// Reads one camera's sensor.yaml; throws InputError naming the file and line of a problem.
+CameraInfo ReadSensorYaml(const std::string& path);
 
 // Writes a dataset in the EuRoC layout. Images are written as frames are added, so a long
 // sequence never has to be held in memory; Finish writes the CSV files.

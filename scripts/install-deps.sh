@@ -10,6 +10,7 @@ PACKAGES=(
   libeigen3-dev libopencv-dev libceres-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   sqlite3 libyaml-cpp-dev zlib1g-dev openssl
+  opencv-doc  # OpenCV's stereo chessboard images and stereo_calib sample: calibration's reference
 )
 # scripts/fuzz.sh needs clang and its libFuzzer / sanitizer runtimes: `install-deps.sh --fuzz`.
 if [ "${1:-}" = "--fuzz" ]; then PACKAGES+=(clang libclang-rt-dev); fi

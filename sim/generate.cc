@@ -71,10 +71,26 @@ cv::Mat MakeContactSheet(const std::vector<std::pair<std::string, cv::Mat>>& til
   return sheet;
 }
 
+// The auto-exposure's gain at time t: a slow swing plus steps every few seconds, as a camera
+// that keeps re-metering a scene of changing brightness.
+double AutoExposureGain(const CameraEffects& effects, double t, uint64_t seed) {
+  const double phase = 0.7 * static_cast<double>(seed % 9);
+  const double swing = std::sin(2 * M_PI * t / 6.3 + phase);
+  const double step = std::sin(2 * M_PI * t / 2.7 + 1.0 + phase) > 0 ? 1.0 : -1.0;
+  return 1.0 + effects.auto_exposure * (0.6 * swing + 0.4 * step);
+}
+
 }  // namespace
+
+void CameraEffects::Check() const {
+  VISLOC_CHECK(auto_exposure >= 0 && auto_exposure < 1 && vignetting >= 0 && vignetting < 1 &&
+                   exposure_time_s >= 0 && exposure_time_s < 0.1 && right_exposure_ratio > 0,
+               "camera effects");
+}
 
 SequenceGenerator::SequenceGenerator(const GenerateOptions& options) : options_(options) {
   VISLOC_CHECK(options.max_frames >= 0, "max_frames ", options.max_frames);
+  if (options.effects) options.effects->Check();
 }
 
 const World& SequenceGenerator::WorldFor(const RoomOptions& room) {
@@ -105,7 +121,8 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   if (options_.format == DatasetFormat::kEuroc) {
     euroc = std::make_unique<EurocWriter>(stats.dir, rig.left, rig.right);
   } else {
-    VISLOC_CHECK(!options_.rig.distortion, "KITTI sequences are rectified: no distortion");
+    VISLOC_CHECK(!options_.rig.distortion && !options_.rig.fisheye && !options_.rig.imperfect,
+                 "KITTI sequences are rectified: no distortion, fisheye or imperfect rig");
     WriteKittiCalibration(stats.dir, rig.left.camera, options_.rig.baseline_m);
   }
 
@@ -134,13 +151,28 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
           cv::Mat(rig.left.camera.height(), rig.left.camera.width(), CV_32FC1, cv::Scalar(0.015));
       right_radiance = left_radiance.clone();
       covered_frames.push_back(k);
+    } else if (options_.effects) {
+      // The shutter opens half the exposure time before t and closes half after.
+      const double half = 0.5 * options_.effects->exposure_time_s;
+      const Rigid3d open = spec.path.WorldFromBody(t - half), close = spec.path.WorldFromBody(t + half);
+      left_radiance = left_renderer.RenderRadiance(world, open * rig.left.body_from_cam,
+                                                   close * rig.left.body_from_cam, t, 2 * half);
+      right_radiance = right_renderer.RenderRadiance(world, open * rig.right.body_from_cam,
+                                                     close * rig.right.body_from_cam, t, 2 * half);
     } else {
       left_radiance = left_renderer.RenderRadiance(world, world_from_left, t);
       right_radiance = right_renderer.RenderRadiance(world, world_from_right, t);
     }
     render_ms += render_timer.ElapsedMs();
-    const cv::Mat left = spec.sensor.Capture(left_radiance, &noise);
-    const cv::Mat right = spec.sensor.Capture(right_radiance, &noise);
+    SensorModel left_sensor = spec.sensor, right_sensor = spec.sensor;
+    if (options_.effects) {
+      const double gain = AutoExposureGain(*options_.effects, t, options_.seed);
+      left_sensor.exposure *= gain;
+      right_sensor.exposure *= gain * options_.effects->right_exposure_ratio;
+      left_sensor.vignetting = right_sensor.vignetting = options_.effects->vignetting;
+    }
+    const cv::Mat left = left_sensor.Capture(left_radiance, &noise);
+    const cv::Mat right = right_sensor.Capture(right_radiance, &noise);
     if (euroc) {
       euroc->AddFrame(stamp, left, right);
     } else {
@@ -192,6 +224,9 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       .Field("width", options_.rig.width)
       .Field("height", options_.rig.height)
       .Field("distortion", options_.rig.distortion)
+      .Field("lens", options_.rig.fisheye ? "fisheye" : "pinhole")
+      .Field("imperfect_rig", options_.rig.imperfect)
+      .Field("camera_effects", options_.effects.has_value())
       .Field("seed", static_cast<int64_t>(options_.seed))
       .Field("duration_s", times_s.back())
       .Field("path_length_m", stats.path_length_m)

@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "dataset/dataset.h"
@@ -19,8 +20,20 @@
 
 namespace visloc::sim {
 
+// What real cameras add to the rendered scene: auto-exposure that keeps changing (a slow swing
+// and sudden steps), vignetting, motion blur over the exposure time, and two sensors that never
+// agree on brightness. Features, stereo matching and tracking must take all of it.
+struct CameraEffects {
+  double auto_exposure = 0.3;         // Exposure swings within 1 -+ this fraction.
+  double vignetting = 0.3;            // Light lost at the image corners.
+  double exposure_time_s = 0.015;     // The shutter is open this long: motion blur.
+  double right_exposure_ratio = 0.9;  // The right camera's exposure against the left's.
+  void Check() const;
+};
+
 struct GenerateOptions {
   RigOptions rig;
+  std::optional<CameraEffects> effects;  // None: the ideal sensor of each sequence.
   int supersample = 2;  // Samples per pixel side.
   int max_frames = 0;   // 0: the whole sequence.
   uint64_t seed = 1;    // Textures, noise and drift.

@@ -6,33 +6,63 @@
 
 namespace visloc::sim {
 
+namespace {
+
+// The ideal camera of the rig's lens, with the lens coefficients of one of its two cameras.
+Camera RigCamera(const RigOptions& options, bool left) {
+  const Camera ideal =
+      options.fisheye
+          ? Camera::FisheyeFromDiagonalFov(options.width, options.height, options.fisheye_fov_deg)
+          : Camera::FromHorizontalFov(options.width, options.height, options.horizontal_fov_deg);
+  Lens lens = ideal.lens();
+  if (options.distortion) {
+    if (options.fisheye) {
+      lens = left ? Lens::Equidistant(0.012, -0.004, 0.001, -0.0002)
+                  : Lens::Equidistant(0.010, -0.003, 0.0008, -0.0001);
+    } else {
+      lens = left ? Lens(-0.12, 0.018, 4e-4, -3e-4) : Lens(-0.11, 0.016, -2e-4, 5e-4);
+    }
+  }
+  double fx = ideal.fx(), fy = ideal.fy(), cx = ideal.cx(), cy = ideal.cy();
+  if (options.imperfect) {
+    // Relative to the image size, so every resolution gets the same rig: a focal length 0.4 to
+    // 0.8 % off, principal points a percent of the image off centre.
+    const double w = options.width, h = options.height;
+    fx *= left ? 1.004 : 0.992;
+    fy *= left ? 0.998 : 0.995;
+    cx += (left ? 0.007 : -0.010) * w;
+    cy += (left ? -0.007 : 0.010) * h;
+  }
+  return Camera(options.width, options.height, fx, fy, cx, cy, lens);
+}
+
+}  // namespace
+
 StereoRig MakeRig(const RigOptions& options) {
   VISLOC_CHECK(options.width >= 16 && options.height >= 16, "resolution ", options.width, "x",
                options.height);
   VISLOC_CHECK(options.fps > 0 && options.baseline_m > 0, "fps ", options.fps, " baseline ",
                options.baseline_m);
-  const Camera ideal =
-      Camera::FromHorizontalFov(options.width, options.height, options.horizontal_fov_deg);
-  Lens left_distortion, right_distortion;
-  if (options.distortion) {
-    left_distortion = {-0.12, 0.018, 4e-4, -3e-4};
-    right_distortion = {-0.11, 0.016, -2e-4, 5e-4};
-  }
   Eigen::Matrix3d body_from_cam_rotation;
   // Columns: the camera's x, y, z axes in the body frame.
   body_from_cam_rotation << 0, 0, 1,  //
       -1, 0, 0,                       //
       0, -1, 0;
   StereoRig rig;
-  rig.left.camera = Camera(options.width, options.height, ideal.fx(), ideal.fy(), ideal.cx(),
-                                  ideal.cy(), left_distortion);
+  rig.left.camera = RigCamera(options, /*left=*/true);
   rig.left.body_from_cam =
       Rigid3d(body_from_cam_rotation, Eigen::Vector3d(0, options.baseline_m / 2, 0));
   rig.left.rate_hz = options.fps;
   rig.right = rig.left;
-  rig.right.camera = Camera(options.width, options.height, ideal.fx(), ideal.fy(),
-                                   ideal.cx(), ideal.cy(), right_distortion);
+  rig.right.camera = RigCamera(options, /*left=*/false);
   rig.right.body_from_cam.translation = Eigen::Vector3d(0, -options.baseline_m / 2, 0);
+  if (options.imperfect) {
+    // EuRoC's two cameras are turned about 0.5 deg against each other.
+    rig.right.body_from_cam.rotation =
+        rig.right.body_from_cam.rotation *
+        RotationFromRollPitchYaw(0.35 * M_PI / 180, -0.45 * M_PI / 180, 0.25 * M_PI / 180);
+    rig.right.body_from_cam.translation += Eigen::Vector3d(0.0015, 0.0, 0.002);
+  }
   return rig;
 }
 

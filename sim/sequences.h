@@ -19,9 +19,18 @@ namespace visloc::sim {
 struct RigOptions {
   int width = 320;
   int height = 240;
-  double horizontal_fov_deg = 90.0;  // The paper's HRP-2 cameras.
+  double horizontal_fov_deg = 90.0;  // The paper's HRP-2 cameras (pinhole lenses).
+  // Equidistant fisheye lenses instead, whose image diagonal spans fisheye_fov_deg (below 180).
+  bool fisheye = false;
+  double fisheye_fov_deg = 170.0;
   double baseline_m = 0.144;
-  bool distortion = false;  // Mild barrel distortion with small tangential terms.
+  // Lens distortion: mild barrel distortion with small tangential terms (pinhole), or non-zero
+  // k1..k4 (fisheye); different for the two cameras.
+  bool distortion = false;
+  // Like a real rig (EuRoC's VI-Sensor): each camera with its own focal lengths and principal
+  // point, and the right camera turned by a fraction of a degree, its baseline a few
+  // millimetres off axis. Rectification must undo all of it.
+  bool imperfect = false;
   double fps = 15.0;
 };
 

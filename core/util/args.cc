@@ -8,11 +8,12 @@
 namespace visloc {
 namespace {
 
-std::string DefaultText(const std::variant<std::string*, int*, int64_t*, double*, bool*>& t) {
+std::string DefaultText(
+    const std::variant<std::string*, int*, int64_t*, double*, bool*, std::vector<std::string>*>& t) {
   return std::visit(
       [](auto* ptr) -> std::string {
         using T = std::remove_pointer_t<decltype(ptr)>;
-        if constexpr (std::is_same_v<T, bool>) {
+        if constexpr (std::is_same_v<T, bool> || std::is_same_v<T, std::vector<std::string>>) {
           return "";
         } else if constexpr (std::is_same_v<T, std::string>) {
           return ptr->empty() ? "" : *ptr;
@@ -56,6 +57,10 @@ void ArgParser::AddFlag(const std::string& name, int64_t* target, const std::str
 void ArgParser::AddFlag(const std::string& name, double* target, const std::string& help) {
   Add(name, target, help, /*required=*/false, /*positional=*/false);
 }
+void ArgParser::AddList(const std::string& name, std::vector<std::string>* target,
+                        const std::string& help, bool required) {
+  Add(name, target, help, required, /*positional=*/false);
+}
 void ArgParser::AddSwitch(const std::string& name, bool* target, const std::string& help) {
   Add(name, target, help, /*required=*/false, /*positional=*/false);
 }
@@ -78,6 +83,8 @@ void ArgParser::Assign(Option& option, const std::string& value) {
         using T = std::remove_pointer_t<decltype(ptr)>;
         if constexpr (std::is_same_v<T, std::string>) {
           *ptr = value;
+        } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
+          ptr->push_back(value);
         } else if constexpr (std::is_same_v<T, bool>) {
           *ptr = true;
         } else if constexpr (std::is_same_v<T, double>) {
@@ -127,6 +134,9 @@ bool ArgParser::Parse(const std::vector<std::string>& args, std::ostream& help_o
         value = args[++i];
       }
       Assign(*option, *value);
+      if (std::holds_alternative<std::vector<std::string>*>(option->target)) {
+        while (i + 1 < args.size() && !StartsWith(args[i + 1], "--")) Assign(*option, args[++i]);
+      }
       continue;
     }
     if (next_positional >= positionals.size()) {
@@ -153,7 +163,11 @@ std::string ArgParser::Help() const {
   out << " [options]\n\n" << summary_ << "\n\noptions:\n";
   for (const Option& option : options_) {
     std::string label = option.positional ? option.name : "--" + option.name;
-    if (!option.positional && !std::holds_alternative<bool*>(option.target)) label += " VALUE";
+    if (std::holds_alternative<std::vector<std::string>*>(option.target)) {
+      label += " VALUE...";
+    } else if (!option.positional && !std::holds_alternative<bool*>(option.target)) {
+      label += " VALUE";
+    }
     out << "  " << label;
     for (size_t pad = label.size(); pad < 26; ++pad) out << ' ';
     out << ' ' << option.help;

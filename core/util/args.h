@@ -30,6 +30,10 @@ class ArgParser {
   void AddFlag(const std::string& name, int* target, const std::string& help);
   void AddFlag(const std::string& name, int64_t* target, const std::string& help);
   void AddFlag(const std::string& name, double* target, const std::string& help);
+  // A list flag: one or more values up to the next "--" argument ("--left a.png b.png"), or
+  // given again ("--left a.png --left b.png"); values append.
+  void AddList(const std::string& name, std::vector<std::string>* target, const std::string& help,
+               bool required = false);
   // A switch: present means true ("--json").
   void AddSwitch(const std::string& name, bool* target, const std::string& help);
   // Positional arguments are filled in declaration order.
@@ -42,7 +46,8 @@ class ArgParser {
   std::string Help() const;
 
  private:
-  using Target = std::variant<std::string*, int*, int64_t*, double*, bool*>;
+  using Target =
+      std::variant<std::string*, int*, int64_t*, double*, bool*, std::vector<std::string>*>;
   struct Option {
     std::string name;
     Target target;

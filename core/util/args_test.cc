@@ -58,5 +58,27 @@ TEST(ArgParserTest, HelpListsEveryOptionAndStopsParsing) {
   EXPECT_NE(help.str().find("[default: default-dir]"), std::string::npos);
 }
 
+TEST(ArgParserTest, ListFlagsTakeValuesUpToTheNextFlag) {
+  std::vector<std::string> left, right;
+  std::string out;
+  ArgParser parser("visloc calibrate", "test");
+  parser.AddList("left", &left, "left images", /*required=*/true);
+  parser.AddList("right", &right, "right images");
+  parser.AddFlag("out", &out, "folder");
+  std::ostringstream help;
+  ASSERT_TRUE(parser.Parse({"--left", "a.png", "b.png", "--out", "x", "--right", "c.png",
+                            "--left=d.png"},
+                           help));
+  EXPECT_EQ(left, (std::vector<std::string>{"a.png", "b.png", "d.png"}));
+  EXPECT_EQ(right, (std::vector<std::string>{"c.png"}));
+  EXPECT_EQ(out, "x");
+  EXPECT_NE(parser.Help().find("--left VALUE..."), std::string::npos);
+  std::vector<std::string> none;
+  ArgParser required("visloc calibrate", "test");
+  required.AddList("left", &none, "left images", /*required=*/true);
+  EXPECT_THROW(required.Parse({}, help), UsageError);
+  EXPECT_THROW(required.Parse({"--left"}, help), UsageError);
+}
+
 }  // namespace
 }  // namespace visloc

@@ -84,4 +84,12 @@ std::string FormatFixed(double value, int digits) {
   return buffer;
 }
 
+std::optional<std::pair<int, int>> ParseDimensions(const std::string& text, int min, int max) {
+  const std::vector<std::string> parts = Split(ToLower(text), 'x');
+  if (parts.size() != 2) return std::nullopt;
+  const auto a = ParseInt64(parts[0]), b = ParseInt64(parts[1]);
+  if (!a || !b || *a < min || *b < min || *a > max || *b > max) return std::nullopt;
+  return std::make_pair(static_cast<int>(*a), static_cast<int>(*b));
+}
+
 }  // namespace visloc

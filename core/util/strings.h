@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <string_view>
 #include <vector>
 
@@ -22,6 +23,9 @@ std::string ToLower(std::string_view text);
 // Return std::nullopt unless the whole (trimmed) text is a valid finite number.
 std::optional<double> ParseDouble(std::string_view text);
 std::optional<int64_t> ParseInt64(std::string_view text);
+// "AxB" (either case of x) with both integers in [min, max]: "320x240", "9x6". Nothing on
+// any other text.
+std::optional<std::pair<int, int>> ParseDimensions(const std::string& text, int min, int max);
 
 // Formats a double with `digits` decimals ("%.*f").
 std::string FormatFixed(double value, int digits);
