@@ -102,7 +102,7 @@ void PrintHuman(const CalibrationResult& r, const std::string& out,
 
 int RunCalibrate(const Args& args) {
   std::vector<std::string> left_paths, right_paths;
-  std::string board_text, model = "radial-tangential", out;
+  std::string board_text, model = "pinhole", out;
   CalibrationOptions options;
   options.board.square_m = 0;
   bool json = false;
@@ -118,7 +118,8 @@ int RunCalibrate(const Args& args) {
   parser.AddList("right", &right_paths, "right camera's images, in the same order");
   parser.AddFlag("board", &board_text, "inner corners COLSxROWS, e.g. 9x6", /*required=*/true);
   parser.AddFlag("square", &options.board.square_m, "square side in metres");
-  parser.AddFlag("model", &model, "radial-tangential (pinhole) or equidistant (fisheye)");
+  parser.AddFlag("model", &model,
+                 "pinhole (radial-tangential lens: k1 k2 p1 p2) or equidistant (fisheye: k1..k4)");
   parser.AddFlag("out", &out, "folder for cam0/sensor.yaml (and cam1/)", /*required=*/true);
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
