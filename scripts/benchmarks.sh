@@ -18,17 +18,7 @@ FRAMES=0
 [[ $QUICK == 1 ]] && FRAMES=120
 mkdir -p "$WORK" docs/img
 
-field() { sed -n "s/.*\"$2\":\([-0-9.e]*\).*/\1/p" "$1" | head -1; }
-# The number after "key": following the first occurrence of "section" in a JSON file (within
-# that section's object). `${json#*...}` cuts at the first occurrence; a greedy sed would find
-# the last (in `visloc eval --json`, "translation_m" is in both ate and rpe).
-field_in() {
-  local json
-  json=$(tr -d '\n' < "$1")
-  json=${json#*\"$2\"}
-  sed -n "s/^[^}]*\"$3\":\([-0-9.e]*\).*/\1/p" <<< "$json" | head -1
-}
-fmt() { awk -v v="$1" -v s="${2:-1}" -v d="${3:-2}" 'BEGIN { printf "%.*f", d, v * s }'; }
+source scripts/report-lib.sh
 
 sequences=(query_square straight circle kidnap lowlight occluders outofmap)
 echo "== data (320x240)"
@@ -95,18 +85,15 @@ $V bench --dataset "$WORK/suite320/query_suite" --map "$WORK/suite320.db" --json
 echo "== through gRPC"
 mkdir -p "$WORK/maps"
 cp "$WORK/map320.db" "$WORK/maps/map320.db"
-build/server/visloc-server --maps "$WORK/maps" --listen 127.0.0.1:0 > "$WORK/server.out" 2> "$WORK/server.log" &
-server_pid=$!
-for _ in $(seq 100); do grep -q "listening on" "$WORK/server.out" 2>/dev/null && break; sleep 0.1; done
+start_server "$WORK/maps" "$WORK"
 # Seven runs: one run's ratio moves by several percent with the shared machine's load. The report
 # quotes the run with the median ratio, and the range.
 for run in 1 2 3 4 5 6 7; do
   $V bench --dataset "$WORK/seq320/query_square" --map "$WORK/map320.db" --frames 300 \
-    --relocalization-queries 1 --server "$(sed -n 's/^listening on //p' "$WORK/server.out")" \
+    --relocalization-queries 1 --server "$SERVER_ADDRESS" \
     --json > "$WORK/bench_grpc_$run.json"
 done
-kill -TERM "$server_pid"
-wait "$server_pid" || true
+stop_server
 
 echo "== scaling (microbenchmarks)"
 # One CSV per family: the CSV reporter's columns come from the first benchmark it reports.
