@@ -105,7 +105,7 @@ TEST(CalibrateE2eTest, ACalibratedFisheyeRigChecksAndMapsAsItsTrueCalibrationDoe
   const std::vector<std::string> rig = {"--resolution", "480x360", "--lens", "fisheye",
                                         "--distortion", "--realistic"};
   std::vector<std::string> board = {"sim", "--out", dir.File("board"), "--board", "9x6",
-                                    "--square", "0.04", "--views", "30"};
+                                    "--square", "0.04", "--views", "25"};
   board.insert(board.end(), rig.begin(), rig.end());
   ASSERT_EQ(Visloc(board).exit_code, 0);
   std::vector<std::string> calibrate = {"calibrate", "--board", "9x6", "--square", "0.04",
@@ -126,7 +126,7 @@ TEST(CalibrateE2eTest, ACalibratedFisheyeRigChecksAndMapsAsItsTrueCalibrationDoe
 
   // The same rig films a mapping run; its sensor files are replaced by the calibration's.
   std::vector<std::string> sequence = {"sim", "--out", dir.File("seq"), "--sequence",
-                                       "map_square", "--frames", "90", "--no-contact-sheet"};
+                                       "map_square", "--frames", "60", "--no-contact-sheet"};
   sequence.insert(sequence.end(), rig.begin(), rig.end());
   ASSERT_EQ(Visloc(sequence).exit_code, 0);
   const std::string mav0 = dir.File("seq/map_square/mav0");

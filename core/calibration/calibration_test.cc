@@ -5,6 +5,7 @@
 
 #include <filesystem>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/util/check.h"
@@ -14,6 +15,16 @@
 
 namespace visloc {
 namespace {
+
+// OpenCV's own thread pool, which calibration and the renderer start, crashes LeakSanitizer's
+// exit-time scan (see RunOpenCvOnCallingThread): the tests run OpenCV on the calling thread, as
+// the visloc binary does.
+class OpenCvOnCallingThread : public ::testing::Environment {
+ public:
+  void SetUp() override { cv::setNumThreads(1); }
+};
+const ::testing::Environment* const kOpenCvOnCallingThread =
+    ::testing::AddGlobalTestEnvironment(new OpenCvOnCallingThread);
 
 // The largest distance (pixels) between where the two cameras put the same rays, at every
 // corner the views saw: lens coefficients trade off against each other, the mapping they make
