@@ -153,14 +153,17 @@ TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
 
 INSTANTIATE_TEST_SUITE_P(PinholeAndDistorted, MapBuilderTest, ::testing::Bool());
 
+// The first `frames` frames of a catalogue sequence, rendered into `dir`.
+Dataset RenderShort(const std::string& sequence, int frames, const TempDir& dir) {
+  sim::GenerateOptions options;
+  options.max_frames = frames;
+  options.contact_sheet = false;
+  return ReadDataset(sim::SequenceGenerator(options).Generate(sequence, dir.path()).dir);
+}
+
 TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
   TempDir dir;
-  sim::GenerateOptions options;
-  options.max_frames = 2;
-  options.contact_sheet = false;
-  const sim::GenerateStats generated =
-      sim::SequenceGenerator(options).Generate("straight", dir.path());
-  Dataset dataset = ReadDataset(generated.dir);
+  Dataset dataset = RenderShort("straight", 2, dir);
   dataset.right.reset();
   EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", ""}, nullptr), InputError);
 }
@@ -168,12 +171,7 @@ TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
 TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
   // A robot that stands still maps from one keyframe: its stereo points have measured depth.
   TempDir dir;
-  sim::GenerateOptions options;
-  options.max_frames = 1;
-  options.contact_sheet = false;
-  const sim::GenerateStats generated =
-      sim::SequenceGenerator(options).Generate("map_square", dir.path());
-  const Dataset dataset = ReadDataset(generated.dir);
+  const Dataset dataset = RenderShort("map_square", 1, dir);
   MapBuildStats stats;
   const Map map = BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test"}, &stats);
   EXPECT_EQ(stats.keyframes, 1);

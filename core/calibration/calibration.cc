@@ -7,6 +7,7 @@
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/camera/opencv_camera.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 
@@ -163,17 +164,6 @@ CameraCalibration CalibrateOne(const Views& views, const cv::Size& size, LensMod
   result.rms_px = std::sqrt(total_sq / std::max<size_t>(1, total));
   result.coverage = std::count(cells.begin(), cells.end(), 1) / static_cast<double>(cells.size());
   return result;
-}
-
-cv::Mat CameraMatrix(const Camera& camera) {
-  cv::Mat k;
-  cv::eigen2cv(camera.K(), k);
-  return k;
-}
-
-cv::Mat LensCoefficients(const Camera& camera) {
-  const auto& c = camera.lens().coefficients;
-  return (cv::Mat_<double>(1, 4) << c[0], c[1], c[2], c[3]);
 }
 
 void Warn(const char* name, const CameraCalibration& c, const CalibrationOptions& options,

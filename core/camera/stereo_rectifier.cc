@@ -7,23 +7,12 @@
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/camera/opencv_camera.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 
 namespace visloc {
 namespace {
-
-cv::Mat CameraMatrix(const Camera& camera) {
-  cv::Mat k;
-  cv::eigen2cv(camera.K(), k);
-  return k;
-}
-
-// k1 k2 p1 p2 for cv::, k1 k2 k3 k4 for cv::fisheye:: (the lens's own four coefficients).
-cv::Mat DistortionCoefficients(const Camera& camera) {
-  const auto& k = camera.lens().coefficients;
-  return (cv::Mat_<double>(1, 4) << k[0], k[1], k[2], k[3]);
-}
 
 bool IsFisheye(const Camera& camera) { return camera.lens().model == LensModel::kEquidistant; }
 
@@ -31,11 +20,11 @@ void UndistortRectifyMap(const Camera& camera, const cv::Mat& rect_from_raw,
                          const cv::Mat& projection, const cv::Size& size, cv::Mat* map_x,
                          cv::Mat* map_y) {
   if (IsFisheye(camera)) {
-    cv::fisheye::initUndistortRectifyMap(CameraMatrix(camera), DistortionCoefficients(camera),
+    cv::fisheye::initUndistortRectifyMap(CameraMatrix(camera), LensCoefficients(camera),
                                          rect_from_raw, projection, size, CV_32FC1, *map_x,
                                          *map_y);
   } else {
-    cv::initUndistortRectifyMap(CameraMatrix(camera), DistortionCoefficients(camera),
+    cv::initUndistortRectifyMap(CameraMatrix(camera), LensCoefficients(camera),
                                 rect_from_raw, projection, size, CV_32FC1, *map_x, *map_y);
   }
 }
@@ -76,14 +65,14 @@ StereoRectifier::StereoRectifier(const Camera& left, const Camera& right,
   if (IsFisheye(left)) {
     // A pinhole view of the fisheyes' common field: balance 0 keeps only valid pixels, and the
     // rays too far off axis for a pinhole are left to the canvas below (or dropped).
-    cv::fisheye::stereoRectify(CameraMatrix(left), DistortionCoefficients(left),
-                               CameraMatrix(right), DistortionCoefficients(right), size, rotation,
+    cv::fisheye::stereoRectify(CameraMatrix(left), LensCoefficients(left),
+                               CameraMatrix(right), LensCoefficients(right), size, rotation,
                                translation, r1, r2, p1, p2, q, cv::CALIB_ZERO_DISPARITY, size,
                                /*balance=*/0.0, /*fov_scale=*/1.0);
   } else {
     // alpha = 0 crops to valid pixels only, so no black borders produce spurious features.
-    cv::stereoRectify(CameraMatrix(left), DistortionCoefficients(left), CameraMatrix(right),
-                      DistortionCoefficients(right), size, rotation, translation, r1, r2, p1, p2,
+    cv::stereoRectify(CameraMatrix(left), LensCoefficients(left), CameraMatrix(right),
+                      LensCoefficients(right), size, rotation, translation, r1, r2, p1, p2,
                       q, cv::CALIB_ZERO_DISPARITY, /*alpha=*/0.0, size);
   }
   const double f = p1.at<double>(0, 0);
