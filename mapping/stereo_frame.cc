@@ -246,7 +246,8 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
     ++frame.stats.searched;
     double disparity = 0;
     if (!SearchRow(pair, x, y, d_min, d_max, options, &scores, &disparity, &frame.stats)) continue;
-    disparity += c.x() - x;  // The keypoint's own position on the correlation's row.
+    // The correlation ran at the nearest whole pixel; the keypoint a fraction of a pixel beside
+    // it shares its disparity (the refinement below measures it at the keypoint itself).
     if (refine) {
       double refined = disparity;
       if (!RefineDisparity(pair.left_f, pair.right_f, pair.right_gradient, c.x(), c.y(),
