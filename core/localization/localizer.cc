@@ -178,7 +178,7 @@ void Localizer::ApplyPlane() {
 }
 
 void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource source,
-                       int64_t timestamp_ns, LocalizationResult* result, bool restart_filter) {
+                       int64_t timestamp_ns, LocalizationResult* result, FilterUpdate update) {
   const Rigid3d measured = fix.cam_from_map.Inverse();
   // Floor the measurement noise: the refinement's covariance ignores map point errors.
   Matrix6d noise = fix.covariance;
@@ -186,20 +186,21 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
                        Eigen::Vector3d::Constant(std::pow(0.05 * M_PI / 180.0, 2)))
                           .finished();
   const double since_fix_s = (timestamp_ns - last_fix_ns_) * 1e-9;
-  if (status == TrackingStatus::kRelocalized || !filter_.initialized()) {
-    filter_.Reset(measured, noise);
-    velocity_valid_ = false;
+  if (!filter_.initialized() ||
+      (status == TrackingStatus::kRelocalized && update == FilterUpdate::kFuse)) {
+    update = FilterUpdate::kRestart;
+  }
+  if (update == FilterUpdate::kFuse) {
+    filter_.UpdatePose(measured, noise);
+    ApplyPlane();
   } else {
-    if (restart_filter) {
-      filter_.Reset(measured, noise);  // The prediction was wrong: nothing of it to keep.
-    } else {
-      filter_.UpdatePose(measured, noise);
-      ApplyPlane();
-    }
-    if (ever_localized_ && since_fix_s > 0 && since_fix_s <= 0.5) {
-      velocity_ = LogSe3(last_fix_map_from_cam_.Inverse() * measured) / since_fix_s;
-      velocity_valid_ = true;
-    }
+    filter_.Reset(measured, noise);  // The prediction was wrong: nothing of it to keep.
+  }
+  if (update == FilterUpdate::kRestart) {
+    velocity_valid_ = false;
+  } else if (ever_localized_ && since_fix_s > 0 && since_fix_s <= 0.5) {
+    velocity_ = LogSe3(last_fix_map_from_cam_.Inverse() * measured) / since_fix_s;
+    velocity_valid_ = true;
   }
   last_fix_ns_ = timestamp_ns;
   last_fix_map_from_cam_ = measured;
@@ -311,9 +312,11 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
                  fix.inliers >= options_.relocalization.strong_inliers) {
         // The prior knew no velocity (the first frames after a fix) and the camera moved
         // further than a walking robot would: a car's 0.8 m a frame. A fix this well supported,
-        // found by tracking from the last pose, is that motion, not a jump to hold back.
-        Accept(fix, TrackingStatus::kTracking, PoseSource::kTracking, input.timestamp_ns, &result,
-               /*restart_filter=*/true);
+        // found by tracking from the last pose, is taken at once, as a strongly supported
+        // relocalization is: reported relocalized (the pose jumped from the prediction), and its
+        // motion from the last fix is the velocity, so the next frames track.
+        Accept(fix, TrackingStatus::kRelocalized, PoseSource::kTracking, input.timestamp_ns,
+               &result, FilterUpdate::kRestartKeepingMotion);
         accepted = true;
       } else {
         pending_ = Pending{fix.cam_from_map.Inverse()};

@@ -184,10 +184,14 @@ class Localizer {
   Motion PredictMotion(const FrameInput& input, double dt_s) const;
   bool Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected, double sigma_m) const;
   PoseFix TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
-  // Takes a fix: the filter is fused with it, or restarted from it (a relocalization, or a
-  // motion the prediction did not foresee), and the velocity follows from the previous fix.
+  // How a fix enters the filter: fused with the prediction (the velocity follows from the
+  // previous fix), restarting it with no velocity (a relocalization: the pose may have jumped
+  // anywhere), or restarting it with the velocity from the previous fix (a motion the
+  // prediction could not foresee, tracked from the previous pose).
+  enum class FilterUpdate { kFuse, kRestart, kRestartKeepingMotion };
+  // Takes a fix. Relocalized fixes, and any fix while the filter holds nothing, restart it.
   void Accept(const PoseFix& fix, TrackingStatus status, PoseSource source, int64_t timestamp_ns,
-              LocalizationResult* result, bool restart_filter = false);
+              LocalizationResult* result, FilterUpdate update = FilterUpdate::kFuse);
   void ApplyPlane();
   static void CopyFixStats(const PoseFix& fix, FrameStats* stats);
 
