@@ -24,6 +24,9 @@ REPORT=docs/real-cameras.md
 mkdir -p "$WORK/maps"
 [[ -d $EUROC && -d $KITTI ]] || { echo "real-cameras.sh: no recordings in $REAL" >&2; exit 1; }
 
+# The generated sequences rendered through each rig (the runs and the report both read it).
+sequences=(query_square straight circle kidnap lowlight)
+
 # VISLOC_REAL_REPORT_ONLY=1 rewrites the report from the runs already in WORK_DIR.
 if [[ ${VISLOC_REAL_REPORT_ONLY:-0} != 1 ]]; then
 git rev-parse --short HEAD > "$WORK/commit"  # The code the runs measure.
@@ -81,7 +84,6 @@ for lens in pinhole fisheye; do
 done
 
 echo "== generated sequences: ideal, realistic and fisheye rigs"
-sequences=(query_square straight circle kidnap lowlight)
 declare -A rig_flags=([ideal]="" [realistic]="--realistic --distortion"
                       [fisheye]="--lens fisheye --realistic --distortion")
 for rig in ideal realistic fisheye; do
