@@ -10,8 +10,6 @@
 namespace visloc::proto {
 namespace {
 
-bool HasPose(const v1::Pose& p) { return p.qw() != 0 || p.qx() != 0 || p.qy() != 0 || p.qz() != 0; }
-
 TrackingStatus StatusFromProto(v1::Status status) {
   switch (status) {
     case v1::STATUS_TRACKING:
@@ -49,6 +47,30 @@ RelocalizationReport::Kind KindFromName(const std::string& name) {
   return RelocalizationReport::Kind::kNone;
 }
 
+// Refuses a wire value outside its allowed range, naming the field, the value and the range.
+void RequireRange(const char* field, double value, double low, double high, const char* unit = "") {
+  if (!(value >= low && value <= high)) {  // NaN fails both.
+    throw InputError(StrCat(field, " is ", value, unit, "; allowed ", low, unit, " to ", high, unit));
+  }
+}
+
+// A count sent as uint32 that becomes an int: refused before the cast could wrap.
+int CountInRange(const char* field, uint32_t value, uint32_t high) {
+  if (value > high) throw InputError(StrCat(field, " is ", value, "; allowed 0 (default) to ", high));
+  return static_cast<int>(value);
+}
+
+// Plausible for any real camera: a focal length between a fortieth of the image size (wider than
+// any fisheye's 180-250 degrees needs) and a hundred times it (a long telephoto).
+constexpr double kMinFocalPerSize = 0.025, kMaxFocalPerSize = 100.0;
+// Translations beyond this are not metres of a robot's world (1000 km).
+constexpr double kMaxTranslationM = 1e6;
+// Gyro rates beyond this are not a robot's (about 1,100 deg/s saturates common IMUs).
+constexpr double kMaxGyroRadps = 50.0;
+// Session option ranges: beyond them the engine is not the method any more.
+constexpr uint32_t kMaxVisibilityK = 1000, kMaxRansacIterations = 100000;
+constexpr double kMaxRansacErrorPx = 100.0, kMaxCameraHeightM = 10.0;
+
 }  // namespace
 
 void ToProto(const Rigid3d& pose, v1::Pose* out) {
@@ -64,8 +86,13 @@ void ToProto(const Rigid3d& pose, v1::Pose* out) {
 Rigid3d FromProto(const v1::Pose& p, const char* field) {
   const Eigen::Vector3d t(p.tx(), p.ty(), p.tz());
   Eigen::Quaterniond q(p.qw(), p.qx(), p.qy(), p.qz());
-  if (!t.allFinite() || !q.coeffs().allFinite() || q.norm() < 1e-9) {
-    throw InputError(StrCat(field, ": not a valid pose (finite translation, non-zero quaternion)"));
+  if (!t.allFinite() || t.cwiseAbs().maxCoeff() > kMaxTranslationM) {
+    throw InputError(StrCat(field, ": translation (", t.x(), ", ", t.y(), ", ", t.z(),
+                            ") must be finite and within ", kMaxTranslationM, " m"));
+  }
+  if (!q.coeffs().allFinite() || q.norm() < 1e-6) {
+    throw InputError(StrCat(field, ": quaternion (w ", p.qw(), ", x ", p.qx(), ", y ", p.qy(),
+                            ", z ", p.qz(), ") must be finite and non-zero (it is normalized)"));
   }
   q.normalize();
   return Rigid3d(q, t);
@@ -91,11 +118,11 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
     throw InputError(StrCat("camera: size ", c.width(), "x", c.height(), " outside 1x1..",
                             limits.max_image_width, "x", limits.max_image_height));
   }
-  if (!(c.fx() > 0 && c.fy() > 0 && std::isfinite(c.fx()) && std::isfinite(c.fy()) &&
-        std::isfinite(c.cx()) && std::isfinite(c.cy()))) {
-    throw InputError(StrCat("camera: focal lengths must be positive and finite (fx ", c.fx(),
-                            ", fy ", c.fy(), ")"));
-  }
+  const double size_px = std::max(c.width(), c.height());
+  RequireRange("camera.fx", c.fx(), kMinFocalPerSize * size_px, kMaxFocalPerSize * size_px, " px");
+  RequireRange("camera.fy", c.fy(), kMinFocalPerSize * size_px, kMaxFocalPerSize * size_px, " px");
+  RequireRange("camera.cx", c.cx(), 0.0, c.width(), " px");
+  RequireRange("camera.cy", c.cy(), 0.0, c.height(), " px");
   Lens lens;
   if (c.lens_model() == v1::EQUIDISTANT) {
     if (c.distortion_size() != 4) {
@@ -111,9 +138,7 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
     throw InputError(
         StrCat("camera: distortion needs 0 or 4 values (k1 k2 p1 p2), got ", c.distortion_size()));
   }
-  for (double k : lens.coefficients) {
-    if (!std::isfinite(k)) throw InputError("camera: distortion values must be finite");
-  }
+  for (double k : lens.coefficients) RequireRange("camera.distortion", k, -100.0, 100.0);
   return Camera(static_cast<int>(c.width()), static_cast<int>(c.height()), c.fx(), c.fy(), c.cx(),
                 c.cy(), lens);
 }
@@ -154,15 +179,19 @@ FrameInput FromProto(const v1::Frame& frame, const Camera& camera) {
   FrameInput input;
   input.timestamp_ns = frame.timestamp_ns();
   input.image = DecodeImage(frame.encoded(), frame.has_raw() ? &frame.raw() : nullptr, camera);
-  if (frame.has_odom_from_cam() && HasPose(frame.odom_from_cam())) {
-    input.odom_from_cam = FromProto(frame.odom_from_cam(), "odom_from_cam");
+  // A pose that is present is used, so it must be valid: an all-zero quaternion is refused, not
+  // taken for "no pose".
+  if (frame.has_odom_from_cam()) {
+    input.odom_from_cam = FromProto(frame.odom_from_cam(), "frame.odom_from_cam");
   }
-  if (frame.has_map_from_cam_hint() && HasPose(frame.map_from_cam_hint())) {
-    input.map_from_cam_hint = FromProto(frame.map_from_cam_hint(), "map_from_cam_hint");
+  if (frame.has_map_from_cam_hint()) {
+    input.map_from_cam_hint = FromProto(frame.map_from_cam_hint(), "frame.map_from_cam_hint");
   }
   for (const v1::ImuSample& s : frame.imu()) {
     const Eigen::Vector3d rate(s.gyro_x(), s.gyro_y(), s.gyro_z());
-    if (!rate.allFinite()) throw InputError("imu: non-finite gyro rate");
+    for (int axis = 0; axis < 3; ++axis) {
+      RequireRange("frame.imu.gyro", rate[axis], -kMaxGyroRadps, kMaxGyroRadps, " rad/s");
+    }
     input.gyro.push_back({s.timestamp_ns(), rate});
   }
   return input;
@@ -184,19 +213,34 @@ void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Fram
 
 LocalizerOptions FromProto(const v1::SessionOptions& o) {
   LocalizerOptions options;
-  if (o.visibility_k() > 0) options.tracker.visibility.k = static_cast<int>(o.visibility_k());
+  if (o.visibility_k() > 0) {
+    options.tracker.visibility.k =
+        CountInRange("options.visibility_k", o.visibility_k(), kMaxVisibilityK);
+  }
   if (o.has_probability_threshold()) {
+    RequireRange("options.probability_threshold", o.probability_threshold(), 0.0, 1.0);
     options.tracker.visibility.probability_threshold = o.probability_threshold();
   }
-  if (o.ransac_max_error_px() > 0) options.tracker.ransac.max_error_px = o.ransac_max_error_px();
+  if (o.ransac_max_error_px() != 0) {  // 0: the default.
+    RequireRange("options.ransac_max_error_px", o.ransac_max_error_px(), 0.1, kMaxRansacErrorPx,
+                 " px");
+    options.tracker.ransac.max_error_px = o.ransac_max_error_px();
+  }
   if (o.ransac_max_iterations() > 0) {
-    options.tracker.ransac.max_iterations = static_cast<int>(o.ransac_max_iterations());
+    options.tracker.ransac.max_iterations =
+        CountInRange("options.ransac_max_iterations", o.ransac_max_iterations(),
+                     kMaxRansacIterations);
   }
   if (o.has_camera_height_m()) {
+    RequireRange("options.camera_height_m", o.camera_height_m(), -kMaxCameraHeightM,
+                 kMaxCameraHeightM, " m");
     options.motion.plane_sigma_m = 0.02;
     options.motion.height_m = o.camera_height_m();
   }
   switch (o.prediction()) {
+    case v1::PREDICTION_VISIBILITY:
+      options.tracker.prediction = PredictionMode::kVisibility;
+      break;
     case v1::PREDICTION_TRANSPARENT:
       options.tracker.prediction = PredictionMode::kTransparent;
       break;
@@ -204,13 +248,17 @@ LocalizerOptions FromProto(const v1::SessionOptions& o) {
       options.tracker.prediction = PredictionMode::kBruteForce;
       break;
     default:
-      options.tracker.prediction = PredictionMode::kVisibility;
+      throw InputError(StrCat("options.prediction is ", static_cast<int>(o.prediction()),
+                              "; allowed 0 (visibility), 1 (transparent), 2 (brute force)"));
   }
-  try {
-    options.Check();
-  } catch (const CheckError& e) {
-    throw InputError(std::string("session options: ") + e.what());
+  if (o.drop_policy() != v1::PROCESS_ALL && o.drop_policy() != v1::NEWEST_ONLY) {
+    throw InputError(StrCat("options.drop_policy is ", static_cast<int>(o.drop_policy()),
+                            "; allowed 0 (process all), 1 (newest only)"));
   }
+  if (o.has_body_from_cam()) FromProto(o.body_from_cam(), "options.body_from_cam");
+  // The ranges above keep every option inside what Check() accepts; a failure here is a bug,
+  // and its text (a source location) is for the server log, not the client.
+  options.Check();
   return options;
 }
 

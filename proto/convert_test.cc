@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 #include "core/util/check.h"
 
@@ -53,6 +54,93 @@ TEST(CameraConvertTest, OlderClientsMeanRadialTangentialAndBadLensesAreNamed) {
   v1::CameraModel nan = wire;
   nan.set_distortion(1, std::nan(""));
   EXPECT_THROW(proto::FromProto(nan, proto::WireLimits{}), InputError);
+}
+
+// What the server must refuse at the door (issue 23's list): each refusal names the field and
+// the allowed range, and none carries a source location.
+class WireValidationTest : public ::testing::Test {
+ protected:
+  static v1::CameraModel GoodCamera() {
+    v1::CameraModel c;
+    proto::ToProto(Camera(320, 240, 160, 160, 159.5, 119.5), &c);
+    return c;
+  }
+  static void ExpectRefused(const std::function<void()>& convert, const std::string& field) {
+    try {
+      convert();
+      ADD_FAILURE() << field << " was accepted";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr(field));
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("allowed"));
+      EXPECT_THAT(e.what(), ::testing::Not(::testing::HasSubstr(".cc")));
+    }
+  }
+};
+
+TEST_F(WireValidationTest, SessionOptionsOutOfRangeAreRefusedByName) {
+  const auto refused = [](const std::function<void(v1::SessionOptions*)>& set,
+                          const std::string& field) {
+    v1::SessionOptions options;
+    set(&options);
+    ExpectRefused([&] { proto::FromProto(options); }, field);
+  };
+  refused([](v1::SessionOptions* o) { o->set_camera_height_m(std::nan("")); },
+          "options.camera_height_m");
+  refused([](v1::SessionOptions* o) { o->set_camera_height_m(1e300); }, "options.camera_height_m");
+  refused([](v1::SessionOptions* o) { o->set_probability_threshold(-1); },
+          "options.probability_threshold");
+  refused([](v1::SessionOptions* o) { o->set_ransac_max_error_px(-5); },
+          "options.ransac_max_error_px");
+  refused([](v1::SessionOptions* o) { o->set_visibility_k(4000000000u); }, "options.visibility_k");
+  refused([](v1::SessionOptions* o) { o->set_ransac_max_iterations(4000000000u); },
+          "options.ransac_max_iterations");
+  refused([](v1::SessionOptions* o) { o->set_prediction(static_cast<v1::PredictionMode>(9)); },
+          "options.prediction");
+  // In range, they are taken.
+  v1::SessionOptions fine;
+  fine.set_camera_height_m(0.3);
+  fine.set_probability_threshold(0.5);
+  fine.set_ransac_max_error_px(3);
+  fine.set_visibility_k(20);
+  const LocalizerOptions options = proto::FromProto(fine);
+  EXPECT_EQ(options.tracker.visibility.k, 20);
+  EXPECT_EQ(options.motion.height_m, 0.3);
+}
+
+TEST_F(WireValidationTest, ImplausibleIntrinsicsAreRefusedByName) {
+  v1::CameraModel tiny_focal = GoodCamera();
+  tiny_focal.set_fx(1e-9);
+  ExpectRefused([&] { proto::FromProto(tiny_focal, proto::WireLimits{}); }, "camera.fx");
+  v1::CameraModel far_centre = GoodCamera();
+  far_centre.set_cx(-1e9);
+  ExpectRefused([&] { proto::FromProto(far_centre, proto::WireLimits{}); }, "camera.cx");
+  v1::CameraModel nan_fy = GoodCamera();
+  nan_fy.set_fy(std::nan(""));
+  ExpectRefused([&] { proto::FromProto(nan_fy, proto::WireLimits{}); }, "camera.fy");
+}
+
+TEST_F(WireValidationTest, PresentPosesMustHaveAUsableQuaternion) {
+  const Camera camera(8, 8, 8, 8, 3.5, 3.5);
+  v1::Frame frame;
+  frame.mutable_raw()->set_width(8);
+  frame.mutable_raw()->set_height(8);
+  frame.mutable_raw()->set_pixels(std::string(64, '\x80'));
+  // Present but all zeros: refused, not taken for "no odometry".
+  frame.mutable_odom_from_cam()->set_tx(1.0);
+  EXPECT_THAT([&] { proto::FromProto(frame, camera); },
+              ::testing::ThrowsMessage<InputError>(
+                  ::testing::HasSubstr("frame.odom_from_cam: quaternion (w 0, x 0, y 0, z 0)")));
+  // A quaternion off unit length is normalized.
+  frame.mutable_odom_from_cam()->set_qw(2.0);
+  const FrameInput input = proto::FromProto(frame, camera);
+  ASSERT_TRUE(input.odom_from_cam.has_value());
+  EXPECT_NEAR(input.odom_from_cam->rotation.w(), 1.0, 1e-12);
+  frame.mutable_map_from_cam_hint()->set_qw(std::nan(""));
+  EXPECT_THROW(proto::FromProto(frame, camera), InputError);
+  v1::SessionOptions options;
+  options.mutable_body_from_cam()->set_tz(0.1);
+  EXPECT_THAT([&] { proto::FromProto(options); },
+              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("options.body_from_cam")));
 }
 
 }  // namespace

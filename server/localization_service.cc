@@ -8,6 +8,7 @@
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/timer.h"
+#include "server/client_errors.h"
 #include "server/log.h"
 #include "server/rate_limiter.h"
 
@@ -29,8 +30,10 @@ struct SessionTally {
 class Session {
  public:
   Session(std::shared_ptr<const LocalizationMap> map, const v1::SessionStart& start,
-          const proto::WireLimits& limits, WorkPermits* workers)
+          const proto::WireLimits& limits, WorkPermits* workers,
+          const std::function<void()>& before_frame)
       : workers_(workers),
+        before_frame_(before_frame),
         camera_(proto::FromProto(start.camera(), limits)),
         localizer_(
             std::move(map), camera_, proto::FromProto(start.options()),
@@ -47,17 +50,26 @@ class Session {
       if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
       // Decoding and the engine are the CPU work: one permit per core across all sessions.
       const WorkPermit permit(workers_);
+      if (before_frame_) before_frame_();
       const LocalizationResult result =
           localizer_.Process(proto::FromProto(request.frame(), camera_));
       proto::ToProto(result, index, &response);
       if (result.has_pose && result.source != PoseSource::kMotion) ++tally_.localized;
     } catch (const InputError& e) {
-      response.Clear();
-      response.set_frame_index(index);
-      response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
-      response.set_status(v1::STATUS_ERROR);
-      response.set_error(e.what());
-      ++tally_.errors;
+      Refuse(request, index, RedactForClient(e.what()), &response);
+    } catch (const std::exception& e) {
+      // Not the frame's fault: a bug or a resource failure. The session and the server go on;
+      // the client learns only a reference into the log.
+      Refuse(request, index,
+             "internal server error (reference " + LogInternalError(e, "Localize: frame") +
+                 " in the server log)",
+             &response);
+    } catch (...) {
+      const std::runtime_error unknown("an exception of unknown type");
+      Refuse(request, index,
+             "internal server error (reference " + LogInternalError(unknown, "Localize: frame") +
+                 " in the server log)",
+             &response);
     }
     const double ms = timer.ElapsedMs();
     response.mutable_timings()->set_server_ms(ms);
@@ -79,7 +91,18 @@ class Session {
   const SessionTally& tally() const { return tally_; }
 
  private:
+  void Refuse(const v1::LocalizeRequest& request, uint64_t index, const std::string& why,
+              v1::LocalizeResponse* response) {
+    response->Clear();
+    response->set_frame_index(index);
+    response->set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
+    response->set_status(v1::STATUS_ERROR);
+    response->set_error(why);
+    ++tally_.errors;
+  }
+
   WorkPermits* workers_;
+  const std::function<void()>& before_frame_;
   Camera camera_;
   Localizer localizer_;
   SessionTally tally_;
@@ -90,23 +113,17 @@ std::string RateLimitReason(double rate_hz) {
                 " Hz: frame not processed");
 }
 
-// PROCESS_ALL: every admitted frame is answered in turn.
-void ServeAll(Session* session, FrameRateLimiter* limiter,
-              grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
-  v1::LocalizeRequest request;
-  while (stream->Read(&request)) {
-    const bool admitted = limiter->Admit(FrameRateLimiter::Clock::now());
-    if (!stream->Write(admitted ? session->Answer(request)
-                                : session->Skipped(request, RateLimitReason(limiter->rate_hz())))) {
-      break;
-    }
-  }
-}
+// How a session's stream ended.
+enum class SessionEnd { kClientDone, kIdle };
 
-// NEWEST_ONLY: a reader thread queues frames (admitted or not, at arrival); the session answers
-// all but the newest as skipped.
-void ServeNewestOnly(Session* session, FrameRateLimiter* limiter,
-                     grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+// Serves one session's frames. A reader thread queues frames as they arrive (admitted by the
+// rate limiter or not, at arrival), so this thread can wait with a timeout: a session without a
+// frame for `idle_timeout` is told so (a final STATUS_CLOSED answer), its call cancelled (which
+// ends the reader's blocked Read) and kSessionIdle returned. PROCESS_ALL answers every admitted
+// frame in turn; NEWEST_ONLY answers the newest of those queued and the others SKIPPED.
+SessionEnd Serve(Session* session, FrameRateLimiter* limiter, bool newest_only,
+                 std::chrono::milliseconds idle_timeout, grpc::ServerContext* context,
+                 grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
   struct Arrival {
     v1::LocalizeRequest request;
     bool admitted = true;
@@ -127,42 +144,56 @@ void ServeNewestOnly(Session* session, FrameRateLimiter* limiter,
     done = true;
     changed.notify_one();
   });
+  const auto has_work = [&] { return done || !queue.empty(); };
+  SessionEnd end = SessionEnd::kClientDone;
   while (true) {
     std::deque<Arrival> batch;
     {
       std::unique_lock<std::mutex> lock(mutex);
-      changed.wait(lock, [&] { return done || !queue.empty(); });
+      if (idle_timeout.count() > 0) {
+        if (!changed.wait_for(lock, idle_timeout, has_work)) {
+          end = SessionEnd::kIdle;
+          break;
+        }
+      } else {
+        changed.wait(lock, has_work);
+      }
       if (queue.empty() && done) break;
       batch.swap(queue);
     }
     bool writing = true;
     for (size_t i = 0; i < batch.size() && writing; ++i) {
       const Arrival& arrival = batch[i];
-      const bool newest = i + 1 == batch.size();
+      const bool answer = !newest_only || i + 1 == batch.size();
       if (!arrival.admitted) {
         writing =
             stream->Write(session->Skipped(arrival.request, RateLimitReason(limiter->rate_hz())));
       } else {
-        writing = stream->Write(newest ? session->Answer(arrival.request)
+        writing = stream->Write(answer ? session->Answer(arrival.request)
                                        : session->Skipped(arrival.request));
       }
     }
     if (!writing) break;
   }
+  if (end == SessionEnd::kIdle) {
+    v1::LocalizeResponse closed;
+    closed.set_status(v1::STATUS_CLOSED);
+    closed.set_error(StrCat("session closed: no frame for ",
+                            FormatFixed(idle_timeout.count() / 1000.0, 1),
+                            " s (the server's session idle timeout)"));
+    stream->Write(closed);
+    context->TryCancel();  // Ends the reader's Read.
+  }
   reader.join();
+  return end;
 }
 
 }  // namespace
 
-Status StatusFromException(const std::exception& e) {
-  if (dynamic_cast<const NotFoundError*>(&e)) return Status(StatusCode::NOT_FOUND, e.what());
-  if (dynamic_cast<const InputError*>(&e)) return Status(StatusCode::INVALID_ARGUMENT, e.what());
-  return Status(StatusCode::INTERNAL, e.what());
-}
-
 LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& limits,
                                          const TokenAuth* auth)
-    : maps_(maps), limits_(limits), auth_(auth), workers_(std::max(1, limits.workers)) {}
+    : maps_(maps), limits_(limits), auth_(auth), workers_(std::max(1, limits.workers)) {
+}
 
 Status LocalizationService::Localize(
     grpc::ServerContext* context,
@@ -185,12 +216,12 @@ Status LocalizationService::Localize(
   } release{&active_sessions_};
   std::unique_ptr<Session> session;
   try {
-    session =
-        std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire, &workers_);
+    session = std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire,
+                                        &workers_, before_frame_);
   } catch (const std::exception& e) {
     Log("session_refused",
         {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
-    return StatusFromException(e);
+    return StatusFromException(e, "Localize: session start");
   }
   const uint64_t id = next_session_id_++;
   Log("session_start", {{"session", std::to_string(id)},
@@ -199,10 +230,15 @@ Status LocalizationService::Localize(
                         {"peer", context->peer()},
                         {"policy", v1::FrameDropPolicy_Name(start.options().drop_policy())}});
   FrameRateLimiter limiter(limits_.max_frame_rate_hz);
-  if (start.options().drop_policy() == v1::NEWEST_ONLY) {
-    ServeNewestOnly(session.get(), &limiter, stream);
-  } else {
-    ServeAll(session.get(), &limiter, stream);
+  const SessionEnd end = Serve(session.get(), &limiter,
+                               start.options().drop_policy() == v1::NEWEST_ONLY,
+                               limits_.session_idle_timeout, context, stream);
+  if (end == SessionEnd::kIdle) {
+    ++idle_closed_;
+    Log("session_idle",
+        {{"session", std::to_string(id)},
+         {"idle_timeout_s", FormatFixed(limits_.session_idle_timeout.count() / 1000.0, 1)},
+         {"peer", context->peer()}});
   }
   const SessionTally& t = session->tally();
   const uint64_t answered = t.frames - t.skipped;
@@ -214,7 +250,9 @@ Status LocalizationService::Localize(
        {"skipped", std::to_string(t.skipped)},
        {"errors", std::to_string(t.errors)},
        {"mean_ms", FormatFixed(answered ? t.server_ms_sum / answered : 0.0, 2)},
-       {"cancelled", context->IsCancelled() ? "true" : "false"}});
+       {"cancelled", context->IsCancelled() ? "true" : "false"},
+       {"closed_idle", end == SessionEnd::kIdle ? "true" : "false"}});
+  // An idle session's call is cancelled: the client has the reason in its final answer.
   return Status::OK;
 }
 
@@ -258,7 +296,7 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     response->set_ms(timer.ElapsedMs());
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "Relocalize");
   }
 }
 

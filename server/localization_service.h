@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
+#include <functional>
 #include <condition_variable>
 #include <mutex>
 #include <string>
@@ -19,6 +21,10 @@ struct ServiceLimits {
   int max_sessions = 64;
   int workers = 2;  // Frames processed at once across all sessions (the engine's CPU work).
   double max_frame_rate_hz = 0.0;  // Per session; faster frames are answered SKIPPED. 0: off.
+  // A session that receives no frame for this long is closed (a final STATUS_CLOSED answer, then
+  // the call is cancelled) and its slot freed: a robot whose link froze with its stream open
+  // must not hold a slot forever. 0: off.
+  std::chrono::milliseconds session_idle_timeout{30000};
   proto::WireLimits wire;
 };
 
@@ -76,6 +82,12 @@ class LocalizationService final : public v1::Localization::Service {
                           v1::RelocalizeResponse* response) override;
 
   int active_sessions() const { return active_sessions_.load(); }
+  // Sessions closed for idleness since the start.
+  int idle_sessions_closed() const { return idle_closed_.load(); }
+
+  // Fault injection for tests: called inside a session before the engine sees each frame, so a
+  // test can make the engine's side throw what it never should.
+  void SetBeforeFrameHookForTesting(std::function<void()> hook) { before_frame_ = std::move(hook); }
   // The most frames ever processed at once, across sessions (at most limits.workers).
   int peak_frames_in_work() const { return workers_.peak_in_use(); }
 
@@ -86,9 +98,9 @@ class LocalizationService final : public v1::Localization::Service {
   WorkPermits workers_;
   std::atomic<int> active_sessions_{0};
   std::atomic<uint64_t> next_session_id_{1};
-};
+  std::function<void()> before_frame_;
 
-// Maps an exception from loading a map or decoding a request to a gRPC status with its message.
-grpc::Status StatusFromException(const std::exception& e);
+  std::atomic<int> idle_closed_{0};
+};
 
 }  // namespace visloc::server

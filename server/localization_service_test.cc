@@ -1,8 +1,10 @@
 #include "server/localization_service.h"
 
 #include <grpcpp/grpcpp.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <thread>
 #include <vector>
 
@@ -71,6 +73,135 @@ TEST(LocalizationServiceTest, ConcurrentSessionsShareTheWorkerPermits) {
   for (int r = 0; r < kSessions; ++r) EXPECT_EQ(answered[r], kFrames) << "session " << r;
   EXPECT_EQ(service.peak_frames_in_work(), 1);
   EXPECT_EQ(service.active_sessions(), 0);
+}
+
+// A service on an in-process channel over a small synthetic map "lab", with a session helper.
+class ServiceFixture : public ::testing::Test {
+ protected:
+  void Start(const ServiceLimits& limits) {
+    SyntheticMapOptions options;
+    options.keyframes = 6;
+    options.points = 300;
+    Map map = MakeSyntheticMap(options);
+    map.metadata.name = "lab";
+    mapstore::SaveMap(map, maps_dir_.File("lab.db"), mapstore::SaveMapOptions{4096});
+    maps_ = std::make_unique<MapCache>(maps_dir_.path(), std::chrono::seconds(60));
+    service_ = std::make_unique<LocalizationService>(maps_.get(), limits, &auth_);
+    grpc::ServerBuilder builder;
+    builder.RegisterService(service_.get());
+    server_ = builder.BuildAndStart();
+    channel_ = server_->InProcessChannel(grpc::ChannelArguments());
+  }
+  void TearDown() override {
+    if (server_) server_->Shutdown();
+  }
+  v1::LocalizeRequest StartRequest(v1::FrameDropPolicy policy) const {
+    v1::LocalizeRequest start;
+    start.mutable_start()->set_map_name("lab");
+    start.mutable_start()->mutable_options()->set_drop_policy(policy);
+    proto::ToProto(camera_, start.mutable_start()->mutable_camera());
+    return start;
+  }
+  v1::LocalizeRequest FrameRequest(int i) const {
+    v1::LocalizeRequest frame;
+    frame.mutable_frame()->set_timestamp_ns((i + 1) * 66'666'667LL);
+    v1::RawImage* raw = frame.mutable_frame()->mutable_raw();
+    raw->set_width(camera_.width());
+    raw->set_height(camera_.height());
+    raw->set_pixels(std::string(camera_.width() * camera_.height(), '\x60'));
+    return frame;
+  }
+
+  TempDir maps_dir_{"visloc-service-test"};
+  const TokenAuth auth_;
+  const Camera camera_{160, 120, 80.0, 80.0, 79.5, 59.5};
+  std::unique_ptr<MapCache> maps_;
+  std::unique_ptr<LocalizationService> service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::shared_ptr<grpc::Channel> channel_;
+};
+
+class EngineFaultTest : public ServiceFixture,
+                        public ::testing::WithParamInterface<v1::FrameDropPolicy> {};
+
+// The engine throws what it never should (not an InputError) on every other frame: those frames
+// are answered STATUS_ERROR with a log reference and nothing of the exception's text, the others
+// are answered normally, and the server goes on serving new sessions. Under NEWEST_ONLY the
+// exception is raised while the live reader thread runs: it must not unwind past it.
+TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
+  Start(ServiceLimits{});
+  std::atomic<int> calls{0};
+  service_->SetBeforeFrameHookForTesting([&calls] {
+    if (calls++ % 2 == 0) throw std::runtime_error("injected fault at engine.cc:42");
+  });
+  for (int session = 0; session < 2; ++session) {
+    auto stub = v1::Localization::NewStub(channel_);
+    grpc::ClientContext context;
+    auto stream = stub->Localize(&context);
+    ASSERT_TRUE(stream->Write(StartRequest(GetParam())));
+    int errors = 0, answered = 0;
+    for (int i = 0; i < 6; ++i) {
+      v1::LocalizeResponse response;
+      ASSERT_TRUE(stream->Write(FrameRequest(i)));
+      ASSERT_TRUE(stream->Read(&response));  // One frame in flight: never dropped as stale.
+      if (response.status() == v1::STATUS_ERROR) {
+        ++errors;
+        EXPECT_THAT(response.error(), ::testing::HasSubstr("internal server error (reference "));
+        EXPECT_THAT(response.error(), ::testing::Not(::testing::HasSubstr("engine.cc")));
+      } else {
+        ++answered;
+      }
+    }
+    stream->WritesDone();
+    EXPECT_TRUE(stream->Finish().ok());
+    EXPECT_EQ(errors, 3) << "session " << session;
+    EXPECT_EQ(answered, 3) << "session " << session;
+  }
+  EXPECT_EQ(service_->active_sessions(), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(BothDropPolicies, EngineFaultTest,
+                         ::testing::Values(v1::PROCESS_ALL, v1::NEWEST_ONLY));
+
+// A robot whose link froze keeps its stream open and sends nothing: after the idle timeout the
+// server ends the session with a last STATUS_CLOSED answer naming the timeout, and its slot (the
+// only one) takes a new robot.
+TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed) {
+  ServiceLimits limits;
+  limits.max_sessions = 1;
+  limits.session_idle_timeout = std::chrono::milliseconds(300);
+  Start(limits);
+  auto stub = v1::Localization::NewStub(channel_);
+  grpc::ClientContext frozen_context;
+  auto frozen = stub->Localize(&frozen_context);
+  ASSERT_TRUE(frozen->Write(StartRequest(v1::PROCESS_ALL)));
+  v1::LocalizeResponse response;
+  ASSERT_TRUE(frozen->Write(FrameRequest(0)));
+  ASSERT_TRUE(frozen->Read(&response));
+  // Then nothing: the next answer is the server closing the session.
+  const auto before = std::chrono::steady_clock::now();
+  ASSERT_TRUE(frozen->Read(&response));
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - before).count();
+  EXPECT_EQ(response.status(), v1::STATUS_CLOSED);
+  EXPECT_THAT(response.error(), ::testing::HasSubstr("no frame for 0.3 s"));
+  EXPECT_GE(waited_s, 0.25);
+  EXPECT_LT(waited_s, 5.0);
+  EXPECT_FALSE(frozen->Read(&response));
+  frozen->Finish();
+  for (int i = 0; i < 100 && service_->active_sessions() > 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(service_->idle_sessions_closed(), 1);
+  // The slot is free: a new robot is served.
+  grpc::ClientContext next_context;
+  auto next = stub->Localize(&next_context);
+  ASSERT_TRUE(next->Write(StartRequest(v1::PROCESS_ALL)));
+  ASSERT_TRUE(next->Write(FrameRequest(0)));
+  ASSERT_TRUE(next->Read(&response));
+  EXPECT_NE(response.status(), v1::STATUS_ERROR) << response.error();
+  next->WritesDone();
+  EXPECT_TRUE(next->Finish().ok());
 }
 
 }  // namespace

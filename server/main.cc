@@ -2,7 +2,7 @@
 //
 //   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--tls-cert F --tls-key F]
 //                 [--tls-client-ca F] [--tokens F] [--threads N] [--max-sessions N]
-//                 [--max-frame-rate HZ]
+//                 [--max-frame-rate HZ] [--session-idle-timeout S] [--keepalive-* ...]
 //
 // Serves Localization, MapAdmin, grpc.health.v1 and server reflection. Prints
 // "listening on ADDRESS" once ready (with port 0, the port chosen). SIGTERM or SIGINT drains:
@@ -45,7 +45,49 @@ struct ServerArgs {
   bool allow_remote = false;
   bool maps_read_only = false;
   int threads = 0;
+  double session_idle_timeout_s = 30.0;
+  // Link keepalive (gRPC's keepalive guidance): clients may ping this often without being
+  // struck off; the server pings quiet connections to find dead ones.
+  double keepalive_min_ping_interval_s = 5.0;
+  int keepalive_ping_strikes = 2;
+  double keepalive_time_s = 20.0, keepalive_timeout_s = 10.0;
+  double max_connection_idle_s = 0.0, max_connection_age_s = 0.0;  // 0: unlimited.
 };
+
+// The transport's keepalive and connection-lifetime arguments from the flags.
+void SetLinkArguments(const ServerArgs& args, grpc::ServerBuilder* builder) {
+  const auto ms = [](double s) { return static_cast<int>(s * 1000); };
+  builder->AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS,
+                              ms(args.keepalive_min_ping_interval_s));
+  builder->AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, args.keepalive_ping_strikes);
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, ms(args.keepalive_time_s));
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, ms(args.keepalive_timeout_s));
+  if (args.max_connection_idle_s > 0) {
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, ms(args.max_connection_idle_s));
+  }
+  if (args.max_connection_age_s > 0) {
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_MS, ms(args.max_connection_age_s));
+    // Streams open at the age limit get this long to finish before the connection closes.
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_GRACE_MS, ms(args.drain_s));
+  }
+}
+
+void CheckLinkArguments(const ServerArgs& args) {
+  const auto positive = [](double v, const char* flag) {
+    if (!(v > 0 && v < 86400)) throw UsageError(StrCat(flag, " must be in (0, 86400) seconds"));
+  };
+  if (!(args.session_idle_timeout_s >= 0 && args.session_idle_timeout_s < 86400)) {
+    throw UsageError("--session-idle-timeout must be in [0, 86400) seconds (0: off)");
+  }
+  positive(args.keepalive_min_ping_interval_s, "--keepalive-min-ping-interval");
+  positive(args.keepalive_time_s, "--keepalive-time");
+  positive(args.keepalive_timeout_s, "--keepalive-timeout");
+  if (args.keepalive_ping_strikes < 0) throw UsageError("--keepalive-ping-strikes must be >= 0");
+  if (!(args.max_connection_idle_s >= 0) || !(args.max_connection_age_s >= 0)) {
+    throw UsageError("--max-connection-idle and --max-connection-age must be >= 0 (0: off)");
+  }
+}
 
 std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerArgs& args) {
   if (args.tls_cert.empty() != args.tls_key.empty()) {
@@ -95,7 +137,23 @@ int Run(int argc, char** argv) {
                    "writes): map upload, delete and rename are refused");
   parser.AddFlag("threads", &args.threads,
                  "frames processed at once across sessions (default: one per core)");
+  parser.AddFlag("session-idle-timeout", &args.session_idle_timeout_s,
+                 "close a session with no frame for this many seconds and free its slot (0: off)");
+  parser.AddFlag("keepalive-min-ping-interval", &args.keepalive_min_ping_interval_s,
+                 "seconds: clients pinging more often than this are struck (see ping strikes)");
+  parser.AddFlag("keepalive-ping-strikes", &args.keepalive_ping_strikes,
+                 "too-frequent pings tolerated before the connection is closed");
+  parser.AddFlag("keepalive-time", &args.keepalive_time_s,
+                 "seconds of silence before the server pings a client's connection");
+  parser.AddFlag("keepalive-timeout", &args.keepalive_timeout_s,
+                 "seconds to wait for a ping's answer before closing the connection as dead");
+  parser.AddFlag("max-connection-idle", &args.max_connection_idle_s,
+                 "close connections without calls for this many seconds (0: never)");
+  parser.AddFlag("max-connection-age", &args.max_connection_age_s,
+                 "close connections older than this many seconds, after a grace of --drain-s "
+                 "(0: never)");
   if (!parser.Parse(std::vector<std::string>(argv + 1, argv + argc), std::cout)) return 0;
+  CheckLinkArguments(args);
   if (args.max_sessions < 1) throw UsageError("--max-sessions must be at least 1");
   if (!IsLoopback(args.listen) && args.tokens.empty() && !args.allow_remote) {
     throw UsageError("without --tokens the server listens on loopback only (got " + args.listen +
@@ -121,6 +179,8 @@ int Run(int argc, char** argv) {
   ServiceLimits limits;
   limits.max_sessions = args.max_sessions;
   limits.max_frame_rate_hz = args.max_frame_rate_hz;
+  limits.session_idle_timeout =
+      std::chrono::milliseconds(static_cast<int64_t>(args.session_idle_timeout_s * 1000));
   // The per-frame engine work runs on at most this many threads at once: the machine's cores.
   limits.workers = args.threads > 0
                        ? args.threads
@@ -144,6 +204,7 @@ int Run(int argc, char** argv) {
   builder.RegisterService(&localization);
   builder.RegisterService(&admin);
   builder.SetMaxReceiveMessageSize(64 << 20);  // A raw 4096x4096 frame is 16 MiB.
+  SetLinkArguments(args, &builder);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) throw InputError("cannot listen on " + args.listen);
   grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService();
@@ -161,6 +222,9 @@ int Run(int argc, char** argv) {
                                : args.tls_client_ca.empty() ? "on"
                                                             : "mutual"},
                        {"max_frame_rate_hz", FormatFixed(args.max_frame_rate_hz, 1)},
+                       {"session_idle_timeout_s", FormatFixed(args.session_idle_timeout_s, 1)},
+                       {"keepalive_min_ping_interval_s",
+                        FormatFixed(args.keepalive_min_ping_interval_s, 1)},
                        {"tokens", auth.enabled() ? "on" : "off"},
                        {"stale_temporaries_removed", std::to_string(stale)}});
   std::printf("listening on %s\n", bound.c_str());

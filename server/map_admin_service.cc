@@ -6,6 +6,7 @@
 #include "core/util/check.h"
 #include "core/util/text_file.h"
 #include "mapstore/checksum.h"
+#include "server/client_errors.h"
 #include "server/localization_service.h"
 #include "server/log.h"
 
@@ -21,7 +22,7 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
   out->set_name(entry.name);
   out->set_size_bytes(entry.file_bytes);
   out->set_available(entry.info.has_value());
-  out->set_problem(entry.error);
+  out->set_problem(RedactForClient(entry.error));
   if (entry.info) {
     out->set_keyframes(static_cast<uint32_t>(entry.info->keyframes));
     out->set_points(entry.info->points);
@@ -56,7 +57,7 @@ Status MapAdminService::ListMaps(grpc::ServerContext* context, const v1::ListMap
     for (const auto& entry : maps_->directory().List()) ToProto(entry, response->add_maps());
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "ListMaps");
   }
 }
 
@@ -67,7 +68,7 @@ Status MapAdminService::GetMapInfo(grpc::ServerContext* context, const v1::MapNa
     ToProto(maps_->directory().Describe(request->name()), response);
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "GetMapInfo");
   }
 }
 
@@ -130,7 +131,7 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
     std::error_code ignored;
     if (!staged.empty()) std::filesystem::remove(staged, ignored);
     Log("map_upload_failed", {{"map", header.name()}, {"reason", e.what()}});
-    return StatusFromException(e);
+    return StatusFromException(e, "UploadMap");
   }
 }
 
@@ -158,7 +159,7 @@ Status MapAdminService::DownloadMap(grpc::ServerContext* context, const v1::MapN
     }
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "DownloadMap");
   }
 }
 
@@ -174,7 +175,7 @@ Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapNam
     Log("map_deleted", {{"map", request->name()}, {"peer", context->peer()}});
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "DeleteMap");
   }
 }
 
@@ -197,7 +198,7 @@ Status MapAdminService::RenameMap(grpc::ServerContext* context, const v1::Rename
         {{"from", request->from()}, {"to", request->to()}, {"peer", context->peer()}});
     return Status::OK;
   } catch (const std::exception& e) {
-    return StatusFromException(e);
+    return StatusFromException(e, "RenameMap");
   }
 }
 

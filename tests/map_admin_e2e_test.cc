@@ -24,6 +24,7 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using testing::JsonNumber;
 using testing::ProcessResult;
 using testing::ServerProcess;
@@ -127,6 +128,10 @@ TEST_F(MapAdminE2eTest, WrongChecksumsForeignFilesAndEscapingNamesAreRefused) {
   status = RawUpload("junk", not_a_map, Crc(not_a_map));
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("not sound"));
+  // The server's insides stay on the server: no maps folder, no staging file name.
+  EXPECT_THAT(status.error_message(), HasSubstr("map 'junk' (staged upload)"));
+  EXPECT_THAT(status.error_message(), Not(HasSubstr(maps_.path())));
+  EXPECT_THAT(status.error_message(), Not(HasSubstr(".tmp-")));
   status = RawUpload("../escape", bytes, Crc(bytes));
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_THAT(status.error_message(), HasSubstr("invalid map name '../escape'"));
