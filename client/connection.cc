@@ -66,6 +66,22 @@ std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
   return grpc::CreateCustomChannel(chosen.target, credentials, args);
 }
 
+void Connection::ToLibrary(client::SessionOptions* options) const {
+  std::mt19937 rng(std::random_device{}());
+  const ReplicaTarget chosen = ChooseReplicaTarget(server, &rng);
+  options->server = chosen.target;
+  client::Credentials& c = options->credentials;
+  c.token = token;
+  if (!tls_ca_path.empty()) {
+    c.tls_ca_pem = ReadFileBytes(tls_ca_path);
+    if (!tls_cert_path.empty()) {
+      c.tls_cert_pem = ReadFileBytes(tls_cert_path);
+      c.tls_key_pem = ReadFileBytes(tls_key_path);
+    }
+    c.tls_target_name = chosen.tls_name;
+  }
+}
+
 void Connection::Prepare(grpc::ClientContext* context) const {
   if (!token.empty()) context->AddMetadata("authorization", "Bearer " + token);
 }

@@ -10,6 +10,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "core/util/args.h"
+#include "visloc/client/session.h"
 
 namespace visloc::cli {
 
@@ -26,6 +27,8 @@ struct Connection {
   std::shared_ptr<grpc::Channel> OpenChannel() const;
   // Attaches the token to a call.
   void Prepare(grpc::ClientContext* context) const;
+  // The client library's server target and credentials (PEM files read now).
+  void ToLibrary(client::SessionOptions* options) const;
 };
 
 // Throws InputError "server ADDR: message (gRPC code N)" for a failed call.

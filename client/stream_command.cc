@@ -1,14 +1,16 @@
-// `visloc stream`: a robot's side of a localization session. Reads a dataset and streams its
-// left images (as the files' PNG/JPEG bytes, with odometry and gyro when asked) to
-// visloc-server, at the dataset's rate or as fast as possible, and writes/prints the same
-// outputs as `visloc localize`, plus the end-to-end latency seen by the client.
-
-#include <grpcpp/grpcpp.h>
+// `visloc stream`: a robot's side of a localization session, through the client library
+// (visloc::client). Reads a dataset and streams its left images (the files' bytes as they are,
+// or re-encoded as the robot would: JPEG, PNG or raw), with odometry and gyro when asked, to
+// visloc-server at the dataset's rate or as fast as possible. Writes and prints the same
+// outputs as `visloc localize`, plus what the link did: client-side latency, frames dropped for
+// a slow link, late answers, frames lost to broken streams, reconnections. The trajectory, the
+// statistics and the event log are written as the answers arrive, so a run that ends badly
+// keeps what was answered.
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
-#include <mutex>
 #include <thread>
 
 #include "client/commands.h"
@@ -24,7 +26,7 @@
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
 #include "proto/convert.h"
-#include "visloc/v1/visloc.grpc.pb.h"
+#include "visloc/client/session.h"
 
 namespace visloc::cli {
 namespace {
@@ -34,164 +36,320 @@ using Clock = std::chrono::steady_clock;
 
 struct StreamArgs {
   Connection server;
-  std::string map_name, dataset_dir, format, trajectory_path, stats_path, gt_path;
+  std::string map_name, dataset_dir, format, trajectory_path, stats_path, events_path, gt_path;
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
+  std::string encoding = "file";
+  int jpeg_quality = 90;
+  int max_in_flight = 2, max_queued = 2;
+  int frame_deadline_ms = 1000, stall_timeout_ms = 2000;
   bool odometry = false, json = false;
   int frames = 0;
 };
 
-v1::LocalizeRequest StartRequest(const StreamArgs& args, const Dataset& dataset) {
-  v1::LocalizeRequest request;
-  v1::SessionStart* start = request.mutable_start();
-  start->set_map_name(args.map_name);
-  start->set_robot_id("visloc-stream");
-  proto::ToProto(dataset.left.camera, start->mutable_camera());
-  start->mutable_options()->set_drop_policy(args.policy == "newest" ? v1::NEWEST_ONLY
-                                                                    : v1::PROCESS_ALL);
-  if (args.odometry)
-    proto::ToProto(dataset.left.body_from_cam, start->mutable_options()->mutable_body_from_cam());
-  return request;
+client::SessionOptions LibraryOptions(const StreamArgs& args, const Dataset& dataset) {
+  client::SessionOptions o;
+  args.server.ToLibrary(&o);
+  o.map_name = args.map_name;
+  o.robot_id = "visloc-stream";
+  proto::ToProto(dataset.left.camera, &o.camera);
+  o.session.set_drop_policy(args.policy == "newest" ? v1::NEWEST_ONLY : v1::PROCESS_ALL);
+  if (args.odometry) proto::ToProto(dataset.left.body_from_cam, o.session.mutable_body_from_cam());
+  o.encoding = args.encoding == "png"   ? client::Encoding::kPng
+               : args.encoding == "raw" ? client::Encoding::kRaw
+                                        : client::Encoding::kJpeg;
+  o.jpeg_quality = args.jpeg_quality;
+  o.max_in_flight = args.max_in_flight;
+  o.max_queued = args.max_queued;
+  o.frame_deadline = std::chrono::milliseconds(args.frame_deadline_ms);
+  o.stall_timeout = std::chrono::milliseconds(args.stall_timeout_ms);
+  if (args.rate_hz == 0) {
+    // A replay as fast as possible: every frame is sent and answered however long it takes.
+    o.wait_for_room = true;
+    o.frame_deadline = std::chrono::hours(1);
+  }
+  // A command, unlike a robot, stops trying: a server unreachable this long ends the run.
+  o.give_up_after = std::chrono::seconds(10);
+  return o;
 }
 
-v1::LocalizeRequest FrameRequest(const StreamArgs& args, const Dataset& dataset, size_t index) {
+client::Frame LibraryFrame(const StreamArgs& args, const Dataset& dataset, size_t index) {
   const FrameInput input = DatasetFrameInput(dataset, index, args.odometry, args.odometry);
-  v1::LocalizeRequest request;
-  proto::ToProto(input, ReadFileBytes(dataset.frames[index].left_path), request.mutable_frame());
-  return request;
+  v1::Frame wire;
+  proto::ToProto(input, "", &wire);
+  client::Frame frame;
+  frame.timestamp_ns = input.timestamp_ns;
+  if (wire.has_odom_from_cam()) frame.odom_from_cam = wire.odom_from_cam();
+  frame.imu.assign(wire.imu().begin(), wire.imu().end());
+  const std::string& path = dataset.frames[index].left_path;
+  if (args.encoding == "file") {
+    frame.encoded = ReadFileBytes(path);
+  } else {
+    frame.image = LoadGreyImage(path, dataset.left.camera.width(), dataset.left.camera.height());
+  }
+  return frame;
+}
+
+// What came back, written as it arrives.
+class StreamRecorder {
+ public:
+  StreamRecorder(const StreamArgs& args, const Dataset& dataset)
+      : json_(args.json), dataset_(dataset) {
+    if (!args.trajectory_path.empty()) Open(&trajectory_, args.trajectory_path, TumHeader());
+    if (!args.stats_path.empty()) Open(&stats_, args.stats_path, StatsCsvHeader() + "\n");
+    if (!args.events_path.empty()) {
+      Open(&events_, args.events_path,
+           "event,timestamp_ns,latency_ms,status,source,relocalization,has_pose,inliers,"
+           "link_state,detail\n");
+    }
+  }
+
+  void Record(const client::Event& e, size_t frame_count) {
+    using Kind = client::Event::Kind;
+    const v1::LocalizeResponse& r = e.response;
+    if (events_) {
+      const bool answer = e.kind == Kind::kResult || e.kind == Kind::kLate;
+      events_ << client::EventKindName(e.kind) << ',' << e.timestamp_ns << ','
+              << FormatFixed(e.latency_ms, 2) << ','
+              << (answer ? v1::Status_Name(r.status()) : "") << ','
+              << (answer ? v1::PoseSource_Name(r.source()) : "") << ','
+              << (answer ? r.relocalization().kind() : "") << ',' << (r.has_pose() ? 1 : 0)
+              << ',' << r.stats().inliers() << ','
+              << (e.kind == Kind::kLinkState ? client::LinkStateName(e.link_state) : "") << ",\""
+              << e.detail << "\"" << std::endl;
+    }
+    switch (e.kind) {
+      case Kind::kResult:
+        Answer(e, frame_count);
+        break;
+      case Kind::kLate:
+        ++late;
+        break;
+      case Kind::kDropped:
+        ++dropped;
+        break;
+      case Kind::kUndelivered:
+        ++undelivered;
+        break;
+      case Kind::kLinkState:
+        if (e.link_state == client::LinkState::kReconnecting) ++link_breaks;
+        if (e.link_state == client::LinkState::kFailed) failure = e.detail;
+        if (!json_) {
+          std::fprintf(stderr, "%svisloc stream: link %s: %s\n", ShowProgress() ? "\n" : "",
+                       client::LinkStateName(e.link_state), e.detail.c_str());
+        }
+        break;
+    }
+  }
+
+  RunReport report;
+  std::vector<double> latency_ms;
+  int errors = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0, link_breaks = 0;
+  std::string failure;
+
+ private:
+  static void Open(std::ofstream* out, const std::string& path, const std::string& header) {
+    out->open(path, std::ios::trunc);
+    if (!*out) throw InputError(path + ": cannot write");
+    *out << header << std::flush;
+  }
+
+  void Answer(const client::Event& e, size_t frame_count) {
+    const v1::LocalizeResponse& r = e.response;
+    latency_ms.push_back(e.latency_ms);
+    if (r.status() == v1::STATUS_ERROR) {
+      ++errors;
+      std::fprintf(stderr, "visloc stream: frame %zu: server: %s\n", FrameIndex(e.timestamp_ns),
+                   r.error().c_str());
+      return;
+    }
+    if (r.status() == v1::STATUS_SKIPPED) {
+      // A reason means the server refused the frame (its rate limit), not the drop policy the
+      // client chose: say so once.
+      if (!r.error().empty() && skipped_reason_.empty()) {
+        skipped_reason_ = r.error();
+        std::fprintf(stderr, "visloc stream: frame %zu skipped by the server: %s\n",
+                     FrameIndex(e.timestamp_ns), skipped_reason_.c_str());
+      }
+      ++skipped;
+      return;
+    }
+    LocalizationResult result = proto::FromProto(r);
+    result.timestamp_ns = e.timestamp_ns;
+    report.Add(result);
+    if (trajectory_ && result.has_pose) {
+      trajectory_ << TumLine({result.timestamp_ns, result.map_from_cam}) << std::flush;
+    }
+    if (stats_) stats_ << StatsCsvRow(result) << std::endl;
+    if (ShowProgress() && !json_) {
+      std::fprintf(stderr, "\r%-60s latency %6.1f ms", report.ProgressLine(frame_count).c_str(),
+                   e.latency_ms);
+    }
+  }
+
+  // The dataset index of the frame with this timestamp (timestamps increase strictly).
+  size_t FrameIndex(int64_t timestamp_ns) const {
+    const auto it = std::lower_bound(
+        dataset_.frames.begin(), dataset_.frames.end(), timestamp_ns,
+        [](const FrameRecord& f, int64_t t) { return f.timestamp_ns < t; });
+    return static_cast<size_t>(it - dataset_.frames.begin());
+  }
+
+  bool json_;
+  const Dataset& dataset_;
+  std::ofstream trajectory_, stats_, events_;
+  std::string skipped_reason_;
+};
+
+void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
+  ArgParser parser("visloc stream",
+                   "Streams a dataset's left images to visloc-server as one robot session "
+                   "through the client library, and reports every frame's answer: the TUM "
+                   "trajectory, the per-frame statistics CSV, the link's event log, a live line "
+                   "on a terminal, and a summary with the client-side latency.");
+  args->server.AddFlags(parser);
+  parser.AddFlag("map", &args->map_name, "map name on the server", true);
+  parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
+  parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
+  parser.AddFlag(
+      "rate", &args->rate_hz,
+      "frames per second to send (default: the dataset's timing; 0: as fast as possible, every "
+      "frame answered)");
+  parser.AddFlag("policy", &args->policy, "all (answer every frame) or newest (drop stale frames)");
+  parser.AddFlag("encoding", &args->encoding,
+                 "file (the image files' bytes), jpeg, png or raw (grey pixels)");
+  parser.AddFlag("jpeg-quality", &args->jpeg_quality, "1..100, with --encoding jpeg");
+  parser.AddFlag("max-in-flight", &args->max_in_flight, "frames on the wire at once");
+  parser.AddFlag("max-queued", &args->max_queued,
+                 "frames waiting for the link; the oldest is dropped beyond this");
+  parser.AddFlag("frame-deadline-ms", &args->frame_deadline_ms,
+                 "frames waiting longer are dropped, answers later are reported late");
+  parser.AddFlag("stall-timeout-ms", &args->stall_timeout_ms,
+                 "no answer this long: the stream is reopened");
+  parser.AddSwitch("odometry", &args->odometry, "send the dataset's odometry and gyro");
+  parser.AddFlag("trajectory", &args->trajectory_path, "write the estimated poses (TUM)");
+  parser.AddFlag("stats", &args->stats_path, "write per-frame statistics (CSV)");
+  parser.AddFlag("events", &args->events_path,
+                 "write every answer, drop and link change as it happens (CSV)");
+  parser.AddFlag("gt", &args->gt_path, "ground truth (TUM, map frame) for the summary");
+  parser.AddFlag("frames", &args->frames, "stop after this many frames (0: all)");
+  parser.AddSwitch("json", &args->json, "print the summary as one JSON object");
+  *run = parser.Parse(raw_args, std::cout);
+  if (!*run) return;
+  args->server.ApplyEnvironment();
+  if (args->rate_hz > 1000)
+    throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
+  if (args->policy != "all" && args->policy != "newest")
+    throw UsageError("--policy is all or newest");
+  if (args->encoding != "file" && args->encoding != "jpeg" && args->encoding != "png" &&
+      args->encoding != "raw") {
+    throw UsageError("--encoding is file, jpeg, png or raw");
+  }
+}
+
+void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
+                        const client::SessionStats& stats, size_t count,
+                        const Trajectory* gt) {
+  const ErrorStats latency = ComputeErrorStats(rec.latency_ms);
+  std::vector<double> sorted = rec.latency_ms;
+  std::sort(sorted.begin(), sorted.end());
+  const double p99 =
+      sorted.empty() ? 0.0 : sorted[std::min(sorted.size() - 1, sorted.size() * 99 / 100)];
+  const double kb_per_frame = stats.sent ? stats.bytes_sent / 1024.0 / stats.sent : 0.0;
+  if (args.json) {
+    JsonWriter json;
+    json.BeginObject().Field("server", args.server.server).Field("map", args.map_name);
+    json.Field("errors", static_cast<int64_t>(rec.errors))
+        .Field("skipped", static_cast<int64_t>(rec.skipped))
+        .Field("late", static_cast<int64_t>(rec.late))
+        .Field("dropped", static_cast<int64_t>(rec.dropped))
+        .Field("undelivered", static_cast<int64_t>(rec.undelivered))
+        .Field("link_breaks", static_cast<int64_t>(rec.link_breaks))
+        .Field("streams_opened", static_cast<int64_t>(stats.streams_opened))
+        .Field("kb_per_frame", kb_per_frame);
+    json.Field("latency_ms_mean", latency.mean)
+        .Field("latency_ms_p50", latency.median)
+        .Field("latency_ms_p99", p99);
+    rec.report.WriteSummaryJson(json, gt);
+    json.EndObject();
+    std::cout << json.str() << "\n";
+    return;
+  }
+  std::printf("server %s, map %s: %zu frames, %d errors, %d skipped\n",
+              args.server.server.c_str(), args.map_name.c_str(), count, rec.errors, rec.skipped);
+  rec.report.PrintSummary(stdout, gt);
+  std::printf("latency (client, submit to answer): mean %.2f ms, p50 %.2f ms, p99 %.2f ms\n",
+              latency.mean, latency.median, p99);
+  std::printf("link: %.1f KiB a frame; %d dropped (link slower than the camera), %d late, %d "
+              "undelivered, %d breaks, %llu streams\n",
+              kb_per_frame, rec.dropped, rec.late, rec.undelivered, rec.link_breaks,
+              static_cast<unsigned long long>(stats.streams_opened));
 }
 
 }  // namespace
 
 int RunStream(const Args& raw_args) {
   StreamArgs args;
-  ArgParser parser("visloc stream",
-                   "Streams a dataset's left images to visloc-server as one robot session and "
-                   "reports every frame's answer: the TUM trajectory, the per-frame statistics "
-                   "CSV, a live line on a terminal, and a summary with the client-side latency.");
-  args.server.AddFlags(parser);
-  parser.AddFlag("map", &args.map_name, "map name on the server", true);
-  parser.AddFlag("dataset", &args.dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
-  parser.AddFlag("format", &args.format, "euroc or kitti (default: detected)");
-  parser.AddFlag(
-      "rate", &args.rate_hz,
-      "frames per second to send (default: the dataset's timing; 0: as fast as possible)");
-  parser.AddFlag("policy", &args.policy, "all (answer every frame) or newest (drop stale frames)");
-  parser.AddSwitch("odometry", &args.odometry, "send the dataset's odometry and gyro");
-  parser.AddFlag("trajectory", &args.trajectory_path, "write the estimated poses (TUM)");
-  parser.AddFlag("stats", &args.stats_path, "write per-frame statistics (CSV)");
-  parser.AddFlag("gt", &args.gt_path, "ground truth (TUM, map frame) for the summary");
-  parser.AddFlag("frames", &args.frames, "stop after this many frames (0: all)");
-  parser.AddSwitch("json", &args.json, "print the summary as one JSON object");
-  if (!parser.Parse(raw_args, std::cout)) return 0;
-  args.server.ApplyEnvironment();
-  if (args.rate_hz > 1000)
-    throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
-  if (args.policy != "all" && args.policy != "newest")
-    throw UsageError("--policy is all or newest");
+  bool run = false;
+  ParseStreamArgs(raw_args, &args, &run);
+  if (!run) return 0;
   const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, args.odometry);
   const Trajectory ground_truth = args.gt_path.empty() ? Trajectory{} : ReadTum(args.gt_path);
   const size_t count = args.frames > 0 ? std::min<size_t>(args.frames, dataset.frames.size())
                                        : dataset.frames.size();
+  StreamRecorder recorder(args, dataset);
+  std::mutex recorder_mutex;
+  client::SessionOptions options = LibraryOptions(args, dataset);
+  options.on_event = [&](const client::Event& e) {
+    std::lock_guard<std::mutex> lock(recorder_mutex);
+    recorder.Record(e, count);
+  };
+  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  std::unique_ptr<client::Session> session = client::Session::Open(options);
 
-  auto stub = v1::Localization::NewStub(args.server.OpenChannel());
-  grpc::ClientContext context;
-  args.server.Prepare(&context);
-  auto stream = stub->Localize(&context);
-  std::vector<Clock::time_point> sent(count);
-  std::mutex sent_mutex;
-  std::thread writer([&] {
-    bool ok = stream->Write(StartRequest(args, dataset));
-    const Clock::time_point start = Clock::now();
-    const int64_t t0 = dataset.frames.front().timestamp_ns;
-    for (size_t i = 0; i < count && ok; ++i) {
-      if (args.rate_hz < 0) {
-        std::this_thread::sleep_until(
-            start + std::chrono::nanoseconds(dataset.frames[i].timestamp_ns - t0));
-      } else if (args.rate_hz > 0) {
-        std::this_thread::sleep_until(
-            start + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args.rate_hz)));
-      }
-      v1::LocalizeRequest request;
-      try {
-        request = FrameRequest(args, dataset, i);
-      } catch (const InputError& e) {
-        std::fprintf(stderr, "visloc stream: frame %zu: %s (sent without an image)\n", i, e.what());
-        request.mutable_frame()->set_timestamp_ns(dataset.frames[i].timestamp_ns);
-      }
-      {
-        std::lock_guard<std::mutex> lock(sent_mutex);
-        sent[i] = Clock::now();
-      }
-      ok = stream->Write(request);
+  const Clock::time_point start = Clock::now();
+  const int64_t t0 = dataset.frames.front().timestamp_ns;
+  for (size_t i = 0; i < count; ++i) {
+    if (args.rate_hz < 0) {
+      std::this_thread::sleep_until(
+          start + std::chrono::nanoseconds(dataset.frames[i].timestamp_ns - t0));
+    } else if (args.rate_hz > 0) {
+      std::this_thread::sleep_until(
+          start + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args.rate_hz)));
     }
-    stream->WritesDone();
-  });
-
-  RunReport report;
-  std::vector<double> latency_ms;
-  int errors = 0, skipped = 0;
-  std::string skipped_reason;
-  v1::LocalizeResponse response;
-  while (stream->Read(&response)) {
-    const size_t index = response.frame_index();
-    if (index < count) {
-      std::lock_guard<std::mutex> lock(sent_mutex);
-      latency_ms.push_back(
-          std::chrono::duration<double, std::milli>(Clock::now() - sent[index]).count());
-    }
-    if (response.status() == v1::STATUS_ERROR) {
-      ++errors;
-      std::fprintf(stderr, "visloc stream: frame %zu: server: %s\n", index,
-                   response.error().c_str());
+    if (session->link_state() == client::LinkState::kFailed) break;
+    client::Frame frame;
+    try {
+      frame = LibraryFrame(args, dataset, i);
+    } catch (const InputError& e) {
+      std::fprintf(stderr, "visloc stream: frame %zu: %s (not sent)\n", i, e.what());
       continue;
     }
-    if (response.status() == v1::STATUS_SKIPPED) {
-      // A reason means the server refused the frame (its rate limit), not the drop policy the
-      // client chose: say so once.
-      if (!response.error().empty() && skipped_reason.empty()) {
-        skipped_reason = response.error();
-        std::fprintf(stderr, "visloc stream: frame %zu skipped by the server: %s\n", index,
-                     skipped_reason.c_str());
-      }
-      ++skipped;
-      continue;
-    }
-    report.Add(proto::FromProto(response));
-    if (ShowProgress() && !args.json) {
-      std::fprintf(stderr, "\r%-60s latency %6.1f ms", report.ProgressLine(count).c_str(),
-                   latency_ms.empty() ? 0.0 : latency_ms.back());
+    std::string why_not;
+    if (!session->Submit(frame, &why_not) && session->link_state() != client::LinkState::kFailed) {
+      std::fprintf(stderr, "visloc stream: frame %zu: %s (not sent)\n", i, why_not.c_str());
     }
   }
-  writer.join();
-  const grpc::Status status = stream->Finish();
+  const client::LinkState final_state = session->link_state();
+  session->Close(std::chrono::milliseconds(args.rate_hz == 0 ? 600000 : 2 * args.stall_timeout_ms));
+  const client::SessionStats stats = session->stats();
+  session.reset();
   if (ShowProgress() && !args.json) std::fprintf(stderr, "\n");
-  CheckCall(status, args.server.server);
-  if (!args.trajectory_path.empty()) WriteTum(args.trajectory_path, report.PosedTrajectory());
-  if (!args.stats_path.empty()) report.WriteStatsCsv(args.stats_path);
-  const ErrorStats latency = ComputeErrorStats(latency_ms);
-  std::vector<double> sorted = latency_ms;
-  std::sort(sorted.begin(), sorted.end());
-  const double p99 =
-      sorted.empty() ? 0.0 : sorted[std::min(sorted.size() - 1, sorted.size() * 99 / 100)];
+  if (!recorder.failure.empty()) throw InputError("server " + args.server.server + ": " + recorder.failure);
+  if (stats.answered + stats.late == 0 && count > 0) {
+    throw InputError("server " + args.server.server + ": no frame was answered (gRPC code 14: " +
+                     "the server could not be reached or kept)");
+  }
   const Trajectory* gt = ground_truth.empty() ? nullptr : &ground_truth;
-  if (args.json) {
-    JsonWriter json;
-    json.BeginObject().Field("server", args.server.server).Field("map", args.map_name);
-    json.Field("errors", static_cast<int64_t>(errors))
-        .Field("skipped", static_cast<int64_t>(skipped));
-    json.Field("latency_ms_mean", latency.mean)
-        .Field("latency_ms_p50", latency.median)
-        .Field("latency_ms_p99", p99);
-    report.WriteSummaryJson(json, gt);
-    json.EndObject();
-    std::cout << json.str() << "\n";
-  } else {
-    std::printf("server %s, map %s: %zu frames sent, %d errors, %d skipped\n",
-                args.server.server.c_str(), args.map_name.c_str(), count, errors, skipped);
-    report.PrintSummary(stdout, gt);
-    std::printf("latency (client, send to answer): mean %.2f ms, p50 %.2f ms, p99 %.2f ms\n",
-                latency.mean, latency.median, p99);
+  PrintStreamSummary(args, recorder, stats, count, gt);
+  if (final_state == client::LinkState::kReconnecting || final_state == client::LinkState::kConnecting) {
+    // The outputs hold what was answered; the exit status says the run did not end well.
+    std::fprintf(stderr,
+                 "visloc stream: server %s: the link was down at the end of the run (%llu frames "
+                 "answered, %d dropped, %d undelivered)\n",
+                 args.server.server.c_str(), static_cast<unsigned long long>(stats.answered),
+                 recorder.dropped, recorder.undelivered);
+    return 1;
   }
   return 0;
 }

@@ -67,17 +67,20 @@ Trajectory ReadTum(const std::string& path) {
   return trajectory;
 }
 
-void WriteTum(const std::string& path, const Trajectory& trajectory) {
-  std::string out = "# timestamp tx ty tz qx qy qz qw\n";
+std::string TumHeader() { return "# timestamp tx ty tz qx qy qz qw\n"; }
+
+std::string TumLine(const StampedPose& sample) {
   char buffer[256];
-  for (const StampedPose& sample : trajectory) {
-    const Eigen::Vector3d& t = sample.pose.translation;
-    const Eigen::Quaterniond& q = sample.pose.rotation;
-    std::snprintf(buffer, sizeof(buffer), " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", t.x(), t.y(),
-                  t.z(), q.x(), q.y(), q.z(), q.w());
-    out += FormatNsAsSeconds(sample.timestamp_ns);
-    out += buffer;
-  }
+  const Eigen::Vector3d& t = sample.pose.translation;
+  const Eigen::Quaterniond& q = sample.pose.rotation;
+  std::snprintf(buffer, sizeof(buffer), " %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", t.x(), t.y(),
+                t.z(), q.x(), q.y(), q.z(), q.w());
+  return FormatNsAsSeconds(sample.timestamp_ns) + buffer;
+}
+
+void WriteTum(const std::string& path, const Trajectory& trajectory) {
+  std::string out = TumHeader();
+  for (const StampedPose& sample : trajectory) out += TumLine(sample);
   WriteFileAtomically(path, out);
 }
 

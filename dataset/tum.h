@@ -18,5 +18,9 @@ void WriteTum(const std::string& path, const Trajectory& trajectory);
 // "12.5" -> 12500000000. Decimal notation is parsed exactly; other forms via double.
 std::optional<int64_t> ParseSecondsToNs(const std::string& text);
 std::string FormatNsAsSeconds(int64_t timestamp_ns);
+// The header comment and one pose line ("timestamp tx ty tz qx qy qz qw\n") of a TUM file, for
+// writers that append as poses arrive.
+std::string TumHeader();
+std::string TumLine(const StampedPose& sample);
 
 }  // namespace visloc

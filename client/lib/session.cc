@@ -1,0 +1,571 @@
+// The client session: one worker thread owns the stream's life (connect, send, tear down,
+// reconnect) and one reader thread per stream takes the answers. State shared between them and
+// the application's Submit() is under one mutex; events are emitted outside it, so an on_event
+// callback may call Submit().
+
+#include <grpcpp/grpcpp.h>
+
+#include <condition_variable>
+#include <deque>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "client/lib/pose_math.h"
+#include "visloc/client/session.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc::client {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MsBetween(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+
+// Statuses after which reconnecting cannot help: the request itself is refused.
+bool Permanent(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::NOT_FOUND:
+    case grpc::StatusCode::PERMISSION_DENIED:
+    case grpc::StatusCode::UNAUTHENTICATED:
+    case grpc::StatusCode::UNIMPLEMENTED:
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return true;
+    default:
+      return false;
+  }
+}
+
+std::shared_ptr<grpc::ChannelCredentials> ChannelCredentials(const Credentials& c) {
+  if (c.tls_ca_pem.empty()) return grpc::InsecureChannelCredentials();
+  grpc::SslCredentialsOptions tls;
+  tls.pem_root_certs = c.tls_ca_pem;
+  tls.pem_cert_chain = c.tls_cert_pem;
+  tls.pem_private_key = c.tls_key_pem;
+  return grpc::SslCredentials(tls);
+}
+
+// A fresh channel for every stream: after a stall the old connection may be a dead TCP
+// connection that gRPC has not noticed yet, so it must not be shared (a local subchannel pool).
+std::shared_ptr<grpc::Channel> NewChannel(const SessionOptions& o) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, static_cast<int>(o.keepalive_time.count()));
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, static_cast<int>(o.keepalive_timeout.count()));
+  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 0);
+  args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
+  // The channel's own reconnection must not wait longer than ours.
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
+  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_max.count()));
+  args.SetMaxReceiveMessageSize(64 << 20);
+  // Replicas (several addresses): each new stream goes to the next ready one.
+  args.SetLoadBalancingPolicyName("round_robin");
+  if (!o.credentials.tls_target_name.empty()) {
+    args.SetSslTargetNameOverride(o.credentials.tls_target_name);
+  }
+  return grpc::CreateCustomChannel(o.server, ChannelCredentials(o.credentials), args);
+}
+
+class SessionImpl final : public Session {
+ public:
+  explicit SessionImpl(const SessionOptions& options) : options_(options) {
+    worker_ = std::thread([this] { Work(); });
+  }
+  ~SessionImpl() override { Close(std::chrono::milliseconds(0)); }
+
+  bool Submit(const Frame& frame, std::string* why_not) override;
+  std::optional<Event> Next(std::chrono::milliseconds wait) override;
+  void Close(std::chrono::milliseconds drain) override;
+  LinkState link_state() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return state_;
+  }
+  SessionStats stats() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return stats_;
+  }
+
+ private:
+  struct Queued {
+    Frame frame;
+    Clock::time_point submitted;
+  };
+  struct InFlight {
+    int64_t timestamp_ns = 0;
+    Clock::time_point submitted;
+    std::optional<v1::Pose> odom_from_cam;
+  };
+  // One open Localize call.
+  struct Stream {
+    std::shared_ptr<grpc::Channel> channel;
+    grpc::ClientContext context;
+    std::unique_ptr<grpc::ClientReaderWriter<v1::LocalizeRequest, v1::LocalizeResponse>> call;
+    std::thread reader;
+    bool ended = false;     // The reader saw the end (guarded by mutex_).
+    std::string why_ended;  // Set when we ended it (stall) or the server did (STATUS_CLOSED).
+    bool posed = false;     // An answer on this stream carried a pose.
+    bool answered = false;  // The stream has answered a frame.
+  };
+  using Events = std::vector<Event>;
+
+  void Work();
+  bool OpenStream(Events* events, grpc::Status* refused);
+  void ReadAnswers(Stream* stream);
+  void FinishWriting();
+  void EndStream(Events* events, bool* permanent);
+  bool SendNext();
+  void ExpireQueued(Clock::time_point now, Events* events);
+  void CheckLink(Clock::time_point now, Events* events);
+  void SetState(LinkState state, const std::string& detail, Events* events);
+  void Emit(Events events);
+  void DropAllQueued(const std::string& why, Events* events);
+
+  const SessionOptions options_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;  // Queue, in-flight, stream end or closing changed.
+  std::deque<Queued> queue_;
+  std::deque<InFlight> in_flight_;
+  std::unique_ptr<Stream> stream_;
+  LinkState state_ = LinkState::kConnecting;
+  SessionStats stats_;
+  bool closing_ = false;
+  Clock::time_point drain_until_;
+  std::string refused_;  // Why the server refused the session for good.
+  // The last answer with a pose, for resuming: its pose and the odometry of its frame.
+  std::optional<v1::Pose> last_map_from_cam_, last_odom_from_cam_;
+  std::thread worker_;
+
+  std::mutex events_mutex_;
+  std::condition_variable events_ready_;
+  std::deque<Event> events_;
+};
+
+bool SessionImpl::Submit(const Frame& frame, std::string* why_not) {
+  const auto refuse = [why_not](const std::string& why) {
+    if (why_not) *why_not = why;
+    return false;
+  };
+  if (frame.encoded.empty()) {
+    if (frame.image.empty()) return refuse("the frame has no image");
+    if (frame.image.cols != static_cast<int>(options_.camera.width()) ||
+        frame.image.rows != static_cast<int>(options_.camera.height())) {
+      return refuse("the image is " + std::to_string(frame.image.cols) + "x" +
+                    std::to_string(frame.image.rows) + " but the session camera is " +
+                    std::to_string(options_.camera.width()) + "x" +
+                    std::to_string(options_.camera.height()));
+    }
+    if (frame.image.depth() != CV_8U) return refuse("the image is not 8-bit");
+  }
+  Events events;
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (options_.wait_for_room) {
+      wake_.wait(lock, [this] {
+        return closing_ || !refused_.empty() ||
+               static_cast<int>(queue_.size()) < options_.max_queued;
+      });
+    }
+    if (closing_) return refuse("the session is closed");
+    if (!refused_.empty()) return refuse(refused_);
+    Queued queued{frame, Clock::now()};
+    queued.frame.image = frame.image.clone();  // The caller may reuse its buffer.
+    queue_.push_back(std::move(queued));
+    ++stats_.submitted;
+    while (static_cast<int>(queue_.size()) > options_.max_queued) {
+      Event dropped;
+      dropped.kind = Event::Kind::kDropped;
+      dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
+      dropped.detail = "the link is slower than the camera: a newer frame replaced it";
+      events.push_back(std::move(dropped));
+      queue_.pop_front();
+      ++stats_.dropped;
+    }
+  }
+  wake_.notify_all();
+  Emit(std::move(events));
+  return true;
+}
+
+std::optional<Event> SessionImpl::Next(std::chrono::milliseconds wait) {
+  std::unique_lock<std::mutex> lock(events_mutex_);
+  if (!events_ready_.wait_for(lock, wait, [this] { return !events_.empty(); })) {
+    return std::nullopt;
+  }
+  Event event = std::move(events_.front());
+  events_.pop_front();
+  return event;
+}
+
+void SessionImpl::Emit(Events events) {
+  if (events.empty()) return;
+  if (options_.on_event) {
+    for (const Event& e : events) options_.on_event(e);
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(events_mutex_);
+    for (Event& e : events) {
+      events_.push_back(std::move(e));
+      if (static_cast<int>(events_.size()) > options_.max_pending_events) events_.pop_front();
+    }
+  }
+  events_ready_.notify_all();
+}
+
+void SessionImpl::SetState(LinkState state, const std::string& detail, Events* events) {
+  if (state == state_) return;
+  state_ = state;
+  Event changed;
+  changed.kind = Event::Kind::kLinkState;
+  changed.link_state = state;
+  changed.detail = detail;
+  events->push_back(std::move(changed));
+}
+
+void SessionImpl::Close(std::chrono::milliseconds drain) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!closing_) {
+      closing_ = true;
+      drain_until_ = Clock::now() + drain;
+    }
+  }
+  wake_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void SessionImpl::DropAllQueued(const std::string& why, Events* events) {
+  for (const Queued& q : queue_) {
+    Event dropped;
+    dropped.kind = Event::Kind::kDropped;
+    dropped.timestamp_ns = q.frame.timestamp_ns;
+    dropped.detail = why;
+    events->push_back(std::move(dropped));
+    ++stats_.dropped;
+  }
+  queue_.clear();
+}
+
+// Frames that waited longer than the deadline are of no use to a robot any more.
+void SessionImpl::ExpireQueued(Clock::time_point now, Events* events) {
+  if (options_.wait_for_room) return;  // A replay: every frame is sent, however late.
+  while (!queue_.empty() && now - queue_.front().submitted > options_.frame_deadline) {
+    Event dropped;
+    dropped.kind = Event::Kind::kDropped;
+    dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
+    dropped.detail = "stale: waited " +
+                     std::to_string(static_cast<int>(MsBetween(queue_.front().submitted, now))) +
+                     " ms for the link";
+    events->push_back(std::move(dropped));
+    queue_.pop_front();
+    ++stats_.dropped;
+  }
+}
+
+// Degraded when the oldest frame on the wire is unanswered past the deadline; stalled (the
+// stream is ended, to be reopened) past the stall timeout.
+void SessionImpl::CheckLink(Clock::time_point now, Events* events) {
+  if (!stream_ || stream_->ended || in_flight_.empty()) return;
+  const auto waited = now - in_flight_.front().submitted;
+  // A stream's first answer also waits for the server to load the map: a longer allowance.
+  const auto stall_after =
+      stream_->answered ? options_.stall_timeout
+                        : std::max<std::chrono::milliseconds>(options_.stall_timeout,
+                                                              std::chrono::seconds(10));
+  if (waited > stall_after) {
+    stream_->why_ended = "stalled: no answer for " +
+                         std::to_string(static_cast<int>(MsBetween(in_flight_.front().submitted, now))) +
+                         " ms";
+    stream_->context.TryCancel();
+  } else if (waited > options_.frame_deadline && state_ == LinkState::kConnected) {
+    SetState(LinkState::kDegraded, "no answer for over " +
+                                       std::to_string(options_.frame_deadline.count()) + " ms",
+             events);
+  }
+}
+
+bool SessionImpl::OpenStream(Events* events, grpc::Status* refused) {
+  auto stream = std::make_unique<Stream>();
+  stream->channel = NewChannel(options_);
+  if (!stream->channel->WaitForConnected(std::chrono::system_clock::now() +
+                                         options_.connect_timeout)) {
+    *refused = grpc::Status(grpc::StatusCode::UNAVAILABLE, "cannot connect to " + options_.server);
+    return false;
+  }
+  if (!options_.credentials.token.empty()) {
+    stream->context.AddMetadata("authorization", "Bearer " + options_.credentials.token);
+  }
+  stream->call = v1::Localization::NewStub(stream->channel)->Localize(&stream->context);
+  v1::LocalizeRequest start;
+  v1::SessionStart* s = start.mutable_start();
+  s->set_map_name(options_.map_name);
+  *s->mutable_camera() = options_.camera;
+  *s->mutable_options() = options_.session;
+  s->set_robot_id(options_.robot_id);
+  if (!stream->call->Write(start)) {
+    *refused = stream->call->Finish();
+    return false;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  stream_ = std::move(stream);
+  Stream* raw = stream_.get();
+  stream_->reader = std::thread([this, raw] { ReadAnswers(raw); });
+  ++stats_.streams_opened;
+  SetState(LinkState::kConnected,
+           stats_.streams_opened == 1 ? "connected to " + options_.server : "resumed", events);
+  return true;
+}
+
+void SessionImpl::ReadAnswers(Stream* stream) {
+  v1::LocalizeResponse response;
+  while (stream->call->Read(&response)) {
+    Events events;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (response.status() == v1::STATUS_CLOSED) {
+        stream->why_ended = "the server closed the session: " + response.error();
+        continue;  // The stream ends next.
+      }
+      if (in_flight_.empty()) continue;  // Nothing of ours (cannot happen with a sound server).
+      const InFlight sent = in_flight_.front();
+      in_flight_.pop_front();
+      stream->answered = true;
+      const Clock::time_point now = Clock::now();
+      Event answer;
+      answer.timestamp_ns = sent.timestamp_ns;
+      answer.latency_ms = MsBetween(sent.submitted, now);
+      const bool late = now - sent.submitted > options_.frame_deadline;
+      answer.kind = late ? Event::Kind::kLate : Event::Kind::kResult;
+      ++(late ? stats_.late : stats_.answered);
+      if (response.has_pose() && (response.status() == v1::STATUS_TRACKING ||
+                                  response.status() == v1::STATUS_RELOCALIZED ||
+                                  response.status() == v1::STATUS_LIMITED)) {
+        last_map_from_cam_ = response.map_from_cam();
+        last_odom_from_cam_ = sent.odom_from_cam;
+        stream->posed = true;
+      }
+      answer.response = response;
+      events.push_back(std::move(answer));
+      if (!late && state_ == LinkState::kDegraded) SetState(LinkState::kConnected, "answering again", &events);
+    }
+    wake_.notify_all();
+    Emit(std::move(events));
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stream->ended = true;
+  }
+  wake_.notify_all();
+}
+
+// Closing: half-closes a live stream and gives the server a moment to end it cleanly (it does
+// at once once it has read the half-close), so it is not logged as cancelled.
+void SessionImpl::FinishWriting() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  if (!closing_ || stream_->ended) return;
+  Stream* stream = stream_.get();
+  lock.unlock();
+  stream->call->WritesDone();
+  lock.lock();
+  wake_.wait_for(lock, std::chrono::milliseconds(1000), [stream] { return stream->ended; });
+}
+
+// Tears the ended (or to-be-ended) stream down: its unanswered frames are undelivered.
+void SessionImpl::EndStream(Events* events, bool* permanent) {
+  std::unique_ptr<Stream> stream;
+  bool ended;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stream = std::move(stream_);
+    ended = stream->ended;
+  }
+  // A call that ended by itself keeps its status (a cancel now would replace it).
+  if (!ended) stream->context.TryCancel();
+  stream->reader.join();
+  const grpc::Status status = stream->call->Finish();
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const InFlight& lost : in_flight_) {
+    Event undelivered;
+    undelivered.kind = Event::Kind::kUndelivered;
+    undelivered.timestamp_ns = lost.timestamp_ns;
+    undelivered.detail = "the stream broke before its answer";
+    events->push_back(std::move(undelivered));
+    ++stats_.undelivered;
+  }
+  in_flight_.clear();
+  *permanent = Permanent(status.error_code());
+  // The server's status says most; ours (a stall we cancelled, a failed write) when there is
+  // none or it is only the echo of our cancel.
+  const bool ours = status.ok() || (status.error_code() == grpc::StatusCode::CANCELLED &&
+                                    !stream->why_ended.empty());
+  std::string why = ours ? stream->why_ended
+                         : status.error_message() + " (gRPC code " +
+                               std::to_string(static_cast<int>(status.error_code())) + ")";
+  if (why.empty()) why = "the server ended the stream";
+  if (*permanent) {
+    refused_ = "the server refused the session: " + why;
+    SetState(LinkState::kFailed, refused_, events);
+    DropAllQueued(refused_, events);
+  } else if (!closing_) {
+    SetState(LinkState::kReconnecting, why, events);
+  }
+}
+
+// Sends the oldest queued frame. Called with no lock held; false when the write failed.
+bool SessionImpl::SendNext() {
+  Queued next;
+  Stream* stream;
+  bool resume_hint = false;
+  v1::Pose hint;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    next = std::move(queue_.front());
+    queue_.pop_front();
+    wake_.notify_all();  // Room in the queue (wait_for_room).
+    stream = stream_.get();
+    // Resuming: until the new stream has posed a frame, frames carry the last good pose, moved
+    // by the odometry since, as the prior to track from.
+    if (options_.resume_with_hint && stats_.streams_opened > 1 && !stream->posed &&
+        last_map_from_cam_ && !next.frame.map_from_cam_hint) {
+      hint = *last_map_from_cam_;
+      if (last_odom_from_cam_ && next.frame.odom_from_cam) {
+        hint = PropagateByOdometry(hint, *last_odom_from_cam_, *next.frame.odom_from_cam);
+      }
+      resume_hint = true;
+    }
+    in_flight_.push_back({next.frame.timestamp_ns, next.submitted, next.frame.odom_from_cam});
+  }
+  v1::LocalizeRequest request;
+  v1::Frame* f = request.mutable_frame();
+  f->set_timestamp_ns(next.frame.timestamp_ns);
+  if (!next.frame.encoded.empty()) {
+    f->set_encoded(next.frame.encoded);
+  } else if (options_.encoding == Encoding::kRaw) {
+    const std::string pixels = EncodeImage(next.frame.image, Encoding::kRaw, 0);
+    v1::RawImage* raw = f->mutable_raw();
+    raw->set_width(next.frame.image.cols);
+    raw->set_height(next.frame.image.rows);
+    raw->set_pixels(pixels);
+  } else {
+    f->set_encoded(EncodeImage(next.frame.image, options_.encoding, options_.jpeg_quality));
+  }
+  if (next.frame.odom_from_cam) *f->mutable_odom_from_cam() = *next.frame.odom_from_cam;
+  for (const v1::ImuSample& s : next.frame.imu) *f->add_imu() = s;
+  if (next.frame.map_from_cam_hint) {
+    *f->mutable_map_from_cam_hint() = *next.frame.map_from_cam_hint;
+  } else if (resume_hint) {
+    *f->mutable_map_from_cam_hint() = hint;
+  }
+  const size_t bytes = f->encoded().size() + f->raw().pixels().size();
+  const bool written = stream->call->Write(request);
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (written) {
+    ++stats_.sent;
+    stats_.bytes_sent += bytes;
+  }
+  return written;
+}
+
+void SessionImpl::Work() {
+  std::chrono::milliseconds backoff = options_.backoff_initial;
+  bool ever_connected = false;
+  Clock::time_point last_stream = Clock::now();  // Opened, or the start.
+  while (true) {
+    Events events;
+    // 1. No stream: open one when there is something to send (and not closing).
+    bool need_stream;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this, ever_connected] {
+        return stream_ || closing_ || !queue_.empty() || !ever_connected;
+      });
+      need_stream = !stream_ && !closing_ && refused_.empty();
+      if (!stream_ && (closing_ || !refused_.empty())) {
+        if (closing_) DropAllQueued("the session was closed before it was sent", &events);
+        SetState(closing_ ? LinkState::kClosed : state_, "closed", &events);
+        lock.unlock();
+        Emit(std::move(events));
+        return;
+      }
+    }
+    if (need_stream) {
+      grpc::Status refused;
+      if (!OpenStream(&events, &refused)) {
+        std::unique_lock<std::mutex> lock(mutex_);
+        const std::string code =
+            " (gRPC code " + std::to_string(static_cast<int>(refused.error_code())) + ")";
+        const bool give_up = options_.give_up_after.count() > 0 &&
+                             Clock::now() - last_stream > options_.give_up_after;
+        if (give_up) {
+          refused_ = "gave up after " + std::to_string(options_.give_up_after.count()) +
+                     " ms without a stream: " + refused.error_message() + code;
+          SetState(LinkState::kFailed, refused_, &events);
+          DropAllQueued(refused_, &events);
+        } else if (Permanent(refused.error_code())) {
+          refused_ = "the server refused the session: " + refused.error_message() + code;
+          SetState(LinkState::kFailed, refused_, &events);
+          DropAllQueued(refused_, &events);
+        } else {
+          SetState(ever_connected ? LinkState::kReconnecting : LinkState::kConnecting,
+                   refused.error_message(), &events);
+          ExpireQueued(Clock::now(), &events);
+          wake_.wait_for(lock, backoff, [this] { return closing_; });
+          backoff = std::min(backoff * 2, options_.backoff_max);
+        }
+        lock.unlock();
+        wake_.notify_all();
+        Emit(std::move(events));
+        continue;
+      }
+      ever_connected = true;
+      backoff = options_.backoff_initial;
+      last_stream = Clock::now();
+    }
+    // 2. A stream is open: send while the window allows, watch the link.
+    bool send = false, end = false;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait_for(lock, std::chrono::milliseconds(20), [this] {
+        return stream_->ended || closing_ ||
+               (!queue_.empty() && static_cast<int>(in_flight_.size()) < options_.max_in_flight);
+      });
+      const Clock::time_point now = Clock::now();
+      ExpireQueued(now, &events);
+      CheckLink(now, &events);
+      const bool drained = queue_.empty() && in_flight_.empty();
+      if (stream_->ended) {
+        end = true;
+      } else if (closing_ && (drained || now >= drain_until_)) {
+        end = true;
+      } else {
+        send = !queue_.empty() && static_cast<int>(in_flight_.size()) < options_.max_in_flight;
+      }
+    }
+    if (send && !SendNext()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stream_->why_ended = "the link broke while sending";
+    }
+    if (end) {
+      bool permanent = false;
+      FinishWriting();
+      EndStream(&events, &permanent);
+      last_stream = Clock::now();  // Giving up counts from the break.
+    }
+    wake_.notify_all();  // A Submit waiting for room sees drops and refusals.
+    Emit(std::move(events));
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<Session> Session::Open(const SessionOptions& options) {
+  const std::string problem = options.Problem();
+  if (!problem.empty()) throw std::invalid_argument("visloc::client::SessionOptions: " + problem);
+  return std::make_unique<SessionImpl>(options);
+}
+
+}  // namespace visloc::client

@@ -1,0 +1,187 @@
+// The client library against the real localization service on a loopback port (the service
+// in-process, so a test can slow its engine down). Link faults through a proxy are end-to-end
+// tests (tests/robot_link_e2e_test.cc).
+
+#include "visloc/client/session.h"
+
+#include <grpcpp/grpcpp.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/temp_dir.h"
+#include "mapstore/map_store.h"
+#include "server/localization_service.h"
+
+namespace visloc::client {
+namespace {
+
+using ::testing::HasSubstr;
+
+class ClientSessionTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    SyntheticMapOptions map_options;
+    map_options.keyframes = 6;
+    map_options.points = 300;
+    Map map = MakeSyntheticMap(map_options);
+    map.metadata.name = "lab";
+    mapstore::SaveMap(map, maps_dir_.File("lab.db"), mapstore::SaveMapOptions{4096});
+    maps_ = std::make_unique<server::MapCache>(maps_dir_.path(), std::chrono::seconds(60));
+    service_ = std::make_unique<server::LocalizationService>(maps_.get(), server::ServiceLimits{},
+                                                             &auth_);
+    grpc::ServerBuilder builder;
+    builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(service_.get());
+    server_ = builder.BuildAndStart();
+    ASSERT_GT(port_, 0);
+  }
+  void TearDown() override { server_->Shutdown(); }
+
+  SessionOptions Options(const std::string& map = "lab") const {
+    SessionOptions o;
+    o.server = "127.0.0.1:" + std::to_string(port_);
+    o.map_name = map;
+    o.camera = PinholeCamera(160, 120, 80, 80, 79.5, 59.5);
+    return o;
+  }
+  static Frame MakeFrame(int i) {
+    Frame frame;
+    frame.timestamp_ns = (i + 1) * 66'666'667LL;
+    frame.image = cv::Mat(120, 160, CV_8UC1);
+    cv::randu(frame.image, 0, 255);
+    return frame;
+  }
+  // Events until `done` says stop or `seconds` pass.
+  static std::vector<Event> Collect(Session* session, double seconds,
+                                    const std::function<bool(const std::vector<Event>&)>& done) {
+    std::vector<Event> events;
+    const auto until = std::chrono::steady_clock::now() +
+                       std::chrono::milliseconds(static_cast<int>(seconds * 1000));
+    while (std::chrono::steady_clock::now() < until && !done(events)) {
+      if (auto e = session->Next(std::chrono::milliseconds(20))) events.push_back(*e);
+    }
+    return events;
+  }
+  static int Count(const std::vector<Event>& events, Event::Kind kind) {
+    return static_cast<int>(std::count_if(events.begin(), events.end(),
+                                          [kind](const Event& e) { return e.kind == kind; }));
+  }
+
+  TempDir maps_dir_{"visloc-client-test"};
+  const server::TokenAuth auth_;
+  std::unique_ptr<server::MapCache> maps_;
+  std::unique_ptr<server::LocalizationService> service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+};
+
+TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
+  for (const Encoding encoding : {Encoding::kJpeg, Encoding::kPng, Encoding::kRaw}) {
+    SessionOptions options = Options();
+    options.encoding = encoding;
+    options.wait_for_room = true;
+    auto session = Session::Open(options);
+    for (int i = 0; i < 8; ++i) ASSERT_TRUE(session->Submit(MakeFrame(i)));
+    const std::vector<Event> events = Collect(session.get(), 20, [](const auto& e) {
+      return Count(e, Event::Kind::kResult) == 8;
+    });
+    session->Close();
+    std::vector<int64_t> answered;
+    for (const Event& e : events) {
+      if (e.kind != Event::Kind::kResult) continue;
+      EXPECT_NE(e.response.status(), v1::STATUS_ERROR) << e.response.error();
+      EXPECT_GT(e.latency_ms, 0.0);
+      answered.push_back(e.timestamp_ns);
+    }
+    ASSERT_EQ(answered.size(), 8u) << static_cast<int>(encoding);
+    for (int i = 0; i < 8; ++i) EXPECT_EQ(answered[i], MakeFrame(i).timestamp_ns);
+    const SessionStats stats = session->stats();
+    EXPECT_EQ(stats.sent, 8u);
+    EXPECT_EQ(stats.dropped, 0u);
+    EXPECT_EQ(stats.streams_opened, 1u);
+    EXPECT_EQ(session->link_state(), LinkState::kClosed);
+  }
+}
+
+// The server takes 100 ms a frame and the camera gives one every 10 ms: the library keeps two
+// frames on the wire and two waiting, drops the oldest waiting ones (reported, never silent),
+// and the answers that come stay fresh instead of falling further and further behind.
+TEST_F(ClientSessionTest, ASlowLinkDropsTheOldestFramesOnTheRobotSide) {
+  service_->SetBeforeFrameHookForTesting(
+      [] { std::this_thread::sleep_for(std::chrono::milliseconds(100)); });
+  auto session = Session::Open(Options());
+  for (int i = 0; i < 40; ++i) {
+    ASSERT_TRUE(session->Submit(MakeFrame(i)));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  session->Close(std::chrono::milliseconds(3000));
+  const std::vector<Event> events = Collect(session.get(), 1, [](const auto&) { return false; });
+  const int answered = Count(events, Event::Kind::kResult);
+  const int dropped = Count(events, Event::Kind::kDropped);
+  EXPECT_EQ(answered + dropped, 40);
+  EXPECT_GE(dropped, 25);
+  EXPECT_GE(answered, 4);
+  for (const Event& e : events) {
+    if (e.kind == Event::Kind::kResult) {
+      EXPECT_LT(e.latency_ms, 600.0);
+    } else if (e.kind == Event::Kind::kDropped) {
+      EXPECT_THAT(e.detail, HasSubstr("slower than the camera"));
+    }
+  }
+}
+
+TEST_F(ClientSessionTest, ARefusedSessionFailsOnceWithTheServersReason) {
+  auto session = Session::Open(Options("nope"));
+  for (int i = 0; i < 3; ++i) {  // A camera goes on giving frames while the refusal comes.
+    session->Submit(MakeFrame(i));
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  }
+  const std::vector<Event> events = Collect(session.get(), 10, [](const auto& e) {
+    return !e.empty() && e.back().kind == Event::Kind::kLinkState &&
+           e.back().link_state == LinkState::kFailed;
+  });
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back().link_state, LinkState::kFailed);
+  EXPECT_THAT(events.back().detail, HasSubstr("no map named 'nope'"));
+  EXPECT_THAT(events.back().detail, HasSubstr("gRPC code 5"));
+  std::string why;
+  EXPECT_FALSE(session->Submit(MakeFrame(1), &why));
+  EXPECT_THAT(why, HasSubstr("no map named 'nope'"));
+  EXPECT_EQ(session->stats().streams_opened, 1u);  // No reconnecting to a refusal.
+}
+
+TEST_F(ClientSessionTest, BadOptionsAndFramesAreRefusedAtOnce) {
+  SessionOptions no_map = Options();
+  no_map.map_name.clear();
+  EXPECT_THROW(Session::Open(no_map), std::invalid_argument);
+  auto session = Session::Open(Options());
+  Frame wrong = MakeFrame(0);
+  wrong.image = cv::Mat(100, 100, CV_8UC1, cv::Scalar(0));
+  std::string why;
+  EXPECT_FALSE(session->Submit(wrong, &why));
+  EXPECT_EQ(why, "the image is 100x100 but the session camera is 160x120");
+  EXPECT_FALSE(session->Submit(Frame{}, &why));
+  EXPECT_EQ(why, "the frame has no image");
+}
+
+TEST_F(ClientSessionTest, AnUnreachableServerIsRetriedThenGivenUpWhenAsked) {
+  SessionOptions options = Options();
+  options.server = "127.0.0.1:1";  // Nothing listens there.
+  options.connect_timeout = std::chrono::milliseconds(100);
+  options.give_up_after = std::chrono::milliseconds(600);
+  auto session = Session::Open(options);
+  const std::vector<Event> events = Collect(session.get(), 10, [](const auto& e) {
+    return !e.empty() && e.back().kind == Event::Kind::kLinkState &&
+           e.back().link_state == LinkState::kFailed;
+  });
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back().link_state, LinkState::kFailed);
+  EXPECT_THAT(events.back().detail, HasSubstr("gave up after 600 ms"));
+  EXPECT_EQ(session->stats().streams_opened, 0u);
+}
+
+}  // namespace
+}  // namespace visloc::client
