@@ -99,8 +99,8 @@ class StreamRecorder {
     if (!args.stats_path.empty()) Open(&stats_, args.stats_path, StatsCsvHeader() + "\n");
     if (!args.events_path.empty()) {
       Open(&events_, args.events_path,
-           "event,timestamp_ns,latency_ms,status,source,relocalization,has_pose,inliers,"
-           "link_state,detail\n");
+           "wall_ms,event,timestamp_ns,latency_ms,status,source,relocalization,has_pose,"
+           "inliers,link_state,detail\n");
     }
   }
 
@@ -109,7 +109,11 @@ class StreamRecorder {
     const v1::LocalizeResponse& r = e.response;
     if (events_) {
       const bool answer = e.kind == Kind::kResult || e.kind == Kind::kLate;
-      events_ << client::EventKindName(e.kind) << ',' << e.timestamp_ns << ','
+      // Wall-clock milliseconds, so a test (or an operator) can line events up with the link.
+      const int64_t wall_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                                  std::chrono::system_clock::now().time_since_epoch())
+                                  .count();
+      events_ << wall_ms << ',' << client::EventKindName(e.kind) << ',' << e.timestamp_ns << ','
               << FormatFixed(e.latency_ms, 2) << ','
               << (answer ? v1::Status_Name(r.status()) : "") << ','
               << (answer ? v1::PoseSource_Name(r.source()) : "") << ','

@@ -1,0 +1,65 @@
+// A minimal robot program on visloc's client library: streams a folder of images (a camera's
+// frames, named by their timestamps in nanoseconds, as in EuRoC's cam0/data) to visloc-server at
+// 15 Hz and prints each pose. A real robot hands its camera driver's frames to Submit() instead.
+//
+//   robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY
+
+#include <visloc/client/session.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+int main(int argc, char** argv) {
+  if (argc != 10) {
+    std::fprintf(stderr, "usage: robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY\n");
+    return 2;
+  }
+  visloc::client::SessionOptions options;
+  options.server = argv[1];
+  options.map_name = argv[2];
+  options.robot_id = "example-robot";
+  options.camera = visloc::client::PinholeCamera(std::stoi(argv[4]), std::stoi(argv[5]),
+                                                 std::stod(argv[6]), std::stod(argv[7]),
+                                                 std::stod(argv[8]), std::stod(argv[9]));
+  options.encoding = visloc::client::Encoding::kJpeg;
+  options.jpeg_quality = 90;
+  int posed = 0, answered = 0;
+  options.on_event = [&](const visloc::client::Event& event) {
+    using Kind = visloc::client::Event::Kind;
+    if (event.kind == Kind::kLinkState) {
+      std::printf("link %s: %s\n", visloc::client::LinkStateName(event.link_state),
+                  event.detail.c_str());
+    } else if (event.kind == Kind::kResult) {
+      ++answered;
+      const visloc::v1::Pose& p = event.response.map_from_cam();
+      if (event.response.has_pose()) ++posed;
+      std::printf("%.3f %s position %.3f %.3f %.3f inliers %u latency %.1f ms\n",
+                  event.timestamp_ns * 1e-9,
+                  visloc::v1::Status_Name(event.response.status()).c_str(), p.tx(), p.ty(),
+                  p.tz(), event.response.stats().inliers(), event.latency_ms);
+    }
+  };
+  std::vector<std::filesystem::path> images;
+  for (const auto& entry : std::filesystem::directory_iterator(argv[3])) {
+    images.push_back(entry.path());
+  }
+  std::sort(images.begin(), images.end());
+  auto session = visloc::client::Session::Open(options);
+  for (const auto& path : images) {
+    visloc::client::Frame frame;
+    frame.timestamp_ns = std::stoll(path.stem().string());
+    frame.image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+    std::string why_not;
+    if (!session->Submit(frame, &why_not)) std::fprintf(stderr, "not sent: %s\n", why_not.c_str());
+    std::this_thread::sleep_for(std::chrono::milliseconds(66));
+  }
+  session->Close();
+  std::printf("answered %d of %zu frames, %d with a pose\n", answered, images.size(), posed);
+  return answered > 0 ? 0 : 1;
+}

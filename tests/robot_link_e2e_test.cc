@@ -1,0 +1,202 @@
+// The link a robot really has, end to end: the real visloc-server, the real `visloc stream`
+// (through the client library), and between them a loopback proxy (tests/support/link_proxy.h)
+// that cuts, stalls and throttles the link while the robot walks the square with odometry.
+// Every run is bounded: 8 s of frames at 15 Hz.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
+#include "tests/support/e2e.h"
+#include "tests/support/link_proxy.h"
+#include "tests/support/process.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::JsonNumber;
+using testing::LinkProfile;
+using testing::LinkProxy;
+using testing::ProcessResult;
+using testing::ServerProcess;
+using testing::Visloc;
+
+const std::string kData = VISLOC_LOCALIZATION_DATA;
+
+int64_t WallMs() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// One row of `visloc stream --events`.
+struct LinkEvent {
+  int64_t wall_ms = 0;
+  std::string kind, status, source, relocalization, link_state, detail;
+  double latency_ms = 0;
+};
+
+std::vector<LinkEvent> ReadEvents(const std::string& path) {
+  std::vector<LinkEvent> events;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // Header.
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream row(line);
+    for (std::string cell; f.size() < 10 && std::getline(row, cell, ',');) f.push_back(cell);
+    std::string detail;
+    std::getline(row, detail);
+    if (f.size() < 10) continue;
+    events.push_back({std::stoll(f[0]), f[1], f[4], f[5], f[6], f[9], detail, std::stod(f[3])});
+  }
+  return events;
+}
+
+int Count(const std::vector<LinkEvent>& events, const std::string& kind) {
+  return static_cast<int>(std::count_if(events.begin(), events.end(),
+                                        [&](const LinkEvent& e) { return e.kind == kind; }));
+}
+
+class RobotLinkE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override { std::filesystem::copy_file(kData + "/map.db", maps_.File("square.db")); }
+
+  // `visloc stream` of the square query (120 frames, 8 s at the dataset's 15 Hz) with odometry,
+  // started in the background against `address`.
+  int StartRobot(const std::string& address, std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv = {VISLOC_CLI_PATH, "stream", "--server", address, "--map",
+                                     "square", "--dataset", kData + "/query_square", "--odometry",
+                                     "--events", out_.File("events.csv"), "--trajectory",
+                                     out_.File("poses.tum"), "--json"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return testing::SpawnProcess(argv, out_.File("robot.out"), out_.File("robot.err"));
+  }
+  std::string RobotErr() const { return ReadFileBytes(out_.File("robot.err")); }
+  std::string RobotOut() const { return ReadFileBytes(out_.File("robot.out")); }
+
+  TempDir maps_{"visloc_link_maps"};
+  TempDir out_{"visloc_link_out"};
+};
+
+// An access point goes away for 5 s while the robot walks on. The library reconnects within a
+// second of the link returning and resumes from the last pose moved by odometry: the first
+// answer after the cut is tracked, not a global relocalization. Every frame is accounted for
+// (answered, or reported dropped / undelivered), and what was answered before the cut is kept.
+TEST_F(RobotLinkE2eTest, AFiveSecondCutIsResumedWithinASecondAndTracked) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  LinkProxy link(server.address(), LinkProfile{5, 0, 20});
+  const int robot = StartRobot(link.address());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  link.Cut(std::chrono::milliseconds(5000));
+  const int64_t link_back_ms = WallMs() + 5000;
+  ASSERT_EQ(testing::WaitProcess(robot), 0) << RobotErr();
+
+  const std::vector<LinkEvent> events = ReadEvents(out_.File("events.csv"));
+  const int answered = Count(events, "result"), lost = Count(events, "undelivered"),
+            dropped = Count(events, "dropped"), late = Count(events, "late");
+  EXPECT_EQ(answered + lost + dropped + late, 120);
+  EXPECT_GE(answered, 40);
+  EXPECT_GE(dropped + lost, 50);  // About 5 s of frames at 15 Hz had no link.
+  auto resumed = std::find_if(events.begin(), events.end(), [](const LinkEvent& e) {
+    return e.kind == "link" && e.link_state == "connected" && e.detail.find("resumed") != std::string::npos;
+  });
+  ASSERT_NE(resumed, events.end());
+  const auto first = std::find_if(resumed, events.end(),
+                                  [](const LinkEvent& e) { return e.kind == "result"; });
+  ASSERT_NE(first, events.end());
+  EXPECT_LE(first->wall_ms - link_back_ms, 1000) << "resumed this long after the link returned";
+  EXPECT_EQ(first->source, "SOURCE_TRACKING");
+  EXPECT_NE(first->relocalization, "global");
+  // The trajectory holds every answered pose, from before and after the cut.
+  const ProcessResult eval = Visloc({"eval", "--gt", kData + "/query_square/groundtruth_map.tum",
+                                     "--est", out_.File("poses.tum"), "--json"});
+  ASSERT_EQ(eval.exit_code, 0) << eval.err;
+  EXPECT_LT(JsonNumber(eval.out, "translation_m", "median"), 0.02);
+  EXPECT_GE(JsonNumber(eval.out, "matched_poses"), 40);
+}
+
+// A 5 s dead spot (connections kept, nothing forwarded). Answers never arrive seconds late as
+// poses: stale frames are dropped on the robot side, and within a second of the link coming
+// back the answers are back to their usual latency.
+TEST_F(RobotLinkE2eTest, AfterADeadSpotAnswersAreFreshWithinASecond) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  LinkProxy link(server.address(), LinkProfile{5, 0, 20});
+  const int robot = StartRobot(link.address());
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  link.Stall(std::chrono::milliseconds(5000));
+  const int64_t link_back_ms = WallMs() + 5000;
+  ASSERT_EQ(testing::WaitProcess(robot), 0) << RobotErr();
+
+  const std::vector<LinkEvent> events = ReadEvents(out_.File("events.csv"));
+  int fresh_after = 0;
+  for (const LinkEvent& e : events) {
+    if (e.kind != "result") continue;
+    EXPECT_LE(e.latency_ms, 1000.0);  // Later answers are "late", never poses to steer on.
+    if (e.wall_ms > link_back_ms + 1000) {
+      EXPECT_LT(e.latency_ms, 250.0) << "at " << e.wall_ms - link_back_ms << " ms after the link returned";
+      ++fresh_after;
+    }
+  }
+  EXPECT_GE(fresh_after, 12);  // Of about 20 frames in the last 1.5 s.
+  EXPECT_GE(Count(events, "dropped") + Count(events, "undelivered") + Count(events, "late"), 50);
+}
+
+// WiFi slower than the camera: 15 Hz of PNG frames (about 40 KB each, 5 Mbit/s) through a
+// 2 Mbit/s link. Frames are dropped on the robot side and the answers that come stay fresh.
+TEST_F(RobotLinkE2eTest, ASlowLinkDropsFramesOnTheRobotAndKeepsLatencyBounded) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  LinkProxy link(server.address(), LinkProfile{10, 0, 2});
+  const int robot = StartRobot(link.address(), {"--encoding", "png", "--frames", "60"});
+  ASSERT_EQ(testing::WaitProcess(robot), 0) << RobotErr();
+  const std::string summary = RobotOut();
+  EXPECT_GT(JsonNumber(summary, "dropped"), 5);
+  EXPECT_GT(JsonNumber(summary, "frames"), 10);
+  EXPECT_LT(JsonNumber(summary, "latency_ms_p99"), 1000);
+}
+
+// A robot whose program froze keeps its stream open and sends nothing; with one session slot,
+// the next robot is served once the server's idle timeout has freed the slot.
+TEST_F(RobotLinkE2eTest, AFrozenRobotsSlotIsFreedByTheIdleTimeout) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
+                       {"--max-sessions", "1", "--session-idle-timeout", "1"});
+  auto stub = v1::Localization::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  grpc::ClientContext context;
+  auto frozen = stub->Localize(&context);
+  v1::LocalizeRequest start;
+  start.mutable_start()->set_map_name("square");
+  v1::CameraModel* camera = start.mutable_start()->mutable_camera();
+  camera->set_width(320);
+  camera->set_height(240);
+  camera->set_fx(160);
+  camera->set_fy(160);
+  camera->set_cx(159.5);
+  camera->set_cy(119.5);
+  ASSERT_TRUE(frozen->Write(start));
+  const auto frozen_at = std::chrono::steady_clock::now();
+  v1::LocalizeResponse closed;
+  ASSERT_TRUE(frozen->Read(&closed));  // The server's last word to the frozen robot.
+  EXPECT_EQ(closed.status(), v1::STATUS_CLOSED);
+  EXPECT_THAT(closed.error(), HasSubstr("no frame for 1.0 s"));
+  EXPECT_LT(std::chrono::steady_clock::now() - frozen_at, std::chrono::seconds(3));
+  const ProcessResult next =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--frames", "10", "--rate", "0", "--json"});
+  ASSERT_EQ(next.exit_code, 0) << next.err;
+  EXPECT_EQ(JsonNumber(next.out, "localized_fraction"), 1.0);
+  EXPECT_THAT(server.Log(), HasSubstr("event=session_idle"));
+}
+
+}  // namespace
+}  // namespace visloc
