@@ -99,18 +99,13 @@ struct RelocalizationRun {
 RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap>& map,
                                      const Camera& camera,
                                      const std::vector<cv::Mat>& images, int queries) {
-  const LocalizerOptions options;
-  const PoseTracker tracker(map, camera, options.tracker);
-  const Relocalizer relocalizer(tracker, options.relocalization);
-  const auto extractor = CreateFeatureExtractor(QueryFeatureSettings(
-      map->map().features, options.max_query_features, options.finest_scale_only));
+  const QueryPipeline pipeline(map, camera, LocalizerOptions{});  // As a session and the RPC.
   std::vector<double> ms;
   int found = 0;
   const size_t step = std::max<size_t>(1, images.size() / std::max(1, queries));
   for (size_t i = 0; i < images.size(); i += step) {
     Timer timer;
-    const QueryFrame frame(extractor->Extract(images[i]), camera);
-    found += relocalizer.Relocalize(frame).success;
+    found += pipeline.RelocalizeImage(images[i]).success;
     ms.push_back(timer.ElapsedMs());
   }
   RelocalizationRun run;

@@ -346,7 +346,9 @@ int RunStream(const Args& raw_args) {
   }
   const Trajectory* gt = ground_truth.empty() ? nullptr : &ground_truth;
   PrintStreamSummary(args, recorder, stats, count, gt);
-  if (final_state == client::LinkState::kReconnecting || final_state == client::LinkState::kConnecting) {
+  const bool lost_frames = recorder.dropped + recorder.undelivered > 0;
+  if (lost_frames && (final_state == client::LinkState::kReconnecting ||
+                      final_state == client::LinkState::kConnecting)) {
     // The outputs hold what was answered; the exit status says the run did not end well.
     std::fprintf(stderr,
                  "visloc stream: server %s: the link was down at the end of the run (%llu frames "

@@ -302,6 +302,26 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
   rel->set_ms(r.relocalization.ms);
 }
 
+void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
+  out->set_localized(found.success);
+  if (found.success) {
+    ToProto(found.fix.cam_from_map.Inverse(), out->mutable_map_from_cam());
+    for (int i = 0; i < 36; ++i) out->add_covariance(found.fix.covariance(i / 6, i % 6));
+    out->set_inliers(found.fix.inliers);
+    out->set_inlier_ratio(found.fix.inlier_ratio);
+  }
+  out->set_keyframe(found.keyframe);
+  for (const RelocalizationCandidate& c : found.candidates) {
+    v1::RelocalizationCandidate* candidate = out->add_candidates();
+    candidate->set_keyframe(c.keyframe);
+    candidate->set_score(c.score);
+    candidate->set_matches(c.matches);
+    candidate->set_ransac_inliers(c.ransac_inliers);
+    candidate->set_verified_inliers(c.verified_inliers);
+    candidate->set_accepted(c.accepted);
+  }
+}
+
 LocalizationResult FromProto(const v1::LocalizeResponse& in) {
   LocalizationResult r;
   r.timestamp_ns = in.timestamp_ns();

@@ -36,6 +36,8 @@ void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Fram
 LocalizerOptions FromProto(const v1::SessionOptions& options);
 
 void ToProto(const LocalizationResult& result, uint64_t frame_index, v1::LocalizeResponse* out);
+// The Relocalize RPC's answer (all but `ms`, the server's whole time).
+void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out);
 LocalizationResult FromProto(const v1::LocalizeResponse& response);
 
 }  // namespace visloc::proto

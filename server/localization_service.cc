@@ -4,7 +4,7 @@
 #include <deque>
 #include <thread>
 
-#include "core/localization/relocalizer.h"
+#include "core/localization/query_pipeline.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/timer.h"
@@ -271,28 +271,10 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     const cv::Mat image =
         proto::DecodeImage(request->encoded_image(),
                            request->has_raw_image() ? &request->raw_image() : nullptr, camera);
-    const LocalizerOptions options;
-    const PoseTracker tracker(map, camera, options.tracker);
-    const Relocalizer relocalizer(tracker, options.relocalization);
-    const QueryFrame frame(CreateFeatureExtractor(map->map().features)->Extract(image), camera);
-    const RelocalizationResult found = relocalizer.Relocalize(frame);
-    response->set_localized(found.success);
-    if (found.success) {
-      proto::ToProto(found.fix.cam_from_map.Inverse(), response->mutable_map_from_cam());
-      for (int i = 0; i < 36; ++i) response->add_covariance(found.fix.covariance(i / 6, i % 6));
-      response->set_inliers(found.fix.inliers);
-      response->set_inlier_ratio(found.fix.inlier_ratio);
-    }
-    response->set_keyframe(found.keyframe);
-    for (const RelocalizationCandidate& c : found.candidates) {
-      v1::RelocalizationCandidate* out = response->add_candidates();
-      out->set_keyframe(c.keyframe);
-      out->set_score(c.score);
-      out->set_matches(c.matches);
-      out->set_ransac_inliers(c.ransac_inliers);
-      out->set_verified_inliers(c.verified_inliers);
-      out->set_accepted(c.accepted);
-    }
+    // The session's query pipeline (detector settings, radii scaled to the camera), so a
+    // single image is relocalized exactly as a session's first frame would be.
+    const QueryPipeline pipeline(map, camera, LocalizerOptions{});
+    proto::ToProto(pipeline.RelocalizeImage(image), response);
     response->set_ms(timer.ElapsedMs());
     return Status::OK;
   } catch (const std::exception& e) {

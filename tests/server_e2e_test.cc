@@ -150,6 +150,35 @@ TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
   EXPECT_THAT(refused.out, HasSubstr("not localized"));
 }
 
+// The Relocalize RPC and a session's first frame run the same query pipeline (detector
+// settings, radii scaled to the camera): on the same 640x480 image they give the same fix.
+TEST_F(ServerE2eTest, TheRpcAndASessionGiveTheSameFirstFixAt640x480) {
+  const std::string rendered = out_.File("q640");
+  const ProcessResult sim = Visloc({"sim", "--out", rendered, "--sequence", "query_square",
+                                    "--resolution", "640x480", "--frames", "1",
+                                    "--no-contact-sheet"});
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  const std::string dataset_dir = rendered + "/query_square";
+  const Dataset dataset = ReadDataset(dataset_dir);
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult rpc =
+      Visloc({"relocalize", "--server", server.address(), "--map", "square", "--dataset",
+              dataset_dir, dataset.frames[0].left_path, "--json"});
+  ASSERT_EQ(rpc.exit_code, 0) << rpc.err << rpc.out;
+  const ProcessResult session =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset", dataset_dir,
+              "--frames", "1", "--rate", "0", "--trajectory", out_.File("first.tum"), "--stats",
+              out_.File("first.csv"), "--json"});
+  ASSERT_EQ(session.exit_code, 0) << session.err;
+  const Trajectory first = ReadTum(out_.File("first.tum"));
+  ASSERT_EQ(first.size(), 1u) << "the session's first frame has no pose";
+  const Eigen::Vector3d rpc_position(JsonNumber(rpc.out, "tx"), JsonNumber(rpc.out, "ty"),
+                                     JsonNumber(rpc.out, "tz"));
+  EXPECT_LT((first[0].pose.translation - rpc_position).norm(), 1e-6);
+  EXPECT_THAT(ReadFileBytes(out_.File("first.csv")),
+              HasSubstr("," + std::to_string(static_cast<int>(JsonNumber(rpc.out, "inliers"))) + ","));
+}
+
 TEST_F(ServerE2eTest, ConcurrentSessionsOnDifferentMaps) {
   std::filesystem::copy_file(kData + "/map.db", maps_.File("square-copy.db"));
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());

@@ -241,11 +241,9 @@ void BM_RelocalizeScaling(benchmark::State& state) {
     features.descriptors.push_back(descriptor);
   }
   const QueryFrame frame(features, map->map().camera);
-  const LocalizerOptions defaults;
-  const PoseTracker tracker(map, map->map().camera, defaults.tracker);
-  const Relocalizer relocalizer(tracker, defaults.relocalization);
+  const QueryPipeline pipeline(map, map->map().camera, LocalizerOptions{});
   bool found = false;
-  for (auto _ : state) found = relocalizer.Relocalize(frame).success;
+  for (auto _ : state) found = pipeline.relocalizer().Relocalize(frame).success;
   state.counters["found"] = found;
   state.counters["points"] = static_cast<double>(map->point_count());
   state.counters["memory_MiB"] = map->MemoryBytes() / (1024.0 * 1024.0);

@@ -88,22 +88,13 @@ std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const Localiz
 
 Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
                      const LocalizerOptions& options, const std::optional<Rigid3d>& body_from_cam)
-    : map_(std::move(map)), camera_(camera), options_(options) {
-  VISLOC_CHECK(map_ != nullptr, "no map");
-  options_.Check();
-  if (options_.scale_radii_with_width) {
-    const double scale = camera_.width() / 320.0;
-    options_.tracker.search_radius_px *= scale;
-    options_.tracker.refine_radius_px *= scale;
-    options_.relocalization.verify_radius_px *= scale;
-  }
+    : map_(std::move(map)),
+      camera_(camera),
+      pipeline_(map_, camera_, options),
+      options_(pipeline_.options()) {
   if (body_from_cam) {
     cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
   }
-  extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
-      map_->map().features, options_.max_query_features, options_.finest_scale_only));
-  tracker_ = std::make_unique<PoseTracker>(map_, camera_, options_.tracker);
-  relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
   if (options_.motion.plane_sigma_m > 0) {
     plane_ = FitKeyframePlane(*map_);
     if (!plane_) {
@@ -222,13 +213,14 @@ PoseFix Localizer::TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns,
   if (local) {
     const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
                                                          : last_fix_map_from_cam_.translation;
-    found = relocalizer_->Relocalize(frame, RelocalizationScope{center, options_.local_radius_m});
+    found = pipeline_.relocalizer().Relocalize(frame,
+                                               RelocalizationScope{center, options_.local_radius_m});
     report.kind = RelocalizationReport::Kind::kLocal;
     report.ms += found.ms;
     report.candidates += static_cast<int>(found.candidates.size());
   }
   if (!found.success) {
-    found = relocalizer_->Relocalize(frame);
+    found = pipeline_.relocalizer().Relocalize(frame);
     report.kind = RelocalizationReport::Kind::kGlobal;
     report.ms += found.ms;
     report.candidates += static_cast<int>(found.candidates.size());
@@ -258,10 +250,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   result.timestamp_ns = input.timestamp_ns;
   FrameStats& stats = result.stats;
   ExtractStats extract;
-  FeatureSet features = extractor_->Extract(input.image, &extract);
-  Timer undistort;
-  QueryFrame frame(std::move(features), camera_);
-  stats.times.undistort_ms = undistort.ElapsedMs();
+  const QueryFrame frame = pipeline_.Extract(input.image, &extract, &stats.times.undistort_ms);
   stats.times.detect_ms = extract.detect_ms;
   stats.times.describe_ms = extract.describe_ms;
   stats.features = static_cast<int>(frame.size());
@@ -293,7 +282,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
                                            ? std::optional<Rigid3d>(filter_.map_from_cam())
                                            : input.map_from_cam_hint;
   if (prior) {
-    const PoseFix fix = tracker_->Track(frame, prior->Inverse());
+    const PoseFix fix = pipeline_.tracker().Track(frame, prior->Inverse());
     add_times(fix);
     CopyFixStats(fix, &stats);
     if (fix.success && fix.inliers >= options_.min_limited_inliers) {
@@ -328,7 +317,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   if (!accepted && had_pending && pending_) {
     const Rigid3d expected = pending_->map_from_cam;
     pending_.reset();
-    const PoseFix fix = tracker_->Track(frame, expected.Inverse());
+    const PoseFix fix = pipeline_.tracker().Track(frame, expected.Inverse());
     add_times(fix);
     if (fix.success && strong(fix) && Consistent(fix.cam_from_map.Inverse(), expected, 0.0)) {
       CopyFixStats(fix, &stats);

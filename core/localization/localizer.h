@@ -30,9 +30,9 @@
 
 #include "core/camera/camera.h"
 #include "core/features/features.h"
+#include "core/localization/localizer_options.h"
 #include "core/localization/motion_filter.h"
-#include "core/localization/pose_tracker.h"
-#include "core/localization/relocalizer.h"
+#include "core/localization/query_pipeline.h"
 
 namespace visloc {
 
@@ -56,59 +56,6 @@ struct FrameInput {
   std::optional<Rigid3d> odom_from_cam;
   std::vector<GyroSample> gyro;              // Samples since the previous frame.
   std::optional<Rigid3d> map_from_cam_hint;  // An external guess, used when there is no pose.
-};
-
-struct MotionOptions {
-  // Constant-velocity model: process noise per second (walking changes speed every step).
-  double velocity_sigma_mps = 0.3;
-  double velocity_sigma_degps = 15.0;
-  // Odometry: noise proportional to the motion, plus a floor per frame.
-  double odometry_translation_fraction = 0.08;
-  double odometry_rotation_fraction = 0.08;
-  double odometry_floor_m = 0.003;
-  double odometry_floor_deg = 0.3;
-  // Gyro: angle random walk (rad / sqrt(s)), plus bias uncertainty (rad / s).
-  double gyro_noise_rad_sqrt_s = 2e-3;
-  double gyro_bias_radps = 5e-3;
-  // Bridging frames without a visual fix.
-  double max_bridge_s = 3.0;
-  double max_bridge_sigma_m = 0.5;
-  bool bridge_with_constant_velocity = false;  // Only for comparison with vision alone.
-  // Planar motion: the camera stays `height_m` above the plane of the map's keyframes (a
-  // walking robot's head), with this standard deviation. 0 disables it.
-  double plane_sigma_m = 0.0;
-  double height_m = 0.0;
-};
-
-struct LocalizerOptions {
-  PoseTrackerOptions tracker;
-  RelocalizationOptions relocalization;
-  MotionOptions motion;
-  // Support needed for each status.
-  int min_tracking_inliers = 30;
-  double min_tracking_inlier_ratio = 0.4;
-  int min_limited_inliers = 12;
-  // Jump gate: a fix further than this (plus 3 sigma of the prior) from the prior needs
-  // confirmation.
-  double max_jump_m = 0.2;
-  double max_jump_deg = 10.0;
-  // Local relocalization searches keyframes within this of the last pose, while lost for less
-  // than local_relocalization_s.
-  double local_radius_m = 1.0;
-  double local_relocalization_s = 2.0;
-  // Radii given at 320 pixels of image width, scaled with the session camera's width.
-  bool scale_radii_with_width = true;
-  // Keypoints per query image; 0 keeps the map's setting. The detector and descriptor are
-  // always the map's; only how many of the strongest (evenly spread) corners are kept changes.
-  // The paper's 600 at any resolution: maps of larger images hold more corners per keyframe
-  // (FeatureCountForImage), but a fix from the 160 best predicted points and the tight
-  // re-matching needs no more query corners, and each costs description and matching time
-  // (EuRoC 752x480: 2.0 ms a frame with 600, 2.4 ms with the map's 1300, the same spread).
-  int max_query_features = 600;
-  // Detect query corners at the map detector's finest scale only (as the seed paper does for
-  // speed); false uses all of the map's scales.
-  bool finest_scale_only = true;
-  void Check() const;
 };
 
 struct StepTimings {
@@ -197,11 +144,9 @@ class Localizer {
 
   std::shared_ptr<const LocalizationMap> map_;
   Camera camera_;
-  LocalizerOptions options_;
+  QueryPipeline pipeline_;
+  LocalizerOptions options_;  // The pipeline's: radii scaled to the camera.
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
-  std::unique_ptr<FeatureExtractor> extractor_;
-  std::unique_ptr<PoseTracker> tracker_;
-  std::unique_ptr<Relocalizer> relocalizer_;
   std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
 
   MotionFilter filter_;  // Valid while there is a pose (tracking, limited or bridging).

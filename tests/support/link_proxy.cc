@@ -62,9 +62,13 @@ LinkProxy::~LinkProxy() {
   stopping_ = true;
   acceptor_.join();
   close(listener_);
-  std::lock_guard<std::mutex> lock(mutex_);
-  for (auto& connection : open_) CloseConnection(connection.get());
-  open_.clear();
+  // Closed outside the lock: the pipes' readers take it to read the profile.
+  std::list<std::unique_ptr<Connection>> open;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    open.swap(open_);
+  }
+  for (auto& connection : open) CloseConnection(connection.get());
 }
 
 void LinkProxy::SetProfile(const LinkProfile& profile) {

@@ -3,7 +3,7 @@
 // after --seconds.
 //
 //   visloc-link-proxy --upstream 127.0.0.1:PORT [--latency-ms L] [--jitter-ms J] [--mbit B]
-//                     [--stall-every-s S --stall-ms MS] [--cut-every-s S --cut-ms MS]
+//                     [--stall-every-s S --stall-ms MS] [--cut-every-s S --cut-ms MS [--cuts N]]
 //                     [--seconds T]
 // Prints "listening on ADDRESS" once ready.
 
@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   std::string upstream;
   visloc::testing::LinkProfile profile;
   double stall_every_s = 0, stall_ms = 0, cut_every_s = 0, cut_ms = 0, seconds = 60;
+  int max_cuts = 0;
   visloc::ArgParser parser("visloc-link-proxy",
                            "A loopback TCP proxy that adds latency and jitter, caps bandwidth, "
                            "and stalls or cuts the link periodically.");
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   parser.AddFlag("stall-ms", &stall_ms, "how long each stall lasts");
   parser.AddFlag("cut-every-s", &cut_every_s, "a cut this often (0: never)");
   parser.AddFlag("cut-ms", &cut_ms, "how long each cut lasts");
+  parser.AddFlag("cuts", &max_cuts, "at most this many cuts (0: no limit)");
   parser.AddFlag("seconds", &seconds, "exit after this long");
   try {
     if (!parser.Parse(std::vector<std::string>(argv + 1, argv + argc), std::cout)) return 0;
@@ -42,13 +44,15 @@ int main(int argc, char** argv) {
                                                                     static_cast<int64_t>(seconds * 1000));
     Clock::time_point next_stall = start + std::chrono::milliseconds(static_cast<int64_t>(stall_every_s * 1000));
     Clock::time_point next_cut = start + std::chrono::milliseconds(static_cast<int64_t>(cut_every_s * 1000));
+    int cuts = 0;
     while (Clock::now() < end) {
       const Clock::time_point now = Clock::now();
       if (stall_every_s > 0 && now >= next_stall) {
         proxy.Stall(std::chrono::milliseconds(static_cast<int64_t>(stall_ms)));
         next_stall += std::chrono::milliseconds(static_cast<int64_t>(stall_every_s * 1000));
       }
-      if (cut_every_s > 0 && now >= next_cut) {
+      if (cut_every_s > 0 && now >= next_cut && (max_cuts == 0 || cuts < max_cuts)) {
+        ++cuts;
         proxy.Cut(std::chrono::milliseconds(static_cast<int64_t>(cut_ms)));
         // The cut's end, for scripts timing the reconnection (milliseconds since the epoch).
         const auto back = std::chrono::system_clock::now() +

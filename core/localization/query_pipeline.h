@@ -1,0 +1,47 @@
+#pragma once
+// The query side of localization for one camera, built once and shared by every consumer: a
+// session's Localizer, the single-image Relocalize RPC, `visloc bench` and the localization
+// benchmark. It owns the map's detector at the query settings (the finest scale, the query's
+// keypoint budget), and the tracker and relocalizer with the pixel radii scaled from their
+// 320-pixel values to the camera's width. One place, so the consumers cannot drift apart.
+
+#include <memory>
+
+#include <opencv2/core.hpp>
+
+#include "core/features/features.h"
+#include "core/localization/localizer_options.h"
+#include "core/localization/pose_tracker.h"
+#include "core/localization/query_frame.h"
+#include "core/localization/relocalizer.h"
+
+namespace visloc {
+
+class QueryPipeline {
+ public:
+  // `options` as given (radii at 320 px); the pipeline keeps them scaled to `camera`.
+  QueryPipeline(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
+                const LocalizerOptions& options);
+
+  // Detects and describes the image's keypoints and undistorts them through the camera (that
+  // step's time in `undistort_ms`). Throws InputError for an image that is not 8-bit grey of
+  // the camera's size.
+  QueryFrame Extract(const cv::Mat& image, ExtractStats* stats = nullptr,
+                     double* undistort_ms = nullptr) const;
+  // Global relocalization of one image, with nothing known about where it was taken.
+  RelocalizationResult RelocalizeImage(const cv::Mat& image) const;
+
+  const Camera& camera() const { return camera_; }
+  const LocalizerOptions& options() const { return options_; }  // Scaled.
+  const PoseTracker& tracker() const { return *tracker_; }
+  const Relocalizer& relocalizer() const { return *relocalizer_; }
+
+ private:
+  Camera camera_;
+  LocalizerOptions options_;
+  std::unique_ptr<FeatureExtractor> extractor_;
+  std::unique_ptr<PoseTracker> tracker_;
+  std::unique_ptr<Relocalizer> relocalizer_;
+};
+
+}  // namespace visloc
