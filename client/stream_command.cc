@@ -13,6 +13,8 @@
 #include <iostream>
 #include <thread>
 
+#include <opencv2/videoio.hpp>
+
 #include "client/commands.h"
 #include "client/connection.h"
 #include "client/dataset_frames.h"
@@ -24,6 +26,7 @@
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
+#include "dataset/euroc.h"
 #include "dataset/tum.h"
 #include "proto/convert.h"
 #include "visloc/client/session.h"
@@ -37,6 +40,7 @@ using Clock = std::chrono::steady_clock;
 struct StreamArgs {
   Connection server;
   std::string map_name, dataset_dir, format, trajectory_path, stats_path, events_path, gt_path;
+  std::string camera_source, sensor_path;  // A live source instead of a dataset.
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
   std::string encoding = "file";
@@ -47,14 +51,14 @@ struct StreamArgs {
   int frames = 0;
 };
 
-client::SessionOptions LibraryOptions(const StreamArgs& args, const Dataset& dataset) {
+client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& camera) {
   client::SessionOptions o;
   args.server.ToLibrary(&o);
   o.map_name = args.map_name;
   o.robot_id = "visloc-stream";
-  proto::ToProto(dataset.left.camera, &o.camera);
+  proto::ToProto(camera.camera, &o.camera);
   o.session.set_drop_policy(args.policy == "newest" ? v1::NEWEST_ONLY : v1::PROCESS_ALL);
-  if (args.odometry) proto::ToProto(dataset.left.body_from_cam, o.session.mutable_body_from_cam());
+  if (args.odometry) proto::ToProto(camera.body_from_cam, o.session.mutable_body_from_cam());
   o.encoding = args.encoding == "png"   ? client::Encoding::kPng
                : args.encoding == "raw" ? client::Encoding::kRaw
                                         : client::Encoding::kJpeg;
@@ -93,7 +97,8 @@ client::Frame LibraryFrame(const StreamArgs& args, const Dataset& dataset, size_
 // What came back, written as it arrives.
 class StreamRecorder {
  public:
-  StreamRecorder(const StreamArgs& args, const Dataset& dataset)
+  // `dataset` (may be null: a live camera) names frames by their index in messages.
+  StreamRecorder(const StreamArgs& args, const Dataset* dataset)
       : json_(args.json), dataset_(dataset) {
     if (!args.trajectory_path.empty()) Open(&trajectory_, args.trajectory_path, TumHeader());
     if (!args.stats_path.empty()) Open(&stats_, args.stats_path, StatsCsvHeader() + "\n");
@@ -163,7 +168,7 @@ class StreamRecorder {
     latency_ms.push_back(e.latency_ms);
     if (r.status() == v1::STATUS_ERROR) {
       ++errors;
-      std::fprintf(stderr, "visloc stream: frame %zu: server: %s\n", FrameIndex(e.timestamp_ns),
+      std::fprintf(stderr, "visloc stream: %s: server: %s\n", FrameName(e.timestamp_ns).c_str(),
                    r.error().c_str());
       return;
     }
@@ -172,8 +177,8 @@ class StreamRecorder {
       // client chose: say so once.
       if (!r.error().empty() && skipped_reason_.empty()) {
         skipped_reason_ = r.error();
-        std::fprintf(stderr, "visloc stream: frame %zu skipped by the server: %s\n",
-                     FrameIndex(e.timestamp_ns), skipped_reason_.c_str());
+        std::fprintf(stderr, "visloc stream: %s skipped by the server: %s\n",
+                     FrameName(e.timestamp_ns).c_str(), skipped_reason_.c_str());
       }
       ++skipped;
       return;
@@ -191,16 +196,18 @@ class StreamRecorder {
     }
   }
 
-  // The dataset index of the frame with this timestamp (timestamps increase strictly).
-  size_t FrameIndex(int64_t timestamp_ns) const {
+  // "frame N" (the dataset index of the frame with this timestamp; timestamps increase
+  // strictly), or "frame at T s" for a live camera.
+  std::string FrameName(int64_t timestamp_ns) const {
+    if (!dataset_) return StrCat("frame at ", FormatFixed(timestamp_ns * 1e-9, 3), " s");
     const auto it = std::lower_bound(
-        dataset_.frames.begin(), dataset_.frames.end(), timestamp_ns,
+        dataset_->frames.begin(), dataset_->frames.end(), timestamp_ns,
         [](const FrameRecord& f, int64_t t) { return f.timestamp_ns < t; });
-    return static_cast<size_t>(it - dataset_.frames.begin());
+    return StrCat("frame ", it - dataset_->frames.begin());
   }
 
   bool json_;
-  const Dataset& dataset_;
+  const Dataset* dataset_;
   std::ofstream trajectory_, stats_, events_;
   std::string skipped_reason_;
 };
@@ -213,7 +220,13 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
                    "on a terminal, and a summary with the client-side latency.");
   args->server.AddFlags(parser);
   parser.AddFlag("map", &args->map_name, "map name on the server", true);
-  parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
+  parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)");
+  parser.AddFlag("camera", &args->camera_source,
+                 "instead of --dataset, a live source through OpenCV: a V4L2 device (/dev/video0 "
+                 "or 0), a GStreamer pipeline (with '!'), or a video file");
+  parser.AddFlag("sensor", &args->sensor_path,
+                 "with --camera: the camera model (an EuRoC sensor.yaml, as `visloc calibrate` "
+                 "writes)");
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
   parser.AddFlag(
       "rate", &args->rate_hz,
@@ -241,6 +254,14 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   *run = parser.Parse(raw_args, std::cout);
   if (!*run) return;
   args->server.ApplyEnvironment();
+  if (args->dataset_dir.empty() == args->camera_source.empty()) {
+    throw UsageError("give --dataset DIR or --camera SOURCE (with --sensor sensor.yaml)");
+  }
+  if (!args->camera_source.empty()) {
+    if (args->sensor_path.empty()) throw UsageError("--camera needs --sensor sensor.yaml");
+    if (args->odometry) throw UsageError("--odometry comes from a dataset, not --camera");
+    if (args->encoding == "file") args->encoding = "jpeg";  // Frames from a camera are pixels.
+  }
   if (args->rate_hz > 1000)
     throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
   if (args->policy != "all" && args->policy != "newest")
@@ -290,6 +311,112 @@ void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
               static_cast<unsigned long long>(stats.streams_opened));
 }
 
+// Where the frames come from: a dataset's files, or a live source through OpenCV.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  virtual const CameraInfo& camera() const = 0;
+  virtual const Dataset* dataset() const { return nullptr; }
+  // Frames expected (for progress; 0: unknown).
+  virtual size_t expected() const = 0;
+  // The next frame, paced as the source runs; false at the end. Throws InputError for one bad
+  // frame (the caller reports and skips it).
+  virtual bool Next(client::Frame* frame) = 0;
+};
+
+class DatasetSource final : public FrameSource {
+ public:
+  explicit DatasetSource(const StreamArgs& args)
+      : args_(args), dataset_(ReadQueryDataset(args.dataset_dir, args.format, args.odometry)) {
+    count_ = args.frames > 0 ? std::min<size_t>(args.frames, dataset_.frames.size())
+                             : dataset_.frames.size();
+  }
+  const CameraInfo& camera() const override { return dataset_.left; }
+  const Dataset* dataset() const override { return &dataset_; }
+  size_t expected() const override { return count_; }
+  bool Next(client::Frame* frame) override {
+    if (next_ >= count_) return false;
+    const size_t i = next_++;
+    if (args_.rate_hz < 0) {
+      std::this_thread::sleep_until(start_ + std::chrono::nanoseconds(
+                                                 dataset_.frames[i].timestamp_ns -
+                                                 dataset_.frames.front().timestamp_ns));
+    } else if (args_.rate_hz > 0) {
+      std::this_thread::sleep_until(
+          start_ + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args_.rate_hz)));
+    }
+    *frame = LibraryFrame(args_, dataset_, i);
+    return true;
+  }
+
+ private:
+  const StreamArgs& args_;
+  Dataset dataset_;
+  size_t count_ = 0, next_ = 0;
+  Clock::time_point start_ = Clock::now();
+};
+
+// A V4L2 device ("/dev/video0" or "0"), a GStreamer pipeline (anything with a "!"), or a video
+// file, read through OpenCV's VideoCapture; the camera model comes from a sensor.yaml. Frames
+// are stamped with the clock when read (a device), or with their position in the file (paced
+// at the file's frame rate, or --rate).
+class CaptureSource final : public FrameSource {
+ public:
+  explicit CaptureSource(const StreamArgs& args)
+      : args_(args), camera_(ReadSensorYaml(args.sensor_path)) {
+    const std::string& source = args.camera_source;
+    const bool device = source.rfind("/dev/video", 0) == 0 ||
+                        (!source.empty() && source.find_first_not_of("0123456789") == std::string::npos);
+    live_ = device || source.find('!') != std::string::npos;
+    if (device) {
+      const int index = source.rfind("/dev/video", 0) == 0 ? std::stoi(source.substr(10))
+                                                           : std::stoi(source);
+      capture_.open(index, cv::CAP_V4L2);
+    } else if (source.find('!') != std::string::npos) {
+      capture_.open(source, cv::CAP_GSTREAMER);
+    } else {
+      capture_.open(source);
+    }
+    if (!capture_.isOpened()) throw InputError("--camera " + source + ": cannot open it");
+    file_fps_ = live_ ? 0.0 : capture_.get(cv::CAP_PROP_FPS);
+  }
+  const CameraInfo& camera() const override { return camera_; }
+  size_t expected() const override {
+    const double frames = live_ ? 0.0 : capture_.get(cv::CAP_PROP_FRAME_COUNT);
+    const size_t in_file = frames > 0 ? static_cast<size_t>(frames) : 0;
+    return args_.frames > 0 ? (in_file ? std::min<size_t>(args_.frames, in_file) : args_.frames)
+                            : in_file;
+  }
+  bool Next(client::Frame* frame) override {
+    if (args_.frames > 0 && read_ >= static_cast<size_t>(args_.frames)) return false;
+    cv::Mat image;
+    if (!capture_.read(image) || image.empty()) return false;
+    const size_t i = read_++;
+    const double rate = args_.rate_hz > 0 ? args_.rate_hz : file_fps_;
+    if (!live_ && rate > 0 && args_.rate_hz != 0) {
+      std::this_thread::sleep_until(
+          start_ + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
+    }
+    const int64_t timestamp_ns =
+        live_ || rate <= 0
+            ? std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start_).count()
+            : static_cast<int64_t>(i * 1e9 / rate);
+    *frame = client::Frame();
+    frame->timestamp_ns = timestamp_ns + 1;  // Strictly positive and increasing.
+    frame->image = image;  // Grey or BGR; the library converts and checks the size.
+    return true;
+  }
+
+ private:
+  const StreamArgs& args_;
+  CameraInfo camera_;
+  mutable cv::VideoCapture capture_;
+  bool live_ = false;
+  double file_fps_ = 0.0;
+  size_t read_ = 0;
+  Clock::time_point start_ = Clock::now();
+};
+
 }  // namespace
 
 int RunStream(const Args& raw_args) {
@@ -297,35 +424,33 @@ int RunStream(const Args& raw_args) {
   bool run = false;
   ParseStreamArgs(raw_args, &args, &run);
   if (!run) return 0;
-  const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, args.odometry);
+  std::unique_ptr<FrameSource> source;
+  if (args.camera_source.empty()) {
+    source = std::make_unique<DatasetSource>(args);
+  } else {
+    source = std::make_unique<CaptureSource>(args);
+  }
   const Trajectory ground_truth = args.gt_path.empty() ? Trajectory{} : ReadTum(args.gt_path);
-  const size_t count = args.frames > 0 ? std::min<size_t>(args.frames, dataset.frames.size())
-                                       : dataset.frames.size();
-  StreamRecorder recorder(args, dataset);
+  const size_t expected = source->expected();
+  StreamRecorder recorder(args, source->dataset());
   std::mutex recorder_mutex;
-  client::SessionOptions options = LibraryOptions(args, dataset);
+  client::SessionOptions options = LibraryOptions(args, source->camera());
   options.on_event = [&](const client::Event& e) {
     std::lock_guard<std::mutex> lock(recorder_mutex);
-    recorder.Record(e, count);
+    recorder.Record(e, expected);
   };
   if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
   std::unique_ptr<client::Session> session = client::Session::Open(options);
 
-  const Clock::time_point start = Clock::now();
-  const int64_t t0 = dataset.frames.front().timestamp_ns;
-  for (size_t i = 0; i < count; ++i) {
-    if (args.rate_hz < 0) {
-      std::this_thread::sleep_until(
-          start + std::chrono::nanoseconds(dataset.frames[i].timestamp_ns - t0));
-    } else if (args.rate_hz > 0) {
-      std::this_thread::sleep_until(
-          start + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args.rate_hz)));
-    }
-    if (session->link_state() == client::LinkState::kFailed) break;
+  size_t count = 0;
+  while (session->link_state() != client::LinkState::kFailed) {
     client::Frame frame;
+    const size_t i = count;
     try {
-      frame = LibraryFrame(args, dataset, i);
+      if (!source->Next(&frame)) break;
+      ++count;
     } catch (const InputError& e) {
+      ++count;
       std::fprintf(stderr, "visloc stream: frame %zu: %s (not sent)\n", i, e.what());
       continue;
     }

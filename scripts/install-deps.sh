@@ -11,6 +11,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   sqlite3 libyaml-cpp-dev zlib1g-dev openssl
   opencv-doc  # OpenCV's stereo chessboard images and stereo_calib sample: calibration's reference
+  python3 python3-grpcio python3-protobuf python3-opencv python3-numpy  # the Python client
+  python3-pip python3-setuptools  # ...installed as a package by its test
 )
 # scripts/fuzz.sh needs clang and its libFuzzer / sanitizer runtimes: `install-deps.sh --fuzz`.
 if [ "${1:-}" = "--fuzz" ]; then PACKAGES+=(clang libclang-rt-dev); fi

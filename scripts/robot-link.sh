@@ -5,7 +5,8 @@
 # from a cut link's return to the first resumed answer over 10 cuts. Nothing in the report is
 # typed by hand.
 #
-# Usage: scripts/robot-link.sh [WORK_DIR=out/robot-link]. Reuses the maps and sequences of
+# Usage: scripts/robot-link.sh [WORK_DIR=out/robot-link] (VISLOC_LINK_REPORT_ONLY=1: the report
+# from the runs already there). Reuses the maps and sequences of
 # scripts/benchmarks.sh (out/benchmarks) when they are there; about 5 minutes on 2 cores then.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -35,11 +36,21 @@ for res in 320 640; do
   cp "$map" "$WORK/maps/square$res.db"
   ln -sfn "$(realpath "$seq")" "$WORK/seq$res"
 done
+encodings=(raw png jpeg:95 jpeg:80 jpeg:60)
+# name: proxy flags
+declare -A profiles=(
+  [good_wifi]="--latency-ms 5 --mbit 20"
+  [busy_wifi]="--latency-ms 15 --jitter-ms 30 --mbit 5 --stall-every-s 2 --stall-ms 200"
+  [cellular]="--latency-ms 50 --mbit 10")
+profile_order=(good_wifi busy_wifi cellular)
+link_encodings=(png jpeg:80)
+
+# VISLOC_LINK_REPORT_ONLY=1 rewrites the report from the runs already in WORK_DIR.
+if [[ ${VISLOC_LINK_REPORT_ONLY:-0} != 1 ]]; then
 start_server "$WORK/maps" "$WORK"
 trap stop_server EXIT
 
 echo "== encodings"
-encodings=(raw png jpeg:95 jpeg:80 jpeg:60)
 for res in 320 640; do
   for e in "${encodings[@]}"; do
     name=${e/:/}
@@ -69,13 +80,6 @@ start_proxy() {
 }
 
 echo "== link profiles at 15 Hz"
-# name: proxy flags
-declare -A profiles=(
-  [good_wifi]="--latency-ms 5 --mbit 20"
-  [busy_wifi]="--latency-ms 15 --jitter-ms 30 --mbit 5 --stall-every-s 2 --stall-ms 200"
-  [cellular]="--latency-ms 50 --mbit 10")
-profile_order=(good_wifi busy_wifi cellular)
-link_encodings=(png jpeg:80)
 for p in "${profile_order[@]}"; do
   for e in "${link_encodings[@]}"; do
     name=${e/:/}
@@ -102,6 +106,8 @@ for i in $(seq 10); do
   awk -F, -v back="$back" 'NR > 1 && $2 == "result" && $1 >= back { print $1 - back, $6, $7; exit }' \
     "$WORK/cut$i.csv" >> "$WORK/reconnect_ms.txt"
 done
+
+fi  # VISLOC_LINK_REPORT_ONLY
 
 echo "== report"
 pct() { fmt "$1" 100 1; }
@@ -131,6 +137,19 @@ pct() { fmt "$1" 100 1; }
       echo "| $([[ $res == 320 ]] && echo 320x240 || echo 640x480) | $label | $(fmt "$(field "$j" kb_per_frame)" 1 1) | $(pct "$(field "$j" localized_fraction)")% | $(fmt "$(field_in "$ev" translation_m median)" 100 2) cm | $(fmt "$(field_in "$ev" translation_m max)" 100 2) cm |"
     done
   done
+  echo
+  # The target: a JPEG setting at <= 15 KB (not KiB) a frame at 320x240 whose median error is
+  # within 10% of lossless (raw).
+  lossless=$(field_in "$WORK/enc320.raw.eval.json" translation_m median)
+  chosen=
+  for q in 95 80 60; do
+    kb=$(awk -v k="$(field "$WORK/enc320.jpeg$q.json" kb_per_frame)" 'BEGIN { print k * 1.024 }')
+    median=$(field_in "$WORK/enc320.jpeg$q.eval.json" translation_m median)
+    if awk -v kb="$kb" -v m="$median" -v l="$lossless" 'BEGIN { exit !(kb <= 15 && m <= 1.1 * l) }'; then
+      chosen="JPEG q$q: $(fmt "$kb" 1 1) KB a frame, median $(fmt "$median" 1000 2) mm against $(fmt "$lossless" 1000 2) mm lossless ($(awk -v m="$median" -v l="$lossless" 'BEGIN { printf "%+.1f", 100 * (m / l - 1) }')%)"
+    fi
+  done
+  echo "Target (at most 15 KB a frame at 320x240, median error within 10% of lossless): ${chosen:-not met}."
   echo
   echo "## Links at 15 Hz"
   echo

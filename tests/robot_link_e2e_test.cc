@@ -13,6 +13,9 @@
 #include <sstream>
 #include <thread>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "tests/support/e2e.h"
@@ -196,6 +199,40 @@ TEST_F(RobotLinkE2eTest, AFrozenRobotsSlotIsFreedByTheIdleTimeout) {
   ASSERT_EQ(next.exit_code, 0) << next.err;
   EXPECT_EQ(JsonNumber(next.out, "localized_fraction"), 1.0);
   EXPECT_THAT(server.Log(), HasSubstr("event=session_idle"));
+}
+
+// A live source through OpenCV's VideoCapture: the square query written as a video file (MJPG)
+// and streamed with `--camera FILE --sensor sensor.yaml`, as a robot streams its camera.
+TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
+  const std::string video = out_.File("square.avi");
+  {
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 15.0,
+                           cv::Size(320, 240), /*isColor=*/false);
+    ASSERT_TRUE(writer.isOpened());
+    const std::string images = kData + "/query_square/mav0/cam0/data";
+    std::vector<std::string> paths;
+    for (const auto& entry : std::filesystem::directory_iterator(images)) {
+      paths.push_back(entry.path().string());
+    }
+    std::sort(paths.begin(), paths.end());
+    for (size_t i = 0; i < 60; ++i) writer.write(cv::imread(paths[i], cv::IMREAD_GRAYSCALE));
+  }
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult streamed =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--camera", video,
+              "--sensor", kData + "/query_square/mav0/cam0/sensor.yaml", "--rate", "0", "--json"});
+  ASSERT_EQ(streamed.exit_code, 0) << streamed.err;
+  EXPECT_EQ(JsonNumber(streamed.out, "frames"), 60);
+  EXPECT_GE(JsonNumber(streamed.out, "localized_fraction"), 0.95);
+  const ProcessResult missing =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--camera",
+              out_.File("nothing.avi"), "--sensor", kData + "/query_square/mav0/cam0/sensor.yaml"});
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_THAT(missing.err, HasSubstr("nothing.avi: cannot open it"));
+  const ProcessResult no_model = Visloc({"stream", "--server", server.address(), "--map",
+                                         "square", "--camera", video});
+  EXPECT_EQ(no_model.exit_code, 2);
+  EXPECT_THAT(no_model.err, HasSubstr("--camera needs --sensor sensor.yaml"));
 }
 
 }  // namespace

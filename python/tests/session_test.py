@@ -1,0 +1,138 @@
+#!/usr/bin/env python3
+"""The Python client against the real visloc-server (and, for a cut, through the link proxy).
+
+Usage: session_test.py VISLOC_SERVER VISLOC_LINK_PROXY LOCALIZATION_DATA
+The data folder is the localization test fixture (map.db and query_square/).
+"""
+
+import glob
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+import cv2
+
+from visloc import Session, SessionOptions, pinhole_camera
+from visloc.v1 import visloc_pb2 as pb
+
+SERVER, PROXY, DATA = sys.argv[1], sys.argv[2], sys.argv[3]
+del sys.argv[1:4]
+
+
+def start(argv):
+    """A child that prints 'listening on ADDRESS'; returns (process, address)."""
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    line = process.stdout.readline()
+    if not line.startswith("listening on "):
+        process.kill()
+        raise RuntimeError(f"{argv[0]} did not start: {line!r}")
+    return process, line.split()[-1]
+
+
+def read_tum(path):
+    """timestamp_ns -> Pose (TUM: t tx ty tz qx qy qz qw)."""
+    poses = {}
+    for line in open(path):
+        if line.startswith("#") or not line.strip():
+            continue
+        stamp, *values = line.split()
+        seconds, _, fraction = stamp.partition(".")  # Exact nanoseconds: no float rounding.
+        timestamp_ns = int(seconds) * 1_000_000_000 + int((fraction + "000000000")[:9])
+        tx, ty, tz, qx, qy, qz, qw = [float(v) for v in values]
+        poses[timestamp_ns] = pb.Pose(tx=tx, ty=ty, tz=tz, qw=qw, qx=qx, qy=qy, qz=qz)
+    return poses
+
+
+class PythonClientTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.maps = tempfile.mkdtemp(prefix="visloc_py_maps")
+        shutil.copy(os.path.join(DATA, "map.db"), os.path.join(cls.maps, "square.db"))
+        cls.server, cls.address = start([SERVER, "--maps", cls.maps, "--listen", "127.0.0.1:0"])
+        images = sorted(glob.glob(os.path.join(DATA, "query_square/mav0/cam0/data/*.png")))
+        cls.frames = [(int(os.path.basename(p)[:-4]), cv2.imread(p, cv2.IMREAD_GRAYSCALE))
+                      for p in images]
+        cls.truth = read_tum(os.path.join(DATA, "query_square/groundtruth_map.tum"))
+        cls.odometry = read_tum(os.path.join(DATA, "query_square/odometry_map.tum"))
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.terminate()
+        cls.server.wait()
+        shutil.rmtree(cls.maps)
+
+    def options(self, address, **kwargs):
+        return SessionOptions(server=address, map_name="square",
+                              camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5), **kwargs)
+
+    def collect(self, session, until):
+        events = []
+        while time.monotonic() < until:
+            event = session.next(0.02)
+            if event:
+                events.append(event)
+        return events
+
+    def position_error_m(self, event):
+        truth = self.truth[event.timestamp_ns]
+        p = event.response.map_from_cam
+        return ((p.tx - truth.tx) ** 2 + (p.ty - truth.ty) ** 2 + (p.tz - truth.tz) ** 2) ** 0.5
+
+    def test_streams_at_15_hz_and_poses_match_ground_truth(self):
+        session = Session(self.options(self.address, encoding="jpeg", jpeg_quality=80))
+        for timestamp_ns, image in self.frames[:45]:
+            self.assertTrue(session.submit(timestamp_ns, image))
+            time.sleep(1 / 15)
+        session.close()
+        results = [e for e in self.collect(session, time.monotonic() + 0.5) if e.kind == "result"]
+        self.assertEqual(len(results), 45)
+        posed = [e for e in results if e.response.has_pose]
+        self.assertGreaterEqual(len(posed), 44)
+        errors = sorted(self.position_error_m(e) for e in posed)
+        self.assertLess(errors[len(errors) // 2], 0.02)
+        self.assertEqual(session.streams_opened, 1)
+
+    def test_an_unknown_map_fails_once_with_the_reason(self):
+        options = self.options(self.address)
+        options.map_name = "nope"
+        session = Session(options)
+        session.submit(*self.frames[0])
+        events = self.collect(session, time.monotonic() + 3)
+        failed = [e for e in events if e.kind == "link" and e.link_state.value == "failed"]
+        self.assertEqual(len(failed), 1)
+        self.assertIn("no map named 'nope'", failed[0].detail)
+        self.assertFalse(session.submit(*self.frames[1]))
+        session.close()
+
+    def test_a_cut_link_is_resumed_and_tracked(self):
+        proxy, address = start([PROXY, "--upstream", self.address, "--latency-ms", "5",
+                                "--cut-every-s", "1.5", "--cut-ms", "1500", "--cuts", "1",
+                                "--seconds", "20"])
+        try:
+            session = Session(self.options(address))
+            for timestamp_ns, image in self.frames[:75]:  # 5 s at 15 Hz, with odometry.
+                session.submit(timestamp_ns, image,
+                               odom_from_cam=self.odometry.get(timestamp_ns))
+                time.sleep(1 / 15)
+            session.close()
+            events = self.collect(session, time.monotonic() + 0.5)
+        finally:
+            proxy.terminate()
+            proxy.wait()
+        resumed = [i for i, e in enumerate(events) if e.kind == "link" and e.detail == "resumed"]
+        self.assertTrue(resumed, [(e.kind, e.detail) for e in events if e.kind == "link"])
+        first = next(e for e in events[resumed[0]:] if e.kind == "result")
+        self.assertEqual(first.response.source, pb.SOURCE_TRACKING)
+        self.assertNotEqual(first.response.relocalization.kind, "global")
+        kinds = [e.kind for e in events]
+        self.assertGreater(kinds.count("dropped") + kinds.count("undelivered"), 5)
+        self.assertEqual(sum(kinds.count(k) for k in ("result", "late", "dropped", "undelivered")),
+                         75)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)

@@ -1,0 +1,435 @@
+"""The Python client session (see the package docstring)."""
+
+import collections
+import dataclasses
+import enum
+import queue
+import threading
+import time
+from typing import Callable, Deque, List, Optional
+
+import cv2
+import grpc
+import numpy as np
+
+from visloc.v1 import visloc_pb2 as pb
+from visloc.v1 import visloc_pb2_grpc as pb_grpc
+
+# Statuses after which reconnecting cannot help: the request itself is refused.
+_PERMANENT = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
+              grpc.StatusCode.PERMISSION_DENIED, grpc.StatusCode.UNAUTHENTICATED,
+              grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION}
+_POSED = {pb.STATUS_TRACKING, pb.STATUS_RELOCALIZED, pb.STATUS_LIMITED}
+
+
+class LinkState(enum.Enum):
+    CONNECTING = "connecting"
+    CONNECTED = "connected"
+    DEGRADED = "degraded"
+    RECONNECTING = "reconnecting"
+    FAILED = "failed"
+    CLOSED = "closed"
+
+
+@dataclasses.dataclass
+class Event:
+    """kind: "result", "late", "dropped", "undelivered" or "link"."""
+    kind: str
+    timestamp_ns: int = 0
+    latency_ms: float = 0.0
+    response: Optional[pb.LocalizeResponse] = None
+    link_state: Optional[LinkState] = None
+    detail: str = ""
+
+
+@dataclasses.dataclass
+class SessionOptions:
+    server: str
+    map_name: str
+    camera: pb.CameraModel
+    session: pb.SessionOptions = dataclasses.field(default_factory=pb.SessionOptions)
+    robot_id: str = "python"
+    token: str = ""
+    tls_ca_pem: bytes = b""
+    tls_cert_pem: bytes = b""
+    tls_key_pem: bytes = b""
+    encoding: str = "jpeg"  # "jpeg", "png" or "raw"
+    jpeg_quality: int = 90
+    max_in_flight: int = 2
+    max_queued: int = 2
+    frame_deadline_s: float = 1.0
+    stall_timeout_s: float = 2.0
+    connect_timeout_s: float = 1.0
+    backoff_initial_s: float = 0.05
+    backoff_max_s: float = 0.5
+    give_up_after_s: float = 0.0  # 0: never (a robot keeps trying).
+    keepalive_time_ms: int = 10000  # Not below the server's --keepalive-min-ping-interval.
+    on_event: Optional[Callable[[Event], None]] = None
+
+    def problem(self) -> str:
+        if not self.server:
+            return "no server address"
+        if not self.map_name:
+            return "no map name"
+        if self.camera.width == 0 or self.camera.height == 0:
+            return "no camera (width and height)"
+        if self.encoding not in ("jpeg", "png", "raw"):
+            return "encoding is jpeg, png or raw"
+        if not 1 <= self.jpeg_quality <= 100:
+            return "jpeg_quality must be 1..100"
+        if self.max_in_flight < 1 or self.max_queued < 1:
+            return "max_in_flight and max_queued must be at least 1"
+        if bool(self.tls_cert_pem) != bool(self.tls_key_pem):
+            return "tls_cert_pem and tls_key_pem go together"
+        return ""
+
+
+def pinhole_camera(width, height, fx, fy, cx, cy, distortion=()) -> pb.CameraModel:
+    """A pinhole camera (four radial-tangential distortion values, or none)."""
+    return pb.CameraModel(width=width, height=height, fx=fx, fy=fy, cx=cx, cy=cy,
+                          distortion=list(distortion))
+
+
+def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 90) -> bytes:
+    """The image as it goes on the wire: grey, then JPEG/PNG bytes or raw pixels."""
+    if image is None or image.size == 0:
+        raise ValueError("empty image")
+    grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if grey.dtype != np.uint8:
+        raise ValueError("the image is not 8-bit")
+    if encoding == "raw":
+        return np.ascontiguousarray(grey).tobytes()
+    ext, params = (".jpg", [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]) if encoding == "jpeg" \
+        else (".png", [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    ok, data = cv2.imencode(ext, grey, params)
+    if not ok:
+        raise ValueError("the encoder refused the image")
+    return data.tobytes()
+
+
+def _quaternion_multiply(a, b):
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+
+
+def _rotate(q, v):
+    w, x, y, z = _quaternion_multiply(_quaternion_multiply(q, (0.0, *v)), (q[0], -q[1], -q[2], -q[3]))
+    return (x, y, z)
+
+
+def _unit(p: pb.Pose):
+    n = (p.qw ** 2 + p.qx ** 2 + p.qy ** 2 + p.qz ** 2) ** 0.5 or 1.0
+    return (p.qw / n, p.qx / n, p.qy / n, p.qz / n)
+
+
+def compose(a_from_b: pb.Pose, b_from_c: pb.Pose) -> pb.Pose:
+    """a_from_c = a_from_b * b_from_c."""
+    q = _unit(a_from_b)
+    t = _rotate(q, (b_from_c.tx, b_from_c.ty, b_from_c.tz))
+    r = _quaternion_multiply(q, _unit(b_from_c))
+    return pb.Pose(tx=t[0] + a_from_b.tx, ty=t[1] + a_from_b.ty, tz=t[2] + a_from_b.tz,
+                   qw=r[0], qx=r[1], qy=r[2], qz=r[3])
+
+
+def invert(a_from_b: pb.Pose) -> pb.Pose:
+    q = _unit(a_from_b)
+    inverse = (q[0], -q[1], -q[2], -q[3])
+    t = _rotate(inverse, (a_from_b.tx, a_from_b.ty, a_from_b.tz))
+    return pb.Pose(tx=-t[0], ty=-t[1], tz=-t[2], qw=inverse[0], qx=inverse[1], qy=inverse[2],
+                   qz=inverse[3])
+
+
+def propagate_by_odometry(map_from_cam_then: pb.Pose, odom_from_cam_then: pb.Pose,
+                          odom_from_cam_now: pb.Pose) -> pb.Pose:
+    """The pose now: the earlier pose moved by the odometry's motion between the frames."""
+    return compose(map_from_cam_then, compose(invert(odom_from_cam_then), odom_from_cam_now))
+
+
+@dataclasses.dataclass
+class _Queued:
+    timestamp_ns: int
+    image: Optional[np.ndarray]
+    encoded: bytes
+    odom_from_cam: Optional[pb.Pose]
+    hint: Optional[pb.Pose]
+    submitted: float
+
+
+class Session:
+    """One localization session; starts connecting at once. Thread-safe."""
+
+    def __init__(self, options: SessionOptions):
+        problem = options.problem()
+        if problem:
+            raise ValueError("SessionOptions: " + problem)
+        self._o = options
+        self._lock = threading.Condition()
+        self._queue: Deque[_Queued] = collections.deque()
+        self._in_flight: Deque[_Queued] = collections.deque()
+        self._events: "queue.Queue[Event]" = queue.Queue()
+        self._state = LinkState.CONNECTING
+        self._closing = False
+        self._refused = ""
+        self._last_pose: Optional[pb.Pose] = None
+        self._last_odom: Optional[pb.Pose] = None  # The odometry of the last posed frame.
+        self.streams_opened = 0
+        self.stats = collections.Counter()
+        self._worker = threading.Thread(target=self._work, daemon=True)
+        self._worker.start()
+
+    # --- the application's side ---------------------------------------------------------
+    def submit(self, timestamp_ns: int, image: Optional[np.ndarray] = None, *,
+               encoded: bytes = b"", odom_from_cam: Optional[pb.Pose] = None,
+               hint: Optional[pb.Pose] = None) -> bool:
+        """Hands a frame over; never blocks. False when it cannot be sent (see link_state)."""
+        if not encoded:
+            if image is None or image.size == 0:
+                return False
+            if image.shape[1] != self._o.camera.width or image.shape[0] != self._o.camera.height:
+                raise ValueError(f"the image is {image.shape[1]}x{image.shape[0]} but the session "
+                                 f"camera is {self._o.camera.width}x{self._o.camera.height}")
+        events = []
+        with self._lock:
+            if self._closing or self._refused:
+                return False
+            self._queue.append(_Queued(timestamp_ns, None if image is None else image.copy(),
+                                       encoded, odom_from_cam, hint, time.monotonic()))
+            self.stats["submitted"] += 1
+            while len(self._queue) > self._o.max_queued:
+                old = self._queue.popleft()
+                self.stats["dropped"] += 1
+                events.append(Event("dropped", old.timestamp_ns,
+                                    detail="the link is slower than the camera"))
+            self._lock.notify_all()
+        self._emit(events)
+        return True
+
+    def next(self, timeout_s: float = 0.0) -> Optional[Event]:
+        try:
+            return self._events.get(timeout=timeout_s) if timeout_s > 0 else \
+                self._events.get_nowait()
+        except queue.Empty:
+            return None
+
+    @property
+    def link_state(self) -> LinkState:
+        with self._lock:
+            return self._state
+
+    def close(self, drain_s: float = 2.0) -> None:
+        """Waits up to drain_s for answers to frames already handed over, then ends."""
+        deadline = time.monotonic() + drain_s
+        with self._lock:
+            while (self._queue or self._in_flight) and not self._refused and \
+                    time.monotonic() < deadline:
+                self._lock.wait(0.02)
+            self._closing = True
+            self._lock.notify_all()
+        self._worker.join()
+
+    # --- the library's side ---------------------------------------------------------------
+    def _emit(self, events: List[Event]) -> None:
+        for event in events:
+            if self._o.on_event:
+                self._o.on_event(event)
+            else:
+                self._events.put(event)
+
+    def _set_state(self, state: LinkState, detail: str, events: List[Event]) -> None:
+        if state != self._state:
+            self._state = state
+            events.append(Event("link", link_state=state, detail=detail))
+
+    def _channel(self) -> grpc.Channel:
+        options = [("grpc.keepalive_time_ms", self._o.keepalive_time_ms),
+                   ("grpc.keepalive_timeout_ms", 5000),
+                   ("grpc.http2.max_pings_without_data", 0),
+                   ("grpc.use_local_subchannel_pool", 1),  # A fresh connection every time.
+                   ("grpc.initial_reconnect_backoff_ms", int(self._o.backoff_initial_s * 1000)),
+                   ("grpc.max_reconnect_backoff_ms", int(self._o.backoff_max_s * 1000)),
+                   ("grpc.max_receive_message_length", 64 << 20)]
+        if self._o.tls_ca_pem:
+            credentials = grpc.ssl_channel_credentials(
+                self._o.tls_ca_pem, self._o.tls_key_pem or None, self._o.tls_cert_pem or None)
+            return grpc.secure_channel(self._o.server, credentials, options)
+        return grpc.insecure_channel(self._o.server, options)
+
+    def _requests(self, stream_state):
+        start = pb.LocalizeRequest()
+        start.start.map_name = self._o.map_name
+        start.start.camera.CopyFrom(self._o.camera)
+        start.start.options.CopyFrom(self._o.session)
+        start.start.robot_id = self._o.robot_id
+        yield start
+        while True:
+            with self._lock:
+                while not (stream_state["ended"] or self._closing or
+                           (self._queue and len(self._in_flight) < self._o.max_in_flight)):
+                    self._lock.wait(0.05)
+                if stream_state["ended"] or self._closing:
+                    return
+                item = self._queue.popleft()
+                self._in_flight.append(item)
+                resume = self.streams_opened > 1 and not stream_state["posed"]
+                hint = item.hint
+                if hint is None and resume and self._last_pose is not None:
+                    hint = self._last_pose
+                    if self._last_odom is not None and item.odom_from_cam is not None:
+                        hint = propagate_by_odometry(hint, self._last_odom, item.odom_from_cam)
+            frame = pb.Frame(timestamp_ns=item.timestamp_ns)
+            if item.encoded:
+                frame.encoded = item.encoded
+            elif self._o.encoding == "raw":
+                frame.raw.width, frame.raw.height = item.image.shape[1], item.image.shape[0]
+                frame.raw.pixels = encode_image(item.image, "raw")
+            else:
+                frame.encoded = encode_image(item.image, self._o.encoding, self._o.jpeg_quality)
+            if item.odom_from_cam is not None:
+                frame.odom_from_cam.CopyFrom(item.odom_from_cam)
+            if hint is not None:
+                frame.map_from_cam_hint.CopyFrom(hint)
+            with self._lock:
+                self.stats["sent"] += 1
+                self.stats["bytes_sent"] += len(frame.encoded) + len(frame.raw.pixels)
+            yield pb.LocalizeRequest(frame=frame)
+
+    def _read(self, call, stream_state) -> None:
+        try:
+            for response in call:
+                events = []
+                with self._lock:
+                    if response.status == pb.STATUS_CLOSED:
+                        stream_state["why"] = "the server closed the session: " + response.error
+                        continue
+                    if not self._in_flight:
+                        continue
+                    sent = self._in_flight.popleft()
+                    latency_s = time.monotonic() - sent.submitted
+                    late = latency_s > self._o.frame_deadline_s
+                    self.stats["late" if late else "answered"] += 1
+                    stream_state["answered"] = True
+                    if response.has_pose and response.status in _POSED:
+                        self._last_pose = response.map_from_cam
+                        self._last_odom = sent.odom_from_cam
+                        stream_state["posed"] = True
+                    events.append(Event("late" if late else "result", sent.timestamp_ns,
+                                        latency_s * 1000.0, response))
+                    if not late and self._state == LinkState.DEGRADED:
+                        self._set_state(LinkState.CONNECTED, "answering again", events)
+                    self._lock.notify_all()
+                self._emit(events)
+        except grpc.RpcError as error:
+            stream_state["status"] = error
+        with self._lock:
+            stream_state["ended"] = True
+            self._lock.notify_all()
+
+    def _open(self, events: List[Event]):
+        channel = self._channel()
+        try:
+            grpc.channel_ready_future(channel).result(timeout=self._o.connect_timeout_s)
+        except grpc.FutureTimeoutError:
+            channel.close()
+            return None
+        stream_state = {"ended": False, "posed": False, "answered": False, "why": "",
+                        "status": None}
+        metadata = [("authorization", "Bearer " + self._o.token)] if self._o.token else None
+        call = pb_grpc.LocalizationStub(channel).Localize(self._requests(stream_state),
+                                                           metadata=metadata)
+        reader = threading.Thread(target=self._read, args=(call, stream_state), daemon=True)
+        with self._lock:
+            self.streams_opened += 1
+            self._set_state(LinkState.CONNECTED,
+                            "connected" if self.streams_opened == 1 else "resumed", events)
+        reader.start()
+        return channel, call, reader, stream_state
+
+    def _end(self, stream, events: List[Event]) -> None:
+        channel, call, reader, stream_state = stream
+        call.cancel()
+        reader.join()
+        channel.close()
+        error = stream_state["status"]
+        code = error.code() if error is not None else None
+        with self._lock:
+            for lost in self._in_flight:
+                self.stats["undelivered"] += 1
+                events.append(Event("undelivered", lost.timestamp_ns,
+                                    detail="the stream broke before its answer"))
+            self._in_flight.clear()
+            if code in _PERMANENT:
+                self._refused = f"the server refused the session: {error.details()} ({code.name})"
+                self._set_state(LinkState.FAILED, self._refused, events)
+                for old in self._queue:
+                    events.append(Event("dropped", old.timestamp_ns, detail=self._refused))
+                self._queue.clear()
+            elif not self._closing:
+                why = stream_state["why"] or (error.details() if error is not None else
+                                              "the server ended the stream")
+                self._set_state(LinkState.RECONNECTING, why, events)
+            self._lock.notify_all()
+
+    def _check_link(self, stream_state, events: List[Event]) -> bool:
+        """True when the stream has stalled (and should be reopened)."""
+        now = time.monotonic()
+        while self._queue and now - self._queue[0].submitted > self._o.frame_deadline_s:
+            old = self._queue.popleft()
+            self.stats["dropped"] += 1
+            events.append(Event("dropped", old.timestamp_ns, detail="stale: waited for the link"))
+        if not self._in_flight:
+            return False
+        waited = now - self._in_flight[0].submitted
+        stall_after = self._o.stall_timeout_s if stream_state["answered"] else \
+            max(self._o.stall_timeout_s, 10.0)
+        if waited > stall_after:
+            stream_state["why"] = f"stalled: no answer for {waited * 1000:.0f} ms"
+            return True
+        if waited > self._o.frame_deadline_s and self._state == LinkState.CONNECTED:
+            self._set_state(LinkState.DEGRADED, "no answer within the deadline", events)
+        return False
+
+    def _work(self) -> None:
+        backoff = self._o.backoff_initial_s
+        last_stream = time.monotonic()
+        stream = None
+        while True:
+            events: List[Event] = []
+            if stream is None:
+                with self._lock:
+                    while not (self._closing or self._queue or self.streams_opened == 0):
+                        self._lock.wait(0.05)
+                    if self._closing or self._refused:
+                        self._set_state(LinkState.CLOSED if self._closing else self._state,
+                                        "closed", events)
+                        self._emit(events)
+                        return
+                stream = self._open(events)
+                if stream is None:
+                    with self._lock:
+                        if self._o.give_up_after_s > 0 and \
+                                time.monotonic() - last_stream > self._o.give_up_after_s:
+                            self._refused = f"cannot reach {self._o.server}"
+                            self._set_state(LinkState.FAILED, self._refused, events)
+                        else:
+                            self._set_state(LinkState.CONNECTING if self.streams_opened == 0
+                                            else LinkState.RECONNECTING,
+                                            f"cannot connect to {self._o.server}", events)
+                            self._check_link({"answered": True}, events)
+                            self._lock.wait(backoff)
+                            backoff = min(backoff * 2, self._o.backoff_max_s)
+                    self._emit(events)
+                    continue
+                backoff = self._o.backoff_initial_s
+                last_stream = time.monotonic()
+            stream_state = stream[3]
+            with self._lock:
+                self._lock.wait(0.02)
+                stalled = self._check_link(stream_state, events)
+                end = stalled or stream_state["ended"] or self._closing
+            if end:
+                self._end(stream, events)
+                stream = None
+                last_stream = time.monotonic()
+            self._emit(events)
