@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <thread>
@@ -224,7 +225,7 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.AddFlag("camera", &args->camera_source,
                  "instead of --dataset, a live source through OpenCV: a V4L2 device (/dev/video0 "
                  "or 0), a GStreamer pipeline (with '!'), or a video file");
-  parser.AddFlag("sensor", &args->sensor_path,
+  parser.AddFlag("camera-yaml", &args->sensor_path,
                  "with --camera: the camera model (an EuRoC sensor.yaml, as `visloc calibrate` "
                  "writes)");
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
@@ -255,10 +256,10 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   if (!*run) return;
   args->server.ApplyEnvironment();
   if (args->dataset_dir.empty() == args->camera_source.empty()) {
-    throw UsageError("give --dataset DIR or --camera SOURCE (with --sensor sensor.yaml)");
+    throw UsageError("give --dataset DIR or --camera SOURCE (with --camera-yaml sensor.yaml)");
   }
   if (!args->camera_source.empty()) {
-    if (args->sensor_path.empty()) throw UsageError("--camera needs --sensor sensor.yaml");
+    if (args->sensor_path.empty()) throw UsageError("--camera needs --camera-yaml sensor.yaml");
     if (args->odometry) throw UsageError("--odometry comes from a dataset, not --camera");
     if (args->encoding == "file") args->encoding = "jpeg";  // Frames from a camera are pixels.
   }
@@ -375,6 +376,10 @@ class CaptureSource final : public FrameSource {
     } else if (source.find('!') != std::string::npos) {
       capture_.open(source, cv::CAP_GSTREAMER);
     } else {
+      // A missing file is named here: OpenCV would probe every backend for it first.
+      if (!std::filesystem::is_regular_file(source)) {
+        throw InputError("--camera " + source + ": no such video file (nor a device or pipeline)");
+      }
       capture_.open(source);
     }
     if (!capture_.isOpened()) throw InputError("--camera " + source + ": cannot open it");

@@ -18,6 +18,7 @@
 #include "core/util/random.h"
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
+#include "dataset/tum.h"
 #include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
 #include "tests/support/e2e.h"
@@ -79,7 +80,9 @@ TEST_F(FaultE2eTest, ASigkilledServerLeavesNoPartialMapAndRestartsWithEveryMapIn
   const std::string lab_bytes = ReadFileBytes(maps_.File("lab.db"));
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   // Two robots streaming...
-  const int robot_a = testing::SpawnProcess(StreamArgs(server.address(), "square", 150, "15"));
+  std::vector<std::string> robot_a_args = StreamArgs(server.address(), "square", 150, "15");
+  robot_a_args.insert(robot_a_args.end(), {"--trajectory", files_.File("robot_a.tum")});
+  const int robot_a = testing::SpawnProcess(robot_a_args);
   const int robot_b = testing::SpawnProcess(StreamArgs(server.address(), "lab", 150, "15"));
   // ...and an upload of which half has arrived when the server dies.
   const std::string upload = ReadFileBytes(maps_.File("square.db"));
@@ -98,6 +101,8 @@ TEST_F(FaultE2eTest, ASigkilledServerLeavesNoPartialMapAndRestartsWithEveryMapIn
   EXPECT_FALSE(writer->Finish().ok());
   EXPECT_NE(testing::WaitProcess(robot_a), 0);  // The robots lost their server...
   EXPECT_NE(testing::WaitProcess(robot_b), 0);
+  // ...and kept what it answered before it died (written as the answers arrived).
+  EXPECT_GE(ReadTum(files_.File("robot_a.tum")).size(), 5u);
 
   // ...and find it again after a restart, with exactly the complete maps, byte for byte.
   ServerProcess restarted(VISLOC_SERVER_PATH, maps_.path());

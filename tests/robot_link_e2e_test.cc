@@ -202,7 +202,7 @@ TEST_F(RobotLinkE2eTest, AFrozenRobotsSlotIsFreedByTheIdleTimeout) {
 }
 
 // A live source through OpenCV's VideoCapture: the square query written as a video file (MJPG)
-// and streamed with `--camera FILE --sensor sensor.yaml`, as a robot streams its camera.
+// and streamed with `--camera FILE --camera-yaml sensor.yaml`, as a robot streams its camera.
 TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
   const std::string video = out_.File("square.avi");
   {
@@ -220,19 +220,19 @@ TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   const ProcessResult streamed =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--camera", video,
-              "--sensor", kData + "/query_square/mav0/cam0/sensor.yaml", "--rate", "0", "--json"});
+              "--camera-yaml", kData + "/query_square/mav0/cam0/sensor.yaml", "--rate", "0", "--json"});
   ASSERT_EQ(streamed.exit_code, 0) << streamed.err;
   EXPECT_EQ(JsonNumber(streamed.out, "frames"), 60);
   EXPECT_GE(JsonNumber(streamed.out, "localized_fraction"), 0.95);
   const ProcessResult missing =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--camera",
-              out_.File("nothing.avi"), "--sensor", kData + "/query_square/mav0/cam0/sensor.yaml"});
+              out_.File("nothing.avi"), "--camera-yaml", kData + "/query_square/mav0/cam0/sensor.yaml"});
   EXPECT_EQ(missing.exit_code, 1);
-  EXPECT_THAT(missing.err, HasSubstr("nothing.avi: cannot open it"));
+  EXPECT_THAT(missing.err, HasSubstr("nothing.avi: no such video file"));
   const ProcessResult no_model = Visloc({"stream", "--server", server.address(), "--map",
                                          "square", "--camera", video});
   EXPECT_EQ(no_model.exit_code, 2);
-  EXPECT_THAT(no_model.err, HasSubstr("--camera needs --sensor sensor.yaml"));
+  EXPECT_THAT(no_model.err, HasSubstr("--camera needs --camera-yaml sensor.yaml"));
 }
 
 }  // namespace

@@ -175,6 +175,23 @@ TEST_F(SecurityE2eTest, MutualTlsServesOnlyClientsWithACertificateFromTheClientC
   EXPECT_EQ(half.exit_code, 2);
   EXPECT_THAT(half.err, HasSubstr("--tls-cert and --tls-key go together"));
   EXPECT_THAT(server.Log(), HasSubstr("tls=mutual"));
+
+  // A robot's session through the client library over the same mutual TLS: answered.
+  const ProcessResult sim = Visloc({"sim", "--out", file("seq"), "--sequence", "query_square",
+                                    "--frames", "5", "--no-contact-sheet"});
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  const std::vector<std::string> stream = {
+      "stream", "--server", server.address(), "--tls-ca", file("server.pem"), "--map", "lab",
+      "--dataset", file("seq") + "/query_square", "--rate", "0", "--json"};
+  const ProcessResult streamed =
+      Visloc(with(stream, {"--tls-cert", file("robot.pem"), "--tls-key", file("robot.key")}));
+  ASSERT_EQ(streamed.exit_code, 0) << streamed.err;
+  EXPECT_EQ(JsonNumber(streamed.out, "frames"), 5);
+  EXPECT_EQ(JsonNumber(streamed.out, "errors"), 0);
+  // Without a client certificate the robot never gets a stream, and says so.
+  const ProcessResult refused = Visloc(stream);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_THAT(refused.err, HasSubstr("gRPC code 14"));
 }
 
 }  // namespace

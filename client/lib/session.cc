@@ -483,8 +483,10 @@ void SessionImpl::Work() {
       wake_.wait(lock, [this, ever_connected] {
         return stream_ || closing_ || !queue_.empty() || !ever_connected;
       });
-      need_stream = !stream_ && !closing_ && refused_.empty();
-      if (!stream_ && (closing_ || !refused_.empty())) {
+      // Closing with frames still to send and drain time left: connect (or reconnect) for them.
+      const bool draining = closing_ && !queue_.empty() && Clock::now() < drain_until_;
+      need_stream = !stream_ && (!closing_ || draining) && refused_.empty();
+      if (!stream_ && ((closing_ && !draining) || !refused_.empty())) {
         if (closing_) DropAllQueued("the session was closed before it was sent", &events);
         SetState(closing_ ? LinkState::kClosed : state_, "closed", &events);
         lock.unlock();

@@ -153,6 +153,18 @@ TEST_F(ClientSessionTest, ARefusedSessionFailsOnceWithTheServersReason) {
   EXPECT_EQ(session->stats().streams_opened, 1u);  // No reconnecting to a refusal.
 }
 
+// A replay that hands over its frames and closes at once, before the first stream is even
+// open: the drain still connects and every frame is answered.
+TEST_F(ClientSessionTest, CloseRightAfterSubmitStillDeliversEveryFrame) {
+  SessionOptions options = Options();
+  options.wait_for_room = true;
+  auto session = Session::Open(options);
+  ASSERT_TRUE(session->Submit(MakeFrame(0)));
+  session->Close(std::chrono::milliseconds(10000));
+  EXPECT_EQ(session->stats().answered, 1u);
+  EXPECT_EQ(session->stats().dropped, 0u);
+}
+
 TEST_F(ClientSessionTest, BadOptionsAndFramesAreRefusedAtOnce) {
   SessionOptions no_map = Options();
   no_map.map_name.clear();
