@@ -86,7 +86,7 @@ class LocalizationService final : public v1::Localization::Service {
   int idle_sessions_closed() const { return idle_closed_.load(); }
 
   // Fault injection for tests: called inside a session before the engine sees each frame, so a
-  // test can make the engine's side throw what it never should.
+  // test can make the engine's side throw what it never should. Set it before serving.
   void SetBeforeFrameHookForTesting(std::function<void()> hook) { before_frame_ = std::move(hook); }
   // The most frames ever processed at once, across sessions (at most limits.workers).
   int peak_frames_in_work() const { return workers_.peak_in_use(); }

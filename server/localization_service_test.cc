@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <functional>
 #include <thread>
 #include <vector>
 
@@ -21,7 +22,8 @@ namespace {
 // A service on an in-process channel over a small synthetic map "lab", with a session helper.
 class ServiceFixture : public ::testing::Test {
  protected:
-  void Start(const ServiceLimits& limits) {
+  // `before_frame` is the fault-injection hook, installed before the server starts serving.
+  void Start(const ServiceLimits& limits, std::function<void()> before_frame = nullptr) {
     SyntheticMapOptions options;
     options.keyframes = 6;
     options.points = 300;
@@ -30,6 +32,7 @@ class ServiceFixture : public ::testing::Test {
     mapstore::SaveMap(map, maps_dir_.File("lab.db"), mapstore::SaveMapOptions{4096});
     maps_ = std::make_unique<MapCache>(maps_dir_.path(), std::chrono::seconds(60));
     service_ = std::make_unique<LocalizationService>(maps_.get(), limits, &auth_);
+    if (before_frame) service_->SetBeforeFrameHookForTesting(std::move(before_frame));
     grpc::ServerBuilder builder;
     builder.RegisterService(service_.get());
     server_ = builder.BuildAndStart();
@@ -103,9 +106,8 @@ class EngineFaultTest : public ServiceFixture,
 // are answered normally, and the server goes on serving new sessions. Under NEWEST_ONLY the
 // exception is raised while the live reader thread runs: it must not unwind past it.
 TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
-  Start(ServiceLimits{});
   std::atomic<int> calls{0};
-  service_->SetBeforeFrameHookForTesting([&calls] {
+  Start(ServiceLimits{}, [&calls] {
     if (calls++ % 2 == 0) throw std::runtime_error("injected fault at engine.cc:42");
   });
   for (int session = 0; session < 2; ++session) {

@@ -8,6 +8,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <thread>
 
 #include "core/map/synthetic_map.h"
@@ -32,6 +33,10 @@ class ClientSessionTest : public ::testing::Test {
     maps_ = std::make_unique<server::MapCache>(maps_dir_.path(), std::chrono::seconds(60));
     service_ = std::make_unique<server::LocalizationService>(maps_.get(), server::ServiceLimits{},
                                                              &auth_);
+    // A slow engine on demand (set before serving; tests change only the atomic delay).
+    service_->SetBeforeFrameHookForTesting([this] {
+      std::this_thread::sleep_for(std::chrono::milliseconds(engine_delay_ms_.load()));
+    });
     grpc::ServerBuilder builder;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
     builder.RegisterService(service_.get());
@@ -76,6 +81,7 @@ class ClientSessionTest : public ::testing::Test {
   std::unique_ptr<server::LocalizationService> service_;
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
+  std::atomic<int> engine_delay_ms_{0};
 };
 
 TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
@@ -110,8 +116,7 @@ TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
 // frames on the wire and two waiting, drops the oldest waiting ones (reported, never silent),
 // and the answers that come stay fresh instead of falling further and further behind.
 TEST_F(ClientSessionTest, ASlowLinkDropsTheOldestFramesOnTheRobotSide) {
-  service_->SetBeforeFrameHookForTesting(
-      [] { std::this_thread::sleep_for(std::chrono::milliseconds(100)); });
+  engine_delay_ms_ = 100;
   auto session = Session::Open(Options());
   for (int i = 0; i < 40; ++i) {
     ASSERT_TRUE(session->Submit(MakeFrame(i)));
