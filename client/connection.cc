@@ -43,14 +43,16 @@ void Connection::ApplyEnvironment() {
 }
 
 std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
+  // The same target and trust the client library gets (ToLibrary): one place reads them.
+  client::SessionOptions resolved;
+  ToLibrary(&resolved);
+  const client::Credentials& c = resolved.credentials;
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
-  if (!tls_ca_path.empty()) {
+  if (!c.tls_ca_pem.empty()) {
     grpc::SslCredentialsOptions options;
-    options.pem_root_certs = ReadFileBytes(tls_ca_path);
-    if (!tls_cert_path.empty()) {
-      options.pem_cert_chain = ReadFileBytes(tls_cert_path);
-      options.pem_private_key = ReadFileBytes(tls_key_path);
-    }
+    options.pem_root_certs = c.tls_ca_pem;
+    options.pem_cert_chain = c.tls_cert_pem;
+    options.pem_private_key = c.tls_key_pem;
     credentials = grpc::SslCredentials(options);
   }
   grpc::ChannelArguments args;
@@ -58,12 +60,8 @@ std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
   // Replicas (a name with several addresses, or an ipv4:/ipv6: list): each new stream goes to
   // the next ready replica, starting at a random one per process (client/replicas.h).
   args.SetLoadBalancingPolicyName("round_robin");
-  std::mt19937 rng(std::random_device{}());
-  const ReplicaTarget chosen = ChooseReplicaTarget(server, &rng);
-  if (!chosen.tls_name.empty() && !tls_ca_path.empty()) {
-    args.SetSslTargetNameOverride(chosen.tls_name);
-  }
-  return grpc::CreateCustomChannel(chosen.target, credentials, args);
+  if (!c.tls_target_name.empty()) args.SetSslTargetNameOverride(c.tls_target_name);
+  return grpc::CreateCustomChannel(resolved.server, credentials, args);
 }
 
 void Connection::ToLibrary(client::SessionOptions* options) const {

@@ -122,6 +122,7 @@ class SessionImpl final : public Session {
   void CheckLink(Clock::time_point now, Events* events);
   void SetState(LinkState state, const std::string& detail, Events* events);
   void Emit(Events events);
+  void DropOldestQueued(const std::string& why, Events* events);
   void DropAllQueued(const std::string& why, Events* events);
 
   const SessionOptions options_;
@@ -176,13 +177,7 @@ bool SessionImpl::Submit(const Frame& frame, std::string* why_not) {
     queue_.push_back(std::move(queued));
     ++stats_.submitted;
     while (static_cast<int>(queue_.size()) > options_.max_queued) {
-      Event dropped;
-      dropped.kind = Event::Kind::kDropped;
-      dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
-      dropped.detail = "the link is slower than the camera: a newer frame replaced it";
-      events.push_back(std::move(dropped));
-      queue_.pop_front();
-      ++stats_.dropped;
+      DropOldestQueued("the link is slower than the camera: a newer frame replaced it", &events);
     }
   }
   wake_.notify_all();
@@ -238,31 +233,29 @@ void SessionImpl::Close(std::chrono::milliseconds drain) {
   if (worker_.joinable()) worker_.join();
 }
 
+// Removes the oldest waiting frame and reports it (kDropped: never silent). Under mutex_.
+void SessionImpl::DropOldestQueued(const std::string& why, Events* events) {
+  Event dropped;
+  dropped.kind = Event::Kind::kDropped;
+  dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
+  dropped.detail = why;
+  events->push_back(std::move(dropped));
+  queue_.pop_front();
+  ++stats_.dropped;
+}
+
 void SessionImpl::DropAllQueued(const std::string& why, Events* events) {
-  for (const Queued& q : queue_) {
-    Event dropped;
-    dropped.kind = Event::Kind::kDropped;
-    dropped.timestamp_ns = q.frame.timestamp_ns;
-    dropped.detail = why;
-    events->push_back(std::move(dropped));
-    ++stats_.dropped;
-  }
-  queue_.clear();
+  while (!queue_.empty()) DropOldestQueued(why, events);
 }
 
 // Frames that waited longer than the deadline are of no use to a robot any more.
 void SessionImpl::ExpireQueued(Clock::time_point now, Events* events) {
   if (options_.wait_for_room) return;  // A replay: every frame is sent, however late.
   while (!queue_.empty() && now - queue_.front().submitted > options_.frame_deadline) {
-    Event dropped;
-    dropped.kind = Event::Kind::kDropped;
-    dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
-    dropped.detail = "stale: waited " +
-                     std::to_string(static_cast<int>(MsBetween(queue_.front().submitted, now))) +
-                     " ms for the link";
-    events->push_back(std::move(dropped));
-    queue_.pop_front();
-    ++stats_.dropped;
+    DropOldestQueued("stale: waited " +
+                         std::to_string(static_cast<int>(MsBetween(queue_.front().submitted, now))) +
+                         " ms for the link",
+                     events);
   }
 }
 
