@@ -14,6 +14,7 @@ int RunSim(const Args& args);
 int RunEval(const Args& args);
 int RunMap(const Args& args);
 int RunDataset(const Args& args);
+int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);
 int RunLocalize(const Args& args);
 int RunStream(const Args& args);

@@ -1,5 +1,6 @@
 // `visloc dataset VERB`: what a recorded sequence holds before it is used. `check` tells
-// whether a stereo rig will map and, if not, why (mapping/dataset_check.h).
+// whether a stereo rig will map and, if not, why (mapping/dataset_check.h); `import` turns a
+// ROS bag into a sequence (dataset_import_command.cc).
 
 #include <cmath>
 #include <cstdio>
@@ -160,6 +161,7 @@ int RunDataset(const Args& args) {
   static const std::vector<Subcommand> kVerbs = {
       {"check", "will this stereo rig map? calibration, epipolar residual, stereo matches",
        RunCheck},
+      {"import", "a ROS 1 or ROS 2 bag into an EuRoC-layout sequence", RunDatasetImport},
   };
   return DispatchSubcommand("visloc dataset VERB [options]", "Inspect datasets. Verbs:", kVerbs,
                             args);

@@ -563,4 +563,30 @@ std::unique_ptr<Session> Session::Open(const SessionOptions& options) {
   return std::make_unique<SessionImpl>(options);
 }
 
+v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& frame,
+                                  std::chrono::milliseconds timeout) {
+  if (options.server.empty() || options.map_name.empty()) {
+    throw std::invalid_argument("Relocalize: the server and the map name are required");
+  }
+  v1::RelocalizeRequest request;
+  request.set_map_name(options.map_name);
+  *request.mutable_camera() = options.camera;
+  request.set_encoded_image(!frame.encoded.empty()
+                                ? frame.encoded
+                                : EncodeImage(frame.image, options.encoding, options.jpeg_quality));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + timeout);
+  if (!options.credentials.token.empty()) {
+    context.AddMetadata("authorization", "Bearer " + options.credentials.token);
+  }
+  v1::RelocalizeResponse response;
+  const grpc::Status status =
+      v1::Localization::NewStub(NewChannel(options))->Relocalize(&context, request, &response);
+  if (!status.ok()) {
+    throw std::runtime_error("Relocalize: " + status.error_message() + " (" +
+                             std::to_string(static_cast<int>(status.error_code())) + ")");
+  }
+  return response;
+}
+
 }  // namespace visloc::client

@@ -169,6 +169,13 @@ class Session {
   virtual SessionStats stats() const = 0;
 };
 
+// One image, no session: the Relocalize RPC, with the options' server, credentials, map, camera
+// and encoding. The answer says whether it was localized and with what evidence. Throws
+// std::runtime_error with the server's reason when the call fails (unknown map, unreachable
+// server within `timeout`).
+v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& frame,
+                                  std::chrono::milliseconds timeout);
+
 // A pinhole camera without distortion (add four distortion values for radial-tangential, or
 // set lens_model EQUIDISTANT with k1..k4).
 v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, double cx, double cy);

@@ -1,0 +1,496 @@
+// visloc_ros_node: a ROS 1 camera in, visloc poses out. The node is a client of visloc-server
+// through the client library (visloc::client), so it inherits the robot link's behaviour:
+// bounded frames in flight, drops when the link is slow, reconnection with the last pose as
+// a hint.
+//
+// Subscribes (remap them):   image (sensor_msgs/Image through image_transport, or
+//                            image/compressed with ~transport:=compressed), camera_info,
+//                            odom (nav_msgs/Odometry, ~use_odometry), imu (sensor_msgs/Imu,
+//                            ~use_imu)
+// Publishes:                 ~pose (geometry_msgs/PoseWithCovarianceStamped, ~map_frame),
+//                            ~status (std_msgs/String), /diagnostics, TF map -> odom (REP 105)
+//                            with odometry, else map -> camera
+// Service:                   ~relocalize (std_srvs/Trigger): the last image through the
+//                            Relocalize RPC; a fix becomes the session's next hint.
+// Frames: the image's frame_id is the camera's optical frame (x right, y down, z forward, as
+// visloc's camera frame). Poses are map_from_cam. No pose is published while lost.
+
+#include <atomic>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <image_transport/image_transport.h>
+#include <nav_msgs/Odometry.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/CompressedImage.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "proto/convert.h"
+#include "ros/bag/bag_messages.h"
+#include "ros/node/pose_output.h"
+#include "visloc/client/session.h"
+
+namespace visloc::ros_node {
+namespace {
+
+namespace vc = visloc::client;
+using proto::FromProto;
+using proto::ToProto;
+
+std::string ReadFileOrEmpty(const std::string& path) {
+  if (path.empty()) return "";
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+Rigid3d FromRos(const geometry_msgs::Pose& pose) {
+  return Rigid3d(Eigen::Quaterniond(pose.orientation.w, pose.orientation.x, pose.orientation.y,
+                                    pose.orientation.z)
+                     .normalized(),
+                 Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z));
+}
+
+Rigid3d FromRos(const geometry_msgs::Transform& t) {
+  return Rigid3d(
+      Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized(),
+      Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
+}
+
+void ToRos(const Rigid3d& pose, geometry_msgs::Pose* out) {
+  out->position.x = pose.translation.x();
+  out->position.y = pose.translation.y();
+  out->position.z = pose.translation.z();
+  out->orientation.w = pose.rotation.w();
+  out->orientation.x = pose.rotation.x();
+  out->orientation.y = pose.rotation.y();
+  out->orientation.z = pose.rotation.z();
+}
+
+void ToRos(const Rigid3d& pose, geometry_msgs::Transform* out) {
+  out->translation.x = pose.translation.x();
+  out->translation.y = pose.translation.y();
+  out->translation.z = pose.translation.z();
+  out->rotation.w = pose.rotation.w();
+  out->rotation.x = pose.rotation.x();
+  out->rotation.y = pose.rotation.y();
+  out->rotation.z = pose.rotation.z();
+}
+
+ros::Time StampOf(int64_t ns) {
+  ros::Time t;
+  t.fromNSec(static_cast<uint64_t>(ns));
+  return t;
+}
+
+class LocalizationNode {
+ public:
+  LocalizationNode(ros::NodeHandle& nh, ros::NodeHandle& pnh)
+      : nh_(nh), pnh_(pnh), transport_(nh), tf_listener_(tf_buffer_) {
+    ReadParameters();
+    pose_pub_ = pnh_.advertise<geometry_msgs::PoseWithCovarianceStamped>("pose", 10);
+    status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, /*latch=*/true);
+    diagnostics_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+    info_sub_ = nh_.subscribe("camera_info", 1, &LocalizationNode::OnCameraInfo, this);
+    if (pnh_.param<std::string>("transport", "raw") == "compressed") {
+      // Debian ships no compressed image_transport plugin: the CompressedImage topic is read
+      // directly, and its JPEG/PNG bytes go to the server as they are (no re-encoding).
+      compressed_sub_ = nh_.subscribe(nh_.resolveName("image") + "/compressed", 2,
+                                      &LocalizationNode::OnCompressedImage, this);
+    } else {
+      image_sub_ = transport_.subscribe("image", 2, &LocalizationNode::OnImage, this);
+    }
+    if (use_odometry_) odom_sub_ = nh_.subscribe("odom", 50, &LocalizationNode::OnOdometry, this);
+    if (use_imu_) imu_sub_ = nh_.subscribe("imu", 400, &LocalizationNode::OnImu, this);
+    relocalize_srv_ = pnh_.advertiseService("relocalize", &LocalizationNode::OnRelocalize, this);
+    diagnostics_timer_ = nh_.createWallTimer(ros::WallDuration(1.0),
+                                             [this](const ros::WallTimerEvent&) { PublishDiagnostics(); });
+    PublishStatus("waiting for camera_info");
+  }
+
+  ~LocalizationNode() {
+    std::unique_ptr<vc::Session> session;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      session = std::move(session_);
+    }
+    if (session) session->Close(std::chrono::milliseconds(500));
+  }
+
+ private:
+  void ReadParameters() {
+    options_.server = pnh_.param<std::string>("server", "127.0.0.1:50051");
+    options_.map_name = pnh_.param<std::string>("map", "");
+    if (options_.map_name.empty()) throw std::runtime_error("parameter ~map (the map's name) is required");
+    options_.robot_id = pnh_.param<std::string>("robot_id", ros::this_node::getName());
+    options_.credentials.token = pnh_.param<std::string>("token", "");
+    options_.credentials.tls_ca_pem = ReadFileOrEmpty(pnh_.param<std::string>("tls_ca", ""));
+    const std::string encoding = pnh_.param<std::string>("encoding", "jpeg");
+    options_.encoding = encoding == "png" ? vc::Encoding::kPng
+                        : encoding == "raw" ? vc::Encoding::kRaw : vc::Encoding::kJpeg;
+    options_.jpeg_quality = pnh_.param("jpeg_quality", 90);
+    options_.max_in_flight = pnh_.param("max_in_flight", 2);
+    options_.frame_deadline = std::chrono::milliseconds(pnh_.param("frame_deadline_ms", 1000));
+    double camera_height_m = 0.0;
+    if (pnh_.getParam("camera_height_m", camera_height_m)) {
+      options_.session.set_camera_height_m(camera_height_m);
+    }
+    map_frame_ = pnh_.param<std::string>("map_frame", "map");
+    camera_frame_override_ = pnh_.param<std::string>("camera_frame", "");
+    publish_tf_ = pnh_.param("publish_tf", true);
+    use_odometry_ = pnh_.param("use_odometry", false);
+    use_imu_ = pnh_.param("use_imu", false);
+  }
+
+  // The first camera_info opens the session: the server needs the camera model.
+  void OnCameraInfo(const sensor_msgs::CameraInfo& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (session_ || failed_) return;
+    bag::CameraInfoMessage info;
+    info.width = static_cast<int>(msg.width);
+    info.height = static_cast<int>(msg.height);
+    info.distortion_model = msg.distortion_model;
+    info.d = msg.D;
+    std::copy(msg.K.begin(), msg.K.end(), info.k.begin());
+    try {
+      ToProto(bag::CameraFromInfo(info, nh_.resolveName("camera_info")), &options_.camera);
+    } catch (const std::exception& e) {
+      failed_ = true;
+      ROS_ERROR("visloc: %s", e.what());
+      PublishStatus(std::string("error: ") + e.what());
+      return;
+    }
+    camera_frame_ = camera_frame_override_.empty() ? msg.header.frame_id : camera_frame_override_;
+    if (use_imu_) SetBodyFromCamera(msg.header.frame_id);
+    options_.on_event = [this](const vc::Event& event) { OnEvent(event); };
+    session_ = vc::Session::Open(options_);
+    ROS_INFO("visloc: session on map '%s' at %s, camera %ux%u fx %.1f", options_.map_name.c_str(),
+             options_.server.c_str(), msg.width, msg.height, msg.K[0]);
+    PublishStatus("connecting");
+  }
+
+  // Gyro samples are in the IMU's frame; the engine needs the camera's pose on it (from TF).
+  void SetBodyFromCamera(const std::string& camera_frame) {
+    if (imu_frame_.empty()) {
+      ROS_WARN("visloc: no IMU message yet; IMU samples are not used by this session");
+      use_imu_ = false;
+      return;
+    }
+    try {
+      const auto t = tf_buffer_.lookupTransform(imu_frame_, camera_frame, ros::Time(0),
+                                                ros::Duration(1.0));
+      ToProto(FromRos(t.transform), options_.session.mutable_body_from_cam());
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN("visloc: no TF %s -> %s (%s); IMU samples are not used", imu_frame_.c_str(),
+               camera_frame.c_str(), e.what());
+      use_imu_ = false;
+    }
+  }
+
+  void OnOdometry(const nav_msgs::Odometry& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    odom_frame_ = msg.header.frame_id;
+    odom_child_frame_ = msg.child_frame_id;
+    odometry_.Add(static_cast<int64_t>(msg.header.stamp.toNSec()), FromRos(msg.pose.pose));
+  }
+
+  void OnImu(const sensor_msgs::Imu& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    imu_frame_ = msg.header.frame_id;
+    v1::ImuSample sample;
+    sample.set_timestamp_ns(static_cast<int64_t>(msg.header.stamp.toNSec()));
+    sample.set_gyro_x(msg.angular_velocity.x);
+    sample.set_gyro_y(msg.angular_velocity.y);
+    sample.set_gyro_z(msg.angular_velocity.z);
+    sample.set_accel_x(msg.linear_acceleration.x);
+    sample.set_accel_y(msg.linear_acceleration.y);
+    sample.set_accel_z(msg.linear_acceleration.z);
+    if (imu_.size() < 2000) imu_.push_back(sample);
+  }
+
+  void OnImage(const sensor_msgs::ImageConstPtr& msg) {
+    vc::Frame frame;
+    try {
+      frame.image = bag::DecodeRawImage(
+          static_cast<int>(msg->width), static_cast<int>(msg->height), msg->encoding,
+          msg->is_bigendian != 0, msg->step,
+          std::string_view(reinterpret_cast<const char*>(msg->data.data()), msg->data.size()));
+    } catch (const std::exception& e) {
+      ROS_ERROR_THROTTLE(5.0, "visloc: image refused: %s", e.what());
+      return;
+    }
+    Submit(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
+  }
+
+  void OnCompressedImage(const sensor_msgs::CompressedImageConstPtr& msg) {
+    vc::Frame frame;
+    frame.encoded.assign(msg->data.begin(), msg->data.end());
+    Submit(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
+  }
+
+  void Submit(int64_t stamp_ns, vc::Frame frame) {
+    vc::Session* session = PrepareFrame(stamp_ns, frame);
+    std::string why_not;
+    // Outside the lock: the session may report a dropped frame (OnEvent) from this thread.
+    if (session && !session->Submit(frame, &why_not)) {
+      ROS_WARN_THROTTLE(5.0, "visloc: frame not sent: %s", why_not.c_str());
+    }
+  }
+
+  // Adds odometry, IMU and a pending hint to a frame; the session to send it on (null before
+  // camera_info). The session lives as long as the node.
+  vc::Session* PrepareFrame(int64_t stamp_ns, vc::Frame& frame) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++images_received_;
+    if (!session_) return nullptr;
+    frame.timestamp_ns = stamp_ns;
+    if (use_odometry_) {
+      if (const auto odom_from_child = odometry_.At(stamp_ns)) {
+        const Rigid3d odom_from_cam = *odom_from_child * BaseFromCamera();
+        ToProto(odom_from_cam, &frame.odom_from_cam.emplace());
+        odom_from_cam_at_[stamp_ns] = odom_from_cam;
+        while (odom_from_cam_at_.size() > 64) odom_from_cam_at_.erase(odom_from_cam_at_.begin());
+      }
+    }
+    if (use_imu_) {
+      frame.imu.assign(imu_.begin(), imu_.end());
+      imu_.clear();
+    }
+    if (pending_hint_) {
+      frame.map_from_cam_hint = *pending_hint_;
+      pending_hint_.reset();
+    }
+    last_frame_ = frame;
+    return session_.get();
+  }
+
+  // The camera's pose on the odometry's child frame, from TF (static on a robot); identity
+  // when the odometry tracks the camera's own frame.
+  Rigid3d BaseFromCamera() {
+    if (odom_child_frame_.empty() || odom_child_frame_ == camera_frame_) return Rigid3d::Identity();
+    if (base_from_camera_) return *base_from_camera_;
+    try {
+      const auto t = tf_buffer_.lookupTransform(odom_child_frame_, camera_frame_, ros::Time(0));
+      base_from_camera_ = FromRos(t.transform);
+      return *base_from_camera_;
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN_THROTTLE(5.0, "visloc: no TF %s -> %s yet (%s): odometry taken as the camera's",
+                        odom_child_frame_.c_str(), camera_frame_.c_str(), e.what());
+      return Rigid3d::Identity();
+    }
+  }
+
+  void OnEvent(const vc::Event& event) {
+    using Kind = vc::Event::Kind;
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (event.kind == Kind::kLinkState) {
+      link_state_ = vc::LinkStateName(event.link_state);
+      if (event.link_state != vc::LinkState::kConnected) {
+        PublishStatus(StrCatLink(event));
+        ROS_WARN("visloc: link %s: %s", link_state_.c_str(), event.detail.c_str());
+      }
+      return;
+    }
+    if (event.kind == Kind::kDropped || event.kind == Kind::kUndelivered) {
+      ++frames_dropped_;
+      return;
+    }
+    if (event.kind == Kind::kLate) {
+      ++frames_late_;  // Too old to steer on: not published.
+      return;
+    }
+    ++frames_answered_;
+    last_response_ = event.response;
+    last_latency_ms_ = event.latency_ms;
+    const std::string status = v1::Status_Name(event.response.status());
+    if (status != last_status_) PublishStatus(status);
+    if (!IsPublishable(event.response)) return;
+    ++poses_published_;
+    const Rigid3d map_from_cam = FromProto(event.response.map_from_cam(), "map_from_cam");
+    PublishPose(event.timestamp_ns, map_from_cam,
+                std::vector<double>(event.response.covariance().begin(),
+                                    event.response.covariance().end()));
+    if (publish_tf_) PublishTransform(event.timestamp_ns, map_from_cam);
+  }
+
+  std::string StrCatLink(const vc::Event& event) const {
+    return "link " + link_state_ + (event.detail.empty() ? "" : ": " + event.detail);
+  }
+
+  void PublishPose(int64_t stamp_ns, const Rigid3d& map_from_cam,
+                   const std::vector<double>& covariance_cam) {
+    geometry_msgs::PoseWithCovarianceStamped msg;
+    msg.header.stamp = StampOf(stamp_ns);
+    msg.header.frame_id = map_frame_;
+    ToRos(map_from_cam, &msg.pose.pose);
+    const auto covariance = CovarianceInMapFrame(map_from_cam, covariance_cam);
+    std::copy(covariance.begin(), covariance.end(), msg.pose.covariance.begin());
+    pose_pub_.publish(msg);
+  }
+
+  // REP 105: with odometry, map -> odom (the correction of the odometry's drift); without,
+  // map -> camera.
+  void PublishTransform(int64_t stamp_ns, const Rigid3d& map_from_cam) {
+    geometry_msgs::TransformStamped t;
+    t.header.stamp = StampOf(stamp_ns);
+    t.header.frame_id = map_frame_;
+    const auto odom = odom_from_cam_at_.find(stamp_ns);
+    if (use_odometry_ && odom != odom_from_cam_at_.end() && !odom_frame_.empty()) {
+      t.child_frame_id = odom_frame_;
+      ToRos(MapFromOdom(map_from_cam, odom->second), &t.transform);
+    } else if (!use_odometry_) {
+      t.child_frame_id = camera_frame_;
+      ToRos(map_from_cam, &t.transform);
+    } else {
+      return;  // Odometry expected but missing at this stamp: no guessed map -> odom.
+    }
+    tf_broadcaster_.sendTransform(t);
+  }
+
+  void PublishStatus(const std::string& status) {
+    last_status_ = status;
+    std_msgs::String msg;
+    msg.data = status;
+    status_pub_.publish(msg);
+  }
+
+  void PublishDiagnostics() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    diagnostic_msgs::DiagnosticArray array;
+    array.header.stamp = ros::Time::now();
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = "visloc: localization";
+    status.hardware_id = options_.server;
+    const v1::Status engine = last_response_.status();
+    status.level = failed_ || engine == v1::STATUS_LOST || engine == v1::STATUS_ERROR
+                       ? diagnostic_msgs::DiagnosticStatus::ERROR
+                   : IsPublishable(last_response_) && link_state_ == "connected"
+                       ? diagnostic_msgs::DiagnosticStatus::OK
+                       : diagnostic_msgs::DiagnosticStatus::WARN;
+    status.message = last_status_;
+    auto add = [&](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue kv;
+      kv.key = key;
+      kv.value = value;
+      status.values.push_back(kv);
+    };
+    add("map", options_.map_name);
+    add("link", link_state_);
+    add("status", v1::Status_Name(engine));
+    add("inliers", std::to_string(last_response_.stats().inliers()));
+    add("putatives", std::to_string(last_response_.stats().putatives()));
+    add("inlier_ratio", std::to_string(last_response_.stats().inlier_ratio()));
+    add("reproj_rmse_px", std::to_string(last_response_.stats().reproj_rmse_px()));
+    add("latency_ms", std::to_string(last_latency_ms_));
+    add("images_received", std::to_string(images_received_));
+    add("frames_answered", std::to_string(frames_answered_));
+    add("poses_published", std::to_string(poses_published_));
+    add("frames_dropped", std::to_string(frames_dropped_));
+    add("frames_late", std::to_string(frames_late_));
+    array.status.push_back(status);
+    diagnostics_pub_.publish(array);
+  }
+
+  bool OnRelocalize(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+    vc::Frame frame;
+    vc::SessionOptions options;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!last_frame_) {
+        res.success = false;
+        res.message = session_ ? "no image received yet" : "no camera_info received yet";
+        return true;
+      }
+      frame = *last_frame_;
+      options = options_;
+    }
+    try {
+      const v1::RelocalizeResponse answer =
+          vc::Relocalize(options, frame, std::chrono::milliseconds(5000));
+      res.success = answer.localized();
+      if (!answer.localized()) {
+        res.message = "not localized: " + std::to_string(answer.candidates_size()) +
+                      " candidates, none verified";
+        return true;
+      }
+      const Rigid3d map_from_cam = FromProto(answer.map_from_cam(), "map_from_cam");
+      std::lock_guard<std::mutex> lock(mutex_);
+      pending_hint_ = answer.map_from_cam();
+      PublishPose(frame.timestamp_ns, map_from_cam,
+                  std::vector<double>(answer.covariance().begin(), answer.covariance().end()));
+      std::ostringstream text;
+      text << "localized at (" << map_from_cam.translation.x() << ", "
+           << map_from_cam.translation.y() << ", " << map_from_cam.translation.z() << ") m with "
+           << answer.inliers() << " inliers in " << answer.ms() << " ms";
+      res.message = text.str();
+    } catch (const std::exception& e) {
+      res.success = false;
+      res.message = e.what();
+    }
+    return true;
+  }
+
+  ros::NodeHandle& nh_;
+  ros::NodeHandle& pnh_;
+  image_transport::ImageTransport transport_;
+  tf2_ros::Buffer tf_buffer_;
+  tf2_ros::TransformListener tf_listener_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+  ros::Publisher pose_pub_, status_pub_, diagnostics_pub_;
+  ros::Subscriber info_sub_, compressed_sub_, odom_sub_, imu_sub_;
+  image_transport::Subscriber image_sub_;
+  ros::ServiceServer relocalize_srv_;
+  ros::WallTimer diagnostics_timer_;
+
+  std::mutex mutex_;  // Guards everything below: ROS callbacks and the session's events.
+  vc::SessionOptions options_;
+  std::unique_ptr<vc::Session> session_;
+  bool failed_ = false;
+  std::string map_frame_, camera_frame_, camera_frame_override_;
+  std::string odom_frame_, odom_child_frame_, imu_frame_;
+  bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
+  OdometryBuffer odometry_;
+  std::optional<Rigid3d> base_from_camera_;
+  std::map<int64_t, Rigid3d> odom_from_cam_at_;  // By frame stamp, for map -> odom.
+  std::vector<v1::ImuSample> imu_;
+  std::optional<vc::Frame> last_frame_;
+  std::optional<v1::Pose> pending_hint_;
+  v1::LocalizeResponse last_response_;
+  std::string link_state_ = "connecting", last_status_;
+  double last_latency_ms_ = 0.0;
+  uint64_t images_received_ = 0, frames_answered_ = 0, poses_published_ = 0, frames_dropped_ = 0,
+           frames_late_ = 0;
+};
+
+}  // namespace
+}  // namespace visloc::ros_node
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "visloc");
+  ros::NodeHandle nh;
+  ros::NodeHandle pnh("~");
+  try {
+    visloc::ros_node::LocalizationNode node(nh, pnh);
+    // Two threads: image callbacks never wait behind a relocalize service call.
+    ros::MultiThreadedSpinner spinner(2);
+    spinner.spin();
+  } catch (const std::exception& e) {
+    ROS_FATAL("visloc: %s", e.what());
+    return 1;
+  }
+  return 0;
+}
