@@ -22,6 +22,7 @@
 #include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
 #include "proto/convert.h"
+#include "ros/bag/cdr_test_writer.h"
 
 namespace visloc::fuzz {
 namespace {
@@ -176,6 +177,24 @@ void DatasetSeeds(const fs::path& out) {
   Write(out, "kitti", Tagged(2, files));
 }
 
+// One valid message of each type the importer reads, tagged with its type's byte.
+void Ros2MessageSeeds(const fs::path& out) {
+  const cv::Mat image = Texture(16, 12);
+  Write(out, "image", Tagged(0, bag::testing::Ros2Image(1'700'000'000'000'000'000, image, "cam0")));
+  std::vector<uint8_t> png;
+  cv::imencode(".png", image, png);
+  Write(out, "compressed",
+        Tagged(1, bag::testing::Ros2CompressedImage(5, "png", std::string(png.begin(), png.end()),
+                                                    "cam0")));
+  Write(out, "camera_info",
+        Tagged(2, bag::testing::Ros2CameraInfo(5, 16, 12, 20.0, 8.0, 6.0, {0.01, 0, 0, 0, 0}, 0.1)));
+  Write(out, "camera_info_fisheye",
+        Tagged(2, bag::testing::Ros2CameraInfo(5, 16, 12, 20.0, 8.0, 6.0, {0.01, 0, 0, 0}, 0.1,
+                                               "equidistant")));
+  const double xyz[3] = {1, 2, 3}, q[4] = {0, 0, 0, 1};
+  Write(out, "odometry", Tagged(4, bag::testing::Ros2Odometry(5, xyz, q)));
+}
+
 std::string SmallMapBytes() {
   const TempDir scratch("visloc-seeds");
   SyntheticMapOptions options;
@@ -204,6 +223,7 @@ int main(int argc, char** argv) {
     RpcSeeds(out / "rpc", map_bytes);
     DatasetSeeds(out / "dataset");
     Write(out / "map", "small.db", map_bytes);
+    Ros2MessageSeeds(out / "ros2_message");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "make_seeds: %s\n", e.what());
     return 1;

@@ -4,14 +4,14 @@
 # per target: executions, executions per second, coverage and corpus size. A crash stops that
 # target and leaves the input in out/fuzz/crashes/TARGET/: fix the bug, then copy the input to
 # fuzz/regressions/TARGET/ so CTest replays it in every build from then on.
-# Usage: scripts/fuzz.sh [SECONDS=60] [TARGET...]   (targets: frame rpc dataset map)
+# Usage: scripts/fuzz.sh [SECONDS=60] [TARGET...]   (targets: frame rpc dataset map ros2_message)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh --fuzz
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -eq 0 ] && targets=(frame rpc dataset map)
+[ ${#targets[@]} -eq 0 ] && targets=(frame rpc dataset map ros2_message)
 cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DVISLOC_FUZZ=ON -DVISLOC_SANITIZE=address,undefined \
   -DVISLOC_BUILD_TESTS=OFF > /dev/null

@@ -13,6 +13,12 @@ PACKAGES=(
   opencv-doc  # OpenCV's stereo chessboard images and stereo_calib sample: calibration's reference
   python3 python3-grpcio python3-protobuf python3-opencv python3-numpy  # the Python client
   python3-pip python3-setuptools  # ...installed as a package by its test
+  # ROS 1 (Debian's own packages): bag import, visloc_ros_node, and ROS's tools for their tests.
+  libroscpp-dev librosbag-dev libimage-transport-dev libtf2-ros-dev libsensor-msgs-dev
+  libnav-msgs-dev libgeometry-msgs-dev libdiagnostic-msgs-dev libstd-srvs-dev pluginlib-dev
+  librcpputils-dev ros-core python3-rosbag python3-rostest python3-sensor-msgs
+  python3-nav-msgs python3-geometry-msgs python3-diagnostic-msgs python3-std-srvs
+  python3-tf2-msgs python3-yaml
 )
 # scripts/fuzz.sh needs clang and its libFuzzer / sanitizer runtimes: `install-deps.sh --fuzz`.
 if [ "${1:-}" = "--fuzz" ]; then PACKAGES+=(clang libclang-rt-dev); fi

@@ -36,8 +36,8 @@ class OdometryBuffer {
   explicit OdometryBuffer(int64_t keep_ns = 5'000'000'000) : keep_ns_(keep_ns) {}
   void Add(int64_t stamp_ns, const Rigid3d& odom_from_child);
   // Interpolated between the neighbouring samples; the newest sample when `stamp_ns` is at
-  // most `max_extrapolation_ns` past it (odometry that lags the camera a little); nothing
-  // otherwise.
+  // most `max_extrapolation_ns` past it (odometry that lags the camera a little; 0: only an
+  // exact or interpolated pose); nothing otherwise.
   std::optional<Rigid3d> At(int64_t stamp_ns, int64_t max_extrapolation_ns = 100'000'000) const;
 
  private:

@@ -15,7 +15,7 @@
 // Frames: the image's frame_id is the camera's optical frame (x right, y down, z forward, as
 // visloc's camera frame). Poses are map_from_cam. No pose is published while lost.
 
-#include <atomic>
+#include <deque>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -156,10 +156,17 @@ class LocalizationNode {
     use_imu_ = pnh_.param("use_imu", false);
   }
 
-  // The first camera_info opens the session: the server needs the camera model.
+  // The first camera_info opens the session (the server needs the camera model), and the
+  // image that came just before it (drivers publish the image first) is sent on it.
   void OnCameraInfo(const sensor_msgs::CameraInfo& msg) {
+    std::optional<vc::Frame> early;
+    vc::Session* session = OpenSession(msg, &early);
+    if (session && early) Submit(early->timestamp_ns, std::move(*early));
+  }
+
+  vc::Session* OpenSession(const sensor_msgs::CameraInfo& msg, std::optional<vc::Frame>* early) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (session_ || failed_) return;
+    if (session_ || failed_) return nullptr;
     bag::CameraInfoMessage info;
     info.width = static_cast<int>(msg.width);
     info.height = static_cast<int>(msg.height);
@@ -172,7 +179,7 @@ class LocalizationNode {
       failed_ = true;
       ROS_ERROR("visloc: %s", e.what());
       PublishStatus(std::string("error: ") + e.what());
-      return;
+      return nullptr;
     }
     camera_frame_ = camera_frame_override_.empty() ? msg.header.frame_id : camera_frame_override_;
     if (use_imu_) SetBodyFromCamera(msg.header.frame_id);
@@ -181,6 +188,12 @@ class LocalizationNode {
     ROS_INFO("visloc: session on map '%s' at %s, camera %ux%u fx %.1f", options_.map_name.c_str(),
              options_.server.c_str(), msg.width, msg.height, msg.K[0]);
     PublishStatus("connecting");
+    if (before_session_ && before_session_->timestamp_ns == static_cast<int64_t>(msg.header.stamp.toNSec())) {
+      --images_received_;  // Counted again when submitted.
+      *early = std::move(before_session_);
+    }
+    before_session_.reset();
+    return session_.get();
   }
 
   // Gyro samples are in the IMU's frame; the engine needs the camera's pose on it (from TF).
@@ -206,6 +219,13 @@ class LocalizationNode {
     odom_frame_ = msg.header.frame_id;
     odom_child_frame_ = msg.child_frame_id;
     odometry_.Add(static_cast<int64_t>(msg.header.stamp.toNSec()), FromRos(msg.pose.pose));
+    // Answers that came back before the odometry of their stamp get their map -> odom now.
+    while (!waiting_for_odometry_.empty() &&
+           odometry_.At(waiting_for_odometry_.front().timestamp_ns, 0)) {
+      PublishTransform(waiting_for_odometry_.front().timestamp_ns,
+                       waiting_for_odometry_.front().pose);
+      waiting_for_odometry_.pop_front();
+    }
   }
 
   void OnImu(const sensor_msgs::Imu& msg) {
@@ -256,14 +276,15 @@ class LocalizationNode {
   vc::Session* PrepareFrame(int64_t stamp_ns, vc::Frame& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++images_received_;
-    if (!session_) return nullptr;
     frame.timestamp_ns = stamp_ns;
+    if (!session_) {
+      before_session_ = frame;
+      return nullptr;
+    }
     if (use_odometry_) {
+      // The motion prior may use odometry up to 100 ms older than the image (it lags a little).
       if (const auto odom_from_child = odometry_.At(stamp_ns)) {
-        const Rigid3d odom_from_cam = *odom_from_child * BaseFromCamera();
-        ToProto(odom_from_cam, &frame.odom_from_cam.emplace());
-        odom_from_cam_at_[stamp_ns] = odom_from_cam;
-        while (odom_from_cam_at_.size() > 64) odom_from_cam_at_.erase(odom_from_cam_at_.begin());
+        ToProto(*odom_from_child * BaseFromCamera(), &frame.odom_from_cam.emplace());
       }
     }
     if (use_imu_) {
@@ -348,15 +369,23 @@ class LocalizationNode {
     geometry_msgs::TransformStamped t;
     t.header.stamp = StampOf(stamp_ns);
     t.header.frame_id = map_frame_;
-    const auto odom = odom_from_cam_at_.find(stamp_ns);
-    if (use_odometry_ && odom != odom_from_cam_at_.end() && !odom_frame_.empty()) {
+    // map -> odom needs the odometry at the image's own stamp, interpolated, never an older
+    // sample: by the time the answer is back, the odometry has usually caught up.
+    const auto odom_from_child = use_odometry_ ? odometry_.At(stamp_ns, 0) : std::nullopt;
+    if (odom_from_child && !odom_frame_.empty()) {
       t.child_frame_id = odom_frame_;
-      ToRos(MapFromOdom(map_from_cam, odom->second), &t.transform);
+      ToRos(MapFromOdom(map_from_cam, *odom_from_child * BaseFromCamera()), &t.transform);
     } else if (!use_odometry_) {
       t.child_frame_id = camera_frame_;
       ToRos(map_from_cam, &t.transform);
     } else {
-      return;  // Odometry expected but missing at this stamp: no guessed map -> odom.
+      // Odometry expected but not there yet: wait for it (a bounded while), never guess.
+      waiting_for_odometry_.push_back({stamp_ns, map_from_cam});
+      if (waiting_for_odometry_.size() > 10) {
+        waiting_for_odometry_.pop_front();
+        ROS_WARN_THROTTLE(5.0, "visloc: no odometry at the images' stamps: no map -> odom for them");
+      }
+      return;
     }
     tf_broadcaster_.sendTransform(t);
   }
@@ -465,9 +494,10 @@ class LocalizationNode {
   bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
   OdometryBuffer odometry_;
   std::optional<Rigid3d> base_from_camera_;
-  std::map<int64_t, Rigid3d> odom_from_cam_at_;  // By frame stamp, for map -> odom.
   std::vector<v1::ImuSample> imu_;
   std::optional<vc::Frame> last_frame_;
+  std::optional<vc::Frame> before_session_;
+  std::deque<StampedPose> waiting_for_odometry_;  // map_from_cam of answers ahead of odometry.  // The newest image before camera_info came.
   std::optional<v1::Pose> pending_hint_;
   v1::LocalizeResponse last_response_;
   std::string link_state_ = "connecting", last_status_;

@@ -1,0 +1,397 @@
+#!/usr/bin/python3
+"""visloc's ROS 1 side end to end, with ROS's own tools as the independent side.
+
+1. Bag import: the generated square (stereo, the right camera as PNG CompressedImage with every
+   50th image missing, odometry) is written into a ROS 1 bag by python3-rosbag, imported with
+   `visloc dataset import`, mapped with `visloc map build`, and the query sequence is localized
+   in that map against ground truth.
+2. The node: roscore, the real visloc-server serving the imported map, visloc_ros_node started by
+   roslaunch with its launch file, and `rosbag play`:
+   - query_square (raw images, odometry): published poses against ground truth, the TF map -> odom
+     closing the chain with the odometry (REP 105), diagnostics, the relocalize service;
+   - kidnap (JPEG CompressedImage, no odometry, TF map -> camera): no pose while the camera is
+     covered, a status that says lost, poses again after relocalization.
+Prints the figures docs/ros.md quotes; --report FILE writes them as JSON.
+Usage: ros_e2e_test.py --visloc BIN --server BIN --ros-ws DIR --data DIR --work DIR [--report F]
+"""
+import argparse
+import bisect
+import csv
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+FAILURES = []
+
+
+def check(condition, message):
+    print(("ok: " if condition else "FAIL: ") + message, flush=True)
+    if not condition:
+        FAILURES.append(message)
+
+
+def run(cmd, **kw):
+    print("$ " + " ".join(cmd), flush=True)
+    result = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            timeout=kw.pop("timeout", 600), **kw)
+    if result.returncode != 0:
+        sys.exit("command failed (%d): %s\n%s%s" % (result.returncode, " ".join(cmd),
+                                                     result.stdout, result.stderr))
+    return result.stdout
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_port(port, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return True
+        time.sleep(0.1)
+    return False
+
+
+def quat_to_matrix(qx, qy, qz, qw):
+    x, y, z, w = qx, qy, qz, qw
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def pose_matrix(t, q):
+    m = np.eye(4)
+    m[:3, :3] = quat_to_matrix(*q)
+    m[:3, 3] = t
+    return m
+
+
+def read_tum(path):
+    poses = {}
+    with open(path) as f:
+        for line in f:
+            if line.startswith("#") or not line.strip():
+                continue
+            v = [float(x) for x in line.split()]
+            poses[int(round(v[0] * 1e9))] = pose_matrix(v[1:4], v[4:8])
+    return poses
+
+
+def read_odometry(path):
+    poses = {}
+    with open(path) as f:
+        for row in csv.reader(f):
+            if row and not row[0].startswith("#"):
+                v = [float(x) for x in row[1:8]]
+                poses[int(row[0])] = pose_matrix(v[0:3], v[3:7])
+    return poses
+
+
+def nearest(poses, stamp_ns, tolerance_ns=1000000):
+    keys = sorted(poses)
+    i = bisect.bisect_left(keys, stamp_ns)
+    for j in (i - 1, i):
+        if 0 <= j < len(keys) and abs(keys[j] - stamp_ns) <= tolerance_ns:
+            return poses[keys[j]]
+    return None
+
+
+def part_import(a, work):
+    data = a.data
+    bag = os.path.join(work, "map.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), os.path.join(data, "map_square"),
+         bag, "--right-compressed", "--drop-right", "50", "--odometry"])
+    out = os.path.join(work, "imported")
+    report = json.loads(run([a.visloc, "dataset", "import", "--rosbag", bag, "--left", "/cam0/image_raw",
+                             "--right", "/cam1/image_raw/compressed", "--odometry", "/odom",
+                             "--out", out, "--json"]))
+    frames = len(os.listdir(os.path.join(data, "map_square", "mav0", "cam0", "data")))
+    check(report["frames"] == frames - frames // 50,
+          "import: %d of %d frames paired (every 50th right image missing)" % (report["frames"], frames))
+    check(report["unpaired_left"] == frames // 50, "import: %d unpaired left images reported" % report["unpaired_left"])
+    check(report["camera_source"] == "camera_info" and abs(report["baseline_m"] - 0.144) < 1e-9,
+          "import: rig from camera_info, baseline %.4f m" % report["baseline_m"])
+    check(report["odometry_poses"] == frames, "import: %d odometry poses" % report["odometry_poses"])
+    map_db = os.path.join(work, "maps", "square_ros.db")
+    os.makedirs(os.path.dirname(map_db), exist_ok=True)
+    run([a.visloc, "map", "build", "--dataset", out, "--out", map_db, "--name", "square_ros"], timeout=900)
+    trajectory = os.path.join(work, "localize.tum")
+    run([a.visloc, "localize", "--map", map_db, "--dataset", os.path.join(data, "query_square"),
+         "--trajectory", trajectory])
+    ev = json.loads(run([a.visloc, "eval", "--gt", os.path.join(data, "query_square", "groundtruth_map.tum"),
+                         "--est", trajectory, "--json"]))
+    return map_db, ev
+
+
+class Listener:
+    """Records what the node publishes, with wall-clock receipt times."""
+
+    def __init__(self, image_topic, image_type):
+        import rospy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from std_msgs.msg import String
+        from tf2_msgs.msg import TFMessage
+        self.lock = threading.Lock()
+        self.poses, self.tf, self.statuses, self.images = {}, [], [], {}
+        self.pose_times = {}
+        self.diagnostics = None
+        self.subs = [
+            rospy.Subscriber("/visloc/pose", PoseWithCovarianceStamped, self.on_pose, queue_size=500),
+            rospy.Subscriber("/tf", TFMessage, self.on_tf, queue_size=500),
+            rospy.Subscriber("/visloc/status", String, self.on_status, queue_size=100),
+            rospy.Subscriber("/diagnostics", DiagnosticArray, self.on_diag, queue_size=10),
+            rospy.Subscriber(image_topic, image_type, self.on_image, queue_size=500),
+        ]
+
+    def close(self):
+        for s in self.subs:
+            s.unregister()
+
+    def on_pose(self, m):
+        p, q = m.pose.pose.position, m.pose.pose.orientation
+        with self.lock:
+            stamp = m.header.stamp.to_nsec()
+            self.poses[stamp] = (m.header.frame_id, pose_matrix([p.x, p.y, p.z], [q.x, q.y, q.z, q.w]),
+                                 list(m.pose.covariance))
+            self.pose_times[stamp] = time.monotonic()
+
+    def on_tf(self, m):
+        with self.lock:
+            for t in m.transforms:
+                r, q = t.transform.translation, t.transform.rotation
+                self.tf.append((t.header.frame_id, t.child_frame_id, t.header.stamp.to_nsec(),
+                                pose_matrix([r.x, r.y, r.z], [q.x, q.y, q.z, q.w])))
+
+    def on_status(self, m):
+        with self.lock:
+            self.statuses.append(m.data)
+
+    def on_diag(self, m):
+        with self.lock:
+            for s in m.status:
+                if s.name.startswith("visloc"):
+                    self.diagnostics = (s.level, {kv.key: kv.value for kv in s.values})
+
+    def on_image(self, m):
+        with self.lock:
+            self.images[m.header.stamp.to_nsec()] = time.monotonic()
+
+
+class RosWorld:
+    def __init__(self, a, work, map_db):
+        self.a, self.work = a, work
+        self.env = dict(os.environ)
+        master = free_port()
+        self.env.update(ROS_MASTER_URI="http://127.0.0.1:%d" % master, ROS_IP="127.0.0.1",
+                        ROS_HOME=os.path.join(work, "ros_home"),
+                        CMAKE_PREFIX_PATH=a.ros_ws + ":" + self.env.get("CMAKE_PREFIX_PATH", ""),
+                        ROS_PACKAGE_PATH=os.path.join(a.ros_ws, "share"))
+        os.environ.update(self.env)
+        self.procs = []
+        self.logs = []
+        self.start("roscore", ["roscore", "-p", str(master)])
+        check(wait_port(master, 30), "roscore listening on %d" % master)
+        self.server_port = free_port()
+        self.start("server", [a.server, "--maps", os.path.dirname(map_db), "--listen",
+                              "127.0.0.1:%d" % self.server_port])
+        check(wait_port(self.server_port, 30), "visloc-server listening on %d" % self.server_port)
+        import rospy
+        rospy.init_node("visloc_ros_test", anonymous=True, disable_signals=True)
+
+    def start(self, name, cmd):
+        log = open(os.path.join(self.work, name + ".log"), "w")
+        self.logs.append(log)
+        p = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=self.env,
+                             start_new_session=True)
+        self.procs.append((name, p))
+        return p
+
+    def stop(self, p, seconds=15):
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGINT)
+            try:
+                p.wait(seconds)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait()
+        return p.returncode
+
+    def close(self):
+        import rospy
+        rospy.signal_shutdown("test over")
+        for name, p in reversed(self.procs):
+            self.stop(p)
+        for log in self.logs:
+            log.close()
+
+
+def wait_for(predicate, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def play(world, name, launch_args, bag, image_topic, image_type):
+    """Starts the node with roslaunch, plays the bag, returns what was published."""
+    import rosgraph
+    listener = Listener(image_topic, image_type)
+    node = world.start("node_" + name, ["roslaunch", "visloc_ros", "visloc.launch", "map:=square_ros",
+                                        "server:=127.0.0.1:%d" % world.server_port, "camera:=/cam0"]
+                       + launch_args)
+    master = rosgraph.Master("/visloc_ros_test")
+    check(wait_for(lambda: any(t == "/visloc/pose" for t, _ in master.getPublishedTopics("/")), 60),
+          "%s: the node advertises /visloc/pose" % name)
+    # The node subscribes before rosbag plays (rosbag play does not wait for subscribers).
+    check(wait_for(lambda: any(t == "/cam0/camera_info" for t, _ in master.getSystemState()[1]), 30),
+          "%s: the node subscribes to /cam0/camera_info" % name)
+    start = time.monotonic()
+    subprocess.run(["rosbag", "play", "-q", "--delay=0.5", bag], env=world.env, check=True,
+                   stdout=subprocess.DEVNULL, timeout=120)
+    played_s = time.monotonic() - start
+    wait_for(lambda: listener.diagnostics is not None and
+             int(listener.diagnostics[1].get("frames_answered", 0)) +
+             int(listener.diagnostics[1].get("frames_dropped", 0)) >=
+             int(listener.diagnostics[1].get("images_received", 1)) - 1, 10)
+    time.sleep(1.5)  # One more diagnostics period.
+    return listener, node, played_s
+
+
+def errors_cm(poses, gt):
+    errs = []
+    for stamp, (_, m, _) in poses.items():
+        g = nearest(gt, stamp)
+        if g is not None:
+            errs.append(np.linalg.norm(m[:3, 3] - g[:3, 3]) * 100)
+    return np.array(errs)
+
+
+def part_node(a, work, map_db, figures):
+    data = a.data
+    query_bag = os.path.join(work, "query.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), os.path.join(data, "query_square"),
+         query_bag, "--mono", "--odometry"])
+    kidnap_bag = os.path.join(work, "kidnap.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), os.path.join(data, "kidnap"),
+         kidnap_bag, "--mono", "--left-compressed"])
+    from sensor_msgs.msg import CompressedImage, Image
+    world = RosWorld(a, work, map_db)
+    try:
+        # Query: raw images, odometry, TF map -> odom.
+        gt = read_tum(os.path.join(data, "query_square", "groundtruth_map.tum"))
+        odom = read_odometry(os.path.join(data, "query_square", "mav0", "odometry0", "data.csv"))
+        listener, node, played_s = play(world, "query", ["use_odometry:=true"], query_bag,
+                                        "/cam0/image_raw", Image)
+        frames = len(gt)
+        errs = errors_cm(listener.poses, gt)
+        check(len(listener.poses) >= frames - 2, "query: %d poses for %d frames" % (len(listener.poses), frames))
+        check(len(errs) > 0 and np.median(errs) < 1.0 and errs.max() < 3.0,
+              "query: error against ground truth median %.3f cm, max %.3f cm" % (np.median(errs), errs.max()))
+        check(all(f == "map" for f, _, _ in listener.poses.values()), "query: poses in the map frame")
+        cov_ok = all(c[0] > 0 and c[7] > 0 and c[14] > 0 and c[21] > 0 for _, _, c in listener.poses.values())
+        check(cov_ok, "query: every pose carries a positive covariance")
+        chain = []
+        for parent, child, stamp, map_from_odom in listener.tf:
+            if parent == "map" and child == "odom" and stamp in listener.poses:
+                o = nearest(odom, stamp)
+                if o is not None:
+                    chain.append(np.linalg.norm((map_from_odom @ o)[:3, 3] - listener.poses[stamp][1][:3, 3]))
+        check(len(chain) >= frames - 2 and max(chain) < 1e-6,
+              "query: %d TF map -> odom, closing map -> odom -> camera on the pose within %.1e m"
+              % (len(chain), max(chain) if chain else -1))
+        check(not any(child == "cam0" for _, child, _, _ in listener.tf), "query: no map -> camera TF with odometry")
+        level, values = listener.diagnostics or (-1, {})
+        check(level == 0 and values.get("status") == "STATUS_TRACKING" and int(values.get("inliers", 0)) > 100,
+              "query: diagnostics OK, %s, %s inliers" % (values.get("status"), values.get("inliers")))
+        latencies = [1000 * (listener.pose_times[s] - listener.images[s])
+                     for s in listener.pose_times if s in listener.images]
+        figures["query"] = {
+            "frames": frames, "poses": len(listener.poses), "median_error_cm": float(np.median(errs)),
+            "max_error_cm": float(errs.max()), "pose_rate_hz": len(listener.poses) / max(played_s - 0.5, 1e-3),
+            "camera_rate_hz": 15.0,
+            "latency_ms_p50": float(np.percentile(latencies, 50)) if latencies else None,
+            "latency_ms_p95": float(np.percentile(latencies, 95)) if latencies else None,
+        }
+        print("figures: %s" % json.dumps(figures["query"]), flush=True)
+        import rospy
+        from std_srvs.srv import Trigger
+        rospy.wait_for_service("/visloc/relocalize", 10)
+        answer = rospy.ServiceProxy("/visloc/relocalize", Trigger)()
+        last = gt[max(gt)]
+        check(answer.success and "inliers" in answer.message, "relocalize service: %s" % answer.message)
+        world.stop(node)
+        listener.close()
+
+        # Kidnap: compressed images, no odometry (TF map -> camera); covered frames get no pose.
+        meta = json.load(open(os.path.join(data, "kidnap", "sequence.json")))
+        gt = read_tum(os.path.join(data, "kidnap", "groundtruth_map.tum"))
+        stamps = sorted(gt)
+        covered = {stamps[i] for i in meta["covered_frames"] if i < len(stamps)}
+        listener, node, played_s = play(world, "kidnap", ["transport:=compressed"], kidnap_bag,
+                                        "/cam0/image_raw/compressed", CompressedImage)
+        during = [s for s in listener.poses if s in covered]
+        check(len(during) == 0, "kidnap: %d poses published while the camera was covered (%d frames)"
+              % (len(during), len(covered)))
+        check("STATUS_LOST" in listener.statuses, "kidnap: status says lost (%s)" % " -> ".join(listener.statuses))
+        after = [s for s in listener.poses if s > max(covered)]
+        errs = errors_cm(listener.poses, gt)
+        check(len(after) >= 0.9 * len([s for s in stamps if s > max(covered)]),
+              "kidnap: %d poses after the kidnapping" % len(after))
+        check(len(errs) > 0 and np.median(errs) < 1.0 and errs.max() < 5.0,
+              "kidnap: every published pose near ground truth (median %.3f cm, max %.3f cm)"
+              % (np.median(errs), errs.max()))
+        check(any(p == "map" and c == "cam0" for p, c, _, _ in listener.tf), "kidnap: TF map -> cam0 without odometry")
+        figures["kidnap"] = {"frames": len(stamps), "covered": len(covered), "poses": len(listener.poses),
+                             "poses_while_covered": len(during), "median_error_cm": float(np.median(errs))}
+        world.stop(node)
+        listener.close()
+    finally:
+        world.close()
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--visloc", required=True)
+    p.add_argument("--server", required=True)
+    p.add_argument("--ros-ws", required=True)
+    p.add_argument("--data", required=True)
+    p.add_argument("--work", required=True)
+    p.add_argument("--report")
+    a = p.parse_args()
+    shutil.rmtree(a.work, ignore_errors=True)
+    os.makedirs(a.work)
+    figures = {}
+    map_db, ev = part_import(a, a.work)
+    t = ev["ate"]["translation_m"]
+    figures["import"] = {"localize_median_cm": t["median"] * 100, "localized": ev["matched_poses"],
+                         "frames": ev["gt_poses"]}
+    check(ev["coverage"] == 1 and t["median"] * 100 < 1.0,
+          "localize in the imported map: %d of %d frames, median %.3f cm"
+          % (ev["matched_poses"], ev["gt_poses"], t["median"] * 100))
+    part_node(a, a.work, map_db, figures)
+    if a.report:
+        with open(a.report, "w") as f:
+            json.dump(figures, f, indent=1)
+    if FAILURES:
+        sys.exit("%d checks failed:\n  %s" % (len(FAILURES), "\n  ".join(FAILURES)))
+    print("all ROS checks passed")
+
+
+if __name__ == "__main__":
+    main()
