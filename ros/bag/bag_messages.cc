@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <map>
 
 #include <Eigen/Geometry>
@@ -83,14 +84,17 @@ cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool 
                             encoding, " with step ", step, " needs ",
                             step * (height - 1) + row_bytes));
   }
-  // A view of the message's bytes; every path below copies into a new Mat.
-  const cv::Mat view(height, width, layout.cv_type, const_cast<char*>(data.data()),
-                     static_cast<size_t>(step));
+  // The rows, packed: a message's step need not be a multiple of the pixel size (cv::Mat's
+  // own step must), and the copy leaves the message's bytes untouched.
+  cv::Mat view(height, width, layout.cv_type);
+  for (int y = 0; y < height; ++y) {
+    std::memcpy(view.ptr(y), data.data() + static_cast<int64_t>(y) * step, row_bytes);
+  }
   cv::Mat grey;
   if (layout.to_grey == -1) {
-    grey = view.clone();
+    grey = view;
   } else if (layout.to_grey == -2) {
-    cv::Mat wide = view.clone();
+    cv::Mat& wide = view;
     const bool host_big_endian = cv::Mat(1, 1, CV_16UC1, cv::Scalar(1)).data[0] == 0;
     if (is_bigendian != host_big_endian) {
       for (int y = 0; y < height; ++y) {

@@ -39,6 +39,17 @@ TEST(DecodeRawImageTest, HonoursRowPadding) {
   EXPECT_EQ(cv::countNonZero(grey == 200), 15);
 }
 
+TEST(DecodeRawImageTest, ReadsSixteenBitRowsWithAnOddStep) {
+  // Found by the ros2_message fuzzer: a step that is not a multiple of the pixel size made
+  // cv::Mat throw its own exception instead of reading the rows.
+  std::string bytes(5 * 2 + 7, '\0');
+  for (int y = 0; y < 2; ++y) {
+    for (int x = 0; x < 3; ++x) bytes[y * 7 + 2 * x + 1] = static_cast<char>(10 * (y * 3 + x));
+  }
+  const cv::Mat grey = DecodeRawImage(3, 2, "mono16", false, 7, bytes);
+  EXPECT_EQ(grey.at<uint8_t>(1, 2), 50);
+}
+
 TEST(DecodeRawImageTest, RefusesWhatCannotBeAnImage) {
   cv::Mat grey(4, 4, CV_8UC1, cv::Scalar(1));
   EXPECT_THROW(DecodeRawImage(4, 4, "yuv422", false, 8, View(grey)), InputError);

@@ -27,8 +27,8 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 
 
 def read_camera(path):
-    with open(path) as f:
-        s = yaml.safe_load(f)
+    with open(path) as f:  # EuRoC's files start with OpenCV's "%YAML:1.0", not YAML's own.
+        s = yaml.safe_load("".join(l for l in f if not l.startswith("%")))
     t_bs = np.array(s["T_BS"]["data"], dtype=float).reshape(4, 4)
     return s, t_bs
 
@@ -53,6 +53,24 @@ def camera_info(sensor, frame_id, stamp, r=np.eye(3), baseline_m=0.0):
     return info
 
 
+def rectify(left, right, right_from_left):
+    """rect_from_left, rect_from_right and the baseline of a stereo pair (OpenCV's convention:
+    a point p in the left camera is right_from_left p in the right one)."""
+    def k_d(s):
+        fu, fv, cu, cv_ = s["intrinsics"]
+        return (np.array([[fu, 0, cu], [0, fv, cv_], [0, 0, 1]]),
+                np.array(s.get("distortion_coefficients", [0, 0, 0, 0]), dtype=float))
+    k1, d1 = k_d(left)
+    k2, d2 = k_d(right)
+    size = tuple(left["resolution"])
+    r, t = right_from_left[:3, :3], right_from_left[:3, 3].reshape(3, 1)
+    if left.get("distortion_model") == "equidistant":
+        r1, r2, p1, p2, _ = cv2.fisheye.stereoRectify(k1, d1, k2, d2, size, r, t, 0)
+    else:
+        r1, r2, p1, p2, _, _, _ = cv2.stereoRectify(k1, d1, k2, d2, size, r, t, alpha=0)
+    return r1, r2, float(-p2[0, 3] / p2[0, 0])
+
+
 def to_time(ns):
     return rospy.Time(int(ns) // 1000000000, int(ns) % 1000000000)
 
@@ -70,15 +88,17 @@ def main():
     mav0 = os.path.join(a.dir, "mav0")
     left, body_from_left = read_camera(os.path.join(mav0, "cam0", "sensor.yaml"))
     stereo = not a.mono and os.path.exists(os.path.join(mav0, "cam1", "sensor.yaml"))
-    r_right, baseline = np.eye(3), 0.0
+    r_left, r_right, baseline = np.eye(3), np.eye(3), 0.0
     if stereo:
         right, body_from_right = read_camera(os.path.join(mav0, "cam1", "sensor.yaml"))
         left_from_right = np.linalg.inv(body_from_left) @ body_from_right
         t = left_from_right[:3, 3]
         baseline = float(np.linalg.norm(t))
-        if abs(t[1]) > 1e-6 * baseline or abs(t[2]) > 1e-6 * baseline or t[0] <= 0:
-            sys.exit("euroc_to_rosbag: the right camera is not along the left camera's x axis")
-        r_right = left_from_right[:3, :3]  # rect (= left) from right
+        if abs(t[1]) < 1e-6 * baseline and abs(t[2]) < 1e-6 * baseline and t[0] > 0:
+            r_right = left_from_right[:3, :3]  # The rectified frame is the left camera's.
+        else:
+            # A real rig: rectified as ROS's stereo calibration does it (OpenCV's stereoRectify).
+            r_left, r_right, baseline = rectify(left, right, np.linalg.inv(left_from_right))
     with open(os.path.join(mav0, "cam0", "data.csv")) as f:
         stamps = [int(row[0]) for row in csv.reader(f) if row and not row[0].startswith("#")]
     bag = rosbag.Bag(a.out, "w")
@@ -97,7 +117,7 @@ def main():
                 topic = "/cam0/image_raw"
             msg.header.stamp, msg.header.frame_id = t, "cam0"
             bag.write(topic, msg, t)
-            bag.write("/cam0/camera_info", camera_info(left, "cam0", t), t)
+            bag.write("/cam0/camera_info", camera_info(left, "cam0", t, r_left), t)
             if stereo:
                 bag.write("/cam1/camera_info", camera_info(right, "cam1", t, r_right, baseline), t)
                 if a.drop_right and i % a.drop_right == a.drop_right - 1:

@@ -10,7 +10,9 @@
    - query_square (raw images, odometry): published poses against ground truth, the TF map -> odom
      closing the chain with the odometry (REP 105), diagnostics, the relocalize service;
    - kidnap (JPEG CompressedImage, no odometry, TF map -> camera): no pose while the camera is
-     covered, a status that says lost, poses again after relocalization.
+     covered, a status that says lost, poses again after relocalization;
+   - with --real, the real EuRoC snippet: its bag (camera_info with OpenCV's rectification, as
+     ROS's stereo calibration writes it) imported and mapped, and its left camera through the node.
 Prints the figures docs/ros.md quotes; --report FILE writes them as JSON.
 Usage: ros_e2e_test.py --visloc BIN --server BIN --ros-ws DIR --data DIR --work DIR [--report F]
 """
@@ -252,9 +254,10 @@ def play(world, name, launch_args, bag, image_topic, image_type):
     """Starts the node with roslaunch, plays the bag, returns what was published."""
     import rosgraph
     listener = Listener(image_topic, image_type)
-    node = world.start("node_" + name, ["roslaunch", "visloc_ros", "visloc.launch", "map:=square_ros",
+    args = ["map:=square_ros"] if not any(x.startswith("map:=") for x in launch_args) else []
+    node = world.start("node_" + name, ["roslaunch", "visloc_ros", "visloc.launch",
                                         "server:=127.0.0.1:%d" % world.server_port, "camera:=/cam0"]
-                       + launch_args)
+                       + args + launch_args)
     master = rosgraph.Master("/visloc_ros_test")
     check(wait_for(lambda: any(t == "/visloc/pose" for t, _ in master.getPublishedTopics("/")), 60),
           "%s: the node advertises /visloc/pose" % name)
@@ -273,6 +276,12 @@ def play(world, name, launch_args, bag, image_topic, image_type):
     return listener, node, played_s
 
 
+def rate_hz(receipt_times):
+    """Poses a second, from the first to the last one received."""
+    t = sorted(receipt_times.values())
+    return (len(t) - 1) / (t[-1] - t[0]) if len(t) > 1 and t[-1] > t[0] else 0.0
+
+
 def errors_cm(poses, gt):
     errs = []
     for stamp, (_, m, _) in poses.items():
@@ -280,6 +289,46 @@ def errors_cm(poses, gt):
         if g is not None:
             errs.append(np.linalg.norm(m[:3, 3] - g[:3, 3]) * 100)
     return np.array(errs)
+
+
+def part_real_import(a, work, figures):
+    """The real EuRoC snippet through a bag whose camera_info carries OpenCV's rectification,
+    as ROS's stereo calibration writes it: the rig must come back and map as the EuRoC folder."""
+    bag = os.path.join(work, "euroc_real.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), a.real, bag])
+    out = os.path.join(work, "euroc_real")
+    report = json.loads(run([a.visloc, "dataset", "import", "--rosbag", bag, "--left", "/cam0/image_raw",
+                             "--right", "/cam1/image_raw", "--out", out, "--json"]))
+    check(report["frames"] == 95 and abs(report["baseline_m"] - 0.1101) < 5e-4,
+          "real EuRoC bag: %d frames, baseline %.4f m" % (report["frames"], report["baseline_m"]))
+    map_db = os.path.join(work, "maps", "euroc_ros.db")
+    build = json.loads(run([a.visloc, "map", "build", "--dataset", out, "--out", map_db, "--name",
+                            "euroc_ros", "--json"], timeout=900))
+    points = build["points"]
+    check(points is not None and points >= 500, "real EuRoC bag: map of %s points" % points)
+    figures["real_import"] = {"frames": report["frames"], "baseline_m": report["baseline_m"], "points": points}
+
+
+def part_real_node(world, a, work, figures):
+    """The real EuRoC left camera through the node: every frame posed, a still camera's jitter."""
+    from sensor_msgs.msg import Image
+    bag = os.path.join(work, "euroc_real_mono.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), a.real, bag, "--mono"])
+    listener, node, played_s = play(world, "euroc", ["map:=euroc_ros"], bag, "/cam0/image_raw", Image)
+    positions = np.array([m[:3, 3] for _, m, _ in listener.poses.values()])
+    spread_mm = float(np.max(np.linalg.norm(positions - positions.mean(axis=0), axis=1)) * 1000) if len(positions) else -1
+    check(len(listener.poses) >= 93 and 0 <= spread_mm < 5.0,
+          "real EuRoC through the node: %d poses for 95 frames, positions within %.2f mm of their mean"
+          % (len(listener.poses), spread_mm))
+    latencies = [1000 * (listener.pose_times[s] - listener.images[s])
+                 for s in listener.pose_times if s in listener.images]
+    figures["real_node"] = {"frames": 95, "poses": len(listener.poses), "spread_mm": spread_mm,
+                            "pose_rate_hz": rate_hz(listener.pose_times),
+                            "camera_rate_hz": 20.0,
+                            "latency_ms_p50": float(np.percentile(latencies, 50)) if latencies else None,
+                            "latency_ms_p95": float(np.percentile(latencies, 95)) if latencies else None}
+    world.stop(node)
+    listener.close()
 
 
 def part_node(a, work, map_db, figures):
@@ -323,7 +372,7 @@ def part_node(a, work, map_db, figures):
                      for s in listener.pose_times if s in listener.images]
         figures["query"] = {
             "frames": frames, "poses": len(listener.poses), "median_error_cm": float(np.median(errs)),
-            "max_error_cm": float(errs.max()), "pose_rate_hz": len(listener.poses) / max(played_s - 0.5, 1e-3),
+            "max_error_cm": float(errs.max()), "pose_rate_hz": rate_hz(listener.pose_times),
             "camera_rate_hz": 15.0,
             "latency_ms_p50": float(np.percentile(latencies, 50)) if latencies else None,
             "latency_ms_p95": float(np.percentile(latencies, 95)) if latencies else None,
@@ -361,6 +410,8 @@ def part_node(a, work, map_db, figures):
                              "poses_while_covered": len(during), "median_error_cm": float(np.median(errs))}
         world.stop(node)
         listener.close()
+        if a.real:
+            part_real_node(world, a, work, figures)
     finally:
         world.close()
 
@@ -373,7 +424,11 @@ def main():
     p.add_argument("--data", required=True)
     p.add_argument("--work", required=True)
     p.add_argument("--report")
+    p.add_argument("--real", help="the real EuRoC snippet (skipped when absent)")
     a = p.parse_args()
+    if a.real and not os.path.isdir(a.real):
+        print("no real recording at %s: its checks are skipped" % a.real)
+        a.real = None
     shutil.rmtree(a.work, ignore_errors=True)
     os.makedirs(a.work)
     figures = {}
@@ -384,6 +439,8 @@ def main():
     check(ev["coverage"] == 1 and t["median"] * 100 < 1.0,
           "localize in the imported map: %d of %d frames, median %.3f cm"
           % (ev["matched_poses"], ev["gt_poses"], t["median"] * 100))
+    if a.real:
+        part_real_import(a, a.work, figures)
     part_node(a, a.work, map_db, figures)
     if a.report:
         with open(a.report, "w") as f:
