@@ -2,7 +2,8 @@
 # Regenerates docs/ros.md from a run of tests/ros/ros_e2e_test.py (the CTest ros_e2e_test) on
 # the release build: a generated sequence written into a ROS 1 bag by python3-rosbag, imported
 # and mapped; the real EuRoC snippet through a bag with rectified camera_info; roscore, the real
-# visloc-server, visloc_ros_node by roslaunch and `rosbag play`, measured from a subscriber.
+# visloc-server (once killed and restarted mid-run), visloc_ros_node by roslaunch and
+# `rosbag play`, measured from a subscriber.
 # Nothing in the report is typed by hand.
 # Usage: scripts/ros.sh [WORK_DIR=out/ros]   (about 2 minutes once the build is there)
 set -euo pipefail
@@ -36,6 +37,10 @@ if "real_import" in r:
                  % (ri["frames"], ri["baseline_m"], ri["points"]))
 lines.append("| node, raw images + odometry | query_square, %d frames at %.0f Hz | %d poses (%.1f Hz), median error %.2f cm (max %.2f), TF map -> odom closes on every pose |"
              % (q["frames"], q["camera_rate_hz"], q["poses"], q["pose_rate_hz"], q["median_error_cm"], q["max_error_cm"]))
+if "reconnect" in r:
+    rc = r["reconnect"]
+    lines.append("| node, the server killed 3 s into the run and restarted 1 s later | query_square | first pose %.2f s after the server was back, %d poses after it, median error %.2f cm |"
+                 % (rc["first_pose_after_s"], rc["poses_after"], rc["median_error_cm"]))
 lines.append("| node, JPEG CompressedImage, no odometry | kidnap, %d frames, camera covered for %d | %d poses, %d while covered, median error %.2f cm |"
              % (k["frames"], k["covered"], k["poses"], k["poses_while_covered"], k["median_error_cm"]))
 if "real_node" in r:

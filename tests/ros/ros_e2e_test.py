@@ -9,6 +9,8 @@
    roslaunch with its launch file, and `rosbag play`:
    - query_square (raw images, odometry): published poses against ground truth, the TF map -> odom
      closing the chain with the odometry (REP 105), diagnostics, the relocalize service;
+   - query_square again, the server killed mid-run and restarted: the node reconnects and poses
+     resume;
    - kidnap (JPEG CompressedImage, no odometry, TF map -> camera): no pose while the camera is
      covered, a status that says lost, poses again after relocalization;
    - with --real, the real EuRoC snippet: its bag (camera_info with OpenCV's rectification, as
@@ -214,11 +216,16 @@ class RosWorld:
         self.start("roscore", ["roscore", "-p", str(master)])
         check(wait_port(master, 30), "roscore listening on %d" % master)
         self.server_port = free_port()
-        self.start("server", [a.server, "--maps", os.path.dirname(map_db), "--listen",
-                              "127.0.0.1:%d" % self.server_port])
-        check(wait_port(self.server_port, 30), "visloc-server listening on %d" % self.server_port)
+        self.maps = os.path.dirname(map_db)
+        self.server = self.start_server()
         import rospy
         rospy.init_node("visloc_ros_test", anonymous=True, disable_signals=True)
+
+    def start_server(self):
+        server = self.start("server", [self.a.server, "--maps", self.maps, "--listen",
+                                       "127.0.0.1:%d" % self.server_port])
+        check(wait_port(self.server_port, 30), "visloc-server listening on %d" % self.server_port)
+        return server
 
     def start(self, name, cmd):
         log = open(os.path.join(self.work, name + ".log"), "w")
@@ -256,8 +263,9 @@ def wait_for(predicate, seconds):
     return False
 
 
-def play(world, name, launch_args, bag, image_topic, image_type):
-    """Starts the node with roslaunch, plays the bag, returns what was published."""
+def play(world, name, launch_args, bag, image_topic, image_type, during=None):
+    """Starts the node with roslaunch, plays the bag (calling `during()` meanwhile, if given),
+    returns what was published."""
     import rosgraph
     listener = Listener(image_topic, image_type)
     args = ["map:=square_ros"] if not any(x.startswith("map:=") for x in launch_args) else []
@@ -271,8 +279,11 @@ def play(world, name, launch_args, bag, image_topic, image_type):
     check(wait_for(lambda: any(t == "/cam0/camera_info" for t, _ in master.getSystemState()[1]), 30),
           "%s: the node subscribes to /cam0/camera_info" % name)
     start = time.monotonic()
-    subprocess.run(["rosbag", "play", "-q", "--delay=0.5", bag], env=world.env, check=True,
-                   stdout=subprocess.DEVNULL, timeout=120)
+    player = subprocess.Popen(["rosbag", "play", "-q", "--delay=0.5", bag], env=world.env,
+                              stdout=subprocess.DEVNULL)
+    if during:
+        during()
+    check(player.wait(120) == 0, "%s: rosbag play finished" % name)
     played_s = time.monotonic() - start
     wait_for(lambda: listener.diagnostics is not None and
              int(listener.diagnostics[1].get("frames_answered", 0)) +
@@ -390,6 +401,33 @@ def part_node(a, work, map_db, figures):
         answer = rospy.ServiceProxy("/visloc/relocalize", Trigger)()
         last = gt[max(gt)]
         check(answer.success and "inliers" in answer.message, "relocalize service: %s" % answer.message)
+        world.stop(node)
+        listener.close()
+
+        # The server dies mid-run and comes back: the node's session reconnects and resumes.
+        restart = {}
+
+        def kill_and_restart():
+            time.sleep(3.0)
+            os.killpg(world.server.pid, signal.SIGKILL)
+            world.server.wait()
+            restart["down"] = time.monotonic()
+            time.sleep(1.0)
+            world.server = world.start_server()
+            restart["up"] = time.monotonic()
+
+        listener, node, played_s = play(world, "reconnect", ["use_odometry:=true"], query_bag,
+                                        "/cam0/image_raw", Image, during=kill_and_restart)
+        after = {s: p for s, p in listener.poses.items() if listener.pose_times[s] > restart["up"]}
+        errs = errors_cm(after, gt)
+        first = min(listener.pose_times[s] for s in after) - restart["up"] if after else -1
+        check(any(st.startswith("link reconnecting") for st in listener.statuses),
+              "reconnect: status reports the link reconnecting")
+        check(len(after) >= 30 and np.median(errs) < 1.0 and errs.max() < 3.0,
+              "reconnect: %d poses after the server came back (first after %.2f s), median error %.3f cm"
+              % (len(after), first, np.median(errs) if len(errs) else -1))
+        figures["reconnect"] = {"poses_after": len(after), "first_pose_after_s": first,
+                                "median_error_cm": float(np.median(errs)) if len(errs) else None}
         world.stop(node)
         listener.close()
 
