@@ -15,6 +15,7 @@
 // Frames: the image's frame_id is the camera's optical frame (x right, y down, z forward, as
 // visloc's camera frame). Poses are map_from_cam. No pose is published while lost.
 
+#include <algorithm>
 #include <deque>
 #include <fstream>
 #include <map>
@@ -182,7 +183,16 @@ class LocalizationNode {
       return nullptr;
     }
     camera_frame_ = camera_frame_override_.empty() ? msg.header.frame_id : camera_frame_override_;
-    if (use_imu_) SetBodyFromCamera(msg.header.frame_id);
+    // The camera's pose on the IMU is fixed when the session opens: with IMU, the session waits
+    // (up to 1 s of camera_info) for the first IMU message and the TF between the two frames.
+    if (use_imu_ && !SetBodyFromCamera(msg.header.frame_id)) {
+      const double now_s = ros::WallTime::now().toSec();
+      if (first_camera_info_s_ == 0.0) first_camera_info_s_ = now_s;
+      if (now_s - first_camera_info_s_ < 1.0) return nullptr;
+      ROS_WARN("visloc: no IMU message with a TF to %s within 1 s: IMU samples are not used",
+               msg.header.frame_id.c_str());
+      use_imu_ = false;
+    }
     options_.on_event = [this](const vc::Event& event) { OnEvent(event); };
     session_ = vc::Session::Open(options_);
     ROS_INFO("visloc: session on map '%s' at %s, camera %ux%u fx %.1f", options_.map_name.c_str(),
@@ -197,20 +207,15 @@ class LocalizationNode {
   }
 
   // Gyro samples are in the IMU's frame; the engine needs the camera's pose on it (from TF).
-  void SetBodyFromCamera(const std::string& camera_frame) {
-    if (imu_frame_.empty()) {
-      ROS_WARN("visloc: no IMU message yet; IMU samples are not used by this session");
-      use_imu_ = false;
-      return;
-    }
+  // False while the IMU's frame or the transform is not known yet.
+  bool SetBodyFromCamera(const std::string& camera_frame) {
+    if (imu_frame_.empty()) return false;
     try {
-      const auto t = tf_buffer_.lookupTransform(imu_frame_, camera_frame, ros::Time(0),
-                                                ros::Duration(1.0));
+      const auto t = tf_buffer_.lookupTransform(imu_frame_, camera_frame, ros::Time(0));
       ToProto(FromRos(t.transform), options_.session.mutable_body_from_cam());
-    } catch (const tf2::TransformException& e) {
-      ROS_WARN("visloc: no TF %s -> %s (%s); IMU samples are not used", imu_frame_.c_str(),
-               camera_frame.c_str(), e.what());
-      use_imu_ = false;
+      return true;
+    } catch (const tf2::TransformException&) {
+      return false;
     }
   }
 
@@ -288,8 +293,16 @@ class LocalizationNode {
       }
     }
     if (use_imu_) {
-      frame.imu.assign(imu_.begin(), imu_.end());
-      imu_.clear();
+      // The samples between the previous frame and this one; later ones wait for the next.
+      auto later = std::stable_partition(imu_.begin(), imu_.end(), [&](const v1::ImuSample& s) {
+        return s.timestamp_ns() <= stamp_ns;
+      });
+      for (auto it = imu_.begin(); it != later; ++it) {
+        if (it->timestamp_ns() > last_imu_frame_ns_) frame.imu.push_back(*it);
+      }
+      imu_.erase(imu_.begin(), later);
+      last_imu_frame_ns_ = stamp_ns;
+      imu_samples_sent_ += frame.imu.size();
     }
     if (pending_hint_) {
       frame.map_from_cam_hint = *pending_hint_;
@@ -430,6 +443,7 @@ class LocalizationNode {
     add("poses_published", std::to_string(poses_published_));
     add("frames_dropped", std::to_string(frames_dropped_));
     add("frames_late", std::to_string(frames_late_));
+    add("imu_samples_sent", std::to_string(imu_samples_sent_));
     array.status.push_back(status);
     diagnostics_pub_.publish(array);
   }
@@ -492,9 +506,11 @@ class LocalizationNode {
   std::string map_frame_, camera_frame_, camera_frame_override_;
   std::string odom_frame_, odom_child_frame_, imu_frame_;
   bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
+  double first_camera_info_s_ = 0.0;  // Wall time, while waiting for the IMU.
   OdometryBuffer odometry_;
   std::optional<Rigid3d> base_from_camera_;
-  std::vector<v1::ImuSample> imu_;
+  std::vector<v1::ImuSample> imu_;  // Received, not yet sent (bounded).
+  int64_t last_imu_frame_ns_ = INT64_MIN;
   std::optional<vc::Frame> last_frame_;
   std::optional<vc::Frame> before_session_;
   std::deque<StampedPose> waiting_for_odometry_;  // map_from_cam of answers ahead of odometry.  // The newest image before camera_info came.
@@ -503,7 +519,7 @@ class LocalizationNode {
   std::string link_state_ = "connecting", last_status_;
   double last_latency_ms_ = 0.0;
   uint64_t images_received_ = 0, frames_answered_ = 0, poses_published_ = 0, frames_dropped_ = 0,
-           frames_late_ = 0;
+           frames_late_ = 0, imu_samples_sent_ = 0;
 };
 
 }  // namespace

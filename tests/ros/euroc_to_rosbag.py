@@ -3,11 +3,12 @@
 python3-rosbag: the independent side of visloc's bag import and ROS node tests.
 
   euroc_to_rosbag.py DIR OUT.bag [--mono] [--right-compressed] [--left-compressed]
-                     [--odometry] [--drop-right N]
+                     [--odometry] [--imu] [--drop-right N]
 
 Topics: /cam0/image_raw (sensor_msgs/Image mono8, or .../compressed JPEG), /cam0/camera_info,
 /cam1/image_raw (or /cam1/image_raw/compressed, PNG), /cam1/camera_info, /odom
-(nav_msgs/Odometry, the sequence's odometry0 camera poses, child frame cam0). The camera_info
+(nav_msgs/Odometry, the sequence's odometry0 camera poses, child frame cam0), /imu
+(sensor_msgs/Imu in frame "imu", the EuRoC body) with /tf_static imu -> cam0. The camera_info
 of a stereo pair is written the way ROS's stereo calibration writes it: the rectified frame is
 the left camera's, R of the right camera turns it into that frame, P[3] = -fx * baseline.
 Every --drop-right'th right image is left out, to exercise pairing reports.
@@ -23,7 +24,9 @@ import yaml
 import rosbag
 import rospy
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from geometry_msgs.msg import TransformStamped
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, Imu
+from tf2_msgs.msg import TFMessage
 
 
 def read_camera(path):
@@ -71,6 +74,29 @@ def rectify(left, right, right_from_left):
     return r1, r2, float(-p2[0, 3] / p2[0, 0])
 
 
+def write_imu(bag, path, body_from_left, t0):
+    """/imu (frame "imu", the EuRoC body frame) and /tf_static imu -> cam0 (cam0's T_BS)."""
+    tf = TransformStamped()
+    tf.header.stamp, tf.header.frame_id, tf.child_frame_id = t0, "imu", "cam0"
+    tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = body_from_left[:3, 3]
+    r = body_from_left[:3, :3]
+    w = np.sqrt(max(1e-12, 1 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
+    q = tf.transform.rotation
+    q.w, q.x, q.y, q.z = w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)
+    bag.write("/tf_static", TFMessage(transforms=[tf]), t0)
+    with open(path) as f:
+        for row in csv.reader(f):
+            if not row or row[0].startswith("#"):
+                continue
+            t = to_time(int(row[0]))
+            msg = Imu()
+            msg.header.stamp, msg.header.frame_id = t, "imu"
+            v = [float(x) for x in row[1:7]]
+            msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = v[0:3]
+            msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = v[3:6]
+            bag.write("/imu", msg, t)
+
+
 def to_time(ns):
     return rospy.Time(int(ns) // 1000000000, int(ns) % 1000000000)
 
@@ -84,6 +110,7 @@ def main():
     p.add_argument("--right-compressed", action="store_true")
     p.add_argument("--odometry", action="store_true")
     p.add_argument("--drop-right", type=int, default=0)
+    p.add_argument("--imu", action="store_true")
     a = p.parse_args()
     mav0 = os.path.join(a.dir, "mav0")
     left, body_from_left = read_camera(os.path.join(mav0, "cam0", "sensor.yaml"))
@@ -133,6 +160,9 @@ def main():
                     topic = "/cam1/image_raw"
                 msg.header.stamp, msg.header.frame_id = t, "cam1"
                 bag.write(topic, msg, t)
+        imu = os.path.join(mav0, "imu0", "data.csv")
+        if a.imu and os.path.exists(imu):
+            write_imu(bag, imu, body_from_left, to_time(stamps[0]))
         odometry = os.path.join(mav0, "odometry0", "data.csv")
         if a.odometry and os.path.exists(odometry):
             with open(odometry) as f:

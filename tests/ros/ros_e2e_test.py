@@ -7,7 +7,7 @@
    in that map against ground truth.
 2. The node: roscore, the real visloc-server serving the imported map, visloc_ros_node started by
    roslaunch with its launch file, and `rosbag play`:
-   - query_square (raw images, odometry): published poses against ground truth, the TF map -> odom
+   - query_square (raw images, odometry, IMU with its TF): published poses against ground truth, the TF map -> odom
      closing the chain with the odometry (REP 105), diagnostics, the relocalize service;
    - query_square again, the server killed mid-run and restarted: the node reconnects and poses
      resume;
@@ -352,7 +352,7 @@ def part_node(a, work, map_db, figures):
     data = a.data
     query_bag = os.path.join(work, "query.bag")
     run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), os.path.join(data, "query_square"),
-         query_bag, "--mono", "--odometry"])
+         query_bag, "--mono", "--odometry", "--imu"])
     kidnap_bag = os.path.join(work, "kidnap.bag")
     run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), os.path.join(data, "kidnap"),
          kidnap_bag, "--mono", "--left-compressed"])
@@ -362,8 +362,8 @@ def part_node(a, work, map_db, figures):
         # Query: raw images, odometry, TF map -> odom.
         gt = read_tum(os.path.join(data, "query_square", "groundtruth_map.tum"))
         odom = read_odometry(os.path.join(data, "query_square", "mav0", "odometry0", "data.csv"))
-        listener, node, played_s = play(world, "query", ["use_odometry:=true"], query_bag,
-                                        "/cam0/image_raw", Image)
+        listener, node, played_s = play(world, "query", ["use_odometry:=true", "use_imu:=true"],
+                                        query_bag, "/cam0/image_raw", Image)
         frames = len(gt)
         errs = errors_cm(listener.poses, gt)
         check(len(listener.poses) >= frames - 2, "query: %d poses for %d frames" % (len(listener.poses), frames))
@@ -385,6 +385,9 @@ def part_node(a, work, map_db, figures):
         level, values = listener.diagnostics or (-1, {})
         check(level == 0 and values.get("status") == "STATUS_TRACKING" and int(values.get("inliers", 0)) > 100,
               "query: diagnostics OK, %s, %s inliers" % (values.get("status"), values.get("inliers")))
+        # 200 Hz gyro over 8 s, its frame from /tf_static: every sample after the first image sent.
+        check(int(values.get("imu_samples_sent", 0)) > 1500,
+              "query: %s IMU samples sent with the frames" % values.get("imu_samples_sent"))
         latencies = [1000 * (listener.pose_times[s] - listener.images[s])
                      for s in listener.pose_times if s in listener.images]
         figures["query"] = {
