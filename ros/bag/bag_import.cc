@@ -36,7 +36,10 @@ void RequireTopic(const std::vector<TopicInfo>& topics, const std::string& topic
                             " topics: ", ListTopics(topics, types)));
   }
   if (!types.count(NormalizeTypeName(found->type))) {
-    throw InputError(StrCat(flag, " ", topic, " is a ", found->type, " topic, not ", kind));
+    std::string wanted;
+    for (const std::string& type : types) wanted += (wanted.empty() ? "" : " or ") + type;
+    throw InputError(StrCat(flag, " ", topic, " is a ", found->type, " topic; ", flag,
+                            " takes ", wanted));
   }
   if (found->messages == 0) throw InputError(StrCat(flag, " ", topic, " has no messages"));
 }
@@ -130,22 +133,27 @@ std::string CameraInfoTopicFor(const std::string& image_topic) {
   return (slash == std::string::npos ? "" : topic.substr(0, slash + 1)) + "camera_info";
 }
 
-void ImportOptions::Check() const {
-  VISLOC_CHECK(!left_topic.empty(), "the left image topic (--left) is required");
-  VISLOC_CHECK(left_topic != right_topic, "--left and --right name the same topic ", left_topic);
-  VISLOC_CHECK(pair_tolerance_ns >= 0 && pair_tolerance_ns <= 1'000'000'000,
-               "the pairing tolerance must be 0 to 1000 ms, not ", pair_tolerance_ns * 1e-6, " ms");
-  VISLOC_CHECK(right_topic.empty() || left_yaml.has_value() == right_yaml.has_value(),
-               "--left-yaml and --right-yaml go together for a stereo import");
-  VISLOC_CHECK(!right_yaml || left_yaml, "--right-yaml needs --left-yaml");
-  VISLOC_CHECK(imu_topic.empty() || left_yaml.has_value(),
-               "--imu needs --left-yaml/--right-yaml: camera_info carries no camera-to-IMU "
-               "transform, and IMU samples must be given in the body frame of the cameras' T_BS");
+std::string ImportOptions::Problem() const {
+  if (left_topic.empty()) return "the left image topic (--left) is required";
+  if (left_topic == right_topic) return StrCat("--left and --right name the same topic ", left_topic);
+  if (!(pair_tolerance_ns >= 0 && pair_tolerance_ns <= 1'000'000'000)) {
+    return StrCat("the pairing tolerance must be 0 to 1000 ms, not ", pair_tolerance_ns * 1e-6, " ms");
+  }
+  if (right_yaml && !left_yaml) return "--right-yaml needs --left-yaml";
+  if (!right_topic.empty() && left_yaml.has_value() != right_yaml.has_value()) {
+    return "--left-yaml and --right-yaml go together for a stereo import";
+  }
+  if (!imu_topic.empty() && !left_yaml) {
+    return "--imu needs --left-yaml/--right-yaml: camera_info carries no camera-to-IMU transform, "
+           "and IMU samples must be given in the body frame of the cameras' T_BS";
+  }
+  return "";
 }
 
 ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std::string& out_dir,
                       const ImportProgressFn& progress) {
-  options.Check();
+  const std::string problem = options.Problem();
+  if (!problem.empty()) throw CheckError(problem);
   std::error_code error;
   if (fs::exists(out_dir, error) && !fs::is_empty(out_dir, error)) {
     throw InputError(StrCat(out_dir, ": exists and is not empty; import into a new folder"));

@@ -1,5 +1,6 @@
 #include "ros/rosbag1/rosbag1_reader.h"
 
+#include <filesystem>
 #include <map>
 
 #include <nav_msgs/Odometry.h>
@@ -75,6 +76,8 @@ Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
 class Ros1Bag : public BagReader {
  public:
   explicit Ros1Bag(const std::string& path) : path_(path) {
+    std::error_code error;
+    if (!std::filesystem::exists(path, error)) throw NotFoundError(StrCat(path, ": no such bag"));
     try {
       bag_.open(path, rosbag::bagmode::Read);
     } catch (const rosbag::BagException& e) {
