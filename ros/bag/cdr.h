@@ -21,6 +21,8 @@ class CdrReader {
   // Reads the encapsulation header; throws InputError for an unknown representation. The
   // reader views `message`, which must outlive it.
   explicit CdrReader(std::string_view message);
+  // A temporary string would be gone before the first read.
+  explicit CdrReader(std::string&& message) = delete;
 
   uint8_t U8(const char* what);
   uint32_t U32(const char* what);

@@ -34,7 +34,8 @@ TEST(CdrReaderTest, RefusesTruncatedMessagesNamingTheField) {
   CdrWriter w;
   w.String("a long frame id");
   const std::string bytes = w.str();
-  CdrReader in(bytes.substr(0, bytes.size() - 3));
+  const std::string truncated = bytes.substr(0, bytes.size() - 3);
+  CdrReader in(truncated);
   try {
     in.String("header.frame_id");
     FAIL() << "read past the end";
@@ -44,8 +45,8 @@ TEST(CdrReaderTest, RefusesTruncatedMessagesNamingTheField) {
 }
 
 TEST(CdrReaderTest, RefusesForeignEncapsulationsAndHugeSequences) {
-  EXPECT_THROW(CdrReader(std::string("\0\x03\0\0", 4)), InputError);  // XCDR2 / PL_CDR
-  EXPECT_THROW(CdrReader(std::string("\0\x01", 2)), InputError);
+  EXPECT_THROW(CdrReader(std::string_view("\0\x03\0\0", 4)), InputError);  // XCDR2 / PL_CDR
+  EXPECT_THROW(CdrReader(std::string_view("\0\x01", 2)), InputError);
   CdrWriter w;
   w.U32(0x40000000u);  // 1 G doubles claimed, none present.
   const std::string bytes = w.str();
