@@ -35,7 +35,7 @@ if "real_import" in r:
     ri = r["real_import"]
     lines.append("| real EuRoC bag (camera_info with OpenCV's rectification) | 95 stereo frames, 752x480 | %d frames, baseline %.4f m, map of %d points |"
                  % (ri["frames"], ri["baseline_m"], ri["points"]))
-lines.append("| node, raw images + odometry | query_square, %d frames at %.0f Hz | %d poses (%.1f Hz), median error %.2f cm (max %.2f), TF map -> odom closes on every pose |"
+lines.append("| node, raw images + odometry + IMU | query_square, %d frames at %.0f Hz | %d poses (%.1f Hz; the first image comes before the IMU and is not sent), median error %.2f cm (max %.2f), TF map -> odom closes on every pose |"
              % (q["frames"], q["camera_rate_hz"], q["poses"], q["pose_rate_hz"], q["median_error_cm"], q["max_error_cm"]))
 if "reconnect" in r:
     rc = r["reconnect"]
