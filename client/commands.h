@@ -13,6 +13,7 @@ using Args = std::vector<std::string>;
 int RunSim(const Args& args);
 int RunEval(const Args& args);
 int RunMap(const Args& args);
+int RunMapMerge(const Args& args);  // `visloc map merge`
 int RunDataset(const Args& args);
 int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);

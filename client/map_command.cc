@@ -86,6 +86,7 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
       .Field("created_unix_s", info.metadata.created_unix_s)
       .Field("source_dataset", info.metadata.source_dataset)
       .Field("builder", info.metadata.builder)
+      .Field("lineage", info.metadata.lineage)
       .Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
@@ -126,6 +127,9 @@ void PrintInfo(const MapInfo& info) {
               info.schema_version, FormatBytes(info.file_bytes).c_str(), info.path.c_str());
   std::printf("created       %s from %s by %s\n", FormatTime(info.metadata.created_unix_s).c_str(),
               info.metadata.source_dataset.c_str(), info.metadata.builder.c_str());
+  if (!info.metadata.lineage.empty()) {
+    std::printf("lineage       %s\n", info.metadata.lineage.c_str());
+  }
   std::printf("camera        %s\n", ToString(info.camera).c_str());
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);
@@ -284,7 +288,7 @@ int RunBuild(const Args& args) {
     options.builder.scale_feature_count = false;
   }
   MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
-                       fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build"};
+                       fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build", ""};
   mapping::MapBuildStats stats;
   Trajectory frame_trajectory;
   const bool progress = ShowProgress() && !json;
@@ -456,6 +460,7 @@ int RunMap(const Args& args) {
       {"info", "counts, extent, camera, features, size and schema", RunInfo},
       {"verify", "check a map file; exit 0 when sound", RunVerify},
       {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
+      {"merge", "two maps of overlapping places into one, in the first one's frame", RunMapMerge},
       {"list", "the maps in a maps folder or on a server", RunList},
       {"delete", "delete a map from a maps folder or a server", RunDelete},
       {"rename", "rename a map in a maps folder or on a server", RunRename},

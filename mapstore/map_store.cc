@@ -145,6 +145,8 @@ uint32_t ContentChecksum(const Map& map) {
   crc.Pod(map.metadata.created_unix_s);
   crc.Text(map.metadata.source_dataset);
   crc.Text(map.metadata.builder);
+  // Maps of one build checksum as before lineage existed.
+  if (!map.metadata.lineage.empty()) crc.Text(map.metadata.lineage);
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());
@@ -240,7 +242,8 @@ void WriteMeta(Database& db, const Map& map) {
   Statement insert = db.Prepare("INSERT INTO meta (key, value) VALUES (?, ?)");
   const std::pair<std::string, std::string> rows[] = {
       {"format", kFormatName},
-      {"schema_version", std::to_string(kMapSchemaVersion)},
+      // Schema 2 adds meta 'lineage'; maps without one stay schema 1, readable by older visloc.
+      {"schema_version", std::to_string(map.metadata.lineage.empty() ? 1 : kMapSchemaVersion)},
       {"byte_order", "little"},
       {"name", map.metadata.name},
       {"created_unix_s", std::to_string(map.metadata.created_unix_s)},
@@ -249,6 +252,7 @@ void WriteMeta(Database& db, const Map& map) {
       {"content_crc32", std::to_string(ContentChecksum(map))},
   };
   for (const auto& [key, value] : rows) insert.Bind(1, key).Bind(2, value).Run();
+  if (!map.metadata.lineage.empty()) insert.Bind(1, std::string("lineage")).Bind(2, map.metadata.lineage).Run();
 }
 
 void WriteCameraAndFeatures(Database& db, const Map& map) {
@@ -402,6 +406,9 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.name = value("name");
   map->metadata.source_dataset = value("source_dataset");
   map->metadata.builder = value("builder");
+  for (const auto& [k, v] : rows) {
+    if (k == "lineage") map->metadata.lineage = v;  // Schema 2; optional.
+  }
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

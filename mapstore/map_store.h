@@ -24,7 +24,7 @@ namespace visloc::mapstore {
 
 // The schema this visloc writes and reads. Files with a higher version are refused with a
 // message saying a newer visloc wrote them.
-constexpr int kMapSchemaVersion = 1;
+constexpr int kMapSchemaVersion = 2;  // 2: meta 'lineage' (merged and extended maps).
 
 // The camera table's model column: "pinhole-radtan" (k1 k2 p1 p2 in the k1, k2, p1, p2
 // columns) or "pinhole-equidistant" (fisheye; k1 k2 k3 k4 in the same four columns).

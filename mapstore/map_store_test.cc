@@ -145,11 +145,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '2' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '3' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 2; this visloc reads up to 1): upgrade visloc");
+          ": written by a newer visloc (map schema 3; this visloc reads up to 2): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {

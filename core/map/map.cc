@@ -156,7 +156,7 @@ bool MapsEqual(const Map& a, const Map& b) {
   if (a.metadata.name != b.metadata.name ||
       a.metadata.created_unix_s != b.metadata.created_unix_s ||
       a.metadata.source_dataset != b.metadata.source_dataset ||
-      a.metadata.builder != b.metadata.builder) {
+      a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

@@ -25,6 +25,9 @@ struct MapMetadata {
   int64_t created_unix_s = 0;
   std::string source_dataset;  // Where the mapping sequence came from.
   std::string builder;         // Which program built it, e.g. "visloc 0.1.0".
+  // How the map came to be when it is more than one build: its sessions and merges, e.g.
+  // "merge('lab' <- /data/mon; 'corridor' <- /data/tue)". Empty for a map of one build.
+  std::string lineage;
 };
 
 struct Keyframe {

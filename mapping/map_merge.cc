@@ -1,0 +1,193 @@
+#include "mapping/map_merge.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/features/descriptor_matching.h"
+#include "core/geometry/align.h"
+#include "core/util/check.h"
+#include "core/util/random.h"
+
+namespace visloc::mapping {
+namespace {
+
+// Matched positions: B's point and A's point of one descriptor match.
+struct PointPair {
+  int b = 0;
+  int a = 0;
+  Eigen::Vector3d in_b = Eigen::Vector3d::Zero();
+  Eigen::Vector3d in_a = Eigen::Vector3d::Zero();
+};
+
+void RequireSameSensor(const Map& a, const Map& b) {
+  const auto pa = a.camera.Params(), pb = b.camera.Params();
+  bool same_camera = a.camera.width() == b.camera.width() &&
+                     a.camera.height() == b.camera.height() &&
+                     a.camera.lens().model == b.camera.lens().model;
+  for (size_t i = 0; i < pa.size(); ++i) same_camera &= std::abs(pa[i] - pb[i]) <= 1e-6 * (1 + std::abs(pa[i]));
+  if (!same_camera) {
+    throw InputError(StrCat("the maps' cameras differ (", ToString(a.camera), " and ",
+                            ToString(b.camera), "): maps of one camera can be merged"));
+  }
+  if (a.features.kind != b.features.kind || a.features.descriptor_dim != b.features.descriptor_dim ||
+      a.features.descriptor_type != b.features.descriptor_type) {
+    throw InputError(StrCat("the maps' features differ (", a.features.kind, " and ",
+                            b.features.kind, "): their descriptors cannot be matched"));
+  }
+}
+
+std::vector<int> Inliers(const std::vector<PointPair>& pairs, const Rigid3d& a_from_b,
+                         double max_distance_m) {
+  std::vector<int> inliers;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    if ((a_from_b * pairs[i].in_b - pairs[i].in_a).norm() <= max_distance_m) {
+      inliers.push_back(static_cast<int>(i));
+    }
+  }
+  return inliers;
+}
+
+Rigid3d Fit(const std::vector<PointPair>& pairs, const std::vector<int>& chosen) {
+  std::vector<Eigen::Vector3d> source, target;
+  for (int i : chosen) {
+    source.push_back(pairs[i].in_b);
+    target.push_back(pairs[i].in_a);
+  }
+  return AlignRigid(source, target);
+}
+
+// RANSAC over minimal samples of three pairs, then two refits on the inliers.
+std::vector<int> VerifiedInliers(const std::vector<PointPair>& pairs, const MergeOptions& options,
+                                 Rigid3d* a_from_b) {
+  Rng rng(options.seed);
+  std::vector<int> best;
+  const int n = static_cast<int>(pairs.size());
+  for (int iteration = 0; iteration < options.ransac_iterations && n >= 3; ++iteration) {
+    const int i = rng.UniformInt(0, n - 1), j = rng.UniformInt(0, n - 1), k = rng.UniformInt(0, n - 1);
+    if (i == j || j == k || i == k) continue;
+    // A thin triangle leaves the rotation about its long side undetermined.
+    const Eigen::Vector3d ab = pairs[j].in_b - pairs[i].in_b, ac = pairs[k].in_b - pairs[i].in_b;
+    if (ab.cross(ac).norm() < 0.01) continue;  // m^2: sides of ~10 cm at least.
+    const Rigid3d candidate = Fit(pairs, {i, j, k});
+    std::vector<int> inliers = Inliers(pairs, candidate, options.inlier_distance_m);
+    if (inliers.size() > best.size()) {
+      best = std::move(inliers);
+      *a_from_b = candidate;
+    }
+  }
+  for (int refit = 0; refit < 2 && best.size() >= 3; ++refit) {
+    *a_from_b = Fit(pairs, best);
+    best = Inliers(pairs, *a_from_b, options.inlier_distance_m);
+  }
+  return best;
+}
+
+// Every keyframe's descriptors: those of the points it observes.
+std::vector<cv::Mat> KeyframeDescriptors(const Map& map) {
+  std::vector<cv::Mat> per_keyframe(map.keyframes.size());
+  for (const Observation& o : map.observations) per_keyframe[o.keyframe].push_back(map.descriptors.row(o.point));
+  for (cv::Mat& d : per_keyframe) {
+    if (d.empty()) d = cv::Mat(0, map.descriptors.cols, map.descriptors.type());
+  }
+  return per_keyframe;
+}
+
+}  // namespace
+
+std::string MergeOptions::Problem() const {
+  if (!(inlier_distance_m > 0 && inlier_distance_m < 10)) return "inlier distance must be 0 to 10 m";
+  if (ransac_iterations < 1) return "RANSAC needs at least one iteration";
+  if (min_inliers < 3) return "at least 3 inliers are needed to fix an alignment";
+  if (!(min_inlier_ratio >= 0 && min_inlier_ratio <= 1)) return "the inlier ratio is 0 to 1";
+  if (!(fuse_distance_m >= 0)) return "the fuse distance must not be negative";
+  return "";
+}
+
+std::string MergedLineage(const MapMetadata& a, const MapMetadata& b) {
+  auto of = [](const MapMetadata& m) {
+    return m.lineage.empty() ? StrCat("'", m.name, "' <- ", m.source_dataset) : m.lineage;
+  };
+  return StrCat("merge(", of(a), "; ", of(b), ")");
+}
+
+Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
+  const std::string problem = options.Problem();
+  if (!problem.empty()) throw CheckError(problem);
+  RequireSameSensor(a, b);
+  *stats = MergeStats{};
+  stats->keyframes_a = static_cast<int>(a.keyframes.size());
+  stats->keyframes_b = static_cast<int>(b.keyframes.size());
+  stats->points_a = static_cast<int>(a.points.size());
+  stats->points_b = static_cast<int>(b.points.size());
+
+  std::vector<PointPair> pairs;
+  for (const auto& [row_b, row_a] : MatchMutualNearest(b.descriptors, a.descriptors, options.match)) {
+    pairs.push_back({row_b, row_a, b.points[row_b].position_in_map, a.points[row_a].position_in_map});
+  }
+  stats->matches = static_cast<int>(pairs.size());
+  Rigid3d a_from_b;
+  const std::vector<int> inliers = VerifiedInliers(pairs, options, &a_from_b);
+  stats->inliers = static_cast<int>(inliers.size());
+  const double ratio = pairs.empty() ? 0.0 : static_cast<double>(inliers.size()) / pairs.size();
+  if (stats->inliers < options.min_inliers || ratio < options.min_inlier_ratio) {
+    throw InputError(StrCat("the maps have no verified overlap: ", stats->matches,
+                            " descriptor matches between their points, of which ", stats->inliers,
+                            " (", static_cast<int>(100 * ratio), "%) agree on one rigid alignment; ",
+                            "a merge needs ", options.min_inliers, " and ",
+                            static_cast<int>(100 * options.min_inlier_ratio),
+                            "%. Maps of different places are not merged"));
+  }
+  double sum_sq = 0.0;
+  for (int i : inliers) sum_sq += (a_from_b * pairs[i].in_b - pairs[i].in_a).squaredNorm();
+  stats->inlier_rmse_m = std::sqrt(sum_sq / inliers.size());
+  stats->a_from_b = a_from_b;
+
+  Map merged;
+  merged.metadata = a.metadata;
+  merged.metadata.lineage = MergedLineage(a.metadata, b.metadata);
+  merged.camera = a.camera;
+  merged.features = a.features;
+  merged.keyframes = a.keyframes;
+  for (const Keyframe& k : b.keyframes) merged.keyframes.push_back({k.timestamp_ns, a_from_b * k.map_from_cam});
+  merged.points = a.points;
+  merged.descriptors = a.descriptors.clone();
+  // Where each B point goes: a fused A point, or a new point after A's.
+  std::vector<int> point_of_b(b.points.size(), -1);
+  for (int i : inliers) {
+    if ((a_from_b * pairs[i].in_b - pairs[i].in_a).norm() <= options.fuse_distance_m) {
+      point_of_b[pairs[i].b] = pairs[i].a;
+      ++stats->fused_points;
+    }
+  }
+  for (size_t p = 0; p < b.points.size(); ++p) {
+    if (point_of_b[p] >= 0) continue;
+    point_of_b[p] = static_cast<int>(merged.points.size());
+    MapPoint point = b.points[p];
+    point.position_in_map = a_from_b * point.position_in_map;
+    merged.points.push_back(point);
+    merged.descriptors.push_back(b.descriptors.row(static_cast<int>(p)));
+    ++stats->added_points;
+  }
+  merged.observations = a.observations;
+  const uint32_t first_b_keyframe = static_cast<uint32_t>(a.keyframes.size());
+  for (const Observation& o : b.observations) {
+    merged.observations.push_back({first_b_keyframe + o.keyframe,
+                                   static_cast<uint32_t>(point_of_b[o.point]), o.pixel});
+  }
+  std::sort(merged.observations.begin(), merged.observations.end(),
+            [](const Observation& x, const Observation& y) {
+              return x.keyframe != y.keyframe ? x.keyframe < y.keyframe : x.point < y.point;
+            });
+  for (MapPoint& p : merged.points) p.observation_count = 0;
+  for (const Observation& o : merged.observations) ++merged.points[o.point].observation_count;
+
+  merged.kernel = LearnVisibilityKernel(merged, options.visibility, &stats->visibility);
+  merged.appearance.vocabulary = TrainVocabulary(merged.descriptors, options.vocabulary);
+  IndexKeyframes(KeyframeDescriptors(merged), &merged.appearance.vocabulary,
+                 &merged.appearance.keyframe_vectors);
+  const std::vector<std::string> problems = FindMapProblems(merged);
+  VISLOC_CHECK(problems.empty(), "the merged map is inconsistent: ", problems.front());
+  return merged;
+}
+
+}  // namespace visloc::mapping

@@ -1,0 +1,63 @@
+#pragma once
+// Two maps of overlapping places become one, in the first map's frame (`visloc map merge`).
+//
+//   overlap:   B's points matched to A's by descriptor alone (mutual nearest neighbours with the
+//              ratio test), then verified geometrically: RANSAC over 3-point rigid alignments of
+//              the matched 3D positions (stereo maps share metric scale, so no scale), refit on
+//              the inliers. Too few inliers, or too small a share of the matches, is "no overlap":
+//              the merge is refused, never made wrongly (maps of different rooms with the same
+//              kind of texture match descriptors by chance, but not in a consistent geometry).
+//   fusion:    B's keyframes moved into A's frame; a B point that matched an A point and lies
+//              within `fuse_distance_m` of it after the alignment becomes that point (its
+//              observations join A's, A's position and descriptor are kept: A defines the
+//              frame); the rest of B's points are added.
+//   models:    the visibility kernel is learned again over all keyframes, the relocalization
+//              vocabulary trained on all points, and every keyframe indexed by the points it
+//              observes.
+// Not done: a global bundle adjustment over the merged map (the observations are kept, so one
+// can be added; the alignment's inlier RMSE says how much it would gain).
+
+#include <string>
+
+#include "core/features/feature_types.h"
+#include "core/map/map.h"
+#include "mapping/visibility_learning.h"
+#include "mapping/vocabulary_builder.h"
+
+namespace visloc::mapping {
+
+struct MergeOptions {
+  DescriptorMatchOptions match;     // Between the maps' point descriptors.
+  double inlier_distance_m = 0.05;  // A matched pair agrees with an alignment within this.
+  int ransac_iterations = 2000;
+  int min_inliers = 40;             // Fewer: no overlap.
+  double min_inlier_ratio = 0.15;   // Of the descriptor matches; fewer: no overlap.
+  double fuse_distance_m = 0.03;    // A matched B point this close to its A point is fused.
+  uint64_t seed = 1;
+  VisibilityLearningOptions visibility;
+  VocabularyOptions vocabulary;
+  // Empty when usable, else what is wrong.
+  std::string Problem() const;
+};
+
+struct MergeStats {
+  int matches = 0;             // Descriptor matches between the maps' points.
+  int inliers = 0;             // Of those, consistent with the alignment.
+  double inlier_rmse_m = 0.0;  // Of the inliers after the refit.
+  Rigid3d a_from_b;            // B's map frame in A's.
+  int keyframes_a = 0, keyframes_b = 0;
+  int points_a = 0, points_b = 0;
+  int fused_points = 0;  // B points that became A points.
+  int added_points = 0;  // B points added.
+  VisibilityLearningStats visibility;
+};
+
+// Throws InputError naming the reason when the maps cannot be merged: different cameras or
+// features, or no verified overlap (the evidence in the message).
+Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
+
+// The lineage line of a merge, for MapMetadata::lineage: "merge(<A's lineage>, <B's lineage>)",
+// where a map without lineage stands for itself as "name <- source".
+std::string MergedLineage(const MapMetadata& a, const MapMetadata& b);
+
+}  // namespace visloc::mapping

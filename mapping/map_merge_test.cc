@@ -1,0 +1,111 @@
+#include "mapping/map_merge.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/check.h"
+#include "core/util/random.h"
+
+namespace visloc::mapping {
+namespace {
+
+// Map B: the second half of A's keyframes and the points they see, in a frame of its own
+// (`b_from_a`), positions perturbed by `noise_m`, plus points only B has.
+Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m) {
+  Rng rng(7);
+  Map b;
+  b.metadata = {"tuesday", 1, "/data/tue", "test", ""};
+  b.camera = a.camera;
+  b.features = a.features;
+  const uint32_t first = static_cast<uint32_t>(a.keyframes.size() / 2);
+  for (size_t k = first; k < a.keyframes.size(); ++k) {
+    b.keyframes.push_back({a.keyframes[k].timestamp_ns, b_from_a * a.keyframes[k].map_from_cam});
+  }
+  std::vector<int> point_of_a(a.points.size(), -1);
+  for (const Observation& o : a.observations) {
+    if (o.keyframe < first) continue;
+    if (point_of_a[o.point] < 0) {
+      point_of_a[o.point] = static_cast<int>(b.points.size());
+      MapPoint p = a.points[o.point];
+      p.position_in_map = b_from_a * p.position_in_map +
+                          noise_m * Eigen::Vector3d(rng.Uniform(-1, 1), rng.Uniform(-1, 1), rng.Uniform(-1, 1));
+      b.points.push_back(p);
+      b.descriptors.push_back(a.descriptors.row(o.point));
+    }
+    b.observations.push_back({o.keyframe - first, static_cast<uint32_t>(point_of_a[o.point]), o.pixel});
+  }
+  for (MapPoint& p : b.points) p.observation_count = 0;
+  for (const Observation& o : b.observations) ++b.points[o.point].observation_count;
+  return b;
+}
+
+Map MondayMap(uint64_t seed) {
+  SyntheticMapOptions options;
+  options.keyframes = 40;
+  options.points = 3000;
+  options.seed = seed;
+  Map map = MakeSyntheticMap(options);
+  map.metadata.name = "monday";
+  return map;
+}
+
+TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
+  const Map a = MondayMap(1);
+  const Rigid3d b_from_a(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+                         Eigen::Vector3d(3.0, -1.0, 0.5));
+  const Map b = SecondSession(a, b_from_a, 0.005);
+  MergeStats stats;
+  const Map merged = MergeMaps(a, b, MergeOptions(), &stats);
+  EXPECT_TRUE(ApproxEqual(stats.a_from_b, b_from_a.Inverse(), 0.005, 0.2));
+  EXPECT_GT(stats.fused_points, 0.9 * b.points.size());
+  EXPECT_EQ(stats.fused_points + stats.added_points, static_cast<int>(b.points.size()));
+  EXPECT_EQ(merged.keyframes.size(), a.keyframes.size() + b.keyframes.size());
+  EXPECT_EQ(merged.points.size(), a.points.size() + stats.added_points);
+  // B's keyframes land on A's.
+  const size_t first = a.keyframes.size() / 2;
+  for (size_t k = 0; k < b.keyframes.size(); ++k) {
+    EXPECT_TRUE(ApproxEqual(merged.keyframes[a.keyframes.size() + k].map_from_cam,
+                            a.keyframes[first + k].map_from_cam, 0.005, 0.2));
+  }
+  EXPECT_TRUE(FindMapProblems(merged).empty());
+  EXPECT_EQ(merged.appearance.keyframe_vectors.size(), merged.keyframes.size());
+  EXPECT_EQ(merged.metadata.lineage,
+            "merge('monday' <- synthetic; 'tuesday' <- /data/tue)");
+}
+
+TEST(MapMergeTest, MapsOfDifferentPlacesAreRefused) {
+  const Map a = MondayMap(1);
+  Map elsewhere = MondayMap(2);  // Other points, other descriptors.
+  MergeStats stats;
+  try {
+    MergeMaps(a, elsewhere, MergeOptions(), &stats);
+    FAIL() << "merged maps with nothing in common";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("no verified overlap"));
+  }
+  // The same descriptors in a scrambled geometry (same texture, another room) are refused too.
+  Map scrambled = a;
+  Rng rng(3);
+  for (MapPoint& p : scrambled.points) {
+    p.position_in_map = Eigen::Vector3d(rng.Uniform(-5, 5), rng.Uniform(-5, 5), rng.Uniform(-5, 5));
+  }
+  EXPECT_THROW(MergeMaps(a, scrambled, MergeOptions(), &stats), InputError);
+}
+
+TEST(MapMergeTest, MapsOfDifferentCamerasOrFeaturesAreRefused) {
+  const Map a = MondayMap(1);
+  Map other_camera = a;
+  other_camera.camera = Camera(a.camera.width(), a.camera.height(), a.camera.fx() * 1.1,
+                               a.camera.fy(), a.camera.cx(), a.camera.cy());
+  MergeStats stats;
+  EXPECT_THROW(MergeMaps(a, other_camera, MergeOptions(), &stats), InputError);
+  Map other_features = a;
+  other_features.features.kind = "orb";
+  EXPECT_THROW(MergeMaps(a, other_features, MergeOptions(), &stats), InputError);
+}
+
+}  // namespace
+}  // namespace visloc::mapping

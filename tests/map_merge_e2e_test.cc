@@ -1,0 +1,109 @@
+// `visloc map merge` end to end on the localization fixture: the map of the square (A) and a map
+// built from another session through the same room (the circle, B) become one map in A's frame;
+// B's keyframes must land on ground truth, the circle must localize in the merged map, and a
+// map of a different room must be refused. Real binaries, real map files.
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/geometry/trajectory.h"
+#include "core/util/temp_dir.h"
+#include "dataset/tum.h"
+#include "tests/support/e2e.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::JsonNumber;
+using testing::ProcessResult;
+using testing::Visloc;
+
+const std::string kData = VISLOC_LOCALIZATION_DATA;
+
+Trajectory ReadKeyframeLines(const std::string& path) {
+  Trajectory poses;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double t, x, y, z, qx, qy, qz, qw;
+    fields >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
+    poses.push_back({SecondsToNs(t), Rigid3d(Eigen::Quaterniond(qw, qx, qy, qz), {x, y, z})});
+  }
+  return poses;
+}
+
+class MapMergeE2eTest : public ::testing::Test {
+ protected:
+  // A map from a fixture sequence (each sequence is rendered in stereo).
+  std::string BuildMap(const std::string& sequence) {
+    const std::string path = dir_.File(sequence + ".db");
+    const ProcessResult build =
+        Visloc({"map", "build", "--dataset", kData + "/" + sequence, "--out", path});
+    EXPECT_EQ(build.exit_code, 0) << build.err;
+    return path;
+  }
+  TempDir dir_{"visloc_map_merge_e2e"};
+};
+
+TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
+  const std::string b = BuildMap("circle");
+  const std::string merged = dir_.File("merged.db");
+  const ProcessResult merge =
+      Visloc({"map", "merge", kData + "/map.db", b, "--out", merged, "--name", "lab", "--json"});
+  ASSERT_EQ(merge.exit_code, 0) << merge.err;
+  EXPECT_GE(JsonNumber(merge.out, "inliers"), 40);
+  EXPECT_LT(JsonNumber(merge.out, "inlier_rmse_m"), 0.02);
+  const int keyframes_a = static_cast<int>(JsonNumber(merge.out, "keyframes_a"));
+  const int keyframes_b = static_cast<int>(JsonNumber(merge.out, "keyframes_b"));
+  EXPECT_EQ(JsonNumber(merge.out, "keyframes"), keyframes_a + keyframes_b);
+
+  // B's keyframes in A's frame against the circle's ground truth (the fixture renders every
+  // sequence's ground truth in the square map's frame).
+  const std::string keyframes = dir_.File("keyframes.tum");
+  ASSERT_EQ(Visloc({"map", "export", merged, "--keyframes", keyframes}).exit_code, 0);
+  // Both sessions were rendered from the same start time, so the keyframes' times repeat: read
+  // the export line by line (ReadTum insists on increasing times).
+  const Trajectory all = ReadKeyframeLines(keyframes);
+  ASSERT_EQ(static_cast<int>(all.size()), keyframes_a + keyframes_b);
+  const Trajectory gt = ReadTum(kData + "/circle/groundtruth_map.tum");
+  double worst_m = 0.0;
+  for (int k = keyframes_a; k < keyframes_a + keyframes_b; ++k) {
+    const auto truth = InterpolateAt(gt, all[k].timestamp_ns, 50'000'000);
+    ASSERT_TRUE(truth.has_value());
+    worst_m = std::max(worst_m, (truth->translation - all[k].pose.translation).norm());
+  }
+  EXPECT_LT(worst_m, 0.01) << "B's keyframes after the merge, farthest from ground truth";
+
+  // The merged map localizes the circle, and says where it came from.
+  const std::string trajectory = dir_.File("circle.tum");
+  const ProcessResult localize = Visloc({"localize", "--map", merged, "--dataset",
+                                         kData + "/circle", "--trajectory", trajectory, "--json"});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  EXPECT_GE(JsonNumber(localize.out, "localized_fraction"), 0.99);
+  const ProcessResult eval = Visloc(
+      {"eval", "--gt", kData + "/circle/groundtruth_map.tum", "--est", trajectory, "--json"});
+  EXPECT_LT(JsonNumber(eval.out, "translation_m", "median"), 0.01);
+  const ProcessResult info = Visloc({"map", "info", merged, "--json"});
+  EXPECT_THAT(info.out, HasSubstr("\"lineage\":\"merge('map' <- "));
+  EXPECT_THAT(info.out, HasSubstr("\"schema_version\":2"));
+  EXPECT_EQ(Visloc({"map", "verify", merged}).exit_code, 0);
+}
+
+TEST_F(MapMergeE2eTest, MapsOfDifferentRoomsAreRefused) {
+  const std::string other_room = BuildMap("outofmap");
+  const std::string out = dir_.File("never.db");
+  const ProcessResult merge = Visloc({"map", "merge", kData + "/map.db", other_room, "--out", out});
+  EXPECT_EQ(merge.exit_code, 1);
+  EXPECT_THAT(merge.err, HasSubstr("no verified overlap"));
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+}  // namespace
+}  // namespace visloc
