@@ -13,7 +13,8 @@ using Args = std::vector<std::string>;
 int RunSim(const Args& args);
 int RunEval(const Args& args);
 int RunMap(const Args& args);
-int RunMapMerge(const Args& args);  // `visloc map merge`
+int RunMapMerge(const Args& args);   // `visloc map merge`
+int RunMapExtend(const Args& args);  // `visloc map extend`
 int RunDataset(const Args& args);
 int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);

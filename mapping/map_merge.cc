@@ -103,11 +103,11 @@ std::string MergeOptions::Problem() const {
   return "";
 }
 
-std::string MergedLineage(const MapMetadata& a, const MapMetadata& b) {
+std::string MergedLineage(const MapMetadata& a, const MapMetadata& b, const std::string& verb) {
   auto of = [](const MapMetadata& m) {
     return m.lineage.empty() ? StrCat("'", m.name, "' <- ", m.source_dataset) : m.lineage;
   };
-  return StrCat("merge(", of(a), "; ", of(b), ")");
+  return StrCat(verb, "(", of(a), "; ", of(b), ")");
 }
 
 Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {

@@ -56,8 +56,10 @@ struct MergeStats {
 // features, or no verified overlap (the evidence in the message).
 Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
 
-// The lineage line of a merge, for MapMetadata::lineage: "merge(<A's lineage>, <B's lineage>)",
-// where a map without lineage stands for itself as "name <- source".
-std::string MergedLineage(const MapMetadata& a, const MapMetadata& b);
+// The lineage line of a merge, for MapMetadata::lineage: "<verb>(<A's lineage>; <B's lineage>)",
+// where a map without lineage stands for itself as "'name' <- source". `verb` is "merge" for two
+// maps, "extend" for a map and a new session.
+std::string MergedLineage(const MapMetadata& a, const MapMetadata& b,
+                          const std::string& verb = "merge");
 
 }  // namespace visloc::mapping

@@ -1,7 +1,9 @@
-// `visloc map merge` end to end on the localization fixture: the map of the square (A) and a map
-// built from another session through the same room (the circle, B) become one map in A's frame;
-// B's keyframes must land on ground truth, the circle must localize in the merged map, and a
-// map of a different room must be refused. Real binaries, real map files.
+// Maps across sessions end to end on the localization fixture, real binaries and map files:
+// - `visloc map merge`: the map of the square (A) and a map built from another session through
+//   the same room (the circle, B) become one map in A's frame; B's keyframes must land on ground
+//   truth, the circle must localize in the merged map, and a map of a different room is refused;
+// - `visloc map extend`: a map of the square's first third extended with the offset-square
+//   session; a session in a different room is refused and leaves the map file as it was.
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -12,6 +14,7 @@
 
 #include "core/geometry/trajectory.h"
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
 #include "dataset/tum.h"
 #include "tests/support/e2e.h"
 
@@ -103,6 +106,39 @@ TEST_F(MapMergeE2eTest, MapsOfDifferentRoomsAreRefused) {
   EXPECT_EQ(merge.exit_code, 1);
   EXPECT_THAT(merge.err, HasSubstr("no verified overlap"));
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+TEST_F(MapMergeE2eTest, ExtendAddsASessionInTheMapsFrameAndRefusesAnotherRoom) {
+  const std::string map = dir_.File("partial.db");
+  ASSERT_EQ(Visloc({"map", "build", "--dataset", kData + "/map_square", "--frames", "96", "--out",
+                    map})
+                .exit_code,
+            0);
+  const ProcessResult before = Visloc({"map", "info", map, "--json"});
+  const ProcessResult extend =
+      Visloc({"map", "extend", map, "--dataset", kData + "/query_square", "--json"});
+  ASSERT_EQ(extend.exit_code, 0) << extend.err;
+  EXPECT_GE(JsonNumber(extend.out, "inliers"), 40);
+  EXPECT_EQ(JsonNumber(extend.out, "keyframes"),
+            JsonNumber(before.out, "keyframes") + JsonNumber(extend.out, "keyframes_b"));
+  const ProcessResult info = Visloc({"map", "info", map, "--json"});
+  EXPECT_THAT(info.out, HasSubstr("\"lineage\":\"extend('partial' <- "));
+
+  const std::string trajectory = dir_.File("circle.tum");
+  const ProcessResult localize = Visloc({"localize", "--map", map, "--dataset", kData + "/circle",
+                                         "--trajectory", trajectory, "--json"});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  EXPECT_GE(JsonNumber(localize.out, "localized_fraction"), 0.99);
+  const ProcessResult eval = Visloc(
+      {"eval", "--gt", kData + "/circle/groundtruth_map.tum", "--est", trajectory, "--json"});
+  EXPECT_LT(JsonNumber(eval.out, "translation_m", "median"), 0.01);
+
+  // A session in another room: refused, and the map file is the extended one, untouched.
+  const std::string bytes_before = ReadFileBytes(map);
+  const ProcessResult other = Visloc({"map", "extend", map, "--dataset", kData + "/outofmap"});
+  EXPECT_EQ(other.exit_code, 1);
+  EXPECT_THAT(other.err, HasSubstr("does not overlap the map"));
+  EXPECT_EQ(ReadFileBytes(map), bytes_before);
 }
 
 }  // namespace

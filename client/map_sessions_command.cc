@@ -1,0 +1,157 @@
+// Maps across sessions (mapping/map_merge.h):
+//   `visloc map merge A.db B.db --out C.db`  two maps of overlapping places into one, in A's frame;
+//   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, then merged into MAP.
+// Maps or sessions with no verified overlap are refused with the evidence; files are written
+// atomically, so the old map stays intact until the new one is complete.
+
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <iostream>
+
+#include "client/commands.h"
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "dataset/dataset.h"
+#include "mapping/dataset_mapping.h"
+#include "mapping/map_merge.h"
+#include "mapstore/map_store.h"
+
+namespace visloc::cli {
+namespace {
+
+std::string ToJson(const std::string& out, const Map& merged, const mapping::MergeStats& s) {
+  const Eigen::Vector3d& t = s.a_from_b.translation;
+  const Eigen::Quaterniond& q = s.a_from_b.rotation;
+  JsonWriter json;
+  json.BeginObject()
+      .Field("map", out)
+      .Field("name", merged.metadata.name)
+      .Field("lineage", merged.metadata.lineage)
+      .Field("matches", s.matches)
+      .Field("inliers", s.inliers)
+      .Field("inlier_rmse_m", s.inlier_rmse_m)
+      .Key("a_from_b")
+      .BeginArray();
+  for (double v : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) json.Value(v);
+  json.EndArray()
+      .Field("keyframes_a", s.keyframes_a)
+      .Field("keyframes_b", s.keyframes_b)
+      .Field("points_a", s.points_a)
+      .Field("points_b", s.points_b)
+      .Field("fused_points", s.fused_points)
+      .Field("added_points", s.added_points)
+      .Field("keyframes", static_cast<int64_t>(merged.keyframes.size()))
+      .Field("points", static_cast<int64_t>(merged.points.size()))
+      .Field("visibility_fit_rmse", s.visibility.final_rmse)
+      .EndObject();
+  return json.str();
+}
+
+void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeStats& stats,
+                const char* b_name) {
+  std::printf("%s: %zu keyframes (%d + %d), %zu points (%d fused, %d added from %s)\n",
+              out.c_str(), merged.keyframes.size(), stats.keyframes_a, stats.keyframes_b,
+              merged.points.size(), stats.fused_points, stats.added_points, b_name);
+  std::printf("overlap: %d of %d descriptor matches agree on one alignment (RMSE %.1f mm); %s "
+              "moved by %.3f m, turned %.2f deg\n",
+              stats.inliers, stats.matches, stats.inlier_rmse_m * 1e3, b_name,
+              stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
+  std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
+}
+
+void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
+  parser.AddFlag("inlier-distance", &options->inlier_distance_m,
+                 "metres within which matched points agree on the alignment (0.05)");
+  parser.AddFlag("min-inliers", &options->min_inliers, "fewer agreeing matches: no overlap (40)");
+}
+
+}  // namespace
+
+int RunMapMerge(const Args& args) {
+  std::string a_path, b_path, out, name;
+  bool json = false;
+  mapping::MergeOptions options;
+  ArgParser parser(
+      "visloc map merge",
+      "Merges two maps of overlapping places into one, in the first map's frame: their points "
+      "matched by descriptor, the overlap verified by a RANSAC rigid alignment of the matched "
+      "3D points (stereo maps share metric scale), duplicates fused, the visibility kernel "
+      "learned again and the vocabulary retrained. Maps without a verified overlap (different "
+      "places) are refused with the evidence. The output is written atomically.");
+  parser.AddPositional("A", &a_path, "the map whose frame the result keeps");
+  parser.AddPositional("B", &b_path, "the map merged into it");
+  parser.AddFlag("out", &out, "the merged map file to write", /*required=*/true);
+  parser.AddFlag("name", &name, "the merged map's name (default: A's)");
+  AddOverlapFlags(parser, &options);
+  parser.AddSwitch("json", &json, "print the result as JSON");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  const Map a = mapstore::LoadMap(a_path);
+  const Map b = mapstore::LoadMap(b_path);
+  mapping::MergeStats stats;
+  Map merged = mapping::MergeMaps(a, b, options, &stats);
+  if (!name.empty()) merged.metadata.name = name;
+  mapstore::SaveMap(merged, out);
+  if (json) {
+    std::cout << ToJson(out, merged, stats) << "\n";
+    return 0;
+  }
+  PrintHuman(out, merged, stats, "B");
+  return 0;
+}
+
+int RunMapExtend(const Args& args) {
+  std::string map_path, dataset_dir, format;
+  bool json = false;
+  mapping::MergeOptions options;
+  ArgParser parser(
+      "visloc map extend",
+      "Adds a new stereo session to a map, in the map's frame: the session is mapped on its own "
+      "(as map build does, with the map's detector), then registered to the map by its points "
+      "(descriptor matches verified by a RANSAC rigid alignment) and merged: duplicates fused, "
+      "the visibility kernel learned again over all keyframes and the vocabulary retrained, so "
+      "the new areas relocalize. A session that never overlaps the map is refused. The map file "
+      "is replaced atomically when the extended map is complete.");
+  parser.AddPositional("MAP", &map_path, "the map file to extend (replaced)");
+  parser.AddFlag("dataset", &dataset_dir, "the new session: a stereo dataset folder", true);
+  parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
+  AddOverlapFlags(parser, &options);
+  parser.AddSwitch("json", &json, "print the result as JSON");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  const Map existing = mapstore::LoadMap(map_path);
+  const Dataset dataset = ReadDataset(
+      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  mapping::DatasetMappingOptions mapping_options;
+  mapping_options.builder.features = DefaultFeatureSettings(existing.features.kind);
+  const MapMetadata session_metadata{
+      "session", static_cast<int64_t>(std::time(nullptr)),
+      std::filesystem::absolute(dataset_dir).string(), "visloc 0.1.0 map extend", ""};
+  mapping::MapBuildStats build_stats;
+  const bool progress = ShowProgress() && !json;
+  const Map session = mapping::BuildMap(
+      dataset, mapping_options, session_metadata, &build_stats, nullptr,
+      [&](int done, int total, const std::string& status) {
+        if (progress) std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total, status.c_str());
+      });
+  if (progress) std::fprintf(stderr, "\r\33[K");
+  mapping::MergeStats stats;
+  Map extended;
+  try {
+    extended = mapping::MergeMaps(existing, session, options, &stats);
+  } catch (const InputError& e) {
+    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
+  }
+  extended.metadata.lineage = mapping::MergedLineage(existing.metadata, session.metadata, "extend");
+  mapstore::SaveMap(extended, map_path);
+  if (json) {
+    std::cout << ToJson(map_path, extended, stats) << "\n";
+  } else {
+    PrintHuman(map_path, extended, stats, "the session");
+  }
+  return 0;
+}
+
+}  // namespace visloc::cli
