@@ -35,7 +35,8 @@ void WriteJson(JsonWriter& json, const v1::MapInfo& info) {
         .Field("schema_version", static_cast<int64_t>(info.schema_version()))
         .Field("builder", info.builder())
         .Field("source_dataset", info.source_dataset())
-        .Field("created_unix_s", static_cast<int64_t>(info.created_unix_s()));
+        .Field("created_unix_s", static_cast<int64_t>(info.created_unix_s()))
+        .Field("lineage", info.lineage());
   } else {
     json.Field("problem", info.problem());
   }

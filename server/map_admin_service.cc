@@ -31,6 +31,7 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
     out->set_builder(entry.info->metadata.builder);
     out->set_source_dataset(entry.info->metadata.source_dataset);
     out->set_created_unix_s(entry.info->metadata.created_unix_s);
+    out->set_lineage(entry.info->metadata.lineage);
   }
 }
 

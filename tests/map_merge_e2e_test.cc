@@ -17,6 +17,7 @@
 #include "core/util/text_file.h"
 #include "dataset/tum.h"
 #include "tests/support/e2e.h"
+#include "tests/support/process.h"
 
 namespace visloc {
 namespace {
@@ -97,6 +98,19 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   EXPECT_THAT(info.out, HasSubstr("\"lineage\":\"merge('map' <- "));
   EXPECT_THAT(info.out, HasSubstr("\"schema_version\":2"));
   EXPECT_EQ(Visloc({"map", "verify", merged}).exit_code, 0);
+
+  // Served: the merged map replaces the square's map on a running server; new sessions get it.
+  TempDir maps("visloc_map_merge_served");
+  std::filesystem::copy_file(kData + "/map.db", maps.File("lab.db"));
+  testing::ServerProcess server(VISLOC_SERVER_PATH, maps.path());
+  ASSERT_EQ(Visloc({"map", "upload", merged, "--server", server.address(), "--replace"}).exit_code, 0);
+  const ProcessResult served = Visloc({"map", "info", "lab", "--server", server.address(), "--json"});
+  EXPECT_THAT(served.out, HasSubstr("\"lineage\":\"merge('map' <- "));
+  EXPECT_EQ(JsonNumber(served.out, "keyframes"), keyframes_a + keyframes_b);
+  const ProcessResult stream = Visloc({"stream", "--server", server.address(), "--map", "lab",
+                                       "--dataset", kData + "/circle", "--rate", "0", "--json"});
+  ASSERT_EQ(stream.exit_code, 0) << stream.err;
+  EXPECT_GE(JsonNumber(stream.out, "localized_fraction"), 0.99);
 }
 
 TEST_F(MapMergeE2eTest, MapsOfDifferentRoomsAreRefused) {
