@@ -161,7 +161,7 @@ TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
   builder_options.builder.loop_closure.enabled = false;
   MapBuildStats stats;
   Trajectory estimate;
-  const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test"}, &stats, &estimate);
+  const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test", ""}, &stats, &estimate);
   const Trajectory truth = ReadTum(generated.dir + "/groundtruth_map.tum");
   ASSERT_EQ(estimate.size(), truth.size());
   double worst_m = 0;
@@ -191,7 +191,7 @@ TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
   TempDir dir;
   Dataset dataset = RenderShort("straight", 2, dir);
   dataset.right.reset();
-  EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", ""}, nullptr), InputError);
+  EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", "", ""}, nullptr), InputError);
 }
 
 TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
@@ -199,7 +199,7 @@ TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
   TempDir dir;
   const Dataset dataset = RenderShort("map_square", 1, dir);
   MapBuildStats stats;
-  const Map map = BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test"}, &stats);
+  const Map map = BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test", ""}, &stats);
   EXPECT_EQ(stats.keyframes, 1);
   EXPECT_GT(stats.points, 400);
   EXPECT_EQ(stats.observations, stats.points);
@@ -247,7 +247,7 @@ TEST(MapAssemblyTest, StereoViewsCountTwiceAndUnconfirmedLandmarksAreLeftOut) {
   state.landmarks[3].frames_in_view = 10;
   AssemblyStats stats;
   const Map map = AssembleMap(state, Camera(320, 240, 160, 160, 159.5, 119.5),
-                              DefaultFeatureSettings("harris_surf16"), {"m", 0, "", ""},
+                              DefaultFeatureSettings("harris_surf16"), {"m", 0, "", "", ""},
                               Rigid3d::Identity(), Rigid3d::Identity(), kIntrinsics,
                               AssemblyOptions{}, &stats);
   ASSERT_EQ(map.points.size(), 2u);

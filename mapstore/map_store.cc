@@ -242,8 +242,7 @@ void WriteMeta(Database& db, const Map& map) {
   Statement insert = db.Prepare("INSERT INTO meta (key, value) VALUES (?, ?)");
   const std::pair<std::string, std::string> rows[] = {
       {"format", kFormatName},
-      // Schema 2 adds meta 'lineage'; maps without one stay schema 1, readable by older visloc.
-      {"schema_version", std::to_string(map.metadata.lineage.empty() ? 1 : kMapSchemaVersion)},
+      {"schema_version", std::to_string(SchemaVersionOf(map))},
       {"byte_order", "little"},
       {"name", map.metadata.name},
       {"created_unix_s", std::to_string(map.metadata.created_unix_s)},
@@ -697,9 +696,12 @@ Map LoadMap(const std::string& path) {
   return map;
 }
 
+int SchemaVersionOf(const Map& map) { return map.metadata.lineage.empty() ? 1 : 2; }
+
 MapInfo SummarizeMap(const Map& map, const std::string& path) {
   MapInfo info;
   info.path = path;
+  info.schema_version = SchemaVersionOf(map);
   std::error_code error;
   info.file_bytes = path.empty() ? 0 : fs::file_size(path, error);
   if (error) info.file_bytes = 0;

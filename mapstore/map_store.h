@@ -26,6 +26,10 @@ namespace visloc::mapstore {
 // message saying a newer visloc wrote them.
 constexpr int kMapSchemaVersion = 2;  // 2: meta 'lineage' (merged and extended maps).
 
+// The schema a map is written in: 1 without a lineage (so older visloc versions read it), 2
+// with one.
+int SchemaVersionOf(const Map& map);
+
 // The camera table's model column: "pinhole-radtan" (k1 k2 p1 p2 in the k1, k2, p1, p2
 // columns) or "pinhole-equidistant" (fisheye; k1 k2 k3 k4 in the same four columns).
 const char* CameraModelName(LensModel model);

@@ -26,7 +26,7 @@ LoopRun BuildSquare(const mapping::MapBuilderOptions& options) {
   Trajectory estimate;
   mapping::DatasetMappingOptions mapping_options;
   mapping_options.builder = options;
-  mapping::BuildMap(dataset, mapping_options, {"loop", 0, "test", "test"}, &run.stats, &estimate);
+  mapping::BuildMap(dataset, mapping_options, {"loop", 0, "test", "test", ""}, &run.stats, &estimate);
   EXPECT_EQ(estimate.size(), truth.size());
   double sum_sq = 0;
   for (size_t i = 0; i < std::min(estimate.size(), truth.size()); ++i) {
