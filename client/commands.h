@@ -15,6 +15,7 @@ int RunEval(const Args& args);
 int RunMap(const Args& args);
 int RunMapMerge(const Args& args);   // `visloc map merge`
 int RunMapExtend(const Args& args);  // `visloc map extend`
+int RunMapUpdate(const Args& args);  // `visloc map update`
 int RunDataset(const Args& args);
 int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);

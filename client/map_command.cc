@@ -462,6 +462,7 @@ int RunMap(const Args& args) {
       {"export", "keyframe poses (TUM) and a point cloud (PLY)", RunExport},
       {"merge", "two maps of overlapping places into one, in the first one's frame", RunMapMerge},
       {"extend", "add a new stereo session to a map, in the map's frame", RunMapExtend},
+      {"update", "the place changed: remove what is gone, add what is new", RunMapUpdate},
       {"list", "the maps in a maps folder or on a server", RunList},
       {"delete", "delete a map from a maps folder or a server", RunDelete},
       {"rename", "rename a map in a maps folder or on a server", RunRename},

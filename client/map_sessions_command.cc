@@ -1,6 +1,8 @@
 // Maps across sessions (mapping/map_merge.h):
 //   `visloc map merge A.db B.db --out C.db`  two maps of overlapping places into one, in A's frame;
-//   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, then merged into MAP.
+//   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, then merged into MAP;
+//   `visloc map update MAP.db --dataset DIR`  the same for a place that changed: what is gone
+//                                             removed first (mapping/map_update.h).
 // Maps or sessions with no verified overlap are refused with the evidence; files are written
 // atomically, so the old map stays intact until the new one is complete.
 
@@ -16,12 +18,15 @@
 #include "dataset/dataset.h"
 #include "mapping/dataset_mapping.h"
 #include "mapping/map_merge.h"
+#include "mapping/map_update.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::cli {
 namespace {
 
-std::string ToJson(const std::string& out, const Map& merged, const mapping::MergeStats& s) {
+// `update`: the update's point check, when there was one.
+std::string ToJson(const std::string& out, const Map& merged, const mapping::MergeStats& s,
+                   const mapping::UpdateStats* update = nullptr) {
   const Eigen::Vector3d& t = s.a_from_b.translation;
   const Eigen::Quaterniond& q = s.a_from_b.rotation;
   JsonWriter json;
@@ -44,8 +49,12 @@ std::string ToJson(const std::string& out, const Map& merged, const mapping::Mer
       .Field("added_points", s.added_points)
       .Field("keyframes", static_cast<int64_t>(merged.keyframes.size()))
       .Field("points", static_cast<int64_t>(merged.points.size()))
-      .Field("visibility_fit_rmse", s.visibility.final_rmse)
-      .EndObject();
+      .Field("visibility_fit_rmse", s.visibility.final_rmse);
+  if (update) {
+    json.Field("checked_points", update->checked_points)
+        .Field("removed_points", update->removed_points);
+  }
+  json.EndObject();
   return json.str();
 }
 
@@ -59,6 +68,26 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
               stats.inliers, stats.matches, stats.inlier_rmse_m * 1e3, b_name,
               stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
   std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
+}
+
+// A new session mapped on its own, with the existing map's detector, as `map build` would.
+Map BuildSessionMap(const Map& existing, const std::string& dataset_dir, const std::string& format,
+                    const std::string& verb, bool progress) {
+  const Dataset dataset = ReadDataset(
+      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  mapping::DatasetMappingOptions options;
+  options.builder.features = DefaultFeatureSettings(existing.features.kind);
+  const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)),
+                             std::filesystem::absolute(dataset_dir).string(),
+                             "visloc 0.1.0 map " + verb, ""};
+  mapping::MapBuildStats stats;
+  Map session = mapping::BuildMap(
+      dataset, options, metadata, &stats, nullptr,
+      [&](int done, int total, const std::string& status) {
+        if (progress) std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total, status.c_str());
+      });
+  if (progress) std::fprintf(stderr, "\r\33[K");
+  return session;
 }
 
 void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
@@ -122,21 +151,7 @@ int RunMapExtend(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
   const Map existing = mapstore::LoadMap(map_path);
-  const Dataset dataset = ReadDataset(
-      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
-  mapping::DatasetMappingOptions mapping_options;
-  mapping_options.builder.features = DefaultFeatureSettings(existing.features.kind);
-  const MapMetadata session_metadata{
-      "session", static_cast<int64_t>(std::time(nullptr)),
-      std::filesystem::absolute(dataset_dir).string(), "visloc 0.1.0 map extend", ""};
-  mapping::MapBuildStats build_stats;
-  const bool progress = ShowProgress() && !json;
-  const Map session = mapping::BuildMap(
-      dataset, mapping_options, session_metadata, &build_stats, nullptr,
-      [&](int done, int total, const std::string& status) {
-        if (progress) std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total, status.c_str());
-      });
-  if (progress) std::fprintf(stderr, "\r\33[K");
+  const Map session = BuildSessionMap(existing, dataset_dir, format, "extend", ShowProgress() && !json);
   mapping::MergeStats stats;
   Map extended;
   try {
@@ -150,6 +165,46 @@ int RunMapExtend(const Args& args) {
     std::cout << ToJson(map_path, extended, stats) << "\n";
   } else {
     PrintHuman(map_path, extended, stats, "the session");
+  }
+  return 0;
+}
+
+int RunMapUpdate(const Args& args) {
+  std::string map_path, dataset_dir, format;
+  bool json = false;
+  mapping::UpdateOptions options;
+  ArgParser parser(
+      "visloc map update",
+      "Brings a map up to date with a new stereo session through a place that changed: the "
+      "session is mapped and registered to the map; map points that several of its keyframes "
+      "should have seen (in the image, in range, from a similar direction) and none did are "
+      "removed; then the session is merged in, so what is new is added. Points the session never "
+      "came near are kept. The map file is replaced atomically.");
+  parser.AddPositional("MAP", &map_path, "the map file to update (replaced)");
+  parser.AddFlag("dataset", &dataset_dir, "the new session: a stereo dataset folder", true);
+  parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
+  parser.AddFlag("min-expected-views", &options.min_expected_views,
+                 "session keyframes that must have expected a point before it can go (3)");
+  AddOverlapFlags(parser, &options.merge);
+  parser.AddSwitch("json", &json, "print the result as JSON");
+  if (!parser.Parse(args, std::cout)) return 0;
+  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  const Map existing = mapstore::LoadMap(map_path);
+  const Map session = BuildSessionMap(existing, dataset_dir, format, "update", ShowProgress() && !json);
+  mapping::UpdateStats stats;
+  Map updated;
+  try {
+    updated = mapping::UpdateMap(existing, session, options, &stats);
+  } catch (const InputError& e) {
+    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
+  }
+  mapstore::SaveMap(updated, map_path);
+  if (json) {
+    std::cout << ToJson(map_path, updated, stats.merge, &stats) << "\n";
+  } else {
+    std::printf("%s: %d of %zu points checked against the session, %d gone and removed\n",
+                map_path.c_str(), stats.checked_points, existing.points.size(), stats.removed_points);
+    PrintHuman(map_path, updated, stats.merge, "the session");
   }
   return 0;
 }

@@ -110,7 +110,15 @@ std::string MergedLineage(const MapMetadata& a, const MapMetadata& b, const std:
   return StrCat(verb, "(", of(a), "; ", of(b), ")");
 }
 
-Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
+namespace {
+
+struct Registration {
+  Rigid3d a_from_b;
+  std::vector<PointPair> pairs;
+  std::vector<int> inliers;  // Into pairs.
+};
+
+Registration Register(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
   const std::string problem = options.Problem();
   if (!problem.empty()) throw CheckError(problem);
   RequireSameSensor(a, b);
@@ -141,6 +149,20 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   for (int i : inliers) sum_sq += (a_from_b * pairs[i].in_b - pairs[i].in_a).squaredNorm();
   stats->inlier_rmse_m = std::sqrt(sum_sq / inliers.size());
   stats->a_from_b = a_from_b;
+  return {a_from_b, std::move(pairs), inliers};
+}
+
+}  // namespace
+
+Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
+  return Register(a, b, options, stats).a_from_b;
+}
+
+Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
+  const Registration registration = Register(a, b, options, stats);
+  const Rigid3d& a_from_b = registration.a_from_b;
+  const std::vector<PointPair>& pairs = registration.pairs;
+  const std::vector<int>& inliers = registration.inliers;
 
   Map merged;
   merged.metadata = a.metadata;

@@ -56,6 +56,10 @@ struct MergeStats {
 // features, or no verified overlap (the evidence in the message).
 Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
 
+// The overlap alone: B's map frame in A's (a_from_b), verified as MergeMaps does; the same
+// errors. Fills the registration part of `stats`.
+Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
+
 // The lineage line of a merge, for MapMetadata::lineage: "<verb>(<A's lineage>; <B's lineage>)",
 // where a map without lineage stands for itself as "'name' <- source". `verb` is "merge" for two
 // maps, "extend" for a map and a new session.

@@ -43,7 +43,7 @@ $V map build --dataset "$WORK/seq/outofmap" --out "$WORK/other_room.db" --json >
 $V map merge "$WORK/square.db" "$WORK/other_room.db" --out "$WORK/never.db" > /dev/null 2> "$WORK/refused.txt" || true
 
 /usr/bin/python3 - "$WORK" "$REPORT" <<'PY'
-import json, sys, bisect
+import json, os, sys
 work, report = sys.argv[1], sys.argv[2]
 j = lambda n: json.load(open("%s/%s" % (work, n)))
 def loc(n):
@@ -76,7 +76,7 @@ lines = ["# Maps across sessions", "",
  "| ... extended with the offset square | %d | %d | %s |" % (e["keyframes"], e["points"], loc("extended.circle")), "",
  "The session's registration: %d of %d descriptor matches agree on one alignment (inlier RMSE %.1f mm); %d of its points fused with the map's, %d added." % (e["inliers"], e["matches"], 1000 * e["inlier_rmse_m"], e["fused_points"], e["added_points"]), "",
  "## Merge", "",
- "`visloc map merge A.db B.db --out C.db` does the same for two maps, in A's frame; `map info` shows the lineage (`%s`)." % m["lineage"].replace(work + "/", ""), "",
+ "`visloc map merge A.db B.db --out C.db` does the same for two maps, in A's frame; `map info` shows the lineage (`%s`)." % m["lineage"].replace(os.path.abspath(work) + "/", ""), "",
  "| map | keyframes | points | circle | offset square |", "|---|---|---|---|---|",
  "| the square (A) | %d | %d | %s | |" % (m["keyframes_a"], m["points_a"], loc("square.circle")),
  "| A merged with the circle session (B) | %d | %d | %s | %s |" % (m["keyframes"], m["points"], loc("merged.circle"), loc("merged.query_square")), "",

@@ -16,7 +16,8 @@ rm -rf "$out"
 mkdir -p "$out"
 sim() { "$visloc" sim --out "$out" --no-contact-sheet "$@" >/dev/null; }
 # name:frames (0: the whole sequence).
-queries=(query_square:120 straight:0 circle:120 kidnap:150 lowlight:90 occluders:90 outofmap:45)
+queries=(query_square:120 straight:0 circle:120 kidnap:150 lowlight:90 occluders:90 outofmap:45
+         changed:120)
 sim --sequence map_square --fps 5
 "$visloc" map build --dataset "$out/map_square" --out "$out/map.db" >/dev/null &
 build=$!

@@ -1,0 +1,137 @@
+#include "mapping/map_update.h"
+
+#include <cmath>
+#include <unordered_map>
+
+#include "core/util/check.h"
+
+namespace visloc::mapping {
+namespace {
+
+// The session's reconstructed points per keyframe, in the map frame, bucketed in cubes of the
+// found distance for radius queries.
+class SessionPoints {
+ public:
+  SessionPoints(const Map& session, const Rigid3d& map_from_session, double cell_m)
+      : cell_m_(cell_m) {
+    for (const Observation& o : session.observations) {
+      const Eigen::Vector3d p = map_from_session * session.points[o.point].position_in_map;
+      cells_[Key(Cell(p))].push_back({static_cast<int>(o.keyframe), p});
+    }
+  }
+
+  // Whether keyframe `keyframe` reconstructed a point within `radius_m` (<= the cell) of `p`.
+  bool Saw(int keyframe, const Eigen::Vector3d& p, double radius_m) const {
+    const Eigen::Vector3i c = Cell(p);
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (const Entry& e : it->second) {
+            if (e.keyframe == keyframe && (e.position - p).norm() <= radius_m) return true;
+          }
+        }
+      }
+    }
+    return false;
+  }
+
+ private:
+  struct Entry {
+    int keyframe;
+    Eigen::Vector3d position;
+  };
+  Eigen::Vector3i Cell(const Eigen::Vector3d& p) const {
+    return (p / cell_m_).array().floor().cast<int>();
+  }
+  static int64_t Key(const Eigen::Vector3i& c) {
+    return (static_cast<int64_t>(c.x()) * 73856093) ^ (static_cast<int64_t>(c.y()) * 19349663) ^
+           (static_cast<int64_t>(c.z()) * 83492791);
+  }
+  double cell_m_;
+  std::unordered_map<int64_t, std::vector<Entry>> cells_;
+};
+
+// The mean direction (unit) from which the map's keyframes saw each point.
+std::vector<Eigen::Vector3d> ViewDirections(const Map& map) {
+  std::vector<Eigen::Vector3d> direction(map.points.size(), Eigen::Vector3d::Zero());
+  for (const Observation& o : map.observations) {
+    const Eigen::Vector3d ray =
+        map.points[o.point].position_in_map - map.keyframes[o.keyframe].map_from_cam.translation;
+    if (ray.norm() > 1e-9) direction[o.point] += ray.normalized();
+  }
+  for (Eigen::Vector3d& d : direction) {
+    if (d.norm() > 1e-9) d.normalize();
+  }
+  return direction;
+}
+
+// `map` without the points flagged in `remove`; observations re-indexed.
+Map WithoutPoints(const Map& map, const std::vector<bool>& remove) {
+  Map kept = map;
+  kept.points.clear();
+  kept.descriptors = cv::Mat(0, map.descriptors.cols, map.descriptors.type());
+  kept.observations.clear();
+  std::vector<int> new_index(map.points.size(), -1);
+  for (size_t p = 0; p < map.points.size(); ++p) {
+    if (remove[p]) continue;
+    new_index[p] = static_cast<int>(kept.points.size());
+    kept.points.push_back(map.points[p]);
+    kept.descriptors.push_back(map.descriptors.row(static_cast<int>(p)));
+  }
+  for (const Observation& o : map.observations) {
+    if (new_index[o.point] >= 0) {
+      kept.observations.push_back({o.keyframe, static_cast<uint32_t>(new_index[o.point]), o.pixel});
+    }
+  }
+  return kept;
+}
+
+}  // namespace
+
+std::string UpdateOptions::Problem() const {
+  if (std::string merge_problem = merge.Problem(); !merge_problem.empty()) return merge_problem;
+  if (min_expected_views < 1) return "a point must be expected in at least one view";
+  if (!(found_distance_m > 0) || !(max_depth_m > 0)) return "distances must be positive";
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 180)) return "the view angle is 0 to 180 deg";
+  return "";
+}
+
+Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats) {
+  if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
+  *stats = UpdateStats{};
+  MergeStats registration;
+  const Rigid3d map_from_session = RegisterMaps(map, session, options.merge, &registration);
+  const SessionPoints seen(session, map_from_session, options.found_distance_m);
+  std::vector<Rigid3d> cam_from_map;
+  for (const Keyframe& k : session.keyframes) cam_from_map.push_back((map_from_session * k.map_from_cam).Inverse());
+  const std::vector<Eigen::Vector3d> directions = ViewDirections(map);
+  const double min_cos = std::cos(options.max_view_angle_deg * M_PI / 180.0);
+  std::vector<bool> remove(map.points.size(), false);
+  for (size_t p = 0; p < map.points.size(); ++p) {
+    const Eigen::Vector3d& x = map.points[p].position_in_map;
+    int expected = 0, found = 0;
+    for (size_t k = 0; k < cam_from_map.size(); ++k) {
+      const Eigen::Vector3d in_cam = cam_from_map[k] * x;
+      if (in_cam.z() < 0.1 || in_cam.norm() > options.max_depth_m) continue;
+      Eigen::Vector2d pixel;
+      if (!map.camera.Project(in_cam, &pixel) || !map.camera.IsInImage(pixel, options.image_margin_px)) continue;
+      const Eigen::Vector3d ray = (x - cam_from_map[k].Inverse().translation).normalized();
+      if (ray.dot(directions[p]) < min_cos) continue;
+      ++expected;
+      if (seen.Saw(static_cast<int>(k), x, options.found_distance_m)) ++found;
+    }
+    if (expected < options.min_expected_views) continue;
+    ++stats->checked_points;
+    if (found == 0) {
+      remove[p] = true;
+      ++stats->removed_points;
+    }
+  }
+  Map updated = MergeMaps(WithoutPoints(map, remove), session, options.merge, &stats->merge);
+  updated.metadata.lineage = MergedLineage(map.metadata, session.metadata, "update");
+  return updated;
+}
+
+}  // namespace visloc::mapping
