@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/features/descriptor.h"
 #include "core/features/descriptor_matching.h"
 #include "core/geometry/align.h"
 #include "core/util/check.h"
 #include "core/util/random.h"
+#include "mapping/point_grid.h"
 
 namespace visloc::mapping {
 namespace {
@@ -80,6 +82,39 @@ std::vector<int> VerifiedInliers(const std::vector<PointPair>& pairs, const Merg
     best = Inliers(pairs, *a_from_b, options.inlier_distance_m);
   }
   return best;
+}
+
+// B points that the descriptor matching did not pair (it keeps mutual nearest neighbours over
+// the whole maps, so a texture repeated elsewhere hides a duplicate): fused with the nearest A
+// point within the fuse distance whose descriptor passes the match threshold, each A point
+// taking one B point at most.
+void FuseNearby(const Map& a, const Map& b, const Rigid3d& a_from_b, const MergeOptions& options,
+                std::vector<int>* point_of_b, int* fused) {
+  if (!(options.fuse_distance_m > 0)) return;
+  PointGrid grid(options.fuse_distance_m);
+  for (size_t p = 0; p < a.points.size(); ++p) grid.Add(a.points[p].position_in_map, static_cast<int>(p));
+  std::vector<bool> taken(a.points.size(), false);
+  for (int target : *point_of_b) {
+    if (target >= 0) taken[target] = true;
+  }
+  const float max_distance = options.match.MaxDistance(a.features.descriptor_type);
+  for (size_t p = 0; p < b.points.size(); ++p) {
+    if ((*point_of_b)[p] >= 0) continue;
+    const Eigen::Vector3d in_a = a_from_b * b.points[p].position_in_map;
+    int best = -1;
+    double best_m = options.fuse_distance_m;
+    grid.ForEachWithin(in_a, options.fuse_distance_m, [&](int candidate, const Eigen::Vector3d& x) {
+      const double d = (x - in_a).norm();
+      if (taken[candidate] || d > best_m) return;
+      if (DescriptorDistance(b.descriptors, static_cast<int>(p), a.descriptors, candidate) > max_distance) return;
+      best = candidate;
+      best_m = d;
+    });
+    if (best < 0) continue;
+    (*point_of_b)[p] = best;
+    taken[best] = true;
+    ++*fused;
+  }
 }
 
 // Every keyframe's descriptors: those of the points it observes.
@@ -181,6 +216,7 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
       ++stats->fused_points;
     }
   }
+  FuseNearby(a, b, a_from_b, options, &point_of_b, &stats->fused_points);
   for (size_t p = 0; p < b.points.size(); ++p) {
     if (point_of_b[p] >= 0) continue;
     point_of_b[p] = static_cast<int>(merged.points.size());

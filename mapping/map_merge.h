@@ -10,7 +10,9 @@
 //   fusion:    B's keyframes moved into A's frame; a B point that matched an A point and lies
 //              within `fuse_distance_m` of it after the alignment becomes that point (its
 //              observations join A's, A's position and descriptor are kept: A defines the
-//              frame); the rest of B's points are added.
+//              frame), as does one whose nearest A point within that distance has a descriptor
+//              close enough (the mutual matching misses duplicates of repeated textures); the
+//              rest of B's points are added.
 //   models:    the visibility kernel is learned again over all keyframes, the relocalization
 //              vocabulary trained on all points, and every keyframe indexed by the points it
 //              observes.

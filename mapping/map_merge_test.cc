@@ -3,6 +3,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <Eigen/Geometry>
 
 #include "core/map/synthetic_map.h"
@@ -14,7 +16,8 @@ namespace {
 
 // Map B: the second half of A's keyframes and the points they see, in a frame of its own
 // (`b_from_a`), positions perturbed by `noise_m`, plus points only B has.
-Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m) {
+Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m,
+                  std::vector<int>* a_point_of_b = nullptr) {
   Rng rng(7);
   Map b;
   b.metadata = {"tuesday", 1, "/data/tue", "test", ""};
@@ -34,6 +37,7 @@ Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m) {
                           noise_m * Eigen::Vector3d(rng.Uniform(-1, 1), rng.Uniform(-1, 1), rng.Uniform(-1, 1));
       b.points.push_back(p);
       b.descriptors.push_back(a.descriptors.row(o.point));
+      if (a_point_of_b) a_point_of_b->push_back(static_cast<int>(o.point));
     }
     b.observations.push_back({o.keyframe - first, static_cast<uint32_t>(point_of_a[o.point]), o.pixel});
   }
@@ -74,6 +78,37 @@ TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
   EXPECT_EQ(merged.appearance.keyframe_vectors.size(), merged.keyframes.size());
   EXPECT_EQ(merged.metadata.lineage,
             "merge('monday' <- synthetic; 'tuesday' <- /data/tue)");
+}
+
+TEST(MapMergeTest, DuplicatesOfRepeatedTexturesAreFusedToo) {
+  // Every fifth point's texture is repeated 5 m away in A (a poster printed twice), and the twin
+  // looks even more like B's view of it than the original does: descriptor matching pairs B's
+  // point with the twin (an outlier of the alignment), yet B's point lies on the original.
+  const Map original = MondayMap(1);
+  const Rigid3d b_from_a(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+                         Eigen::Vector3d(1.0, 2.0, 0.0));
+  std::vector<int> a_point_of_b;
+  Map b = SecondSession(original, b_from_a, 0.002, &a_point_of_b);
+  Map a = original;
+  Rng rng(11);
+  for (size_t q = 0; q < b.points.size(); q += 5) {
+    float* d = b.descriptors.ptr<float>(static_cast<int>(q));
+    for (int i = 0; i < b.descriptors.cols; ++i) d[i] += static_cast<float>(rng.Uniform(-0.02, 0.02));
+    MapPoint twin = original.points[a_point_of_b[q]];
+    twin.position_in_map += Eigen::Vector3d(5, 5, 5);
+    a.points.push_back(twin);
+    a.descriptors.push_back(b.descriptors.row(static_cast<int>(q)));
+    a.observations.push_back({0, static_cast<uint32_t>(a.points.size() - 1), Eigen::Vector2f(1, 1)});
+    a.points.back().observation_count = 1;
+  }
+  std::sort(a.observations.begin(), a.observations.end(), [](const Observation& x, const Observation& y) {
+    return x.keyframe != y.keyframe ? x.keyframe < y.keyframe : x.point < y.point;
+  });
+  MergeStats stats;
+  const Map merged = MergeMaps(a, b, MergeOptions(), &stats);
+  EXPECT_LT(stats.inliers, 0.85 * b.points.size());  // The repeated ones match their twins...
+  EXPECT_GT(stats.fused_points, 0.95 * b.points.size());  // ...but fused all the same.
+  EXPECT_TRUE(FindMapProblems(merged).empty());
 }
 
 TEST(MapMergeTest, MapsOfDifferentPlacesAreRefused) {

@@ -1,56 +1,32 @@
 #include "mapping/map_update.h"
 
 #include <cmath>
-#include <unordered_map>
 
 #include "core/util/check.h"
+#include "mapping/point_grid.h"
 
 namespace visloc::mapping {
 namespace {
 
-// The session's reconstructed points per keyframe, in the map frame, bucketed in cubes of the
-// found distance for radius queries.
+// The session's reconstructed points per keyframe, in the map frame.
 class SessionPoints {
  public:
   SessionPoints(const Map& session, const Rigid3d& map_from_session, double cell_m)
-      : cell_m_(cell_m) {
+      : grid_(cell_m) {
     for (const Observation& o : session.observations) {
-      const Eigen::Vector3d p = map_from_session * session.points[o.point].position_in_map;
-      cells_[Key(Cell(p))].push_back({static_cast<int>(o.keyframe), p});
+      grid_.Add(map_from_session * session.points[o.point].position_in_map, static_cast<int>(o.keyframe));
     }
   }
 
   // Whether keyframe `keyframe` reconstructed a point within `radius_m` (<= the cell) of `p`.
   bool Saw(int keyframe, const Eigen::Vector3d& p, double radius_m) const {
-    const Eigen::Vector3i c = Cell(p);
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
-          if (it == cells_.end()) continue;
-          for (const Entry& e : it->second) {
-            if (e.keyframe == keyframe && (e.position - p).norm() <= radius_m) return true;
-          }
-        }
-      }
-    }
-    return false;
+    bool saw = false;
+    grid_.ForEachWithin(p, radius_m, [&](int k, const Eigen::Vector3d&) { saw |= k == keyframe; });
+    return saw;
   }
 
  private:
-  struct Entry {
-    int keyframe;
-    Eigen::Vector3d position;
-  };
-  Eigen::Vector3i Cell(const Eigen::Vector3d& p) const {
-    return (p / cell_m_).array().floor().cast<int>();
-  }
-  static int64_t Key(const Eigen::Vector3i& c) {
-    return (static_cast<int64_t>(c.x()) * 73856093) ^ (static_cast<int64_t>(c.y()) * 19349663) ^
-           (static_cast<int64_t>(c.z()) * 83492791);
-  }
-  double cell_m_;
-  std::unordered_map<int64_t, std::vector<Entry>> cells_;
+  PointGrid grid_;  // Ids are the observing keyframes.
 };
 
 // The mean direction (unit) from which the map's keyframes saw each point.
