@@ -68,11 +68,12 @@ std::string NormalizeTypeName(const std::string& type) {
   return "";
 }
 
-cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool is_bigendian,
-                       int64_t step, std::string_view data) {
+cv::Mat DecodeRawImage(int64_t width, int64_t height, const std::string& encoding,
+                       bool is_bigendian, int64_t step, std::string_view data) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384) {
     throw InputError(StrCat("image size ", width, "x", height, " is not plausible"));
   }
+  const int rows = static_cast<int>(height), cols = static_cast<int>(width);  // Checked above.
   const EncodingLayout layout = LayoutOf(encoding);
   const int64_t row_bytes = static_cast<int64_t>(width) * layout.bytes_per_pixel;
   if (step < row_bytes) {
@@ -86,8 +87,8 @@ cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool 
   }
   // The rows, packed: a message's step need not be a multiple of the pixel size (cv::Mat's
   // own step must), and the copy leaves the message's bytes untouched.
-  cv::Mat view(height, width, layout.cv_type);
-  for (int y = 0; y < height; ++y) {
+  cv::Mat view(rows, cols, layout.cv_type);
+  for (int y = 0; y < rows; ++y) {
     std::memcpy(view.ptr(y), data.data() + static_cast<int64_t>(y) * step, row_bytes);
   }
   cv::Mat grey;
@@ -97,9 +98,9 @@ cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool 
     cv::Mat& wide = view;
     const bool host_big_endian = cv::Mat(1, 1, CV_16UC1, cv::Scalar(1)).data[0] == 0;
     if (is_bigendian != host_big_endian) {
-      for (int y = 0; y < height; ++y) {
+      for (int y = 0; y < rows; ++y) {
         auto* row = wide.ptr<uint16_t>(y);
-        for (int x = 0; x < width; ++x) row[x] = static_cast<uint16_t>((row[x] << 8) | (row[x] >> 8));
+        for (int x = 0; x < cols; ++x) row[x] = static_cast<uint16_t>((row[x] << 8) | (row[x] >> 8));
       }
     }
     wide.convertTo(grey, CV_8U, 1.0 / 256.0);
@@ -107,6 +108,13 @@ cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool 
     cv::cvtColor(view, grey, layout.to_grey);
   }
   return grey;
+}
+
+Rigid3d OdometryPose(const Eigen::Quaterniond& orientation, const Eigen::Vector3d& position) {
+  if (!(orientation.norm() > 1e-6)) {
+    throw InputError("nav_msgs/Odometry pose.pose.orientation is not a rotation (zero norm)");
+  }
+  return Rigid3d(orientation.normalized(), position);
 }
 
 cv::Mat DecodeCompressedImage(const std::string& format, std::string_view data) {

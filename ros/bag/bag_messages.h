@@ -6,6 +6,7 @@
 // Times are the messages' header stamps in nanoseconds. Frames are ROS frame ids (strings);
 // poses follow the `a_from_b` naming of core/geometry/rigid3.h.
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -86,10 +87,18 @@ std::string NormalizeTypeName(const std::string& type);
 // Decodes a raw sensor_msgs/Image buffer to 8-bit grey. Encodings: mono8, 8UC1, mono16 and
 // 16UC1 (scaled to 8 bits), rgb8, bgr8, rgba8, bgra8 and the 8-bit Bayer patterns. Throws
 // InputError naming the problem (unknown encoding, a step smaller than a row, too few bytes).
-cv::Mat DecodeRawImage(int width, int height, const std::string& encoding, bool is_bigendian,
-                       int64_t step, std::string_view data);
+cv::Mat DecodeRawImage(int64_t width, int64_t height, const std::string& encoding,
+                       bool is_bigendian, int64_t step, std::string_view data);
 // Decodes a sensor_msgs/CompressedImage (JPEG or PNG) to 8-bit grey; throws InputError.
 cv::Mat DecodeCompressedImage(const std::string& format, std::string_view data);
+
+// An image side from a message's uint32 field, as an int: values beyond 2^30 (no camera has them)
+// become 2^30, which every size check refuses.
+inline int ImageSide(uint32_t side) { return static_cast<int>(std::min<uint32_t>(side, 1u << 30)); }
+
+// nav_msgs/Odometry's pose as odom_from_child. Throws InputError for a zero quaternion (an
+// unset orientation); others are normalized.
+Rigid3d OdometryPose(const Eigen::Quaterniond& orientation, const Eigen::Vector3d& position);
 
 // A ROS camera's model in visloc's terms. `plumb_bob` and `rational_polynomial` become
 // radial-tangential (k3 and higher must be negligible: under `max_dropped_term_px` at the image

@@ -44,9 +44,7 @@ ImageMessage ReadImage(CdrReader& in) {
   const bool big_endian = in.U8("is_bigendian") != 0;
   const uint32_t step = in.U32("step");
   const std::string_view data = in.Bytes("data");
-  msg.grey = DecodeRawImage(static_cast<int>(std::min<uint32_t>(width, 1u << 30)),
-                            static_cast<int>(std::min<uint32_t>(height, 1u << 30)), encoding,
-                            big_endian, step, data);
+  msg.grey = DecodeRawImage(width, height, encoding, big_endian, step, data);
   return msg;
 }
 
@@ -61,8 +59,8 @@ ImageMessage ReadCompressedImage(CdrReader& in) {
 CameraInfoMessage ReadCameraInfo(CdrReader& in) {
   CameraInfoMessage msg;
   msg.header = ReadHeader(in);
-  msg.height = static_cast<int>(std::min<uint32_t>(in.U32("height"), 1u << 30));
-  msg.width = static_cast<int>(std::min<uint32_t>(in.U32("width"), 1u << 30));
+  msg.height = ImageSide(in.U32("height"));
+  msg.width = ImageSide(in.U32("width"));
   msg.distortion_model = in.String("distortion_model");
   msg.d = in.F64Sequence("d");
   ReadArray(in, msg.k, "k");
@@ -90,11 +88,7 @@ OdometryMessage ReadOdometry(CdrReader& in) {
   const Eigen::Vector3d position = ReadVector3(in, "pose.pose.position");
   double q[4];  // x y z w
   for (double& c : q) c = in.F64("pose.pose.orientation");
-  Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
-  if (!(rotation.norm() > 1e-6)) {
-    throw InputError("nav_msgs/Odometry pose.pose.orientation is not a rotation (zero norm)");
-  }
-  msg.odom_from_child = Rigid3d(rotation.normalized(), position);
+  msg.odom_from_child = OdometryPose(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), position);
   return msg;
 }
 

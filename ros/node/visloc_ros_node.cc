@@ -59,37 +59,26 @@ std::string ReadFileOrEmpty(const std::string& path) {
   return text.str();
 }
 
-Rigid3d FromRos(const geometry_msgs::Pose& pose) {
-  return Rigid3d(Eigen::Quaterniond(pose.orientation.w, pose.orientation.x, pose.orientation.y,
-                                    pose.orientation.z)
-                     .normalized(),
-                 Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z));
+// geometry_msgs' Quaternion and Point / Vector3 fields, whichever message holds them.
+template <typename RosQuaternion, typename RosVector>
+Rigid3d FromRos(const RosQuaternion& q, const RosVector& v) {
+  return Rigid3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized(), Eigen::Vector3d(v.x, v.y, v.z));
 }
-
-Rigid3d FromRos(const geometry_msgs::Transform& t) {
-  return Rigid3d(
-      Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized(),
-      Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
+template <typename RosQuaternion, typename RosVector>
+void ToRos(const Rigid3d& pose, RosQuaternion* q, RosVector* v) {
+  q->w = pose.rotation.w();
+  q->x = pose.rotation.x();
+  q->y = pose.rotation.y();
+  q->z = pose.rotation.z();
+  v->x = pose.translation.x();
+  v->y = pose.translation.y();
+  v->z = pose.translation.z();
 }
-
-void ToRos(const Rigid3d& pose, geometry_msgs::Pose* out) {
-  out->position.x = pose.translation.x();
-  out->position.y = pose.translation.y();
-  out->position.z = pose.translation.z();
-  out->orientation.w = pose.rotation.w();
-  out->orientation.x = pose.rotation.x();
-  out->orientation.y = pose.rotation.y();
-  out->orientation.z = pose.rotation.z();
-}
-
-void ToRos(const Rigid3d& pose, geometry_msgs::Transform* out) {
-  out->translation.x = pose.translation.x();
-  out->translation.y = pose.translation.y();
-  out->translation.z = pose.translation.z();
-  out->rotation.w = pose.rotation.w();
-  out->rotation.x = pose.rotation.x();
-  out->rotation.y = pose.rotation.y();
-  out->rotation.z = pose.rotation.z();
+Rigid3d FromRos(const geometry_msgs::Pose& p) { return FromRos(p.orientation, p.position); }
+Rigid3d FromRos(const geometry_msgs::Transform& t) { return FromRos(t.rotation, t.translation); }
+void ToRos(const Rigid3d& pose, geometry_msgs::Pose* p) { ToRos(pose, &p->orientation, &p->position); }
+void ToRos(const Rigid3d& pose, geometry_msgs::Transform* t) {
+  ToRos(pose, &t->rotation, &t->translation);
 }
 
 ros::Time StampOf(int64_t ns) {
@@ -169,8 +158,8 @@ class LocalizationNode {
     std::lock_guard<std::mutex> lock(mutex_);
     if (session_ || failed_) return nullptr;
     bag::CameraInfoMessage info;
-    info.width = static_cast<int>(msg.width);
-    info.height = static_cast<int>(msg.height);
+    info.width = bag::ImageSide(msg.width);
+    info.height = bag::ImageSide(msg.height);
     info.distortion_model = msg.distortion_model;
     info.d = msg.D;
     std::copy(msg.K.begin(), msg.K.end(), info.k.begin());
@@ -251,8 +240,7 @@ class LocalizationNode {
     vc::Frame frame;
     try {
       frame.image = bag::DecodeRawImage(
-          static_cast<int>(msg->width), static_cast<int>(msg->height), msg->encoding,
-          msg->is_bigendian != 0, msg->step,
+          msg->width, msg->height, msg->encoding, msg->is_bigendian != 0, msg->step,
           std::string_view(reinterpret_cast<const char*>(msg->data.data()), msg->data.size()));
     } catch (const std::exception& e) {
       ROS_ERROR_THROTTLE(5.0, "visloc: image refused: %s", e.what());

@@ -30,10 +30,8 @@ Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
   if (type == "sensor_msgs/Image") {
     const auto msg = m.instantiate<sensor_msgs::Image>();
     return ImageMessage{HeaderOf(msg->header),
-                        DecodeRawImage(static_cast<int>(std::min<uint32_t>(msg->width, 1u << 30)),
-                                       static_cast<int>(std::min<uint32_t>(msg->height, 1u << 30)),
-                                       msg->encoding, msg->is_bigendian != 0, msg->step,
-                                       BytesOf(msg->data))};
+                        DecodeRawImage(msg->width, msg->height, msg->encoding,
+                                       msg->is_bigendian != 0, msg->step, BytesOf(msg->data))};
   }
   if (type == "sensor_msgs/CompressedImage") {
     const auto msg = m.instantiate<sensor_msgs::CompressedImage>();
@@ -43,8 +41,8 @@ Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
     const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
     CameraInfoMessage info;
     info.header = HeaderOf(msg->header);
-    info.width = static_cast<int>(std::min<uint32_t>(msg->width, 1u << 30));
-    info.height = static_cast<int>(std::min<uint32_t>(msg->height, 1u << 30));
+    info.width = ImageSide(msg->width);
+    info.height = ImageSide(msg->height);
     info.distortion_model = msg->distortion_model;
     info.d = msg->D;
     std::copy(msg->K.begin(), msg->K.end(), info.k.begin());
@@ -63,12 +61,9 @@ Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
     const auto msg = m.instantiate<nav_msgs::Odometry>();
     const auto& p = msg->pose.pose.position;
     const auto& q = msg->pose.pose.orientation;
-    const Eigen::Quaterniond rotation(q.w, q.x, q.y, q.z);
-    if (!(rotation.norm() > 1e-6)) {
-      throw InputError("nav_msgs/Odometry pose.pose.orientation is not a rotation (zero norm)");
-    }
     return OdometryMessage{HeaderOf(msg->header), msg->child_frame_id,
-                           Rigid3d(rotation.normalized(), Eigen::Vector3d(p.x, p.y, p.z))};
+                           OdometryPose(Eigen::Quaterniond(q.w, q.x, q.y, q.z),
+                                        Eigen::Vector3d(p.x, p.y, p.z))};
   }
   return UnknownMessage{};
 }

@@ -97,6 +97,22 @@ def write_imu(bag, path, body_from_left, t0):
             bag.write("/imu", msg, t)
 
 
+def write_image(bag, mav0, cam, name, t, compressed):
+    """/CAM/image_raw (mono8), or /CAM/image_raw/compressed as `compressed` ("jpeg", "png")."""
+    grey = cv2.imread(os.path.join(mav0, cam, "data", name), cv2.IMREAD_GRAYSCALE)
+    if compressed:
+        msg = CompressedImage(format=compressed)
+        params = [cv2.IMWRITE_JPEG_QUALITY, 95] if compressed == "jpeg" else []
+        msg.data = cv2.imencode("." + ("jpg" if compressed == "jpeg" else "png"), grey, params)[1].tobytes()
+        topic = "/%s/image_raw/compressed" % cam
+    else:
+        msg = Image(height=grey.shape[0], width=grey.shape[1], encoding="mono8",
+                    is_bigendian=0, step=grey.shape[1], data=grey.tobytes())
+        topic = "/%s/image_raw" % cam
+    msg.header.stamp, msg.header.frame_id = t, cam
+    bag.write(topic, msg, t)
+
+
 def to_time(ns):
     return rospy.Time(int(ns) // 1000000000, int(ns) % 1000000000)
 
@@ -133,33 +149,13 @@ def main():
         for i, ns in enumerate(stamps):
             t = to_time(ns)
             name = "%d.png" % ns
-            grey = cv2.imread(os.path.join(mav0, "cam0", "data", name), cv2.IMREAD_GRAYSCALE)
-            if a.left_compressed:
-                msg = CompressedImage(format="jpeg")
-                msg.data = cv2.imencode(".jpg", grey, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()
-                topic = "/cam0/image_raw/compressed"
-            else:
-                msg = Image(height=grey.shape[0], width=grey.shape[1], encoding="mono8",
-                            is_bigendian=0, step=grey.shape[1], data=grey.tobytes())
-                topic = "/cam0/image_raw"
-            msg.header.stamp, msg.header.frame_id = t, "cam0"
-            bag.write(topic, msg, t)
+            write_image(bag, mav0, "cam0", name, t, "jpeg" if a.left_compressed else None)
             bag.write("/cam0/camera_info", camera_info(left, "cam0", t, r_left), t)
             if stereo:
                 bag.write("/cam1/camera_info", camera_info(right, "cam1", t, r_right, baseline), t)
                 if a.drop_right and i % a.drop_right == a.drop_right - 1:
                     continue
-                grey = cv2.imread(os.path.join(mav0, "cam1", "data", name), cv2.IMREAD_GRAYSCALE)
-                if a.right_compressed:
-                    msg = CompressedImage(format="png")
-                    msg.data = cv2.imencode(".png", grey)[1].tobytes()
-                    topic = "/cam1/image_raw/compressed"
-                else:
-                    msg = Image(height=grey.shape[0], width=grey.shape[1], encoding="mono8",
-                                is_bigendian=0, step=grey.shape[1], data=grey.tobytes())
-                    topic = "/cam1/image_raw"
-                msg.header.stamp, msg.header.frame_id = t, "cam1"
-                bag.write(topic, msg, t)
+                write_image(bag, mav0, "cam1", name, t, "png" if a.right_compressed else None)
         imu = os.path.join(mav0, "imu0", "data.csv")
         if a.imu and os.path.exists(imu):
             write_imu(bag, imu, body_from_left, to_time(stamps[0]))
