@@ -49,6 +49,11 @@ std::string ToJson(const std::string& out, const Map& merged, const mapping::Mer
       .Field("added_points", s.added_points)
       .Field("keyframes", static_cast<int64_t>(merged.keyframes.size()))
       .Field("points", static_cast<int64_t>(merged.points.size()))
+      .Field("adjusted_keyframes", s.adjustment.free_keyframes)
+      .Field("adjusted_points", s.adjustment.points)
+      .Field("adjustment_initial_rmse_px", s.adjustment.initial_rmse_px)
+      .Field("adjustment_final_rmse_px", s.adjustment.final_rmse_px)
+      .Field("adjustment_culled_observations", s.adjustment.culled_observations)
       .Field("visibility_fit_rmse", s.visibility.final_rmse);
   if (update) {
     json.Field("checked_points", update->checked_points)
@@ -67,6 +72,14 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
               "moved by %.3f m, turned %.2f deg\n",
               stats.inliers, stats.matches, stats.inlier_rmse_m * 1e3, b_name,
               stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
+  const mapping::MapAdjustmentStats& adjustment = stats.adjustment;
+  if (adjustment.residual_blocks > 0) {
+    std::printf("bundle adjustment: %d keyframes of %s and %d points adjusted, %d keyframes held; "
+                "reprojection RMSE %.2f -> %.2f px, %d observations culled, %.2f s\n",
+                adjustment.free_keyframes, b_name, adjustment.points, adjustment.fixed_keyframes,
+                adjustment.initial_rmse_px, adjustment.final_rmse_px,
+                adjustment.culled_observations, adjustment.time_ms / 1e3);
+  }
   std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
 }
 
@@ -94,6 +107,8 @@ void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
   parser.AddFlag("inlier-distance", &options->inlier_distance_m,
                  "metres within which matched points agree on the alignment (0.05)");
   parser.AddFlag("min-inliers", &options->min_inliers, "fewer agreeing matches: no overlap (40)");
+  parser.AddSwitch("no-adjust", &options->skip_adjustment,
+                   "skip the bundle adjustment of the new keyframes after the rigid alignment");
 }
 
 }  // namespace

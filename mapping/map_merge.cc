@@ -236,8 +236,12 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
             [](const Observation& x, const Observation& y) {
               return x.keyframe != y.keyframe ? x.keyframe < y.keyframe : x.point < y.point;
             });
-  for (MapPoint& p : merged.points) p.observation_count = 0;
-  for (const Observation& o : merged.observations) ++merged.points[o.point].observation_count;
+  CountObservations(&merged);
+  if (!options.skip_adjustment) {
+    std::vector<bool> hold_a(merged.keyframes.size(), false);
+    std::fill(hold_a.begin(), hold_a.begin() + a.keyframes.size(), true);
+    stats->adjustment = AdjustMap(&merged, hold_a, options.adjustment);
+  }
 
   merged.kernel = LearnVisibilityKernel(merged, options.visibility, &stats->visibility);
   merged.appearance.vocabulary = TrainVocabulary(merged.descriptors, options.vocabulary);

@@ -13,16 +13,21 @@
 //              frame), as does one whose nearest A point within that distance has a descriptor
 //              close enough (the mutual matching misses duplicates of repeated textures); the
 //              rest of B's points are added.
+//   adjustment: a bundle adjustment over the merged map (map_adjustment.h) with A's keyframes
+//              held fixed and B's free, with B's points and the fused ones: the rigid alignment
+//              leaves B's keyframes off by its inlier RMSE, and the fused points now tie them to
+//              A. A is held because it defines the frame robots already localize in, and because
+//              its structure came from a bundle adjustment with stereo disparities, which the map
+//              no longer keeps: freeing it against mono observations alone could only loosen it.
 //   models:    the visibility kernel is learned again over all keyframes, the relocalization
 //              vocabulary trained on all points, and every keyframe indexed by the points it
 //              observes.
-// Not done: a global bundle adjustment over the merged map (the observations are kept, so one
-// can be added; the alignment's inlier RMSE says how much it would gain).
 
 #include <string>
 
 #include "core/features/feature_types.h"
 #include "core/map/map.h"
+#include "mapping/map_adjustment.h"
 #include "mapping/visibility_learning.h"
 #include "mapping/vocabulary_builder.h"
 
@@ -36,6 +41,8 @@ struct MergeOptions {
   double min_inlier_ratio = 0.15;   // Of the descriptor matches; fewer: no overlap.
   double fuse_distance_m = 0.03;    // A matched B point this close to its A point is fused.
   uint64_t seed = 1;
+  bool skip_adjustment = false;  // No bundle adjustment after the fusion.
+  MapAdjustmentOptions adjustment;
   VisibilityLearningOptions visibility;
   VocabularyOptions vocabulary;
   // Empty when usable, else what is wrong.
@@ -51,6 +58,7 @@ struct MergeStats {
   int points_a = 0, points_b = 0;
   int fused_points = 0;  // B points that became A points.
   int added_points = 0;  // B points added.
+  MapAdjustmentStats adjustment;
   VisibilityLearningStats visibility;
 };
 

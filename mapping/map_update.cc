@@ -43,27 +43,6 @@ std::vector<Eigen::Vector3d> ViewDirections(const Map& map) {
   return direction;
 }
 
-// `map` without the points flagged in `remove`; observations re-indexed.
-Map WithoutPoints(const Map& map, const std::vector<bool>& remove) {
-  Map kept = map;
-  kept.points.clear();
-  kept.descriptors = cv::Mat(0, map.descriptors.cols, map.descriptors.type());
-  kept.observations.clear();
-  std::vector<int> new_index(map.points.size(), -1);
-  for (size_t p = 0; p < map.points.size(); ++p) {
-    if (remove[p]) continue;
-    new_index[p] = static_cast<int>(kept.points.size());
-    kept.points.push_back(map.points[p]);
-    kept.descriptors.push_back(map.descriptors.row(static_cast<int>(p)));
-  }
-  for (const Observation& o : map.observations) {
-    if (new_index[o.point] >= 0) {
-      kept.observations.push_back({o.keyframe, static_cast<uint32_t>(new_index[o.point]), o.pixel});
-    }
-  }
-  return kept;
-}
-
 }  // namespace
 
 std::string UpdateOptions::Problem() const {

@@ -94,6 +94,10 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   ASSERT_EQ(merge.exit_code, 0) << merge.err;
   EXPECT_GE(JsonNumber(merge.out, "inliers"), 40);
   EXPECT_LT(JsonNumber(merge.out, "inlier_rmse_m"), 0.02);
+  // B's keyframes and points were adjusted together with A's held: B now fits its images better.
+  EXPECT_EQ(JsonNumber(merge.out, "adjusted_keyframes"), JsonNumber(merge.out, "keyframes_b"));
+  EXPECT_LT(JsonNumber(merge.out, "adjustment_final_rmse_px"),
+            JsonNumber(merge.out, "adjustment_initial_rmse_px"));
   const int keyframes_a = static_cast<int>(JsonNumber(merge.out, "keyframes_a"));
   const int keyframes_b = static_cast<int>(JsonNumber(merge.out, "keyframes_b"));
   EXPECT_EQ(JsonNumber(merge.out, "keyframes"), keyframes_a + keyframes_b);

@@ -204,4 +204,30 @@ bool MapsEqual(const Map& a, const Map& b) {
          a.appearance.keyframe_vectors == b.appearance.keyframe_vectors;
 }
 
+Map WithoutPoints(const Map& map, const std::vector<bool>& remove) {
+  VISLOC_CHECK(remove.size() == map.points.size(), "one flag per point");
+  Map kept = map;
+  kept.points.clear();
+  kept.descriptors = cv::Mat(0, map.descriptors.cols, map.descriptors.type());
+  kept.observations.clear();
+  std::vector<int> new_index(map.points.size(), -1);
+  for (size_t p = 0; p < map.points.size(); ++p) {
+    if (remove[p]) continue;
+    new_index[p] = static_cast<int>(kept.points.size());
+    kept.points.push_back(map.points[p]);
+    kept.descriptors.push_back(map.descriptors.row(static_cast<int>(p)));
+  }
+  for (const Observation& o : map.observations) {
+    if (new_index[o.point] >= 0) {
+      kept.observations.push_back({o.keyframe, static_cast<uint32_t>(new_index[o.point]), o.pixel});
+    }
+  }
+  return kept;
+}
+
+void CountObservations(Map* map) {
+  for (MapPoint& p : map->points) p.observation_count = 0;
+  for (const Observation& o : map->observations) ++map->points[o.point].observation_count;
+}
+
 }  // namespace visloc

@@ -97,4 +97,11 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems = 2
 // True when the two maps hold the same content, bit for bit.
 bool MapsEqual(const Map& a, const Map& b);
 
+// Editing a map's points (merge, update, adjustment). The kernel and appearance index are
+// copied as they are: learn them again when the keyframes' views changed.
+// `map` without the points flagged in `remove` (one flag per point); observations re-indexed.
+Map WithoutPoints(const Map& map, const std::vector<bool>& remove);
+// Sets every point's observation_count from the observations.
+void CountObservations(Map* map);
+
 }  // namespace visloc
