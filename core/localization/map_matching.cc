@@ -8,13 +8,13 @@
 
 namespace visloc {
 
-std::vector<ProjectedPoint> ProjectPoints(const Map& map, const Camera& camera,
+std::vector<ProjectedPoint> ProjectPoints(const PointView& map_points, const Camera& camera,
                                           const Rigid3d& cam_from_map,
                                           const std::vector<uint32_t>& points) {
   std::vector<ProjectedPoint> projected;
   projected.reserve(points.size());
   for (uint32_t point : points) {
-    const Eigen::Vector3d in_cam = cam_from_map * map.points[point].position_in_map;
+    const Eigen::Vector3d in_cam = cam_from_map * map_points.position(point);
     ProjectedPoint p{point, Eigen::Vector2d::Zero()};
     if (in_cam.z() > 0.05 && camera.Project(in_cam, &p.pixel) && camera.IsInImage(p.pixel)) {
       projected.push_back(p);
@@ -23,12 +23,15 @@ std::vector<ProjectedPoint> ProjectPoints(const Map& map, const Camera& camera,
   return projected;
 }
 
-std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<ProjectedPoint>& projected,
+std::vector<PointMatch> MatchProjected(const PointView& map_points,
+                                       const std::vector<ProjectedPoint>& projected,
                                        const QueryFrame& frame, double radius_px,
                                        const DescriptorMatchOptions& options) {
   std::vector<GuidedQuery> queries(projected.size());
   for (size_t q = 0; q < projected.size(); ++q) {
-    queries[q] = {&map.descriptors, static_cast<int>(projected[q].point), projected[q].pixel};
+    int row = 0;
+    const cv::Mat& descriptors = map_points.descriptors(projected[q].point, &row);
+    queries[q] = {&descriptors, row, projected[q].pixel};
   }
   std::vector<PointMatch> matches;
   for (const GuidedMatch& m :
@@ -38,17 +41,46 @@ std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<Project
   return matches;
 }
 
-std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint32_t>& points,
+namespace {
+
+// The points' descriptors as one matrix and each point's row in it: the map's own matrix for a
+// resident map, the points' rows gathered from their chunks for a paged one.
+const cv::Mat& DescriptorRows(const PointView& map_points, const std::vector<uint32_t>& points,
+                              cv::Mat* gathered, std::vector<uint32_t>* rows) {
+  if (const cv::Mat* all = map_points.all_descriptors()) {
+    *rows = points;
+    return *all;
+  }
+  rows->resize(points.size());
+  for (size_t j = 0; j < points.size(); ++j) {
+    int row = 0;
+    const cv::Mat& source = map_points.descriptors(points[j], &row);
+    if (gathered->empty()) gathered->create(static_cast<int>(points.size()), source.cols, source.type());
+    source.row(row).copyTo(gathered->row(static_cast<int>(j)));
+    (*rows)[j] = static_cast<uint32_t>(j);
+  }
+  return *gathered;
+}
+
+}  // namespace
+
+std::vector<PointMatch> MatchByDescriptor(const PointView& map_points,
+                                          const std::vector<uint32_t>& points,
                                           const QueryFrame& frame,
                                           const DescriptorMatchOptions& options) {
   const cv::Mat& frame_descriptors = frame.features().descriptors;
-  const float max_distance = options.MaxDistance(map.features.descriptor_type);
+  if (points.empty()) return {};
+  cv::Mat gathered;
+  std::vector<uint32_t> rows;
+  const cv::Mat& descriptors = DescriptorRows(map_points, points, &gathered, &rows);
+  const float max_distance =
+      options.MaxDistance(descriptors.type() == CV_32F ? DescriptorType::kFloat32 : DescriptorType::kBinary);
   // Keypoint -> nearest point with the ratio test, then one keypoint per point.
   std::vector<PointMatch> per_point(points.size(), {0u, -1, std::numeric_limits<float>::max()});
   // 16-float descriptors (harris_surf16) go eight points at a time through their columns.
   std::optional<Float16Columns> columns;
-  if (map.descriptors.type() == CV_32F && map.descriptors.cols == 16) {
-    columns.emplace(map.descriptors, points);
+  if (descriptors.type() == CV_32F && descriptors.cols == 16) {
+    columns.emplace(descriptors, rows);
     VISLOC_CHECK(
         frame.size() == 0 || (frame_descriptors.type() == CV_32F && frame_descriptors.cols == 16),
         "the frame's descriptors are not the map's (16 floats)");
@@ -60,7 +92,7 @@ std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint
     } else {
       for (size_t j = 0; j < points.size(); ++j) {
         distances[j] =
-            DescriptorDistance(frame_descriptors, i, map.descriptors, static_cast<int>(points[j]));
+            DescriptorDistance(frame_descriptors, i, descriptors, static_cast<int>(rows[j]));
       }
     }
     NearestTwo nearest;

@@ -16,7 +16,7 @@
 #include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 #include "core/localization/query_frame.h"
-#include "core/map/map.h"
+#include "core/map/localization_map.h"
 
 namespace visloc {
 
@@ -31,20 +31,22 @@ struct PointMatch {
   float distance = 0.0f;
 };
 
-// The points (ids into map.points) that lie in front of the camera at `cam_from_map` and
-// project inside its image.
-std::vector<ProjectedPoint> ProjectPoints(const Map& map, const Camera& camera,
+// The points (ids into the map's points, all in `map_points`) that lie in front of the camera at
+// `cam_from_map` and project inside its image.
+std::vector<ProjectedPoint> ProjectPoints(const PointView& map_points, const Camera& camera,
                                           const Rigid3d& cam_from_map,
                                           const std::vector<uint32_t>& points);
 
 // Guided matching (MatchGuided) of projected points to the frame's keypoints within
 // `radius_px` of their projections.
-std::vector<PointMatch> MatchProjected(const Map& map, const std::vector<ProjectedPoint>& projected,
+std::vector<PointMatch> MatchProjected(const PointView& map_points,
+                                       const std::vector<ProjectedPoint>& projected,
                                        const QueryFrame& frame, double radius_px,
                                        const DescriptorMatchOptions& options);
 
 // Unguided matching of all the frame's keypoints against `points` by descriptor alone.
-std::vector<PointMatch> MatchByDescriptor(const Map& map, const std::vector<uint32_t>& points,
+std::vector<PointMatch> MatchByDescriptor(const PointView& map_points,
+                                          const std::vector<uint32_t>& points,
                                           const QueryFrame& frame,
                                           const DescriptorMatchOptions& options);
 

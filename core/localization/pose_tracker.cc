@@ -44,6 +44,9 @@ PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camer
   VISLOC_CHECK(map_ != nullptr, "no map");
   options_.Check();
   options_.ransac.refine.focal_px = camera_.fx();
+  VISLOC_CHECK(!map_->paged() || options_.prediction == PredictionMode::kVisibility,
+               "a paged map predicts with its visibility kernel only (the ",
+               PredictionModeName(options_.prediction), " baseline needs the whole map resident)");
   if (options_.prediction == PredictionMode::kVisibility) {
     predictor_ = std::make_unique<VisibilityPredictor>(*map_, options_.visibility);
   }
@@ -54,10 +57,11 @@ PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camer
 }
 
 std::vector<PoseObservation> PoseTracker::Observations(
-    const QueryFrame& frame, const std::vector<PointMatch>& matches) const {
+    const PointView& map_points, const QueryFrame& frame,
+    const std::vector<PointMatch>& matches) const {
   std::vector<PoseObservation> observations(matches.size());
   for (size_t m = 0; m < matches.size(); ++m) {
-    observations[m].point_in_world = map_->map().points[matches[m].point].position_in_map;
+    observations[m].point_in_world = map_points.position(matches[m].point);
     observations[m].normalized = frame.normalized(matches[m].feature);
     observations[m].pixel_scale = frame.pixel_scale(matches[m].feature);
   }
@@ -79,18 +83,19 @@ std::vector<uint32_t> PoseTracker::PredictPoints(const Rigid3d& cam_from_map, Po
   return points;
 }
 
-void PoseTracker::RefineAround(const QueryFrame& frame, const std::vector<uint32_t>& points,
-                               const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const {
+void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& frame,
+                               const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,
+                               double radius_px, PoseFix* fix) const {
   Timer timer;
   const std::vector<ProjectedPoint> projected =
-      ProjectPoints(map_->map(), camera_, cam_from_map, points);
+      ProjectPoints(map_points, camera_, cam_from_map, points);
   fix->times.project_ms += timer.ElapsedMs();
   timer.Restart();
   const std::vector<PointMatch> matches =
-      MatchProjected(map_->map(), projected, frame, radius_px, options_.matching);
+      MatchProjected(map_points, projected, frame, radius_px, options_.matching);
   fix->times.match_ms += timer.ElapsedMs();
   timer.Restart();
-  const std::vector<PoseObservation> observations = Observations(frame, matches);
+  const std::vector<PoseObservation> observations = Observations(map_points, frame, matches);
   const PnpResult refined = RefinePoseOnInliers(cam_from_map, observations, options_.ransac);
   fix->times.pose_ms += timer.ElapsedMs();
   fix->putatives = static_cast<int>(matches.size());
@@ -125,14 +130,14 @@ const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(
   return *subset;
 }
 
-PnpResult PoseTracker::SolveFromMatches(const QueryFrame& frame,
+PnpResult PoseTracker::SolveFromMatches(const PointView& map_points, const QueryFrame& frame,
                                         const std::vector<PointMatch>& matches,
                                         PoseFix* fix) const {
   Timer timer;
   // One refinement pass: RefineAround re-matches around this pose and refines twice anyway.
   PnpRansacOptions ransac_options = options_.ransac;
   ransac_options.refinement_passes = 1;
-  const PnpResult ransac = SolvePnpRansac(Observations(frame, matches), ransac_options);
+  const PnpResult ransac = SolvePnpRansac(Observations(map_points, frame, matches), ransac_options);
   fix->times.pose_ms += timer.ElapsedMs();
   fix->ransac_iterations += ransac.stats.iterations;
   fix->putatives = static_cast<int>(matches.size());
@@ -145,34 +150,41 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
   PnpResult ransac;
   Timer timer;
   if (options_.prediction == PredictionMode::kBruteForce) {
+    const PointView all = map_->AllPoints();
     const std::vector<PointMatch> matches =
-        MatchByDescriptor(map_->map(), all_points_, frame, options_.matching);
+        MatchByDescriptor(all, all_points_, frame, options_.matching);
     fix.times.match_ms += timer.ElapsedMs();
-    ransac = SolveFromMatches(frame, matches, &fix);
+    ransac = SolveFromMatches(all, frame, matches, &fix);
     if (!ransac.success) return fix;
     points = PredictPoints(ransac.cam_from_world, &fix);
-  } else {
-    points = PredictPoints(prior_cam_from_map, &fix);
-    timer.Restart();
-    const std::vector<ProjectedPoint> projected =
-        ProjectPoints(map_->map(), camera_, prior_cam_from_map, points);
-    std::vector<ProjectedPoint> subset;
-    const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, &subset);
-    fix.times.project_ms += timer.ElapsedMs();
-    timer.Restart();
-    std::vector<PointMatch> matches = MatchProjected(map_->map(), coarse, frame, options_.search_radius_px, options_.matching);
-    fix.times.match_ms += timer.ElapsedMs();
-    ransac = SolveFromMatches(frame, matches, &fix);
-    if (!ransac.success && coarse.size() < projected.size()) {
-      timer.Restart();
-      matches = MatchProjected(map_->map(), projected, frame, options_.search_radius_px,
-                               options_.matching);
-      fix.times.match_ms += timer.ElapsedMs();
-      ransac = SolveFromMatches(frame, matches, &fix);
-    }
-    if (!ransac.success) return fix;
+    RefineAround(all, frame, points, ransac.cam_from_world, options_.refine_radius_px, &fix);
+    return fix;
   }
-  RefineAround(frame, points, ransac.cam_from_world, options_.refine_radius_px, &fix);
+  points = PredictPoints(prior_cam_from_map, &fix);
+  timer.Restart();
+  // A paged map loads the chunks these points lie in, if they are not cached (predict time).
+  const PointView map_points = map_->Points(points);
+  fix.times.predict_ms += timer.ElapsedMs();
+  timer.Restart();
+  const std::vector<ProjectedPoint> projected =
+      ProjectPoints(map_points, camera_, prior_cam_from_map, points);
+  std::vector<ProjectedPoint> subset;
+  const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, &subset);
+  fix.times.project_ms += timer.ElapsedMs();
+  timer.Restart();
+  std::vector<PointMatch> matches =
+      MatchProjected(map_points, coarse, frame, options_.search_radius_px, options_.matching);
+  fix.times.match_ms += timer.ElapsedMs();
+  ransac = SolveFromMatches(map_points, frame, matches, &fix);
+  if (!ransac.success && coarse.size() < projected.size()) {
+    timer.Restart();
+    matches = MatchProjected(map_points, projected, frame, options_.search_radius_px,
+                             options_.matching);
+    fix.times.match_ms += timer.ElapsedMs();
+    ransac = SolveFromMatches(map_points, frame, matches, &fix);
+  }
+  if (!ransac.success) return fix;
+  RefineAround(map_points, frame, points, ransac.cam_from_world, options_.refine_radius_px, &fix);
   return fix;
 }
 
@@ -180,9 +192,10 @@ PoseFix PoseTracker::Polish(const QueryFrame& frame, const Rigid3d& cam_from_map
                             double radius_px) const {
   PoseFix fix;
   const std::vector<uint32_t> points = PredictPoints(cam_from_map, &fix);
-  RefineAround(frame, points, cam_from_map, radius_px, &fix);
+  const PointView map_points = map_->Points(points);
+  RefineAround(map_points, frame, points, cam_from_map, radius_px, &fix);
   if (fix.success) {
-    RefineAround(frame, points, fix.cam_from_map, options_.refine_radius_px, &fix);
+    RefineAround(map_points, frame, points, fix.cam_from_map, options_.refine_radius_px, &fix);
   }
   return fix;
 }

@@ -78,8 +78,9 @@ class PoseTracker {
   const PoseTrackerOptions& options() const { return options_; }
   const Camera& camera() const { return camera_; }
   const LocalizationMap& map() const { return *map_; }
-  // Undistorted normalized observations of matched points, for the pose solvers.
-  std::vector<PoseObservation> Observations(const QueryFrame& frame,
+  // Undistorted normalized observations of matched points (all in `map_points`), for the pose
+  // solvers.
+  std::vector<PoseObservation> Observations(const PointView& map_points, const QueryFrame& frame,
                                             const std::vector<PointMatch>& matches) const;
 
  private:
@@ -89,11 +90,12 @@ class PoseTracker {
   const std::vector<ProjectedPoint>& CoarseSubset(const std::vector<ProjectedPoint>& projected,
                                                   std::vector<ProjectedPoint>* subset) const;
   // RANSAC on the matches' observations (one refinement pass), timed into `fix`.
-  PnpResult SolveFromMatches(const QueryFrame& frame, const std::vector<PointMatch>& matches,
-                             PoseFix* fix) const;
+  PnpResult SolveFromMatches(const PointView& map_points, const QueryFrame& frame,
+                             const std::vector<PointMatch>& matches, PoseFix* fix) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
-  void RefineAround(const QueryFrame& frame, const std::vector<uint32_t>& points,
-                    const Rigid3d& cam_from_map, double radius_px, PoseFix* fix) const;
+  void RefineAround(const PointView& map_points, const QueryFrame& frame,
+                    const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,
+                    double radius_px, PoseFix* fix) const;
 
   std::shared_ptr<const LocalizationMap> map_;
   Camera camera_;

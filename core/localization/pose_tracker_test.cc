@@ -86,14 +86,14 @@ TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
   const QueryFrame frame(view.features, map->map().camera);
   std::vector<uint32_t> all(map->point_count());
   for (uint32_t j = 0; j < all.size(); ++j) all[j] = j;
-  const auto projected = ProjectPoints(map->map(), map->map().camera, truth, all);
-  const auto matches = MatchProjected(map->map(), projected, frame, 15.0, DescriptorMatchOptions{});
+  const auto projected = ProjectPoints(map->AllPoints(), map->map().camera, truth, all);
+  const auto matches = MatchProjected(map->AllPoints(), projected, frame, 15.0, DescriptorMatchOptions{});
   ASSERT_GT(matches.size(), 150u);
   int correct = 0;
   for (const PointMatch& m : matches)
     correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);
   EXPECT_GE(correct, static_cast<int>(0.99 * matches.size()));
-  const auto unguided = MatchByDescriptor(map->map(), all, frame, DescriptorMatchOptions{});
+  const auto unguided = MatchByDescriptor(map->AllPoints(), all, frame, DescriptorMatchOptions{});
   int unguided_correct = 0;
   for (const PointMatch& m : unguided) {
     unguided_correct += view.point_of_feature[m.feature] == static_cast<int>(m.point);

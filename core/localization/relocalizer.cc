@@ -30,15 +30,16 @@ void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candi
   const LocalizationMap& map = tracker_.map();
   const auto visible = map.VisiblePoints(candidate->keyframe);
   const std::vector<uint32_t> points(visible.begin(), visible.end());
+  const PointView map_points = map.Points(points);
   const std::vector<PointMatch> matches =
-      MatchByDescriptor(map.map(), points, frame, options_.matching);
+      MatchByDescriptor(map_points, points, frame, options_.matching);
   candidate->matches = static_cast<int>(matches.size());
   if (candidate->matches < options_.min_matches) return;
   PnpRansacOptions ransac = tracker_.options().ransac;
   ransac.min_inliers = options_.min_ransac_inliers;
   ransac.max_iterations = options_.ransac_iterations;
   ransac.seed = static_cast<uint64_t>(candidate->keyframe) + 1;
-  const PnpResult pnp = SolvePnpRansac(tracker_.Observations(frame, matches), ransac);
+  const PnpResult pnp = SolvePnpRansac(tracker_.Observations(map_points, frame, matches), ransac);
   candidate->ransac_inliers = pnp.stats.inliers;
   if (!pnp.success) return;
   *fix = tracker_.Polish(frame, pnp.cam_from_world, options_.verify_radius_px);

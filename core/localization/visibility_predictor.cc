@@ -80,10 +80,10 @@ std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
                                               const Rigid3d& map_from_cam) {
   const Rigid3d cam_from_map = map_from_cam.Inverse();
   std::vector<uint32_t> visible;
-  const auto& points = map.map().points;
-  for (size_t j = 0; j < points.size(); ++j) {
+  const PointView points = map.AllPoints();
+  for (uint32_t j = 0; j < map.point_count(); ++j) {
     Eigen::Vector2d pixel;
-    if (camera.Project(cam_from_map * points[j].position_in_map, &pixel) &&
+    if (camera.Project(cam_from_map * points.position(j), &pixel) &&
         camera.IsInImage(pixel)) {
       visible.push_back(static_cast<uint32_t>(j));
     }

@@ -6,6 +6,30 @@
 
 namespace visloc {
 
+namespace {
+
+// Page keys: point chunks and visibility lists share one cache.
+constexpr uint64_t kVisibilityPage = uint64_t{1} << 40;
+
+}  // namespace
+
+const PointView::Block& PointView::Find(uint32_t id) const {
+  const size_t b = id / block_points_;
+  VISLOC_CHECK(b < blocks_.size() && blocks_[b].points != nullptr, "point ", id,
+               " is not in this view");
+  return blocks_[b];
+}
+
+LocalizationMap::LocalizationMap(Map skeleton, std::shared_ptr<const MapPageSource> source,
+                                 size_t cache_bytes)
+    : LocalizationMap(std::move(skeleton)) {
+  VISLOC_CHECK(source != nullptr && source->chunk_points() > 0, "a paged map needs its pages");
+  VISLOC_CHECK(map_.points.empty() && map_.observations.empty(),
+               "a paged map's skeleton holds no points");
+  source_ = std::move(source);
+  pages_ = std::make_unique<PageCache>(cache_bytes);
+}
+
 LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
   const auto problems = FindMapProblems(map_, 1);
   VISLOC_CHECK(problems.empty(), "inconsistent map: ", problems.empty() ? "" : problems[0]);
@@ -48,8 +72,55 @@ std::vector<float> LocalizationMap::ScoreKeyframes(const BowVector& query) const
 
 LocalizationMap::PointRange LocalizationMap::VisiblePoints(size_t keyframe) const {
   VISLOC_CHECK(keyframe < keyframe_count(), "keyframe ", keyframe, " of ", keyframe_count());
-  const uint32_t* base = visible_points_.data();
-  return {base + visible_offsets_[keyframe], base + visible_offsets_[keyframe + 1]};
+  if (!source_) {
+    const uint32_t* base = visible_points_.data();
+    return {base + visible_offsets_[keyframe], base + visible_offsets_[keyframe + 1], nullptr};
+  }
+  auto list = std::static_pointer_cast<const std::vector<uint32_t>>(
+      pages_->Get(kVisibilityPage + keyframe, [&](size_t* bytes) {
+        auto loaded = std::make_shared<const std::vector<uint32_t>>(
+            source_->LoadVisiblePoints(static_cast<uint32_t>(keyframe)));
+        *bytes = sizeof(*loaded) + loaded->size() * sizeof(uint32_t);
+        return std::shared_ptr<const void>(loaded);
+      }));
+  return {list->data(), list->data() + list->size(), list};
+}
+
+PointView LocalizationMap::AllPoints() const {
+  VISLOC_CHECK(!source_, "a paged map does not hold all its points at once: the transparent and "
+                         "brute-force baselines need a resident map");
+  PointView view;
+  view.blocks_ = {{map_.points.data(), &map_.descriptors, 0}};
+  view.all_descriptors_ = &map_.descriptors;
+  return view;
+}
+
+PointView LocalizationMap::Points(const std::vector<uint32_t>& ids) const {
+  if (!source_) return AllPoints();
+  PointView view;
+  const uint32_t per_chunk = source_->chunk_points();
+  view.block_points_ = per_chunk;
+  view.blocks_.resize((source_->point_count() + per_chunk - 1) / per_chunk);
+  for (uint32_t id : ids) {
+    const uint32_t c = id / per_chunk;
+    VISLOC_CHECK(c < view.blocks_.size(), "point ", id, " of ", source_->point_count());
+    if (view.blocks_[c].points != nullptr) continue;
+    auto chunk = std::static_pointer_cast<const PointChunk>(pages_->Get(c, [&](size_t* bytes) {
+      auto loaded = std::make_shared<const PointChunk>(source_->LoadPointChunk(c));
+      *bytes = loaded->Bytes();
+      return std::shared_ptr<const void>(loaded);
+    }));
+    view.blocks_[c] = {chunk->points.data(), &chunk->descriptors, chunk->first};
+    view.pins_.push_back(std::move(chunk));
+  }
+  return view;
+}
+
+PageCacheStats LocalizationMap::page_stats() const { return pages_ ? pages_->stats() : PageCacheStats{}; }
+
+size_t LocalizationMap::MemoryBytes() const {
+  const size_t resident = MemoryBytesFor(map_);
+  return source_ ? resident + page_stats().budget_bytes : resident;
 }
 
 size_t LocalizationMap::MemoryBytesFor(const Map& map) {
