@@ -8,8 +8,10 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 
 #include "core/map/localization_map.h"
+#include "core/map/map_pages.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "mapstore/checksum.h"
@@ -109,6 +111,7 @@ constexpr const char* kFormatName = "visloc-map";
 // write and load, so writer and reader cannot disagree about what is covered.
 class Crc {
  public:
+  explicit Crc(uint32_t seed = 0) : crc_(seed) {}
   void Add(const void* data, size_t bytes) {
     crc_ = Crc32(std::string_view(static_cast<const char*>(data), bytes), crc_);
   }
@@ -139,8 +142,10 @@ const char* CameraModelName(LensModel model) {
 
 namespace {
 
-uint32_t ContentChecksum(const Map& map) {
-  Crc crc;
+// The checksum covers, in order: the head (metadata, camera, features, keyframes), the points,
+// their descriptors, the observations, and the tail (kernel, vocabulary, appearance). The bulk
+// in the middle is added from memory here, or streamed from the file by OpenPagedMap.
+void ChecksumHead(const Map& map, Crc& crc) {
   crc.Text(map.metadata.name);
   crc.Pod(map.metadata.created_unix_s);
   crc.Text(map.metadata.source_dataset);
@@ -166,17 +171,21 @@ uint32_t ContentChecksum(const Map& map) {
     crc.Add(k.map_from_cam.translation.data(), 3 * sizeof(double));
     crc.Add(k.map_from_cam.rotation.coeffs().data(), 4 * sizeof(double));
   }
-  for (const MapPoint& p : map.points) {
-    crc.Add(p.position_in_map.data(), 3 * sizeof(double));
-    crc.Pod(p.observation_count);
-    crc.Pod(p.mean_reproj_error_px);
-  }
-  crc.Mat(map.descriptors);
-  for (const Observation& o : map.observations) {
-    crc.Pod(o.keyframe);
-    crc.Pod(o.point);
-    crc.Add(o.pixel.data(), 2 * sizeof(float));
-  }
+}
+
+void ChecksumPoint(const MapPoint& p, Crc& crc) {
+  crc.Add(p.position_in_map.data(), 3 * sizeof(double));
+  crc.Pod(p.observation_count);
+  crc.Pod(p.mean_reproj_error_px);
+}
+
+void ChecksumObservation(const Observation& o, Crc& crc) {
+  crc.Pod(o.keyframe);
+  crc.Pod(o.point);
+  crc.Add(o.pixel.data(), 2 * sizeof(float));
+}
+
+void ChecksumTail(const Map& map, Crc& crc) {
   for (const std::string& cue : map.kernel.cues) crc.Text(cue);
   crc.Add(map.kernel.metric.data(), map.kernel.metric.size() * sizeof(double));
   crc.Pod(map.kernel.default_k);
@@ -193,6 +202,15 @@ uint32_t ContentChecksum(const Map& map) {
       crc.Pod(weight);
     }
   }
+}
+
+uint32_t ContentChecksum(const Map& map) {
+  Crc crc;
+  ChecksumHead(map, crc);
+  for (const MapPoint& p : map.points) ChecksumPoint(p, crc);
+  crc.Mat(map.descriptors);
+  for (const Observation& o : map.observations) ChecksumObservation(o, crc);
+  ChecksumTail(map, crc);
   return crc.value();
 }
 
@@ -491,74 +509,105 @@ void CheckCountFitsTheFile(const Database& db, const char* what, int64_t count,
   }
 }
 
-void ReadPoints(Database& db, Map* map) {
+// The total point count, checked against the file's size.
+int64_t PointCount(Database& db, const FeatureSettings& features) {
   Statement count = db.Prepare("SELECT COALESCE(SUM(point_count), 0) FROM point_chunks");
   count.Step();
   const int64_t total = count.ColumnInt64(0);
   if (total < 0 || total > (int64_t{1} << 31))
     throw InputError(StrCat(db.path(), ": point count ", total));
-  const size_t descriptor_bytes = DescriptorBytes(map->features);
   // A point's position (24 bytes) and quality (8) and descriptor are stored in its chunk.
-  CheckCountFitsTheFile(db, "point", total, 32 + descriptor_bytes);
+  CheckCountFitsTheFile(db, "point", total, 32 + DescriptorBytes(features));
+  return total;
+}
+
+constexpr const char* kPointChunkColumns =
+    "SELECT id, first_point, point_count, positions, quality, descriptors FROM point_chunks";
+
+// One row of kPointChunkColumns: points [first, first + n) of `total`; `next` is where the
+// previous chunk ended (chunks are contiguous), or -1 when the row was looked up by id.
+PointChunk ParsePointChunk(Statement& row, const FeatureSettings& features, int64_t total,
+                           int64_t next, const std::string& path) {
+  const int64_t chunk = row.ColumnInt64(0), first = row.ColumnInt64(1), n = row.ColumnInt64(2);
+  if ((next >= 0 && first != next) || first < 0 || n <= 0 || first + n > total) {
+    throw InputError(StrCat(path, ": point chunk ", chunk, " covers points ", first, "+", n,
+                            ", expected to start at ", next, " (of ", total, ")"));
+  }
+  const size_t descriptor_bytes = DescriptorBytes(features);
+  const std::string what = StrCat("point chunk ", chunk);
+  BlobReader positions(row.ColumnBlob(3), n * 24, what + " positions", path);
+  BlobReader quality(row.ColumnBlob(4), n * 8, what + " quality", path);
+  BlobReader descriptors(row.ColumnBlob(5), n * descriptor_bytes, what + " descriptors", path);
+  PointChunk out;
+  out.first = static_cast<uint32_t>(first);
+  out.points.resize(n);
+  for (MapPoint& point : out.points) {
+    point.position_in_map.x() = positions.Next<double>();
+    point.position_in_map.y() = positions.Next<double>();
+    point.position_in_map.z() = positions.Next<double>();
+    point.observation_count = quality.Next<uint32_t>();
+    point.mean_reproj_error_px = quality.Next<float>();
+  }
+  out.descriptors = cv::Mat(static_cast<int>(n), features.descriptor_dim, features.cv_type());
+  std::memcpy(out.descriptors.data, descriptors.data(), n * descriptor_bytes);
+  return out;
+}
+
+void ReadPoints(Database& db, Map* map) {
+  const int64_t total = PointCount(db, map->features);
   map->points.resize(total);
   map->descriptors =
       cv::Mat(static_cast<int>(total), map->features.descriptor_dim, map->features.cv_type());
-  Statement query = db.Prepare(
-      "SELECT id, first_point, point_count, positions, quality, descriptors FROM point_chunks "
-      "ORDER BY id");
+  Statement query = db.Prepare(StrCat(kPointChunkColumns, " ORDER BY id"));
   int64_t next = 0;
   while (query.Step()) {
-    const int64_t chunk = query.ColumnInt64(0), first = query.ColumnInt64(1),
-                  n = query.ColumnInt64(2);
-    if (first != next || n <= 0 || first + n > total) {
-      throw InputError(StrCat(db.path(), ": point chunk ", chunk, " covers points ", first, "+", n,
-                              ", expected to start at ", next));
-    }
-    const std::string what = StrCat("point chunk ", chunk);
-    BlobReader positions(query.ColumnBlob(3), n * 24, what + " positions", db.path());
-    BlobReader quality(query.ColumnBlob(4), n * 8, what + " quality", db.path());
-    BlobReader descriptors(query.ColumnBlob(5), n * descriptor_bytes, what + " descriptors",
-                           db.path());
-    for (int64_t j = first; j < first + n; ++j) {
-      MapPoint& point = map->points[j];
-      point.position_in_map.x() = positions.Next<double>();
-      point.position_in_map.y() = positions.Next<double>();
-      point.position_in_map.z() = positions.Next<double>();
-      point.observation_count = quality.Next<uint32_t>();
-      point.mean_reproj_error_px = quality.Next<float>();
-    }
-    std::memcpy(map->descriptors.ptr(static_cast<int>(first)), descriptors.data(),
-                n * descriptor_bytes);
-    next = first + n;
+    const PointChunk chunk = ParsePointChunk(query, map->features, total, next, db.path());
+    std::copy(chunk.points.begin(), chunk.points.end(), map->points.begin() + chunk.first);
+    chunk.descriptors.copyTo(map->descriptors.rowRange(
+        static_cast<int>(chunk.first), static_cast<int>(chunk.first + chunk.points.size())));
+    next = chunk.first + chunk.points.size();
   }
 }
 
-void ReadObservations(Database& db, Map* map) {
+constexpr const char* kObservationColumns =
+    "SELECT keyframe_id, observation_count, points, pixels FROM keyframe_observations";
+
+// One row of kObservationColumns: the observations of one keyframe, in the stored order.
+std::vector<Observation> ParseObservations(Statement& row, size_t keyframe_count,
+                                           const std::string& path) {
+  const int64_t keyframe = row.ColumnInt64(0), n = row.ColumnInt64(1);
+  if (keyframe < 0 || keyframe >= static_cast<int64_t>(keyframe_count) || n < 0 ||
+      n > (int64_t{1} << 28)) {
+    throw InputError(StrCat(path, ": observations of keyframe ", keyframe, " (", n,
+                            ") do not match the ", keyframe_count, " keyframes"));
+  }
+  const std::string what = StrCat("observations of keyframe ", keyframe);
+  BlobReader points(row.ColumnBlob(2), n * 4, what, path);
+  BlobReader pixels(row.ColumnBlob(3), n * 8, what + " pixels", path);
+  std::vector<Observation> out(n);
+  for (Observation& o : out) {
+    o.keyframe = static_cast<uint32_t>(keyframe);
+    o.point = points.Next<uint32_t>();
+    o.pixel.x() = pixels.Next<float>();
+    o.pixel.y() = pixels.Next<float>();
+  }
+  return out;
+}
+
+int64_t ObservationCount(Database& db) {
   Statement total =
       db.Prepare("SELECT COALESCE(SUM(observation_count), 0) FROM keyframe_observations");
   total.Step();
   // An observation stores a point id (4 bytes) and a pixel (8).
   CheckCountFitsTheFile(db, "observation", total.ColumnInt64(0), 12);
-  map->observations.reserve(static_cast<size_t>(total.ColumnInt64(0)));
-  Statement query = db.Prepare(
-      "SELECT keyframe_id, observation_count, points, pixels FROM keyframe_observations ORDER BY "
-      "keyframe_id");
+  return total.ColumnInt64(0);
+}
+
+void ReadObservations(Database& db, Map* map) {
+  map->observations.reserve(static_cast<size_t>(ObservationCount(db)));
+  Statement query = db.Prepare(StrCat(kObservationColumns, " ORDER BY keyframe_id"));
   while (query.Step()) {
-    const int64_t keyframe = query.ColumnInt64(0), n = query.ColumnInt64(1);
-    if (keyframe < 0 || keyframe >= static_cast<int64_t>(map->keyframes.size()) || n < 0 ||
-        n > (int64_t{1} << 28)) {
-      throw InputError(StrCat(db.path(), ": observations of keyframe ", keyframe, " (", n,
-                              ") do not match the ", map->keyframes.size(), " keyframes"));
-    }
-    const std::string what = StrCat("observations of keyframe ", keyframe);
-    BlobReader points(query.ColumnBlob(2), n * 4, what, db.path());
-    BlobReader pixels(query.ColumnBlob(3), n * 8, what + " pixels", db.path());
-    for (int64_t i = 0; i < n; ++i) {
-      Observation o;
-      o.keyframe = static_cast<uint32_t>(keyframe);
-      o.point = points.Next<uint32_t>();
-      o.pixel.x() = pixels.Next<float>();
-      o.pixel.y() = pixels.Next<float>();
+    for (const Observation& o : ParseObservations(query, map->keyframes.size(), db.path())) {
       map->observations.push_back(o);
     }
   }
@@ -694,6 +743,160 @@ Map LoadMap(const std::string& path) {
         StrCat(path, ": content checksum mismatch: the file is corrupt or was modified"));
   }
   return map;
+}
+
+namespace {
+
+// Pages of one map file, read under a lock through the connection OpenPagedMap verified with.
+class FilePageSource final : public MapPageSource {
+ public:
+  FilePageSource(Database db, const Map& skeleton, uint32_t points, uint32_t chunk_points,
+                 size_t bulk_bytes)
+      : db_(std::move(db)),
+        features_(skeleton.features),
+        keyframes_(skeleton.keyframes.size()),
+        points_(points),
+        chunk_points_(chunk_points),
+        bulk_bytes_(bulk_bytes) {}
+
+  uint32_t point_count() const override { return points_; }
+  uint32_t chunk_points() const override { return chunk_points_; }
+  size_t BulkBytes() const override { return bulk_bytes_; }
+
+  PointChunk LoadPointChunk(uint32_t chunk) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Statement query = db_.Prepare(StrCat(kPointChunkColumns, " WHERE id = ?"));
+    query.Bind(1, static_cast<int64_t>(chunk));
+    if (!query.Step()) throw InputError(StrCat(db_.path(), ": no point chunk ", chunk));
+    PointChunk out = ParsePointChunk(query, features_, points_, -1, db_.path());
+    if (out.first != static_cast<uint64_t>(chunk) * chunk_points_) {
+      throw InputError(StrCat(db_.path(), ": point chunk ", chunk, " starts at ", out.first));
+    }
+    return out;
+  }
+
+  std::vector<uint32_t> LoadVisiblePoints(uint32_t keyframe) const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Statement query = db_.Prepare(StrCat(kObservationColumns, " WHERE keyframe_id = ?"));
+    query.Bind(1, static_cast<int64_t>(keyframe));
+    std::vector<uint32_t> ids;
+    if (!query.Step()) return ids;  // A keyframe that sees nothing.
+    for (const Observation& o : ParseObservations(query, keyframes_, db_.path())) ids.push_back(o.point);
+    return ids;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  mutable Database db_;
+  FeatureSettings features_;
+  size_t keyframes_;
+  uint32_t points_;
+  uint32_t chunk_points_;
+  size_t bulk_bytes_;
+};
+
+bool FinitePoint(const MapPoint& p) {
+  return p.position_in_map.allFinite() && std::isfinite(p.mean_reproj_error_px);
+}
+
+// Streams the points into the checksum (and their descriptors into a second one, combined
+// after: the checksum covers all points before all descriptors). Returns each point's stored
+// observation count; sets the chunk size, which every chunk but the last must fill.
+std::vector<uint32_t> VerifyPoints(Database& db, const Map& skeleton, int64_t total, Crc& crc,
+                                   uint32_t* chunk_points) {
+  std::vector<uint32_t> counts(total);
+  Crc descriptors;
+  descriptors.Pod(static_cast<int>(total));
+  descriptors.Pod(skeleton.features.descriptor_dim);
+  size_t descriptor_bytes = 2 * sizeof(int);
+  Statement query = db.Prepare(StrCat(kPointChunkColumns, " ORDER BY id"));
+  int64_t next = 0;
+  *chunk_points = 0;
+  while (query.Step()) {
+    const PointChunk chunk = ParsePointChunk(query, skeleton.features, total, next, db.path());
+    if (*chunk_points == 0) *chunk_points = static_cast<uint32_t>(chunk.points.size());
+    if (chunk.first % *chunk_points != 0 ||
+        (chunk.points.size() != *chunk_points && chunk.first + chunk.points.size() != static_cast<uint64_t>(total))) {
+      throw InputError(StrCat(db.path(), ": point chunk at ", chunk.first, " holds ", chunk.points.size(),
+                              " points; paged serving needs chunks of one size"));
+    }
+    for (size_t i = 0; i < chunk.points.size(); ++i) {
+      const MapPoint& point = chunk.points[i];
+      if (!FinitePoint(point)) throw InputError(StrCat(db.path(), ": point ", chunk.first + i, " is not finite"));
+      ChecksumPoint(point, crc);
+      counts[chunk.first + i] = point.observation_count;
+    }
+    const size_t bytes = chunk.descriptors.total() * chunk.descriptors.elemSize();
+    descriptors.Add(chunk.descriptors.data, bytes);
+    descriptor_bytes += bytes;
+    next = chunk.first + chunk.points.size();
+  }
+  if (next != total) throw InputError(StrCat(db.path(), ": point chunks end at ", next, " of ", total));
+  crc = Crc(static_cast<uint32_t>(
+      crc32_combine(crc.value(), descriptors.value(), static_cast<z_off_t>(descriptor_bytes))));
+  return counts;
+}
+
+// Streams the observations into the checksum, checking each against the points: in range,
+// sorted within its keyframe, finite, and as many per point as the point says.
+void VerifyObservations(Database& db, const Map& skeleton, std::vector<uint32_t> counts, Crc& crc) {
+  Statement query = db.Prepare(StrCat(kObservationColumns, " ORDER BY keyframe_id"));
+  while (query.Step()) {
+    const std::vector<Observation> observations = ParseObservations(query, skeleton.keyframes.size(), db.path());
+    for (size_t i = 0; i < observations.size(); ++i) {
+      const Observation& o = observations[i];
+      const std::string which = StrCat(db.path(), ": observation ", i, " of keyframe ", o.keyframe);
+      if (o.point >= counts.size()) {
+        throw InputError(StrCat(which, " refers to point ", o.point, " but the map has ", counts.size(), " points"));
+      }
+      if (!o.pixel.allFinite() || (i > 0 && observations[i - 1].point >= o.point)) {
+        throw InputError(StrCat(which, " is not finite or not in point order"));
+      }
+      if (counts[o.point] == 0) {
+        throw InputError(StrCat(db.path(), ": point ", o.point, " has more observations than it counts"));
+      }
+      --counts[o.point];
+      ChecksumObservation(o, crc);
+    }
+  }
+  for (size_t p = 0; p < counts.size(); ++p) {
+    if (counts[p] != 0) {
+      throw InputError(StrCat(db.path(), ": point ", p, " has fewer observations than it counts"));
+    }
+  }
+}
+
+}  // namespace
+
+PagedMap OpenPagedMap(const std::string& path) {
+  CheckFileExists(path);
+  Database db = Database::OpenReadOnly(path);
+  PagedMap paged;
+  Map& skeleton = paged.skeleton;
+  const Meta meta = ReadMeta(db, &skeleton);
+  RequireTables(db);
+  ReadCameraAndFeatures(db, &skeleton);
+  ReadKeyframes(db, &skeleton);
+  ReadKernelAndAppearance(db, &skeleton);
+  skeleton.descriptors = cv::Mat(0, skeleton.features.descriptor_dim, skeleton.features.cv_type());
+  const auto problems = FindMapProblems(skeleton, 1);
+  if (!problems.empty()) throw InputError(StrCat(path, ": ", problems[0]));
+  const int64_t total = PointCount(db, skeleton.features);
+  const int64_t observations = ObservationCount(db);
+  Crc crc;
+  ChecksumHead(skeleton, crc);
+  uint32_t chunk_points = 0;
+  VerifyObservations(db, skeleton, VerifyPoints(db, skeleton, total, crc, &chunk_points), crc);
+  ChecksumTail(skeleton, crc);
+  if (crc.value() != meta.content_crc) {
+    throw InputError(
+        StrCat(path, ": content checksum mismatch: the file is corrupt or was modified"));
+  }
+  const size_t bulk_bytes = total * (sizeof(MapPoint) + DescriptorBytes(skeleton.features)) +
+                            observations * sizeof(uint32_t);
+  paged.pages = std::make_shared<FilePageSource>(std::move(db), skeleton, static_cast<uint32_t>(total),
+                                                 std::max<uint32_t>(chunk_points, 1), bulk_bytes);
+  return paged;
 }
 
 int SchemaVersionOf(const Map& map) { return map.metadata.lineage.empty() ? 1 : 2; }

@@ -13,12 +13,14 @@
 // not silently loaded.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
 
 #include "core/map/map.h"
+#include "core/map/map_pages.h"
 
 namespace visloc::mapstore {
 
@@ -48,6 +50,20 @@ void SaveMap(const Map& map, const std::string& path, const SaveMapOptions& opti
 // non-SQLite file, a foreign database, missing tables, a newer schema, malformed rows,
 // dangling references, non-finite values, or a checksum mismatch.
 Map LoadMap(const std::string& path);
+
+// A map opened for paged serving (LocalizationMap's paged constructor): `skeleton` holds
+// everything but the points, descriptors and observations, which `pages` reads on demand from
+// the file as it was when opened (files are replaced by rename, so a replacement does not
+// disturb it; it holds the file open until the last page source is gone).
+struct PagedMap {
+  Map skeleton;
+  std::shared_ptr<const MapPageSource> pages;
+};
+
+// Checks what LoadMap checks (schema, structure, the content checksum) streaming through the
+// points and observations without holding them, so a map larger than memory opens in bounded
+// memory (4 bytes per point for the observation counts). Throws InputError as LoadMap does.
+PagedMap OpenPagedMap(const std::string& path);
 
 struct MapInfo {
   std::string path;
