@@ -27,7 +27,10 @@ static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE floats expected")
 // Schema version 1. Bulk data is packed into BLOBs: points in chunks of kPointsPerChunk rows
 // and observations one row per keyframe, because a row per point or per observation costs
 // ~50 B of SQLite overhead and a B-tree step each, which would make loading a million-point map
-// take seconds; a chunk is one memcpy. BLOBs hold little-endian arrays (meta 'byte_order').
+// take seconds; a chunk is one memcpy. Chunks are also the pages a server reads a map larger
+// than its memory bound in (OpenPagedMap): 1024 points (~100 kB) keep a keyframe region's read
+// small. Readers take any chunk size (files before paging hold 8192). BLOBs hold little-endian
+// arrays (meta 'byte_order').
 constexpr const char* kSchemaSql = R"sql(
 CREATE TABLE meta (
   key TEXT PRIMARY KEY NOT NULL,
@@ -103,7 +106,7 @@ constexpr const char* kTables[] = {"meta",
                                    "visibility_kernel",
                                    "vocabulary",
                                    "keyframe_appearance"};
-constexpr int kPointsPerChunk = 8192;
+constexpr int kPointsPerChunk = 1024;
 constexpr const char* kFormatName = "visloc-map";
 
 // ---- Content checksum -------------------------------------------------------------------

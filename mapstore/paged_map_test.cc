@@ -14,8 +14,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// Three point chunks (8192 points each, the last partial).
-Map ThreeChunkMap(uint64_t seed = 1) {
+// Twenty point chunks (1024 points each, the last partial).
+Map TwentyChunkMap(uint64_t seed = 1) {
   SyntheticMapOptions options;
   options.keyframes = 40;
   options.points = 20000;
@@ -54,14 +54,14 @@ void ExpectSamePoints(const LocalizationMap& resident, const LocalizationMap& pa
 TEST(PagedMapFileTest, ServesWhatLoadMapLoadsWithinItsBudget) {
   TempDir dir;
   const std::string path = dir.File("big.db");
-  SaveMap(ThreeChunkMap(), path);
+  SaveMap(TwentyChunkMap(), path);
   const LocalizationMap resident(LoadMap(path));
   PagedMap opened = OpenPagedMap(path);
   EXPECT_TRUE(opened.skeleton.points.empty());
   EXPECT_EQ(opened.skeleton.keyframes.size(), 40u);
-  EXPECT_EQ(opened.pages->chunk_points(), 8192u);
-  // Room for one chunk and some visibility lists: pages are evicted and read again.
-  const size_t budget = 1200 * 1024;
+  EXPECT_EQ(opened.pages->chunk_points(), 1024u);
+  // Room for a few chunks and visibility lists: pages are evicted and read again.
+  const size_t budget = 600 * 1024;
   const LocalizationMap paged(std::move(opened.skeleton), opened.pages, budget);
   ExpectSamePoints(resident, paged);
   const PageCacheStats stats = paged.page_stats();
@@ -72,11 +72,11 @@ TEST(PagedMapFileTest, ServesWhatLoadMapLoadsWithinItsBudget) {
 TEST(PagedMapFileTest, KeepsServingTheFileItOpenedWhenTheMapIsReplaced) {
   TempDir dir;
   const std::string path = dir.File("big.db");
-  SaveMap(ThreeChunkMap(1), path);
+  SaveMap(TwentyChunkMap(1), path);
   const LocalizationMap before(LoadMap(path));
   PagedMap opened = OpenPagedMap(path);
   const LocalizationMap paged(std::move(opened.skeleton), opened.pages, 64 * 1024);
-  SaveMap(ThreeChunkMap(2), path);  // Replaced by rename, as every save and upload does.
+  SaveMap(TwentyChunkMap(2), path);  // Replaced by rename, as every save and upload does.
   ExpectSamePoints(before, paged);
 }
 
@@ -84,7 +84,7 @@ class BadPagedFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
     path_ = dir_.File("m.db");
-    SaveMap(ThreeChunkMap(), path_);
+    SaveMap(TwentyChunkMap(), path_);
   }
   void Sql(const std::string& sql) {
     Database db = Database::OpenForWriting(path_);
@@ -99,10 +99,10 @@ TEST_F(BadPagedFileTest, AChangedPointOrDescriptorOrObservationFailsTheChecksum)
   // One byte of the second chunk's positions, descriptors, then one observation pixel.
   Sql("UPDATE point_chunks SET positions = substr(positions, 1, 99) || x'7f' || substr(positions, 101) WHERE id = 1");
   EXPECT_EQ(OpenError(path_), mismatch);
-  SaveMap(ThreeChunkMap(), path_);
+  SaveMap(TwentyChunkMap(), path_);
   Sql("UPDATE point_chunks SET descriptors = x'00000000' || substr(descriptors, 5) WHERE id = 2");
   EXPECT_EQ(OpenError(path_), mismatch);
-  SaveMap(ThreeChunkMap(), path_);
+  SaveMap(TwentyChunkMap(), path_);
   Sql("UPDATE keyframe_observations SET pixels = x'0000c842' || substr(pixels, 5) WHERE keyframe_id = 7");
   EXPECT_EQ(OpenError(path_), mismatch);
 }
@@ -120,9 +120,9 @@ TEST_F(BadPagedFileTest, DanglingObservationsAndShortBlobsAreNamed) {
   }
   EXPECT_EQ(OpenError(path_), path_ + ": observation 0 of keyframe 11 refers to point 999999 but "
                                      "the map has 20000 points");
-  SaveMap(ThreeChunkMap(), path_);
+  SaveMap(TwentyChunkMap(), path_);
   Sql("UPDATE point_chunks SET positions = substr(positions, 1, 100) WHERE id = 0");
-  EXPECT_EQ(OpenError(path_), path_ + ": point chunk 0 positions has 100 bytes, expected 196608");
+  EXPECT_EQ(OpenError(path_), path_ + ": point chunk 0 positions has 100 bytes, expected 24576");
   EXPECT_EQ(OpenError(dir_.File("none.db")), dir_.File("none.db") + ": no such map file");
 }
 

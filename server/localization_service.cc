@@ -215,9 +215,10 @@ Status LocalizationService::Localize(
     ~Release() { --*count; }
   } release{&active_sessions_};
   std::unique_ptr<Session> session;
+  std::shared_ptr<const LocalizationMap> map;
   try {
-    session = std::make_unique<Session>(maps_->Acquire(start.map_name()), start, limits_.wire,
-                                        &workers_, before_frame_);
+    map = maps_->Acquire(start.map_name());
+    session = std::make_unique<Session>(map, start, limits_.wire, &workers_, before_frame_);
   } catch (const std::exception& e) {
     Log("session_refused",
         {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
@@ -242,16 +243,27 @@ Status LocalizationService::Localize(
   }
   const SessionTally& t = session->tally();
   const uint64_t answered = t.frames - t.skipped;
-  Log("session_end",
-      {{"session", std::to_string(id)},
-       {"map", start.map_name()},
-       {"frames", std::to_string(t.frames)},
-       {"localized_fraction", FormatFixed(answered ? double(t.localized) / answered : 0.0, 3)},
-       {"skipped", std::to_string(t.skipped)},
-       {"errors", std::to_string(t.errors)},
-       {"mean_ms", FormatFixed(answered ? t.server_ms_sum / answered : 0.0, 2)},
-       {"cancelled", context->IsCancelled() ? "true" : "false"},
-       {"closed_idle", end == SessionEnd::kIdle ? "true" : "false"}});
+  std::vector<std::pair<std::string, std::string>> fields = {
+      {"session", std::to_string(id)},
+      {"map", start.map_name()},
+      {"frames", std::to_string(t.frames)},
+      {"localized_fraction", FormatFixed(answered ? double(t.localized) / answered : 0.0, 3)},
+      {"skipped", std::to_string(t.skipped)},
+      {"errors", std::to_string(t.errors)},
+      {"mean_ms", FormatFixed(answered ? t.server_ms_sum / answered : 0.0, 2)},
+      {"cancelled", context->IsCancelled() ? "true" : "false"},
+      {"closed_idle", end == SessionEnd::kIdle ? "true" : "false"}};
+  if (map->paged()) {
+    // The map's page cache, over every session on it so far.
+    const PageCacheStats pages = map->page_stats();
+    fields.insert(fields.end(),
+                  {{"map_page_loads", std::to_string(pages.loads)},
+                   {"map_page_hits", std::to_string(pages.hits)},
+                   {"map_page_load_ms", FormatFixed(pages.load_ms, 1)},
+                   {"map_pages_peak_live_mib", FormatFixed(pages.peak_live_bytes / 1048576.0, 1)},
+                   {"map_memory_mib", FormatFixed(map->MemoryBytes() / 1048576.0, 1)}});
+  }
+  Log("session_end", fields);
   // An idle session's call is cancelled: the client has the reason in its final answer.
   return Status::OK;
 }

@@ -38,6 +38,7 @@ struct ServerArgs {
   std::string listen = "127.0.0.1:50051";
   int max_sessions = 64;
   int idle_unload_s = 300;
+  int64_t map_memory_mib = 0;  // 0: no bound.
   double drain_s = 5.0;
   int64_t max_upload_mb = 2048;
   std::string tls_cert, tls_key, tls_client_ca, tokens;
@@ -87,6 +88,9 @@ void CheckLinkArguments(const ServerArgs& args) {
   if (!(args.max_connection_idle_s >= 0) || !(args.max_connection_age_s >= 0)) {
     throw UsageError("--max-connection-idle and --max-connection-age must be >= 0 (0: off)");
   }
+  if (args.map_memory_mib < 0 || args.map_memory_mib > (int64_t{1} << 24)) {
+    throw UsageError("--map-memory-mib must be 0 (no bound) to 16777216");
+  }
 }
 
 std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerArgs& args) {
@@ -121,6 +125,9 @@ int Run(int argc, char** argv) {
   parser.AddFlag("listen", &args.listen, "address:port (port 0 picks a free port)");
   parser.AddFlag("max-sessions", &args.max_sessions, "concurrent Localize streams");
   parser.AddFlag("idle-unload-s", &args.idle_unload_s, "unload maps idle this long");
+  parser.AddFlag("map-memory-mib", &args.map_memory_mib,
+                 "memory bound per map: larger maps are served paged, their points read per "
+                 "keyframe region on demand (0: no bound)");
   parser.AddFlag("drain-s", &args.drain_s, "grace period for open streams at shutdown");
   parser.AddFlag("max-upload-mb", &args.max_upload_mb, "largest map upload accepted");
   parser.AddFlag("tls-cert", &args.tls_cert, "serve TLS with this certificate chain (PEM)");
@@ -171,7 +178,8 @@ int Run(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  MapCache maps(args.maps_dir, std::chrono::seconds(args.idle_unload_s));
+  MapCache maps(args.maps_dir, std::chrono::seconds(args.idle_unload_s),
+                static_cast<size_t>(args.map_memory_mib) << 20);
   // A read-only replica must not touch the folder: the temporaries in it may be another
   // server's uploads in progress (whose process ids mean nothing in this one's namespace).
   const int stale =
@@ -217,6 +225,7 @@ int Run(int argc, char** argv) {
                        {"maps", args.maps_dir},
                        {"maps_read_only", args.maps_read_only ? "yes" : "no"},
                        {"max_sessions", std::to_string(args.max_sessions)},
+                       {"map_memory_mib", args.map_memory_mib ? std::to_string(args.map_memory_mib) : "unbounded"},
                        {"workers", std::to_string(limits.workers)},
                        {"tls", args.tls_cert.empty()        ? "off"
                                : args.tls_client_ca.empty() ? "on"

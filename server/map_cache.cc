@@ -1,14 +1,42 @@
 #include "server/map_cache.h"
 
+#include <malloc.h>
 #include <sys/stat.h>
 
 #include "core/util/check.h"
+#include "core/util/strings.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::server {
 
-MapCache::MapCache(std::string maps_dir, std::chrono::seconds idle_unload)
-    : directory_(std::move(maps_dir)), idle_unload_(idle_unload) {}
+MapCache::MapCache(std::string maps_dir, std::chrono::seconds idle_unload, size_t map_memory_bytes)
+    : directory_(std::move(maps_dir)), idle_unload_(idle_unload), map_memory_bytes_(map_memory_bytes) {}
+
+std::shared_ptr<const LocalizationMap> MapCache::Load(const std::string& path, bool* paged) const {
+  *paged = false;
+  if (map_memory_bytes_ == 0) return std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
+  mapstore::PagedMap opened = mapstore::OpenPagedMap(path);
+  const size_t resident = LocalizationMap::PagedResidentBytesFor(opened.skeleton);
+  if (resident + opened.pages->BulkBytes() <= map_memory_bytes_) {
+    return std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
+  }
+  // The cache needs room for a frame's pages: some point chunks and visibility lists.
+  const size_t min_cache = 16 * (opened.pages->chunk_points() * (sizeof(MapPoint) + 64));
+  if (resident + min_cache > map_memory_bytes_) {
+    const auto mib = [](size_t bytes) { return FormatFixed(bytes / 1048576.0, 1); };
+    throw InputError(StrCat(path, ": the map needs ", mib(resident + min_cache), " MiB at least (",
+                            mib(resident), " MiB of keyframes, kernel and appearance index resident, "
+                            "and room for a frame's points), more than the server's "
+                            "--map-memory-mib of ", map_memory_bytes_ >> 20));
+  }
+  *paged = true;
+  auto map = std::make_shared<const LocalizationMap>(std::move(opened.skeleton), opened.pages,
+                                                     map_memory_bytes_ - resident);
+  // Opening streamed the whole file and held the appearance vectors while the index was built:
+  // give that memory back to the system, so the bound is what the process keeps.
+  malloc_trim(0);
+  return map;
+}
 
 MapCache::FileIdentity MapCache::IdentityOf(const std::string& path) {
   struct stat st {};
@@ -43,10 +71,12 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
     }
   }
   // Loaded under this name's lock only: other maps stay available meanwhile.
-  auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
+  bool paged = false;
+  auto map = Load(path, &paged);
   std::lock_guard<std::mutex> lock(mutex_);
   entries_[name] = {map, identity, std::chrono::steady_clock::now()};
   ++stats_.loads;
+  stats_.paged_loads += paged ? 1 : 0;
   return map;
 }
 

@@ -5,6 +5,11 @@
 // build --out` into the folder) is noticed by its changed identity (inode, size, mtime): new
 // sessions get the new map, running sessions keep the one they hold. Sessions asking for a map
 // that is being loaded wait for that one load.
+//
+// With a memory bound per map (`--map-memory-mib`), a map whose points fit is loaded whole; a
+// larger one is paged (LocalizationMap's paged mode): keyframes, kernel and appearance index
+// resident, points and visibility lists read per keyframe region on demand into a cache of what
+// the bound leaves. A map whose resident part alone exceeds the bound is refused, naming both.
 
 #include <chrono>
 #include <map>
@@ -19,14 +24,16 @@ namespace visloc::server {
 
 struct MapCacheStats {
   int loads = 0;
+  int paged_loads = 0;  // Of the loads, maps opened paged.
   int hits = 0;
   int unloads = 0;
 };
 
 class MapCache {
  public:
-  // `idle_unload` is how long a map no session holds stays loaded.
-  MapCache(std::string maps_dir, std::chrono::seconds idle_unload);
+  // `idle_unload` is how long a map no session holds stays loaded; `map_memory_bytes` bounds
+  // each map's memory (0: no bound, every map loaded whole).
+  MapCache(std::string maps_dir, std::chrono::seconds idle_unload, size_t map_memory_bytes = 0);
 
   // The map NAME, loading it if needed. Throws NotFoundError for a missing map ("no map named
   // ..."), InputError for an invalid name or a map file that does not load (the reason).
@@ -53,6 +60,8 @@ class MapCache {
     std::chrono::steady_clock::time_point last_used;
   };
   static FileIdentity IdentityOf(const std::string& path);
+  // The map at `path`, whole or paged as the memory bound decides.
+  std::shared_ptr<const LocalizationMap> Load(const std::string& path, bool* paged) const;
 
   // The lock one name's (re)load holds, so sessions racing for a new map load it once while
   // other maps stay available.
@@ -60,6 +69,7 @@ class MapCache {
 
   mapstore::MapDirectory directory_;
   std::chrono::seconds idle_unload_;
+  size_t map_memory_bytes_;
   mutable std::mutex mutex_;
   std::map<std::string, Entry> entries_;
   std::map<std::string, std::shared_ptr<std::mutex>> load_locks_;

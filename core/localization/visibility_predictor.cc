@@ -22,7 +22,9 @@ VisibilityPredictor::VisibilityPredictor(const LocalizationMap& map,
   k_ = options.k > 0 ? options.k : kernel.default_k;
   threshold_ = options.probability_threshold >= 0 ? options.probability_threshold
                                                   : kernel.default_probability_threshold;
-  votes_.assign(map.point_count(), 0.0f);
+  // A dense scratch array per session is 4 bytes per map point: fine for a resident map, not for
+  // a paged one of millions of points, which accumulates the few thousand votes by sorting.
+  if (!map.paged()) votes_.assign(map.point_count(), 0.0f);
 }
 
 std::vector<std::pair<int, double>> VisibilityPredictor::NearestKeyframes(
@@ -48,19 +50,41 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
                                                          VisibilityStats* stats) const {
   const auto nearest = NearestKeyframes(map_from_cam);
   double total = 0.0;
-  std::vector<uint32_t> touched;
-  for (const auto& [keyframe, weight] : nearest) {
-    total += weight;
-    for (uint32_t point : map_.VisiblePoints(keyframe)) {
-      if (votes_[point] == 0.0f) touched.push_back(point);
-      votes_[point] += static_cast<float>(weight);
+  for (const auto& [keyframe, weight] : nearest) total += weight;
+  // (point, summed kernel weight of the nearest keyframes that see it).
+  std::vector<std::pair<uint32_t, float>> votes;
+  if (!votes_.empty()) {
+    for (const auto& [keyframe, weight] : nearest) {
+      for (uint32_t point : map_.VisiblePoints(keyframe)) {
+        if (votes_[point] == 0.0f) votes.emplace_back(point, 0.0f);
+        votes_[point] += static_cast<float>(weight);
+      }
     }
+    for (auto& [point, vote] : votes) {
+      vote = votes_[point];
+      votes_[point] = 0.0f;
+    }
+  } else {
+    for (const auto& [keyframe, weight] : nearest) {
+      for (uint32_t point : map_.VisiblePoints(keyframe)) votes.emplace_back(point, static_cast<float>(weight));
+    }
+    // Stable: each point's votes add up in keyframe order, as in the dense path.
+    std::stable_sort(votes.begin(), votes.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    size_t out = 0;
+    for (size_t i = 0; i < votes.size(); ++i) {
+      if (out > 0 && votes[out - 1].first == votes[i].first) {
+        votes[out - 1].second += votes[i].second;
+      } else {
+        votes[out++] = votes[i];
+      }
+    }
+    votes.resize(out);
   }
   std::vector<PredictedPoint> predicted;
-  for (uint32_t point : touched) {
-    const float probability = total > 0 ? static_cast<float>(votes_[point] / total) : 0.0f;
+  for (const auto& [point, vote] : votes) {
+    const float probability = total > 0 ? static_cast<float>(vote / total) : 0.0f;
     if (probability > threshold_) predicted.push_back({point, probability});
-    votes_[point] = 0.0f;
   }
   std::sort(predicted.begin(), predicted.end(),
             [](const PredictedPoint& a, const PredictedPoint& b) {
@@ -69,7 +93,7 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
             });
   if (stats) {
     stats->keyframes_used = static_cast<int>(nearest.size());
-    stats->candidates = static_cast<int>(touched.size());
+    stats->candidates = static_cast<int>(votes.size());
     stats->predicted = static_cast<int>(predicted.size());
   }
   return predicted;

@@ -28,6 +28,9 @@ LocalizationMap::LocalizationMap(Map skeleton, std::shared_ptr<const MapPageSour
                "a paged map's skeleton holds no points");
   source_ = std::move(source);
   pages_ = std::make_unique<PageCache>(cache_bytes);
+  // Scoring reads the inverted index only; the vectors it was built from would double it.
+  map_.appearance.keyframe_vectors.clear();
+  map_.appearance.keyframe_vectors.shrink_to_fit();
 }
 
 LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
@@ -49,6 +52,15 @@ LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
   const AppearanceIndex& appearance = map_.appearance;
   if (!appearance.keyframe_vectors.empty()) {
     keyframes_by_word_.resize(appearance.vocabulary.word_count());
+    // Counted first, so each word's list is allocated once at its size (growing by doubling
+    // would leave up to half of a big map's index unused).
+    std::vector<size_t> entries(keyframes_by_word_.size(), 0);
+    for (const BowVector& v : appearance.keyframe_vectors) {
+      for (const auto& [word, weight] : v) {
+        if (word < entries.size()) ++entries[word];
+      }
+    }
+    for (size_t w = 0; w < entries.size(); ++w) keyframes_by_word_[w].reserve(entries[w]);
     for (size_t k = 0; k < appearance.keyframe_vectors.size(); ++k) {
       for (const auto& [word, weight] : appearance.keyframe_vectors[k]) {
         VISLOC_CHECK(word < keyframes_by_word_.size(), "keyframe ", k, " has word ", word, " of ",
@@ -119,8 +131,17 @@ PointView LocalizationMap::Points(const std::vector<uint32_t>& ids) const {
 PageCacheStats LocalizationMap::page_stats() const { return pages_ ? pages_->stats() : PageCacheStats{}; }
 
 size_t LocalizationMap::MemoryBytes() const {
-  const size_t resident = MemoryBytesFor(map_);
-  return source_ ? resident + page_stats().budget_bytes : resident;
+  if (!source_) return MemoryBytesFor(map_);
+  size_t index_entries = 0;
+  for (const auto& entries : keyframes_by_word_) index_entries += entries.size();
+  return MemoryBytesFor(map_) + index_entries * sizeof(WordEntry) + page_stats().budget_bytes;
+}
+
+size_t LocalizationMap::PagedResidentBytesFor(const Map& skeleton) {
+  size_t vector_entries = 0;
+  for (const BowVector& v : skeleton.appearance.keyframe_vectors) vector_entries += v.size();
+  // MemoryBytesFor counts each entry in the vectors and in the index.
+  return MemoryBytesFor(skeleton) - vector_entries * sizeof(BowVector::value_type);
 }
 
 size_t LocalizationMap::MemoryBytesFor(const Map& map) {

@@ -116,6 +116,9 @@ class LocalizationMap {
   size_t MemoryBytes() const;
   // The same for a map not (yet) arranged for localization: it follows from the map's sizes.
   static size_t MemoryBytesFor(const Map& map);
+  // What a paged map keeps resident, for the skeleton of `map`: keyframes, kernel, vocabulary
+  // and the inverted appearance index (the per-keyframe vectors are dropped once it is built).
+  static size_t PagedResidentBytesFor(const Map& skeleton);
 
  private:
   Map map_;
