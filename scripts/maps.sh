@@ -140,7 +140,7 @@ lines = ["# Maps across sessions", "",
  "The update checked %d of the map's %d points against the session and removed %d; %d of the session's points were added and %d fused. The changed room in the updated map: %s." % (u["checked_points"], u["points_a"] + u["removed_points"], u["removed_points"], u["added_points"], u["fused_points"], loc_eval("changed_after")), "",
  "## Not done yet", "",
  "- Duplicates are fused where descriptors agree and the points lie within 3 cm after the alignment; a repeat farther off than that is added beside the map's point.",
- "- Big maps served under `--map-memory-mib` (points loaded per keyframe region on demand) are not built yet (issue 25)."]
+ "- Big maps: served under `--map-memory-mib` (points loaded per keyframe region on demand), see docs/big-maps.md."]
 open(report, "w").write("\n".join(lines) + "\n")
 PY
 echo "$REPORT updated"

@@ -21,7 +21,7 @@ void RelocalizationOptions::Check() const {
 Relocalizer::Relocalizer(const PoseTracker& tracker, const RelocalizationOptions& options)
     : tracker_(tracker), options_(options) {
   options_.Check();
-  VISLOC_CHECK(!tracker.map().keyframes_by_word().empty(),
+  VISLOC_CHECK(tracker.map().has_appearance_index(),
                "the map has no appearance index (vocabulary and keyframe vectors)");
 }
 

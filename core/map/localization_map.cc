@@ -49,24 +49,41 @@ LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
     keyframe_centers_.push_back(keyframe.map_from_cam.translation);
     keyframe_view_dirs_.push_back(keyframe.map_from_cam.rotation * Eigen::Vector3d::UnitZ());
   }
+  BuildPostings();
+}
+
+void LocalizationMap::BuildPostings() {
   const AppearanceIndex& appearance = map_.appearance;
-  if (!appearance.keyframe_vectors.empty()) {
-    keyframes_by_word_.resize(appearance.vocabulary.word_count());
-    // Counted first, so each word's list is allocated once at its size (growing by doubling
-    // would leave up to half of a big map's index unused).
-    std::vector<size_t> entries(keyframes_by_word_.size(), 0);
-    for (const BowVector& v : appearance.keyframe_vectors) {
-      for (const auto& [word, weight] : v) {
-        if (word < entries.size()) ++entries[word];
-      }
+  if (appearance.keyframe_vectors.empty()) return;
+  postings_.resize(appearance.vocabulary.word_count());
+  // Counted first, so each word's list is allocated once at its size (growing by doubling
+  // would leave up to half of a big map's index unused).
+  std::vector<size_t> entries(postings_.size(), 0);
+  for (const BowVector& v : appearance.keyframe_vectors) {
+    for (const auto& [word, weight] : v) {
+      if (word < entries.size()) ++entries[word];
     }
-    for (size_t w = 0; w < entries.size(); ++w) keyframes_by_word_[w].reserve(entries[w]);
-    for (size_t k = 0; k < appearance.keyframe_vectors.size(); ++k) {
-      for (const auto& [word, weight] : appearance.keyframe_vectors[k]) {
-        VISLOC_CHECK(word < keyframes_by_word_.size(), "keyframe ", k, " has word ", word, " of ",
-                     keyframes_by_word_.size());
-        keyframes_by_word_[word].push_back({static_cast<uint32_t>(k), weight});
+  }
+  for (size_t w = 0; w < entries.size(); ++w) {
+    postings_[w].gaps.reserve(entries[w]);
+    postings_[w].weights.reserve(entries[w]);
+  }
+  std::vector<uint32_t> last(postings_.size(), 0);
+  for (size_t k = 0; k < appearance.keyframe_vectors.size(); ++k) {
+    const auto keyframe = static_cast<uint32_t>(k);
+    for (const auto& [word, weight] : appearance.keyframe_vectors[k]) {
+      VISLOC_CHECK(word < postings_.size(), "keyframe ", k, " has word ", word, " of ",
+                   postings_.size());
+      PostingList& list = postings_[word];
+      const uint32_t gap = keyframe - last[word];
+      if (gap < kGapEscape) {
+        list.gaps.push_back(static_cast<uint16_t>(gap));
+      } else {
+        list.gaps.insert(list.gaps.end(), {kGapEscape, static_cast<uint16_t>(keyframe >> 16),
+                                           static_cast<uint16_t>(keyframe & 0xffff)});
       }
+      list.weights.push_back(weight);
+      last[word] = keyframe;
     }
   }
 }
@@ -74,9 +91,19 @@ LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
 std::vector<float> LocalizationMap::ScoreKeyframes(const BowVector& query) const {
   std::vector<float> scores(keyframe_count(), 0.0f);
   for (const auto& [word, weight] : query) {
-    if (word >= keyframes_by_word_.size()) continue;
-    for (const WordEntry& entry : keyframes_by_word_[word]) {
-      scores[entry.keyframe] += std::min(weight, entry.weight);
+    if (word >= postings_.size()) continue;
+    const PostingList& list = postings_[word];
+    uint32_t keyframe = 0;
+    size_t g = 0;
+    for (float keyframe_weight : list.weights) {
+      const uint16_t gap = list.gaps[g++];
+      if (gap == kGapEscape) {
+        keyframe = (static_cast<uint32_t>(list.gaps[g]) << 16) | list.gaps[g + 1];
+        g += 2;
+      } else {
+        keyframe += gap;
+      }
+      scores[keyframe] += std::min(weight, keyframe_weight);
     }
   }
   return scores;
@@ -132,9 +159,11 @@ PageCacheStats LocalizationMap::page_stats() const { return pages_ ? pages_->sta
 
 size_t LocalizationMap::MemoryBytes() const {
   if (!source_) return MemoryBytesFor(map_);
-  size_t index_entries = 0;
-  for (const auto& entries : keyframes_by_word_) index_entries += entries.size();
-  return MemoryBytesFor(map_) + index_entries * sizeof(WordEntry) + page_stats().budget_bytes;
+  size_t index_bytes = 0;
+  for (const PostingList& list : postings_) {
+    index_bytes += list.gaps.size() * sizeof(uint16_t) + list.weights.size() * sizeof(float);
+  }
+  return MemoryBytesFor(map_) + index_bytes + page_stats().budget_bytes;
 }
 
 size_t LocalizationMap::PagedResidentBytesFor(const Map& skeleton) {
@@ -156,9 +185,10 @@ size_t LocalizationMap::MemoryBytesFor(const Map& map) {
   bytes += appearance.vocabulary.centroids.total() * appearance.vocabulary.centroids.elemSize() +
            appearance.vocabulary.word_weights.size() * sizeof(float);
   for (const BowVector& v : appearance.keyframe_vectors) {
-    bytes += v.size() * (sizeof(v[0]) + sizeof(WordEntry));  // Vector plus inverted index.
+    // The vector, plus its entries in the inverted index (a 16-bit gap and a weight).
+    bytes += v.size() * (sizeof(v[0]) + sizeof(uint16_t) + sizeof(float));
   }
-  bytes += appearance.vocabulary.word_weights.size() * sizeof(std::vector<WordEntry>);
+  bytes += appearance.vocabulary.word_weights.size() * sizeof(PostingList);
   return bytes;
 }
 

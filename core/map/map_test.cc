@@ -88,7 +88,7 @@ TEST(LocalizationMapTest, InvertedIndexScoresEqualTheDirectScores) {
   options.points = 600;
   const Map map = MakeSyntheticMap(options);
   const LocalizationMap localization(map);
-  ASSERT_FALSE(localization.keyframes_by_word().empty());
+  ASSERT_TRUE(localization.has_appearance_index());
   for (size_t q : {0u, 7u, 29u}) {
     const BowVector& query = map.appearance.keyframe_vectors[q];
     const std::vector<float> scores = localization.ScoreKeyframes(query);
@@ -98,6 +98,27 @@ TEST(LocalizationMapTest, InvertedIndexScoresEqualTheDirectScores) {
     }
     EXPECT_NEAR(scores[q], 1.0, 1e-5);
   }
+}
+
+// Posting lists store keyframe gaps in 16 bits; a gap beyond that is escaped.
+TEST(LocalizationMapTest, KeyframesFarApartInAWordsPostingListScoreExactly) {
+  SyntheticMapOptions options;
+  options.keyframes = 70002;
+  options.points = 70002;
+  options.observations_per_point = 1;
+  options.vocabulary_depth = 1;
+  Map map = MakeSyntheticMap(options);
+  for (BowVector& v : map.appearance.keyframe_vectors) v = {{1, 1.0f}};
+  map.appearance.keyframe_vectors[0] = {{3, 1.0f}};
+  map.appearance.keyframe_vectors[5] = {{3, 0.5f}, {4, 0.5f}};
+  map.appearance.keyframe_vectors[70001] = {{3, 0.25f}, {4, 0.75f}};
+  const LocalizationMap localization(map);
+  const std::vector<float> scores = localization.ScoreKeyframes({{3, 1.0f}});
+  EXPECT_EQ(scores[0], 1.0f);
+  EXPECT_EQ(scores[5], 0.5f);
+  EXPECT_EQ(scores[70001], 0.25f);
+  EXPECT_EQ(scores[70000], 0.0f);
+  EXPECT_EQ(localization.ScoreKeyframes({{4, 0.6f}})[70001], 0.6f);
 }
 
 }  // namespace
