@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "core/geometry/trajectory.h"
 #include "core/util/temp_dir.h"
@@ -46,27 +47,33 @@ Trajectory ReadKeyframeLines(const std::string& path) {
   return poses;
 }
 
-// The median, over localized frames, of inliers per predicted-visible map point: how much of
-// what the map expects to see is really there (from `visloc localize --stats`).
-double MedianFoundRatio(const std::string& stats_csv) {
+// One column of a `--stats` CSV (`visloc localize` or `visloc stream`), a value per frame.
+std::vector<double> StatsColumn(const std::string& stats_csv, const std::string& name) {
   std::ifstream in(stats_csv);
   std::string line;
   std::getline(in, line);
   std::vector<std::string> header;
   std::istringstream names(line);
-  for (std::string name; std::getline(names, name, ',');) header.push_back(name);
-  const auto column = [&](const std::string& name) {
-    return std::find(header.begin(), header.end(), name) - header.begin();
-  };
-  const size_t predicted = column("predicted"), inliers = column("inliers");
-  std::vector<double> ratios;
+  for (std::string field; std::getline(names, field, ',');) header.push_back(field);
+  const size_t column = std::find(header.begin(), header.end(), name) - header.begin();
+  std::vector<double> values;
   while (std::getline(in, line)) {
     std::vector<std::string> fields;
     std::istringstream row(line);
     for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
-    if (fields.size() <= std::max(predicted, inliers)) continue;
-    const double p = std::stod(fields[predicted]), i = std::stod(fields[inliers]);
-    if (p > 0) ratios.push_back(i / p);
+    values.push_back(column < fields.size() ? std::stod(fields[column]) : NAN);
+  }
+  return values;
+}
+
+// The median, over localized frames, of inliers per predicted-visible map point: how much of
+// what the map expects to see is really there (from `visloc localize --stats`).
+double MedianFoundRatio(const std::string& stats_csv) {
+  const std::vector<double> predicted = StatsColumn(stats_csv, "predicted");
+  const std::vector<double> inliers = StatsColumn(stats_csv, "inliers");
+  std::vector<double> ratios;
+  for (size_t i = 0; i < predicted.size() && i < inliers.size(); ++i) {
+    if (predicted[i] > 0) ratios.push_back(inliers[i] / predicted[i]);
   }
   if (ratios.empty()) return 0.0;
   std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
@@ -156,6 +163,48 @@ TEST_F(MapMergeE2eTest, MapsOfDifferentRoomsAreRefused) {
   EXPECT_FALSE(std::filesystem::exists(out));
 }
 
+// The partial map served, a robot streaming the circle on it in real time, and the extended map
+// uploaded as its replacement while the robot streams: the running session keeps the map it
+// started with (frame by frame it predicts the points the partial map predicts in-process), a
+// session started after the upload gets the extended one (which predicts more).
+void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::string& extended,
+                                        const TempDir& out) {
+  const std::string in_partial = out.File("in_partial.csv"), running = out.File("running.csv"),
+                    after = out.File("after.csv");
+  ASSERT_EQ(Visloc({"localize", "--map", partial, "--dataset", kData + "/circle", "--stats",
+                    in_partial}).exit_code, 0);
+  TempDir maps("visloc_map_extend_served");
+  std::filesystem::copy_file(partial, maps.File("lab.db"));
+  testing::ServerProcess server(VISLOC_SERVER_PATH, maps.path());
+  auto stream = [&](const std::string& stats, const std::string& rate) {
+    return Visloc({"stream", "--server", server.address(), "--map", "lab", "--dataset",
+                   kData + "/circle", "--rate", rate, "--stats", stats, "--json"});
+  };
+  ProcessResult robot_result;
+  std::thread robot([&] { robot_result = stream(running, "15"); });  // 120 frames: 8 s.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const ProcessResult upload =
+      Visloc({"map", "upload", extended, "--server", server.address(), "--name", "lab", "--replace"});
+  robot.join();
+  ASSERT_EQ(upload.exit_code, 0) << upload.err;
+  ASSERT_EQ(robot_result.exit_code, 0) << robot_result.err;
+  EXPECT_EQ(JsonNumber(robot_result.out, "frames"), 120);
+  const ProcessResult later = stream(after, "0");
+  ASSERT_EQ(later.exit_code, 0) << later.err;
+  const std::vector<double> expected = StatsColumn(in_partial, "predicted");
+  const std::vector<double> kept = StatsColumn(running, "predicted");
+  const std::vector<double> replaced = StatsColumn(after, "predicted");
+  ASSERT_EQ(kept.size(), expected.size());
+  ASSERT_EQ(replaced.size(), expected.size());
+  int same_as_partial = 0, other_than_partial = 0;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    same_as_partial += kept[i] == expected[i];
+    other_than_partial += replaced[i] != expected[i];
+  }
+  EXPECT_EQ(same_as_partial, static_cast<int>(expected.size()));
+  EXPECT_GT(other_than_partial, static_cast<int>(expected.size()) / 2);
+}
+
 TEST_F(MapMergeE2eTest, ExtendAddsASessionInTheMapsFrameAndRefusesAnotherRoom) {
   const std::string map = dir_.File("partial.db");
   ASSERT_EQ(Visloc({"map", "build", "--dataset", kData + "/map_square", "--frames", "96", "--out",
@@ -163,9 +212,12 @@ TEST_F(MapMergeE2eTest, ExtendAddsASessionInTheMapsFrameAndRefusesAnotherRoom) {
                 .exit_code,
             0);
   const ProcessResult before = Visloc({"map", "info", map, "--json"});
+  const std::string partial = dir_.File("partial_copy.db");
+  std::filesystem::copy_file(map, partial);
   const ProcessResult extend =
       Visloc({"map", "extend", map, "--dataset", kData + "/query_square", "--json"});
   ASSERT_EQ(extend.exit_code, 0) << extend.err;
+  ExpectRunningSessionsKeepTheOldMap(partial, map, dir_);
   EXPECT_GE(JsonNumber(extend.out, "inliers"), 40);
   EXPECT_EQ(JsonNumber(extend.out, "keyframes"),
             JsonNumber(before.out, "keyframes") + JsonNumber(extend.out, "keyframes_b"));
