@@ -74,9 +74,10 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
               stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
   const mapping::MapAdjustmentStats& adjustment = stats.adjustment;
   if (adjustment.residual_blocks > 0) {
-    std::printf("bundle adjustment: %d keyframes of %s and %d points adjusted, %d keyframes held; "
-                "reprojection RMSE %.2f -> %.2f px, %d observations culled, %.2f s\n",
-                adjustment.free_keyframes, b_name, adjustment.points, adjustment.fixed_keyframes,
+    std::printf("bundle adjustment: %d keyframes and %d points adjusted (each point held near its "
+                "stereo position), %d keyframe held; reprojection RMSE %.2f -> %.2f px, %d "
+                "observations culled, %.2f s\n",
+                adjustment.free_keyframes, adjustment.points, adjustment.fixed_keyframes,
                 adjustment.initial_rmse_px, adjustment.final_rmse_px,
                 adjustment.culled_observations, adjustment.time_ms / 1e3);
   }

@@ -16,7 +16,7 @@ namespace {
 // qx qy qz qw tx ty tz of cam_from_map, the layout reprojection_cost.h expects.
 using PoseBlock = std::array<double, 7>;
 
-// Keeps a point near where its own session's stereo bundle adjustment put it: the stereo depth
+// Keeps a point near where its own map's stereo bundle adjustment put it: the stereo depth
 // the map's mono observations no longer carry. sigma grows with depth squared, as a stereo
 // depth's does.
 class PointPriorCost {
@@ -96,34 +96,30 @@ PointRoles AssignRoles(const Map& map, const std::vector<bool>& keyframe_fixed) 
   return roles;
 }
 
-// Of the adjusted observations (`used`), those still above the threshold go; the map's other
-// observations are left as their own adjustment made them.
-// Priors for the adjusted points no fixed keyframe sees (the new session's own), at their
-// current positions; sigma from the depth at which their first free keyframe sees them.
-void AddPointPriors(Map* map, const std::vector<bool>& keyframe_fixed, const PointRoles& roles,
-                    const MapAdjustmentOptions& options, ceres::Problem* problem,
-                    MapAdjustmentStats* stats) {
+// A prior for every adjusted point at its current position; sigma from the depth at which the
+// first keyframe that sees it sees it.
+void AddPointPriors(Map* map, const PointRoles& roles, const MapAdjustmentOptions& options,
+                    ceres::Problem* problem, MapAdjustmentStats* stats) {
   if (!(options.point_prior_sigma_at_1m_m > 0)) return;
-  std::vector<bool> seen_by_fixed(map->points.size(), false);
   std::vector<double> depth_m(map->points.size(), 0.0);
   for (const Observation& o : map->observations) {
-    if (keyframe_fixed[o.keyframe]) {
-      seen_by_fixed[o.point] = true;
-    } else if (depth_m[o.point] == 0.0) {
-      const Rigid3d cam_from_map = map->keyframes[o.keyframe].map_from_cam.Inverse();
-      depth_m[o.point] = (cam_from_map * map->points[o.point].position_in_map).z();
-    }
+    if (depth_m[o.point] != 0.0) continue;
+    const Rigid3d cam_from_map = map->keyframes[o.keyframe].map_from_cam.Inverse();
+    depth_m[o.point] = (cam_from_map * map->points[o.point].position_in_map).z();
   }
   for (size_t p = 0; p < map->points.size(); ++p) {
-    if (!roles.adjusted[p] || seen_by_fixed[p]) continue;
+    if (!roles.adjusted[p]) continue;
     const double z = std::max(1.0, depth_m[p]);
     Eigen::Vector3d& position = map->points[p].position_in_map;
-    problem->AddResidualBlock(PointPriorCost::Create(position, options.point_prior_sigma_at_1m_m * z * z),
-                              nullptr, position.data());
+    problem->AddResidualBlock(
+        PointPriorCost::Create(position, options.point_prior_sigma_at_1m_m * z * z), nullptr,
+        position.data());
     ++stats->point_priors;
   }
 }
 
+// Of the adjusted observations (`used`), those still above the threshold go; the map's other
+// observations are left as their own adjustment made them.
 void CullObservations(Map* map, const std::vector<bool>& used, double cull_error_px,
                       MapAdjustmentStats* stats) {
   if (!(cull_error_px > 0)) return;
@@ -191,7 +187,7 @@ MapAdjustmentStats AdjustMap(Map* map, const std::vector<bool>& keyframe_fixed,
   stats.points = static_cast<int>(std::count(roles.adjusted.begin(), roles.adjusted.end(), true));
   stats.initial_rmse_px = RmsePx(*map, used);
   if (stats.residual_blocks == 0) return stats;
-  AddPointPriors(map, keyframe_fixed, roles, options, &problem, &stats);
+  AddPointPriors(map, roles, options, &problem, &stats);
   for (size_t k = 0; k < poses.size(); ++k) {
     if (!problem.HasParameterBlock(poses[k].data())) continue;
     problem.SetManifold(poses[k].data(), new ceres::EigenQuaternionManifold());

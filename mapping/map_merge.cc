@@ -238,9 +238,10 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
             });
   CountObservations(&merged);
   if (!options.skip_adjustment) {
-    std::vector<bool> hold_a(merged.keyframes.size(), false);
-    std::fill(hold_a.begin(), hold_a.begin() + a.keyframes.size(), true);
-    stats->adjustment = AdjustMap(&merged, hold_a, options.adjustment);
+    // A's first keyframe fixes the frame; the points' stereo priors weigh everything else.
+    std::vector<bool> hold(merged.keyframes.size(), false);
+    hold[0] = true;
+    stats->adjustment = AdjustMap(&merged, hold, options.adjustment);
   }
 
   merged.kernel = LearnVisibilityKernel(merged, options.visibility, &stats->visibility);

@@ -13,12 +13,12 @@
 //              frame), as does one whose nearest A point within that distance has a descriptor
 //              close enough (the mutual matching misses duplicates of repeated textures); the
 //              rest of B's points are added.
-//   adjustment: a bundle adjustment over the merged map (map_adjustment.h) with A's keyframes
-//              held fixed and B's free, with B's points and the fused ones: the rigid alignment
-//              leaves B's keyframes off by its inlier RMSE, and the fused points now tie them to
-//              A. A is held because it defines the frame robots already localize in, and because
-//              its structure came from a bundle adjustment with stereo disparities, which the map
-//              no longer keeps: freeing it against mono observations alone could only loosen it.
+//   adjustment: a global bundle adjustment over the merged map (map_adjustment.h): every
+//              keyframe free but A's first, which keeps the frame A's robots localize in, and
+//              every point held near its own map's stereo position by a prior (the map keeps
+//              mono observations only). A's keyframes are weighted this way rather than held:
+//              held, they pulled B onto A's own errors; freed without the priors, the mono
+//              observations loosened both maps (docs/maps.md has the figures).
 //   models:    the visibility kernel is learned again over all keyframes, the relocalization
 //              vocabulary trained on all points, and every keyframe indexed by the points it
 //              observes.

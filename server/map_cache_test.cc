@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <fstream>
 #include <thread>
 
@@ -48,6 +49,46 @@ TEST(MapCacheTest, SessionsRacingForANewMapLoadItOnce) {
   for (auto& t : sessions) t.join();
   EXPECT_EQ(cache.stats().loads, 1);
   for (const auto& map : got) EXPECT_EQ(map.get(), got[0].get());
+}
+
+// Sessions on a map larger than the bound read its pages at once, through one small cache that
+// evicts while they read; every one reads what the whole map holds (and ThreadSanitizer, which
+// runs this test in CI, sees the page cache and the file's pages under races).
+TEST(MapCacheTest, RacingSessionsOnAPagedMapReadWhatTheWholeMapHolds) {
+  TempDir dir;
+  const Map whole = SmallMap(20000);
+  mapstore::SaveMap(whole, dir.File("big.db"));
+  MapCache cache(dir.path(), std::chrono::seconds(60), 2 << 20);
+  const auto map = cache.Acquire("big");
+  ASSERT_TRUE(map->paged());
+  EXPECT_EQ(cache.stats().paged_loads, 1);
+  std::vector<std::vector<Eigen::Vector3d>> seen_by(whole.keyframes.size());
+  for (const Observation& o : whole.observations) {
+    seen_by[o.keyframe].push_back(whole.points[o.point].position_in_map);
+  }
+  std::atomic<int> mismatches{0};
+  std::vector<std::thread> sessions;
+  for (int s = 0; s < 4; ++s) {
+    sessions.emplace_back([&, s] {
+      for (int round = 0; round < 3; ++round) {
+        for (size_t i = 0; i < whole.keyframes.size(); ++i) {
+          const size_t k = (i * (s + 1) + round) % whole.keyframes.size();
+          const auto visible = map->VisiblePoints(k);
+          const std::vector<uint32_t> ids(visible.begin(), visible.end());
+          const PointView points = map->Points(ids);
+          for (size_t j = 0; j < ids.size(); ++j) {
+            if (j >= seen_by[k].size() || points.position(ids[j]) != seen_by[k][j]) ++mismatches;
+          }
+        }
+      }
+    });
+  }
+  for (auto& t : sessions) t.join();
+  EXPECT_EQ(mismatches, 0);
+  const PageCacheStats pages = map->page_stats();
+  EXPECT_GT(pages.evictions, 0u);
+  EXPECT_LE(pages.cached_bytes, pages.budget_bytes);
+  EXPECT_LE(map->MemoryBytes(), size_t{2} << 20);
 }
 
 TEST(MapCacheTest, UnloadsOnlyMapsNoSessionHolds) {
