@@ -75,7 +75,7 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
   const mapping::MapAdjustmentStats& adjustment = stats.adjustment;
   if (adjustment.residual_blocks > 0) {
     std::printf("bundle adjustment: %d keyframes and %d points adjusted (each point held near its "
-                "stereo position), %d keyframe held; reprojection RMSE %.2f -> %.2f px, %d "
+                "stereo position), keyframes held: %d; reprojection RMSE %.2f -> %.2f px, %d "
                 "observations culled, %.2f s\n",
                 adjustment.free_keyframes, adjustment.points, adjustment.fixed_keyframes,
                 adjustment.initial_rmse_px, adjustment.final_rmse_px,

@@ -193,6 +193,20 @@ Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, Me
   return Register(a, b, options, stats).a_from_b;
 }
 
+std::vector<bool> KeyframesHeldInMergeAdjustment(const Map& merged, size_t keyframes_a) {
+  std::vector<bool> seen_by_b(merged.points.size(), false);
+  for (const Observation& o : merged.observations) {
+    if (o.keyframe >= keyframes_a) seen_by_b[o.point] = true;
+  }
+  std::vector<bool> hold(merged.keyframes.size(), false);
+  std::fill(hold.begin(), hold.begin() + keyframes_a, true);
+  for (const Observation& o : merged.observations) {
+    if (o.keyframe < keyframes_a && seen_by_b[o.point]) hold[o.keyframe] = false;
+  }
+  hold[0] = true;
+  return hold;
+}
+
 Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats) {
   const Registration registration = Register(a, b, options, stats);
   const Rigid3d& a_from_b = registration.a_from_b;
@@ -238,10 +252,8 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
             });
   CountObservations(&merged);
   if (!options.skip_adjustment) {
-    // A's first keyframe fixes the frame; the points' stereo priors weigh everything else.
-    std::vector<bool> hold(merged.keyframes.size(), false);
-    hold[0] = true;
-    stats->adjustment = AdjustMap(&merged, hold, options.adjustment);
+    stats->adjustment = AdjustMap(&merged, KeyframesHeldInMergeAdjustment(merged, a.keyframes.size()),
+                                     options.adjustment);
   }
 
   merged.kernel = LearnVisibilityKernel(merged, options.visibility, &stats->visibility);

@@ -13,17 +13,20 @@
 //              frame), as does one whose nearest A point within that distance has a descriptor
 //              close enough (the mutual matching misses duplicates of repeated textures); the
 //              rest of B's points are added.
-//   adjustment: a global bundle adjustment over the merged map (map_adjustment.h): every
-//              keyframe free but A's first, which keeps the frame A's robots localize in, and
-//              every point held near its own map's stereo position by a prior (the map keeps
-//              mono observations only). A's keyframes are weighted this way rather than held:
-//              held, they pulled B onto A's own errors; freed without the priors, the mono
-//              observations loosened both maps (docs/maps.md has the figures).
+//   adjustment: a bundle adjustment over the merged map (map_adjustment.h): B's keyframes and
+//              A's that share a point with B are free, A's first keyframe (the frame A's robots
+//              localize in) and A's beyond the seam are held, and every point is held near its
+//              own map's stereo position by a prior (the map keeps mono observations only).
+//              Where B sees all of A, that is a global adjustment; a small session merged into
+//              a big map adjusts only the region it saw. A's seam keyframes are weighted this
+//              way rather than held: held, they pulled B onto A's own errors; freed without the
+//              priors, the mono observations loosened both maps (docs/maps.md has the figures).
 //   models:    the visibility kernel is learned again over all keyframes, the relocalization
 //              vocabulary trained on all points, and every keyframe indexed by the points it
 //              observes.
 
 #include <string>
+#include <vector>
 
 #include "core/features/feature_types.h"
 #include "core/map/map.h"
@@ -69,6 +72,11 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
 // The overlap alone: B's map frame in A's (a_from_b), verified as MergeMaps does; the same
 // errors. Fills the registration part of `stats`.
 Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
+
+// The keyframes the merge's adjustment holds, for a merged map whose first `keyframes_a` are
+// A's: A's first (the frame) and A's that share no point with B (beyond the seam; they anchor
+// the points they share with the seam's keyframes).
+std::vector<bool> KeyframesHeldInMergeAdjustment(const Map& merged, size_t keyframes_a);
 
 // The lineage line of a merge, for MapMetadata::lineage: "<verb>(<A's lineage>; <B's lineage>)",
 // where a map without lineage stands for itself as "'name' <- source". `verb` is "merge" for two

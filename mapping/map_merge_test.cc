@@ -151,5 +151,16 @@ TEST(MapMergeTest, MapsOfDifferentCamerasOrFeaturesAreRefused) {
   EXPECT_THROW(MergeMaps(a, other_features, RigidOnly(), &stats), InputError);
 }
 
+TEST(MapMergeTest, TheAdjustmentHoldsTheFrameAndWhatLiesBeyondTheSeam) {
+  // A: keyframes 0-3; B: 4-5. Point 0 is seen by A's 1 and B's 4, point 1 by A's 2 alone, point
+  // 2 by A's 3 and B's 5.
+  Map merged;
+  merged.keyframes.resize(6);
+  merged.points.resize(3);
+  merged.observations = {{1, 0, {}}, {2, 1, {}}, {3, 2, {}}, {4, 0, {}}, {5, 2, {}}};
+  EXPECT_EQ(KeyframesHeldInMergeAdjustment(merged, 4),
+            std::vector<bool>({true, false, true, false, false, false}));
+}
+
 }  // namespace
 }  // namespace visloc::mapping

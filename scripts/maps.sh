@@ -103,7 +103,7 @@ a_before = keyframe_errors_cm("merged_rigid.keyframes.tum", "map_square", 0, m["
 med = lambda xs: xs[len(xs) // 2]
 er = j("extend_rigid.json")
 def ba(x):
-    return "%d keyframes (all but the map's first) and %d points adjusted, reprojection RMSE %.2f -> %.2f px, %d observations culled" % (
+    return "%d keyframes (all but the map's first: the session saw all of the map) and %d points adjusted, reprojection RMSE %.2f -> %.2f px, %d observations culled" % (
         x["adjusted_keyframes"], x["adjusted_points"], x["adjustment_initial_rmse_px"],
         x["adjustment_final_rmse_px"], x["adjustment_culled_observations"])
 e = j("extend.json")
@@ -130,7 +130,7 @@ lines = ["# Maps across sessions", "",
  "| A's after the merge | %.2f cm | %.2f cm |" % (med(a_errs), a_errs[-1]),
  "| B's %d after the merge | %.2f cm | %.2f cm |" % (len(errs), med(errs), errs[-1]),
  "| B's after a rigid registration only | %.2f cm | %.2f cm |" % (med(rigid_errs), rigid_errs[-1]), "",
- "The adjustment frees every keyframe but A's first, which keeps the frame A's robots already localize in, and holds every point near its own map's stereo position with a prior (sigma 3 mm at 1 m, growing with depth squared): a map keeps mono observations only, and its stereo depths come back this way. Two other choices were measured once while choosing, on this merge: A's keyframes held fixed pulled B's onto A's own errors (B's max 1.09 cm); every keyframe freed without the priors loosened both maps (B's median 0.47 to 1.02 cm, max 2.23 cm). In the extend, the points without priors slid along their rays (the circle's max error 1.89 cm). B's keyframes cannot get much closer to the ground truth than A's own are.", "",
+ "The adjustment frees B's keyframes and A's that share a point with B (here all but A's first, which keeps the frame A's robots already localize in; A's keyframes beyond the seam would be held), and holds every point near its own map's stereo position with a prior (sigma 3 mm at 1 m, growing with depth squared): a map keeps mono observations only, and its stereo depths come back this way. Two other choices were measured once while choosing, on this merge: A's keyframes held fixed pulled B's onto A's own errors (B's max 1.09 cm); every keyframe freed without the priors loosened both maps (B's median 0.47 to 1.02 cm, max 2.23 cm). In the extend, the points without priors slid along their rays (the circle's max error 1.89 cm). B's keyframes cannot get much closer to the ground truth than A's own are.", "",
  "A map of another room (the `outofmap` sequence: a different room with the same kinds of texture) merged with the square is refused:", "",
  "```", open(work + "/refused.txt").read().strip(), "```", "",
  "## Update", "",

@@ -101,10 +101,12 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   ASSERT_EQ(merge.exit_code, 0) << merge.err;
   EXPECT_GE(JsonNumber(merge.out, "inliers"), 40);
   EXPECT_LT(JsonNumber(merge.out, "inlier_rmse_m"), 0.02);
-  // Every keyframe but A's first and the points were adjusted together: they fit their images
+  // B's keyframes and A's along the seam were adjusted with the points; the circle's first 120
+  // frames see part of the room, so A's keyframes beyond it were held. They fit their images
   // better.
-  EXPECT_EQ(JsonNumber(merge.out, "adjusted_keyframes"),
-            JsonNumber(merge.out, "keyframes_a") + JsonNumber(merge.out, "keyframes_b") - 1);
+  const double adjusted = JsonNumber(merge.out, "adjusted_keyframes");
+  EXPECT_GT(adjusted, JsonNumber(merge.out, "keyframes_b"));
+  EXPECT_LT(adjusted, JsonNumber(merge.out, "keyframes_a") + JsonNumber(merge.out, "keyframes_b") - 1);
   EXPECT_LT(JsonNumber(merge.out, "adjustment_final_rmse_px"),
             JsonNumber(merge.out, "adjustment_initial_rmse_px"));
   const int keyframes_a = static_cast<int>(JsonNumber(merge.out, "keyframes_a"));
