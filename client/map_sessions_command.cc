@@ -74,12 +74,13 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
               stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
   const mapping::MapAdjustmentStats& adjustment = stats.adjustment;
   if (adjustment.residual_blocks > 0) {
-    std::printf("bundle adjustment: %d keyframes and %d points adjusted (each point held near its "
-                "stereo position), keyframes held: %d; reprojection RMSE %.2f -> %.2f px, %d "
-                "observations culled, %.2f s\n",
-                adjustment.free_keyframes, adjustment.points, adjustment.fixed_keyframes,
-                adjustment.initial_rmse_px, adjustment.final_rmse_px,
-                adjustment.culled_observations, adjustment.time_ms / 1e3);
+    std::printf(
+        "bundle adjustment: %d keyframes and %d points adjusted (each point held near its "
+        "stereo position), keyframes held: %d; reprojection RMSE %.2f -> %.2f px, %d "
+        "observations culled, %.2f s\n",
+        adjustment.free_keyframes, adjustment.points, adjustment.fixed_keyframes,
+        adjustment.initial_rmse_px, adjustment.final_rmse_px, adjustment.culled_observations,
+        adjustment.time_ms / 1e3);
   }
   std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
 }

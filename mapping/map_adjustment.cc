@@ -28,7 +28,8 @@ class PointPriorCost {
     return true;
   }
   static ceres::CostFunction* Create(const Eigen::Vector3d& prior, double sigma_m) {
-    return new ceres::AutoDiffCostFunction<PointPriorCost, 3, 3>(new PointPriorCost(prior, sigma_m));
+    return new ceres::AutoDiffCostFunction<PointPriorCost, 3, 3>(
+        new PointPriorCost(prior, sigma_m));
   }
 
  private:
@@ -80,7 +81,8 @@ struct PointRoles {
 };
 
 PointRoles AssignRoles(const Map& map, const std::vector<bool>& keyframe_fixed) {
-  PointRoles roles{std::vector<bool>(map.points.size(), false), std::vector<int>(map.points.size(), -1)};
+  PointRoles roles{std::vector<bool>(map.points.size(), false),
+                   std::vector<int>(map.points.size(), -1)};
   std::vector<bool> seen_by_free(map.points.size(), false);
   for (const Observation& o : map.observations) {
     if (!keyframe_fixed[o.keyframe]) seen_by_free[o.point] = true;
@@ -142,7 +144,8 @@ void UpdateMeanErrors(Map* map) {
   for (const Observation& o : map->observations) sum[o.point] += ReprojectionErrorPx(*map, o);
   for (size_t p = 0; p < map->points.size(); ++p) {
     if (map->points[p].observation_count > 0) {
-      map->points[p].mean_reproj_error_px = static_cast<float>(sum[p] / map->points[p].observation_count);
+      map->points[p].mean_reproj_error_px =
+          static_cast<float>(sum[p] / map->points[p].observation_count);
     }
   }
 }
@@ -156,7 +159,8 @@ MapAdjustmentStats AdjustMap(Map* map, const std::vector<bool>& keyframe_fixed,
                "at least one keyframe must be held fixed: it fixes the map frame");
   Timer timer;
   MapAdjustmentStats stats;
-  stats.fixed_keyframes = static_cast<int>(std::count(keyframe_fixed.begin(), keyframe_fixed.end(), true));
+  stats.fixed_keyframes =
+      static_cast<int>(std::count(keyframe_fixed.begin(), keyframe_fixed.end(), true));
   stats.free_keyframes = static_cast<int>(keyframe_fixed.size()) - stats.fixed_keyframes;
   const PointRoles roles = AssignRoles(*map, keyframe_fixed);
   const std::vector<Rigid3d> map_from_cam_before = [&] {
@@ -212,8 +216,9 @@ MapAdjustmentStats AdjustMap(Map* map, const std::vector<bool>& keyframe_fixed,
     const int k = roles.carrier[p];
     if (k < 0 || keyframe_fixed[k]) continue;
     // Same place in its keyframe's camera as before.
-    map->points[p].position_in_map = map->keyframes[k].map_from_cam *
-                                     (map_from_cam_before[k].Inverse() * map->points[p].position_in_map);
+    map->points[p].position_in_map =
+        map->keyframes[k].map_from_cam *
+        (map_from_cam_before[k].Inverse() * map->points[p].position_in_map);
     ++stats.moved_with_keyframe;
   }
   stats.final_rmse_px = RmsePx(*map, used);

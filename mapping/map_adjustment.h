@@ -37,7 +37,7 @@ struct MapAdjustmentOptions {
 struct MapAdjustmentStats {
   int free_keyframes = 0;
   int fixed_keyframes = 0;
-  int points = 0;            // Points adjusted.
+  int points = 0;               // Points adjusted.
   int moved_with_keyframe = 0;  // Single-view points of free keyframes.
   int point_priors = 0;
   int residual_blocks = 0;  // Reprojection residuals.

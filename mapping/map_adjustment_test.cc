@@ -23,10 +23,11 @@ Map TruthMap() {
   map.features.descriptor_dim = 16;
   for (int k = 0; k < 30; ++k) {
     map.keyframes.push_back({k * 100'000'000LL, Rigid3d(Eigen::Quaterniond::Identity(),
-                                                         Eigen::Vector3d(0.1 * k, 0.0, 0.0))});
+                                                        Eigen::Vector3d(0.1 * k, 0.0, 0.0))});
   }
   for (int j = 0; j < 2000; ++j) {
-    map.points.push_back({Eigen::Vector3d(rng.Uniform(-3, 6), rng.Uniform(-2, 2), rng.Uniform(2, 8)), 0, 0.f});
+    map.points.push_back(
+        {Eigen::Vector3d(rng.Uniform(-3, 6), rng.Uniform(-2, 2), rng.Uniform(2, 8)), 0, 0.f});
   }
   map.descriptors = cv::Mat::zeros(2000, 16, CV_32F);
   for (size_t k = 0; k < map.keyframes.size(); ++k) {
@@ -37,7 +38,8 @@ Map TruthMap() {
           pixel.x() < 0 || pixel.y() < 0 || pixel.x() > 319 || pixel.y() > 239) {
         continue;
       }
-      map.observations.push_back({static_cast<uint32_t>(k), static_cast<uint32_t>(j), pixel.cast<float>()});
+      map.observations.push_back(
+          {static_cast<uint32_t>(k), static_cast<uint32_t>(j), pixel.cast<float>()});
     }
   }
   CountObservations(&map);
@@ -63,12 +65,14 @@ Map Perturbed(const Map& truth, const std::vector<bool>& fixed) {
   for (size_t k = 0; k < map.keyframes.size(); ++k) {
     if (fixed[k]) continue;
     const Eigen::Vector3d axis_angle = noise(0.5 * M_PI / 180.0);
-    const Rigid3d delta(Eigen::Quaterniond(Eigen::AngleAxisd(axis_angle.norm(), axis_angle.normalized())),
-                        noise(0.02));
+    const Rigid3d delta(
+        Eigen::Quaterniond(Eigen::AngleAxisd(axis_angle.norm(), axis_angle.normalized())),
+        noise(0.02));
     map.keyframes[k].map_from_cam = delta * map.keyframes[k].map_from_cam;
   }
   std::vector<bool> seen_by_fixed(map.points.size(), false);
-  for (const Observation& o : map.observations) seen_by_fixed[o.point] = seen_by_fixed[o.point] || fixed[o.keyframe];
+  for (const Observation& o : map.observations)
+    seen_by_fixed[o.point] = seen_by_fixed[o.point] || fixed[o.keyframe];
   for (size_t p = 0; p < map.points.size(); ++p) {
     if (!seen_by_fixed[p]) map.points[p].position_in_map += noise(0.01);
   }
@@ -78,7 +82,9 @@ Map Perturbed(const Map& truth, const std::vector<bool>& fixed) {
 double MaxKeyframeError(const Map& a, const Map& b) {
   double worst = 0.0;
   for (size_t k = 0; k < a.keyframes.size(); ++k) {
-    worst = std::max(worst, (a.keyframes[k].map_from_cam.translation - b.keyframes[k].map_from_cam.translation).norm());
+    worst = std::max(
+        worst,
+        (a.keyframes[k].map_from_cam.translation - b.keyframes[k].map_from_cam.translation).norm());
   }
   return worst;
 }
@@ -97,7 +103,8 @@ TEST(MapAdjustmentTest, PullsTheFreeKeyframesBackOntoTheFixedOnes) {
   EXPECT_LT(stats.final_rmse_px, 0.01);
   EXPECT_LT(MaxKeyframeError(map, truth), 1e-3);  // 1 mm, from up to 2 cm.
   for (size_t k = 0; k < truth.keyframes.size() / 2; ++k) {
-    EXPECT_EQ(map.keyframes[k].map_from_cam.translation, truth.keyframes[k].map_from_cam.translation);
+    EXPECT_EQ(map.keyframes[k].map_from_cam.translation,
+              truth.keyframes[k].map_from_cam.translation);
   }
   EXPECT_EQ(map.points.size(), truth.points.size());
   EXPECT_TRUE(FindMapProblems(map).empty()) << FindMapProblems(map).front();

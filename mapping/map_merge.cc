@@ -252,8 +252,8 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
             });
   CountObservations(&merged);
   if (!options.skip_adjustment) {
-    stats->adjustment = AdjustMap(&merged, KeyframesHeldInMergeAdjustment(merged, a.keyframes.size()),
-                                     options.adjustment);
+    stats->adjustment = AdjustMap(
+        &merged, KeyframesHeldInMergeAdjustment(merged, a.keyframes.size()), options.adjustment);
   }
 
   merged.kernel = LearnVisibilityKernel(merged, options.visibility, &stats->visibility);

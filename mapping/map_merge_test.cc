@@ -157,7 +157,8 @@ TEST(MapMergeTest, TheAdjustmentHoldsTheFrameAndWhatLiesBeyondTheSeam) {
   Map merged;
   merged.keyframes.resize(6);
   merged.points.resize(3);
-  merged.observations = {{1, 0, {}}, {2, 1, {}}, {3, 2, {}}, {4, 0, {}}, {5, 2, {}}};
+  const Eigen::Vector2f pixel = Eigen::Vector2f::Zero();
+  merged.observations = {{1, 0, pixel}, {2, 1, pixel}, {3, 2, pixel}, {4, 0, pixel}, {5, 2, pixel}};
   EXPECT_EQ(KeyframesHeldInMergeAdjustment(merged, 4),
             std::vector<bool>({true, false, true, false, false, false}));
 }

@@ -784,7 +784,8 @@ class FilePageSource final : public MapPageSource {
     query.Bind(1, static_cast<int64_t>(keyframe));
     std::vector<uint32_t> ids;
     if (!query.Step()) return ids;  // A keyframe that sees nothing.
-    for (const Observation& o : ParseObservations(query, keyframes_, db_.path())) ids.push_back(o.point);
+    for (const Observation& o : ParseObservations(query, keyframes_, db_.path()))
+      ids.push_back(o.point);
     return ids;
   }
 
@@ -819,13 +820,16 @@ std::vector<uint32_t> VerifyPoints(Database& db, const Map& skeleton, int64_t to
     const PointChunk chunk = ParsePointChunk(query, skeleton.features, total, next, db.path());
     if (*chunk_points == 0) *chunk_points = static_cast<uint32_t>(chunk.points.size());
     if (chunk.first % *chunk_points != 0 ||
-        (chunk.points.size() != *chunk_points && chunk.first + chunk.points.size() != static_cast<uint64_t>(total))) {
-      throw InputError(StrCat(db.path(), ": point chunk at ", chunk.first, " holds ", chunk.points.size(),
+        (chunk.points.size() != *chunk_points &&
+         chunk.first + chunk.points.size() != static_cast<uint64_t>(total))) {
+      throw InputError(StrCat(db.path(), ": point chunk at ", chunk.first, " holds ",
+                              chunk.points.size(),
                               " points; paged serving needs chunks of one size"));
     }
     for (size_t i = 0; i < chunk.points.size(); ++i) {
       const MapPoint& point = chunk.points[i];
-      if (!FinitePoint(point)) throw InputError(StrCat(db.path(), ": point ", chunk.first + i, " is not finite"));
+      if (!FinitePoint(point))
+        throw InputError(StrCat(db.path(), ": point ", chunk.first + i, " is not finite"));
       ChecksumPoint(point, crc);
       counts[chunk.first + i] = point.observation_count;
     }
@@ -834,7 +838,8 @@ std::vector<uint32_t> VerifyPoints(Database& db, const Map& skeleton, int64_t to
     descriptor_bytes += bytes;
     next = chunk.first + chunk.points.size();
   }
-  if (next != total) throw InputError(StrCat(db.path(), ": point chunks end at ", next, " of ", total));
+  if (next != total)
+    throw InputError(StrCat(db.path(), ": point chunks end at ", next, " of ", total));
   crc = Crc(static_cast<uint32_t>(
       crc32_combine(crc.value(), descriptors.value(), static_cast<z_off_t>(descriptor_bytes))));
   return counts;
@@ -845,18 +850,21 @@ std::vector<uint32_t> VerifyPoints(Database& db, const Map& skeleton, int64_t to
 void VerifyObservations(Database& db, const Map& skeleton, std::vector<uint32_t> counts, Crc& crc) {
   Statement query = db.Prepare(StrCat(kObservationColumns, " ORDER BY keyframe_id"));
   while (query.Step()) {
-    const std::vector<Observation> observations = ParseObservations(query, skeleton.keyframes.size(), db.path());
+    const std::vector<Observation> observations =
+        ParseObservations(query, skeleton.keyframes.size(), db.path());
     for (size_t i = 0; i < observations.size(); ++i) {
       const Observation& o = observations[i];
       const std::string which = StrCat(db.path(), ": observation ", i, " of keyframe ", o.keyframe);
       if (o.point >= counts.size()) {
-        throw InputError(StrCat(which, " refers to point ", o.point, " but the map has ", counts.size(), " points"));
+        throw InputError(StrCat(which, " refers to point ", o.point, " but the map has ",
+                                counts.size(), " points"));
       }
       if (!o.pixel.allFinite() || (i > 0 && observations[i - 1].point >= o.point)) {
         throw InputError(StrCat(which, " is not finite or not in point order"));
       }
       if (counts[o.point] == 0) {
-        throw InputError(StrCat(db.path(), ": point ", o.point, " has more observations than it counts"));
+        throw InputError(
+            StrCat(db.path(), ": point ", o.point, " has more observations than it counts"));
       }
       --counts[o.point];
       ChecksumObservation(o, crc);
@@ -897,8 +905,9 @@ PagedMap OpenPagedMap(const std::string& path) {
   }
   const size_t bulk_bytes = total * (sizeof(MapPoint) + DescriptorBytes(skeleton.features)) +
                             observations * sizeof(uint32_t);
-  paged.pages = std::make_shared<FilePageSource>(std::move(db), skeleton, static_cast<uint32_t>(total),
-                                                 std::max<uint32_t>(chunk_points, 1), bulk_bytes);
+  paged.pages =
+      std::make_shared<FilePageSource>(std::move(db), skeleton, static_cast<uint32_t>(total),
+                                       std::max<uint32_t>(chunk_points, 1), bulk_bytes);
   return paged;
 }
 

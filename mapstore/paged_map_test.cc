@@ -95,15 +95,18 @@ class BadPagedFileTest : public ::testing::Test {
 };
 
 TEST_F(BadPagedFileTest, AChangedPointOrDescriptorOrObservationFailsTheChecksum) {
-  const std::string mismatch = path_ + ": content checksum mismatch: the file is corrupt or was modified";
+  const std::string mismatch =
+      path_ + ": content checksum mismatch: the file is corrupt or was modified";
   // One byte of the second chunk's positions, descriptors, then one observation pixel.
-  Sql("UPDATE point_chunks SET positions = substr(positions, 1, 99) || x'7f' || substr(positions, 101) WHERE id = 1");
+  Sql("UPDATE point_chunks SET positions = substr(positions, 1, 99) || x'7f' || substr(positions, "
+      "101) WHERE id = 1");
   EXPECT_EQ(OpenError(path_), mismatch);
   SaveMap(TwentyChunkMap(), path_);
   Sql("UPDATE point_chunks SET descriptors = x'00000000' || substr(descriptors, 5) WHERE id = 2");
   EXPECT_EQ(OpenError(path_), mismatch);
   SaveMap(TwentyChunkMap(), path_);
-  Sql("UPDATE keyframe_observations SET pixels = x'0000c842' || substr(pixels, 5) WHERE keyframe_id = 7");
+  Sql("UPDATE keyframe_observations SET pixels = x'0000c842' || substr(pixels, 5) WHERE "
+      "keyframe_id = 7");
   EXPECT_EQ(OpenError(path_), mismatch);
 }
 
@@ -112,14 +115,16 @@ TEST_F(BadPagedFileTest, DanglingObservationsAndShortBlobsAreNamed) {
     Database db = Database::OpenForWriting(path_);
     const uint32_t points[1] = {999999};
     const float pixels[2] = {1, 2};
-    db.Prepare("UPDATE keyframe_observations SET observation_count = 1, points = ?, pixels = ? "
-               "WHERE keyframe_id = 11")
+    db.Prepare(
+          "UPDATE keyframe_observations SET observation_count = 1, points = ?, pixels = ? "
+          "WHERE keyframe_id = 11")
         .BindBlob(1, points, sizeof(points))
         .BindBlob(2, pixels, sizeof(pixels))
         .Run();
   }
-  EXPECT_EQ(OpenError(path_), path_ + ": observation 0 of keyframe 11 refers to point 999999 but "
-                                     "the map has 20000 points");
+  EXPECT_EQ(OpenError(path_), path_ +
+                                  ": observation 0 of keyframe 11 refers to point 999999 but "
+                                  "the map has 20000 points");
   SaveMap(TwentyChunkMap(), path_);
   Sql("UPDATE point_chunks SET positions = substr(positions, 1, 100) WHERE id = 0");
   EXPECT_EQ(OpenError(path_), path_ + ": point chunk 0 positions has 100 bytes, expected 24576");

@@ -221,21 +221,21 @@ int Run(int argc, char** argv) {
   }
   const std::string bound =
       args.listen.substr(0, args.listen.rfind(':')) + ":" + std::to_string(port);
-  Log("server_start", {{"listen", bound},
-                       {"maps", args.maps_dir},
-                       {"maps_read_only", args.maps_read_only ? "yes" : "no"},
-                       {"max_sessions", std::to_string(args.max_sessions)},
-                       {"map_memory_mib", args.map_memory_mib ? std::to_string(args.map_memory_mib) : "unbounded"},
-                       {"workers", std::to_string(limits.workers)},
-                       {"tls", args.tls_cert.empty()        ? "off"
-                               : args.tls_client_ca.empty() ? "on"
-                                                            : "mutual"},
-                       {"max_frame_rate_hz", FormatFixed(args.max_frame_rate_hz, 1)},
-                       {"session_idle_timeout_s", FormatFixed(args.session_idle_timeout_s, 1)},
-                       {"keepalive_min_ping_interval_s",
-                        FormatFixed(args.keepalive_min_ping_interval_s, 1)},
-                       {"tokens", auth.enabled() ? "on" : "off"},
-                       {"stale_temporaries_removed", std::to_string(stale)}});
+  Log("server_start",
+      {{"listen", bound},
+       {"maps", args.maps_dir},
+       {"maps_read_only", args.maps_read_only ? "yes" : "no"},
+       {"max_sessions", std::to_string(args.max_sessions)},
+       {"map_memory_mib", args.map_memory_mib ? std::to_string(args.map_memory_mib) : "unbounded"},
+       {"workers", std::to_string(limits.workers)},
+       {"tls", args.tls_cert.empty()        ? "off"
+               : args.tls_client_ca.empty() ? "on"
+                                            : "mutual"},
+       {"max_frame_rate_hz", FormatFixed(args.max_frame_rate_hz, 1)},
+       {"session_idle_timeout_s", FormatFixed(args.session_idle_timeout_s, 1)},
+       {"keepalive_min_ping_interval_s", FormatFixed(args.keepalive_min_ping_interval_s, 1)},
+       {"tokens", auth.enabled() ? "on" : "off"},
+       {"stale_temporaries_removed", std::to_string(stale)}});
   std::printf("listening on %s\n", bound.c_str());
   std::fflush(stdout);
 

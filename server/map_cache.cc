@@ -10,11 +10,14 @@
 namespace visloc::server {
 
 MapCache::MapCache(std::string maps_dir, std::chrono::seconds idle_unload, size_t map_memory_bytes)
-    : directory_(std::move(maps_dir)), idle_unload_(idle_unload), map_memory_bytes_(map_memory_bytes) {}
+    : directory_(std::move(maps_dir)),
+      idle_unload_(idle_unload),
+      map_memory_bytes_(map_memory_bytes) {}
 
 std::shared_ptr<const LocalizationMap> MapCache::Load(const std::string& path, bool* paged) const {
   *paged = false;
-  if (map_memory_bytes_ == 0) return std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
+  if (map_memory_bytes_ == 0)
+    return std::make_shared<const LocalizationMap>(mapstore::LoadMap(path));
   mapstore::PagedMap opened = mapstore::OpenPagedMap(path);
   const size_t resident = LocalizationMap::PagedResidentBytesFor(opened.skeleton);
   if (resident + opened.pages->BulkBytes() <= map_memory_bytes_) {
@@ -25,9 +28,11 @@ std::shared_ptr<const LocalizationMap> MapCache::Load(const std::string& path, b
   if (resident + min_cache > map_memory_bytes_) {
     const auto mib = [](size_t bytes) { return FormatFixed(bytes / 1048576.0, 1); };
     throw InputError(StrCat(path, ": the map needs ", mib(resident + min_cache), " MiB at least (",
-                            mib(resident), " MiB of keyframes, kernel and appearance index resident, "
+                            mib(resident),
+                            " MiB of keyframes, kernel and appearance index resident, "
                             "and room for a frame's points), more than the server's "
-                            "--map-memory-mib of ", map_memory_bytes_ >> 20));
+                            "--map-memory-mib of ",
+                            map_memory_bytes_ >> 20));
   }
   *paged = true;
   auto map = std::make_shared<const LocalizationMap>(std::move(opened.skeleton), opened.pages,

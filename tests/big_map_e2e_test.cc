@@ -28,15 +28,16 @@ const std::string kData = VISLOC_LOCALIZATION_DATA;
 // A session_end field of the server's log, as a number (NaN when absent).
 double LogField(const std::string& log, const std::string& field) {
   std::smatch match;
-  if (!std::regex_search(log, match, std::regex("event=session_end.* " + field + "=([0-9.]+)"))) return NAN;
+  if (!std::regex_search(log, match, std::regex("event=session_end.* " + field + "=([0-9.]+)")))
+    return NAN;
   return std::stod(match[1]);
 }
 
 class BigMapE2eTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    const ProcessResult tiled = RunProcess(
-        {VISLOC_TILE_MAP_PATH, kData + "/map.db", maps_.File("big.db"), "12", "30"});
+    const ProcessResult tiled =
+        RunProcess({VISLOC_TILE_MAP_PATH, kData + "/map.db", maps_.File("big.db"), "12", "30"});
     ASSERT_EQ(tiled.exit_code, 0) << tiled.err;
     const ProcessResult info = Visloc({"map", "info", maps_.File("big.db"), "--json"});
     ASSERT_EQ(info.exit_code, 0) << info.err;
@@ -67,9 +68,11 @@ TEST_F(BigMapE2eTest, AMapFiveTimesTheBoundIsServedPagedWithTheWholeMapsAnswers)
   // Tracking, losing the robot while it is carried, and finding it again among twelve copies
   // that look alike (copy 0, where the ground truth is) all go as with the whole map.
   EXPECT_NEAR(JsonNumber(paged.out, "localized_fraction"), 132.0 / 150, 0.01);
-  EXPECT_EQ(JsonNumber(paged.out, "localized_fraction"), JsonNumber(reference.out, "localized_fraction"));
+  EXPECT_EQ(JsonNumber(paged.out, "localized_fraction"),
+            JsonNumber(reference.out, "localized_fraction"));
   EXPECT_LT(JsonNumber(paged.out, "position_max_m"), 0.05);
-  EXPECT_NEAR(JsonNumber(paged.out, "position_median_m"), JsonNumber(reference.out, "position_median_m"), 1e-4);
+  EXPECT_NEAR(JsonNumber(paged.out, "position_median_m"),
+              JsonNumber(reference.out, "position_median_m"), 1e-4);
   bounded.Stop();
   const std::string log = bounded.Log();
   EXPECT_GT(LogField(log, "map_page_loads"), 0) << log;

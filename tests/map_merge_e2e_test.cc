@@ -106,7 +106,8 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   // better.
   const double adjusted = JsonNumber(merge.out, "adjusted_keyframes");
   EXPECT_GT(adjusted, JsonNumber(merge.out, "keyframes_b"));
-  EXPECT_LT(adjusted, JsonNumber(merge.out, "keyframes_a") + JsonNumber(merge.out, "keyframes_b") - 1);
+  EXPECT_LT(adjusted,
+            JsonNumber(merge.out, "keyframes_a") + JsonNumber(merge.out, "keyframes_b") - 1);
   EXPECT_LT(JsonNumber(merge.out, "adjustment_final_rmse_px"),
             JsonNumber(merge.out, "adjustment_initial_rmse_px"));
   const int keyframes_a = static_cast<int>(JsonNumber(merge.out, "keyframes_a"));
@@ -175,8 +176,10 @@ void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::s
                                         const TempDir& out) {
   const std::string in_partial = out.File("in_partial.csv"), running = out.File("running.csv"),
                     after = out.File("after.csv");
-  ASSERT_EQ(Visloc({"localize", "--map", partial, "--dataset", kData + "/circle", "--stats",
-                    in_partial}).exit_code, 0);
+  ASSERT_EQ(
+      Visloc({"localize", "--map", partial, "--dataset", kData + "/circle", "--stats", in_partial})
+          .exit_code,
+      0);
   TempDir maps("visloc_map_extend_served");
   std::filesystem::copy_file(partial, maps.File("lab.db"));
   testing::ServerProcess server(VISLOC_SERVER_PATH, maps.path());
@@ -187,8 +190,8 @@ void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::s
   ProcessResult robot_result;
   std::thread robot([&] { robot_result = stream(running, "15"); });  // 120 frames: 8 s.
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
-  const ProcessResult upload =
-      Visloc({"map", "upload", extended, "--server", server.address(), "--name", "lab", "--replace"});
+  const ProcessResult upload = Visloc(
+      {"map", "upload", extended, "--server", server.address(), "--name", "lab", "--replace"});
   robot.join();
   ASSERT_EQ(upload.exit_code, 0) << upload.err;
   ASSERT_EQ(robot_result.exit_code, 0) << robot_result.err;

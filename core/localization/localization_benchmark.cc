@@ -145,8 +145,10 @@ void BM_ProjectAndMatch(benchmark::State& state) {
   for (uint32_t j : s.map->VisiblePoints(20)) points.push_back(j);
   size_t matches = 0;
   for (auto _ : state) {
-    const auto projected = ProjectPoints(s.map->AllPoints(), s.map->map().camera, s.cam_from_map, points);
-    matches = MatchProjected(s.map->AllPoints(), projected, frame, 15.0, DescriptorMatchOptions{}).size();
+    const auto projected =
+        ProjectPoints(s.map->AllPoints(), s.map->map().camera, s.cam_from_map, points);
+    matches =
+        MatchProjected(s.map->AllPoints(), projected, frame, 15.0, DescriptorMatchOptions{}).size();
   }
   state.counters["points"] = static_cast<double>(points.size());
   state.counters["matches"] = static_cast<double>(matches);

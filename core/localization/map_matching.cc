@@ -55,7 +55,8 @@ const cv::Mat& DescriptorRows(const PointView& map_points, const std::vector<uin
   for (size_t j = 0; j < points.size(); ++j) {
     int row = 0;
     const cv::Mat& source = map_points.descriptors(points[j], &row);
-    if (gathered->empty()) gathered->create(static_cast<int>(points.size()), source.cols, source.type());
+    if (gathered->empty())
+      gathered->create(static_cast<int>(points.size()), source.cols, source.type());
     source.row(row).copyTo(gathered->row(static_cast<int>(j)));
     (*rows)[j] = static_cast<uint32_t>(j);
   }
@@ -73,8 +74,8 @@ std::vector<PointMatch> MatchByDescriptor(const PointView& map_points,
   cv::Mat gathered;
   std::vector<uint32_t> rows;
   const cv::Mat& descriptors = DescriptorRows(map_points, points, &gathered, &rows);
-  const float max_distance =
-      options.MaxDistance(descriptors.type() == CV_32F ? DescriptorType::kFloat32 : DescriptorType::kBinary);
+  const float max_distance = options.MaxDistance(
+      descriptors.type() == CV_32F ? DescriptorType::kFloat32 : DescriptorType::kBinary);
   // Keypoint -> nearest point with the ratio test, then one keypoint per point.
   std::vector<PointMatch> per_point(points.size(), {0u, -1, std::numeric_limits<float>::max()});
   // 16-float descriptors (harris_surf16) go eight points at a time through their columns.

@@ -178,8 +178,8 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
   ransac = SolveFromMatches(map_points, frame, matches, &fix);
   if (!ransac.success && coarse.size() < projected.size()) {
     timer.Restart();
-    matches = MatchProjected(map_points, projected, frame, options_.search_radius_px,
-                             options_.matching);
+    matches =
+        MatchProjected(map_points, projected, frame, options_.search_radius_px, options_.matching);
     fix.times.match_ms += timer.ElapsedMs();
     ransac = SolveFromMatches(map_points, frame, matches, &fix);
   }

@@ -87,7 +87,8 @@ TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
   std::vector<uint32_t> all(map->point_count());
   for (uint32_t j = 0; j < all.size(); ++j) all[j] = j;
   const auto projected = ProjectPoints(map->AllPoints(), map->map().camera, truth, all);
-  const auto matches = MatchProjected(map->AllPoints(), projected, frame, 15.0, DescriptorMatchOptions{});
+  const auto matches =
+      MatchProjected(map->AllPoints(), projected, frame, 15.0, DescriptorMatchOptions{});
   ASSERT_GT(matches.size(), 150u);
   int correct = 0;
   for (const PointMatch& m : matches)

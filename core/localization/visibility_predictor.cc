@@ -66,7 +66,8 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
     }
   } else {
     for (const auto& [keyframe, weight] : nearest) {
-      for (uint32_t point : map_.VisiblePoints(keyframe)) votes.emplace_back(point, static_cast<float>(weight));
+      for (uint32_t point : map_.VisiblePoints(keyframe))
+        votes.emplace_back(point, static_cast<float>(weight));
     }
     // Stable: each point's votes add up in keyframe order, as in the dense path.
     std::stable_sort(votes.begin(), votes.end(),
@@ -107,8 +108,7 @@ std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
   const PointView points = map.AllPoints();
   for (uint32_t j = 0; j < map.point_count(); ++j) {
     Eigen::Vector2d pixel;
-    if (camera.Project(cam_from_map * points.position(j), &pixel) &&
-        camera.IsInImage(pixel)) {
+    if (camera.Project(cam_from_map * points.position(j), &pixel) && camera.IsInImage(pixel)) {
       visible.push_back(static_cast<uint32_t>(j));
     }
   }

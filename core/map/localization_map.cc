@@ -126,8 +126,9 @@ LocalizationMap::PointRange LocalizationMap::VisiblePoints(size_t keyframe) cons
 }
 
 PointView LocalizationMap::AllPoints() const {
-  VISLOC_CHECK(!source_, "a paged map does not hold all its points at once: the transparent and "
-                         "brute-force baselines need a resident map");
+  VISLOC_CHECK(!source_,
+               "a paged map does not hold all its points at once: the transparent and "
+               "brute-force baselines need a resident map");
   PointView view;
   view.blocks_ = {{map_.points.data(), &map_.descriptors, 0}};
   view.all_descriptors_ = &map_.descriptors;
@@ -155,7 +156,9 @@ PointView LocalizationMap::Points(const std::vector<uint32_t>& ids) const {
   return view;
 }
 
-PageCacheStats LocalizationMap::page_stats() const { return pages_ ? pages_->stats() : PageCacheStats{}; }
+PageCacheStats LocalizationMap::page_stats() const {
+  return pages_ ? pages_->stats() : PageCacheStats{};
+}
 
 size_t LocalizationMap::MemoryBytes() const {
   if (!source_) return MemoryBytesFor(map_);

@@ -19,7 +19,8 @@ struct PointChunk {
   std::vector<MapPoint> points;
   cv::Mat descriptors;
   size_t Bytes() const {
-    return sizeof(*this) + points.size() * sizeof(MapPoint) + descriptors.total() * descriptors.elemSize();
+    return sizeof(*this) + points.size() * sizeof(MapPoint) +
+           descriptors.total() * descriptors.elemSize();
   }
 };
 

@@ -44,10 +44,11 @@ std::shared_ptr<const void> PageCache::Get(uint64_t key, const Loader& load) {
   // The handed-out pointer counts the page as live until its last holder, cache or session,
   // lets go; it keeps the loaded object alive through its deleter.
   live_->Add(bytes);
-  std::shared_ptr<const void> page(loaded.get(), [holder = loaded, counter = live_, bytes](const void*) mutable {
-    holder.reset();
-    counter->Sub(bytes);
-  });
+  std::shared_ptr<const void> page(loaded.get(),
+                                   [holder = loaded, counter = live_, bytes](const void*) mutable {
+                                     holder.reset();
+                                     counter->Sub(bytes);
+                                   });
   std::lock_guard<std::mutex> lock(mutex_);
   stats_.load_ms += load_ms;
   auto it = entries_.find(key);

@@ -26,11 +26,11 @@ struct PageCacheStats {
   uint64_t hits = 0;
   uint64_t loads = 0;
   uint64_t evictions = 0;
-  size_t cached_bytes = 0;       // Pages the cache holds.
+  size_t cached_bytes = 0;  // Pages the cache holds.
   size_t peak_cached_bytes = 0;
-  size_t live_bytes = 0;         // Pages alive anywhere: cached or pinned by a session.
+  size_t live_bytes = 0;  // Pages alive anywhere: cached or pinned by a session.
   size_t peak_live_bytes = 0;
-  double load_ms = 0.0;          // Time spent loading pages, summed.
+  double load_ms = 0.0;  // Time spent loading pages, summed.
 };
 
 class PageCache {

@@ -59,8 +59,9 @@ TEST(PageCacheTest, APinnedPageOutlivesItsEvictionAndCountsAsLiveUntilReleased) 
 
 TEST(PageCacheTest, AFailedLoadCachesNothing) {
   PageCache cache(100);
-  EXPECT_THROW(cache.Get(1, [](size_t*) -> std::shared_ptr<const void> { throw InputError("bad page"); }),
-               InputError);
+  EXPECT_THROW(
+      cache.Get(1, [](size_t*) -> std::shared_ptr<const void> { throw InputError("bad page"); }),
+      InputError);
   EXPECT_EQ(cache.stats().loads, 0u);
   EXPECT_EQ(cache.stats().live_bytes, 0u);
 }
@@ -77,7 +78,8 @@ class MemorySource : public MapPageSource {
     out.first = chunk * chunk_points_;
     const uint32_t end = std::min<uint32_t>(out.first + chunk_points_, point_count());
     out.points.assign(map_.points.begin() + out.first, map_.points.begin() + end);
-    out.descriptors = map_.descriptors.rowRange(static_cast<int>(out.first), static_cast<int>(end)).clone();
+    out.descriptors =
+        map_.descriptors.rowRange(static_cast<int>(out.first), static_cast<int>(end)).clone();
     return out;
   }
   std::vector<uint32_t> LoadVisiblePoints(uint32_t keyframe) const override {
@@ -106,21 +108,25 @@ Map Skeleton(Map map) {
 // makes them, along the trajectory. Renumbered so, by the first keyframe that sees each.
 Map InTrajectoryOrder(const Map& map) {
   std::vector<uint32_t> first_seen(map.points.size(), UINT32_MAX);
-  for (const Observation& o : map.observations) first_seen[o.point] = std::min(first_seen[o.point], o.keyframe);
+  for (const Observation& o : map.observations)
+    first_seen[o.point] = std::min(first_seen[o.point], o.keyframe);
   std::vector<uint32_t> order(map.points.size());
   std::iota(order.begin(), order.end(), 0u);
-  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return first_seen[a] < first_seen[b]; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](uint32_t a, uint32_t b) { return first_seen[a] < first_seen[b]; });
   std::vector<uint32_t> new_id(map.points.size());
   Map out = map;
   for (size_t i = 0; i < order.size(); ++i) {
     new_id[order[i]] = static_cast<uint32_t>(i);
     out.points[i] = map.points[order[i]];
-    map.descriptors.row(static_cast<int>(order[i])).copyTo(out.descriptors.row(static_cast<int>(i)));
+    map.descriptors.row(static_cast<int>(order[i]))
+        .copyTo(out.descriptors.row(static_cast<int>(i)));
   }
   for (Observation& o : out.observations) o.point = new_id[o.point];
-  std::sort(out.observations.begin(), out.observations.end(), [](const Observation& a, const Observation& b) {
-    return a.keyframe != b.keyframe ? a.keyframe < b.keyframe : a.point < b.point;
-  });
+  std::sort(out.observations.begin(), out.observations.end(),
+            [](const Observation& a, const Observation& b) {
+              return a.keyframe != b.keyframe ? a.keyframe < b.keyframe : a.point < b.point;
+            });
   return out;
 }
 

@@ -17,7 +17,8 @@ namespace {
 visloc::Map Tile(const visloc::Map& one, int copies, double spacing_m) {
   visloc::Map tiled = one;
   tiled.metadata.name = one.metadata.name + "-tiled";
-  tiled.metadata.lineage = "tile(" + std::to_string(copies) + " copies of '" + one.metadata.name + "')";
+  tiled.metadata.lineage =
+      "tile(" + std::to_string(copies) + " copies of '" + one.metadata.name + "')";
   tiled.keyframes.clear();
   tiled.points.clear();
   tiled.observations.clear();
@@ -42,7 +43,8 @@ visloc::Map Tile(const visloc::Map& one, int copies, double spacing_m) {
       o.point += first_point;
       tiled.observations.push_back(o);
     }
-    for (const visloc::BowVector& v : one.appearance.keyframe_vectors) tiled.appearance.keyframe_vectors.push_back(v);
+    for (const visloc::BowVector& v : one.appearance.keyframe_vectors)
+      tiled.appearance.keyframe_vectors.push_back(v);
   }
   return tiled;
 }
@@ -60,7 +62,8 @@ int main(int argc, char** argv) {
     if (copies < 1 || !(spacing_m > 0)) throw std::runtime_error("COPIES >= 1 and SPACING_M > 0");
     const visloc::Map tiled = Tile(visloc::mapstore::LoadMap(argv[1]), copies, spacing_m);
     visloc::mapstore::SaveMap(tiled, argv[2]);
-    std::printf("%s: %zu keyframes, %zu points\n", argv[2], tiled.keyframes.size(), tiled.points.size());
+    std::printf("%s: %zu keyframes, %zu points\n", argv[2], tiled.keyframes.size(),
+                tiled.points.size());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tile_map: %s\n", e.what());
     return 1;
