@@ -54,12 +54,8 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
     }
   }
   // Pose parameters: contiguous copies, written back afterwards.
-  std::map<int, std::array<double, 7>> poses;  // qx qy qz qw tx ty tz
-  for (int k : window) {
-    const Rigid3d& pose = state->keyframes[k].cam_from_world;
-    poses[k] = {pose.rotation.x(),    pose.rotation.y(),    pose.rotation.z(),   pose.rotation.w(),
-                pose.translation.x(), pose.translation.y(), pose.translation.z()};
-  }
+  std::map<int, PoseBlock> poses;
+  for (int k : window) poses[k] = ToPoseBlock(state->keyframes[k].cam_from_world);
   ceres::Problem problem;
   ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_px);  // shared, owned by problem
   double initial_sq = 0;
@@ -86,27 +82,9 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
   summary.landmarks = static_cast<int>(landmarks.size());
   summary.residual_blocks = residual_count;
   if (residual_count == 0) return summary;
-  for (auto& [k, pose] : poses) {
-    if (!problem.HasParameterBlock(pose.data())) continue;
-    problem.SetManifold(pose.data(), new ceres::EigenQuaternionManifold());
-    if (!free.count(k)) {
-      problem.SetParameterBlockConstant(pose.data());
-      problem.SetParameterBlockConstant(pose.data() + 4);
-    }
-  }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_SCHUR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary solver_summary;
-  ceres::Solve(solver_options, &problem, &solver_summary);
-  summary.iterations = static_cast<int>(solver_summary.iterations.size());
-  for (auto& [k, pose] : poses) {
-    state->keyframes[k].cam_from_world =
-        Rigid3d(Eigen::Quaterniond(pose[3], pose[0], pose[1], pose[2]),
-                Eigen::Vector3d(pose[4], pose[5], pose[6]));
-  }
+  for (auto& [k, pose] : poses) SetUpPoseBlock(&problem, &pose, !free.count(k));
+  summary.iterations = SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations);
+  for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(pose);
   // Cull: observations above the error threshold, then landmarks seen fewer than twice.
   double final_sq = 0;
   int final_count = 0;

@@ -1,7 +1,6 @@
 #include "mapping/map_adjustment.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 
 #include <ceres/ceres.h>
@@ -12,9 +11,6 @@
 
 namespace visloc::mapping {
 namespace {
-
-// qx qy qz qw tx ty tz of cam_from_map, the layout reprojection_cost.h expects.
-using PoseBlock = std::array<double, 7>;
 
 // Keeps a point near where its own map's stereo bundle adjustment put it: the stereo depth
 // the map's mono observations no longer carry. sigma grows with depth squared, as a stereo
@@ -36,19 +32,6 @@ class PointPriorCost {
   Eigen::Vector3d prior_;
   double sigma_m_;
 };
-
-PoseBlock ToBlock(const Rigid3d& map_from_cam) {
-  const Rigid3d cam_from_map = map_from_cam.Inverse();
-  const Eigen::Quaterniond& q = cam_from_map.rotation;
-  const Eigen::Vector3d& t = cam_from_map.translation;
-  return {q.x(), q.y(), q.z(), q.w(), t.x(), t.y(), t.z()};
-}
-
-Rigid3d FromBlock(const PoseBlock& b) {
-  return Rigid3d(Eigen::Quaterniond(b[3], b[0], b[1], b[2]).normalized(),
-                 Eigen::Vector3d(b[4], b[5], b[6]))
-      .Inverse();
-}
 
 // Raw-pixel reprojection error of observation `o`; large when behind the camera.
 double ReprojectionErrorPx(const Map& map, const Observation& o) {
@@ -170,7 +153,7 @@ MapAdjustmentStats AdjustMap(Map* map, const std::vector<bool>& keyframe_fixed,
   }();
 
   std::vector<PoseBlock> poses;
-  for (const Keyframe& k : map->keyframes) poses.push_back(ToBlock(k.map_from_cam));
+  for (const Keyframe& k : map->keyframes) poses.push_back(ToPoseBlock(k.map_from_cam.Inverse()));
   ceres::Problem problem;
   ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_px);  // Shared, owned by problem.
   // Residuals on the normalized plane scaled by fx: a pinhole of focal fx centred at 0.
@@ -192,25 +175,11 @@ MapAdjustmentStats AdjustMap(Map* map, const std::vector<bool>& keyframe_fixed,
   stats.initial_rmse_px = RmsePx(*map, used);
   if (stats.residual_blocks == 0) return stats;
   AddPointPriors(map, roles, options, &problem, &stats);
-  for (size_t k = 0; k < poses.size(); ++k) {
-    if (!problem.HasParameterBlock(poses[k].data())) continue;
-    problem.SetManifold(poses[k].data(), new ceres::EigenQuaternionManifold());
-    if (keyframe_fixed[k]) {
-      problem.SetParameterBlockConstant(poses[k].data());
-      problem.SetParameterBlockConstant(poses[k].data() + 4);
-    }
-  }
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  stats.iterations = static_cast<int>(summary.iterations.size());
+  for (size_t k = 0; k < poses.size(); ++k) SetUpPoseBlock(&problem, &poses[k], keyframe_fixed[k]);
+  stats.iterations = SolveQuietly(&problem, ceres::SPARSE_SCHUR, options.max_iterations);
 
   for (size_t k = 0; k < poses.size(); ++k) {
-    if (!keyframe_fixed[k]) map->keyframes[k].map_from_cam = FromBlock(poses[k]);
+    if (!keyframe_fixed[k]) map->keyframes[k].map_from_cam = FromPoseBlock(poses[k]).Inverse();
   }
   for (size_t p = 0; p < map->points.size(); ++p) {
     const int k = roles.carrier[p];

@@ -11,12 +11,54 @@
 //           w = sigma_keypoint / sigma_disparity; as a plain right-image residual it would be
 //           trusted no more than the keypoint, and depth would drift to fit other views.
 
+#include <array>
+
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
 #include <Eigen/Core>
 
+#include "core/geometry/rigid3.h"
+
 namespace visloc::mapping {
+
+// A pose as the functors' parameter blocks [0] and [1], contiguous: qx qy qz qw tx ty tz of
+// cam_from_world.
+using PoseBlock = std::array<double, 7>;
+
+inline PoseBlock ToPoseBlock(const Rigid3d& cam_from_world) {
+  const Eigen::Quaterniond& q = cam_from_world.rotation;
+  const Eigen::Vector3d& t = cam_from_world.translation;
+  return {q.x(), q.y(), q.z(), q.w(), t.x(), t.y(), t.z()};
+}
+
+inline Rigid3d FromPoseBlock(const PoseBlock& b) {
+  return Rigid3d(Eigen::Quaterniond(b[3], b[0], b[1], b[2]), Eigen::Vector3d(b[4], b[5], b[6]));
+}
+
+// A pose block in `problem`: the rotation on the unit-quaternion manifold, both blocks held
+// when `fixed`. Blocks no residual uses are left alone.
+inline void SetUpPoseBlock(ceres::Problem* problem, PoseBlock* pose, bool fixed) {
+  if (!problem->HasParameterBlock(pose->data())) return;
+  problem->SetManifold(pose->data(), new ceres::EigenQuaternionManifold());
+  if (fixed) {
+    problem->SetParameterBlockConstant(pose->data());
+    problem->SetParameterBlockConstant(pose->data() + 4);
+  }
+}
+
+// Solves on one thread without logging; returns the iterations taken.
+inline int SolveQuietly(ceres::Problem* problem, ceres::LinearSolverType linear_solver,
+                        int max_iterations) {
+  ceres::Solver::Options options;
+  options.linear_solver_type = linear_solver;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, problem, &summary);
+  return static_cast<int>(summary.iterations.size());
+}
 
 struct RectifiedIntrinsics {
   double f = 1.0;   // Focal length, px (fx = fy after rectification).

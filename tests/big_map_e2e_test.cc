@@ -87,6 +87,11 @@ TEST_F(BigMapE2eTest, ABoundTooSmallForTheResidentIndexIsRefusedByName) {
   EXPECT_NE(refused.exit_code, 0);
   EXPECT_THAT(refused.err, HasSubstr("MiB of keyframes, kernel and appearance index resident"));
   EXPECT_THAT(refused.err, HasSubstr("more than the server's --map-memory-mib of 3"));
+  // A bound that is no bound is refused at start.
+  const ProcessResult negative = RunProcess(
+      {VISLOC_SERVER_PATH, "--maps", maps_.path(), "--map-memory-mib", "-1"});
+  EXPECT_NE(negative.exit_code, 0);
+  EXPECT_THAT(negative.err, HasSubstr("--map-memory-mib must be 0 (no bound) to 16777216"));
   // The server keeps serving: a session on a map within the bound (loaded whole) works.
   std::filesystem::copy_file(kData + "/map.db", maps_.File("square.db"));
   const ProcessResult other =
