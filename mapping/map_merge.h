@@ -7,12 +7,17 @@
 //              the inliers. Too few inliers, or too small a share of the matches, is "no overlap":
 //              the merge is refused, never made wrongly (maps of different rooms with the same
 //              kind of texture match descriptors by chance, but not in a consistent geometry).
+//              When B is already placed roughly in A (a guess: a new session whose images were
+//              localized in A, session_registration.h), each B point is paired instead with the
+//              A point near it whose descriptor is closest, and the guess refit on the pairs
+//              that agree: no search over the whole maps, so a session joins a big map as fast
+//              as a small one.
 //   fusion:    B's keyframes moved into A's frame; a B point that matched an A point and lies
 //              within `fuse_distance_m` of it after the alignment becomes that point (its
-//              observations join A's, A's position and descriptor are kept: A defines the
-//              frame), as does one whose nearest A point within that distance has a descriptor
-//              close enough (the mutual matching misses duplicates of repeated textures); the
-//              rest of B's points are added.
+//              observations join A's, A's descriptor is kept, the position is the mean of the
+//              two maps' stereo estimates), as does one whose nearest A point within that distance
+//              has a descriptor close enough (the mutual matching misses duplicates of repeated
+//              textures); the rest of B's points are added.
 //   adjustment: a bundle adjustment over the merged map (map_adjustment.h): B's keyframes and
 //              A's that share a point with B are free, A's first keyframe (the frame A's robots
 //              localize in) and A's beyond the seam are held, and every point is held near its
@@ -25,6 +30,7 @@
 //              vocabulary trained on all points, and every keyframe indexed by the points it
 //              observes.
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,7 +59,8 @@ struct MergeOptions {
 };
 
 struct MergeStats {
-  int matches = 0;             // Descriptor matches between the maps' points.
+  bool from_guess = false;  // Registered near a guess (the pairs below are by position).
+  int matches = 0;  // Descriptor matches between the maps' points (or pairs near the guess).
   int inliers = 0;             // Of those, consistent with the alignment.
   double inlier_rmse_m = 0.0;  // Of the inliers after the refit.
   Rigid3d a_from_b;            // B's map frame in A's.
@@ -66,12 +73,16 @@ struct MergeStats {
 };
 
 // Throws InputError naming the reason when the maps cannot be merged: different cameras or
-// features, or no verified overlap (the evidence in the message).
-Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
+// features, or no verified overlap (the evidence in the message). `a_from_b_guess`: B's frame in
+// A's as far as it is known (within a few centimetres), refined with the points near it; without
+// it, the overlap is searched for by descriptor over the whole maps.
+Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats,
+              const std::optional<Rigid3d>& a_from_b_guess = std::nullopt);
 
 // The overlap alone: B's map frame in A's (a_from_b), verified as MergeMaps does; the same
 // errors. Fills the registration part of `stats`.
-Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats);
+Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats,
+                     const std::optional<Rigid3d>& a_from_b_guess = std::nullopt);
 
 // The keyframes the merge's adjustment holds, for a merged map whose first `keyframes_a` are
 // A's: A's first (the frame) and A's that share no point with B (beyond the seam; they anchor

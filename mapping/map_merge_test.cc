@@ -7,29 +7,30 @@
 
 #include <Eigen/Geometry>
 
+#include "core/map/localization_map.h"
 #include "core/map/synthetic_map.h"
+#include "core/map/vocabulary.h"
 #include "core/util/check.h"
 #include "core/util/random.h"
 
 namespace visloc::mapping {
 namespace {
 
-// Map B: the second half of A's keyframes and the points they see, in a frame of its own
-// (`b_from_a`), positions perturbed by `noise_m`, plus points only B has.
-Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m,
-                  std::vector<int>* a_point_of_b = nullptr) {
+// The session of `a`'s keyframes [first, last) and the points they see, in a frame of its own
+// (`b_from_a`), positions perturbed by `noise_m`; `a_point_of_b` tells where each point came from.
+Map Session(const Map& a, uint32_t first, uint32_t last, const Rigid3d& b_from_a, double noise_m,
+            std::vector<int>* a_point_of_b = nullptr) {
   Rng rng(7);
   Map b;
   b.metadata = {"tuesday", 1, "/data/tue", "test", ""};
   b.camera = a.camera;
   b.features = a.features;
-  const uint32_t first = static_cast<uint32_t>(a.keyframes.size() / 2);
-  for (size_t k = first; k < a.keyframes.size(); ++k) {
+  for (size_t k = first; k < last; ++k) {
     b.keyframes.push_back({a.keyframes[k].timestamp_ns, b_from_a * a.keyframes[k].map_from_cam});
   }
   std::vector<int> point_of_a(a.points.size(), -1);
   for (const Observation& o : a.observations) {
-    if (o.keyframe < first) continue;
+    if (o.keyframe < first || o.keyframe >= last) continue;
     if (point_of_a[o.point] < 0) {
       point_of_a[o.point] = static_cast<int>(b.points.size());
       MapPoint p = a.points[o.point];
@@ -44,6 +45,13 @@ Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m,
   for (MapPoint& p : b.points) p.observation_count = 0;
   for (const Observation& o : b.observations) ++b.points[o.point].observation_count;
   return b;
+}
+
+// Map B: the second half of A's keyframes, in a frame of its own.
+Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m,
+                  std::vector<int>* a_point_of_b = nullptr) {
+  return Session(a, static_cast<uint32_t>(a.keyframes.size() / 2),
+                 static_cast<uint32_t>(a.keyframes.size()), b_from_a, noise_m, a_point_of_b);
 }
 
 // MakeSyntheticMap's maps observe points outside the image (they are made for storage tests),
@@ -87,6 +95,79 @@ TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
   EXPECT_EQ(merged.appearance.keyframe_vectors.size(), merged.keyframes.size());
   EXPECT_EQ(merged.metadata.lineage,
             "merge('monday' <- synthetic; 'tuesday' <- /data/tue)");
+}
+
+TEST(MapMergeTest, AFusedPointLiesHalfwayBetweenItsTwoMapsEstimates) {
+  const Map a = MondayMap(1);
+  const Rigid3d b_from_a(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())),
+                         Eigen::Vector3d(0.5, 0.0, 0.0));
+  std::vector<int> a_point_of_b;
+  const Map b = SecondSession(a, b_from_a, 0.005, &a_point_of_b);
+  MergeStats stats;
+  const Map merged = MergeMaps(a, b, RigidOnly(), &stats);
+  int halfway = 0;
+  for (size_t q = 0; q < b.points.size(); ++q) {
+    const int p = a_point_of_b[q];
+    const Eigen::Vector3d mean =
+        0.5 * (a.points[p].position_in_map + stats.a_from_b * b.points[q].position_in_map);
+    halfway += (merged.points[p].position_in_map - mean).norm() < 1e-9;
+  }
+  EXPECT_GT(halfway, 0.9 * b.points.size());
+}
+
+TEST(MapMergeTest, NearAGuessTheFrameIsRefinedFromThePointsAlone) {
+  const Map a = MondayMap(1);
+  const Rigid3d b_from_a(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+      Eigen::Vector3d(3.0, -1.0, 0.5));
+  const Map b = SecondSession(a, b_from_a, 0.005);
+  // Where localizing B's images in A would put it: a centimetre and a tenth of a degree off.
+  const Rigid3d a_from_b = b_from_a.Inverse();
+  const Rigid3d guess =
+      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.002, Eigen::Vector3d::UnitY())),
+              Eigen::Vector3d(0.01, -0.005, 0.005)) *
+      a_from_b;
+  MergeStats stats;
+  const Map merged = MergeMaps(a, b, RigidOnly(), &stats, guess);
+  EXPECT_TRUE(stats.from_guess);
+  EXPECT_TRUE(ApproxEqual(stats.a_from_b, a_from_b, 0.002, 0.05));
+  EXPECT_GT(stats.fused_points, 0.9 * b.points.size());
+  EXPECT_TRUE(FindMapProblems(merged).empty());
+  // A guess a metre off finds no look-alike points where it puts B: refused, not forced.
+  const Rigid3d far_off =
+      Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0)) * a_from_b;
+  try {
+    MergeMaps(a, b, RigidOnly(), &stats, far_off);
+    FAIL() << "merged at a placement where nothing meets";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("do not meet"));
+  }
+}
+
+TEST(MapMergeTest, WhatOnlyBSawIsFoundByAppearanceInTheMergedMap) {
+  // One walk of 60 keyframes: A mapped the first 40, B keyframes 30-59, so 40-59 are new.
+  SyntheticMapOptions synthetic;
+  synthetic.keyframes = 60;
+  synthetic.points = 4500;
+  const Map walk = MakeSyntheticMap(synthetic);
+  const Map a = Session(walk, 0, 40, Rigid3d(), 0.0);
+  const Map b =
+      Session(walk, 30, 60,
+              Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ())),
+                      Eigen::Vector3d(1.0, 0.5, 0.0)),
+              0.003);
+  MergeStats stats;
+  const LocalizationMap merged(MergeMaps(a, b, RigidOnly(), &stats));
+  // The points the walk's last keyframe saw, as a query image would describe them.
+  cv::Mat query;
+  for (const Observation& o : walk.observations) {
+    if (o.keyframe == 59) query.push_back(walk.descriptors.row(o.point));
+  }
+  const std::vector<float> scores =
+      merged.ScoreKeyframes(ComputeBow(merged.map().appearance.vocabulary, query));
+  const int best =
+      static_cast<int>(std::max_element(scores.begin(), scores.end()) - scores.begin());
+  EXPECT_EQ(best, 40 + 29) << "the merged map's best keyframe for the new place";
 }
 
 TEST(MapMergeTest, DuplicatesOfRepeatedTexturesAreFusedToo) {

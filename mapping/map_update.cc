@@ -53,11 +53,13 @@ std::string UpdateOptions::Problem() const {
   return "";
 }
 
-Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats) {
+Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats,
+              const std::optional<Rigid3d>& map_from_session_guess) {
   if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
   *stats = UpdateStats{};
   MergeStats registration;
-  const Rigid3d map_from_session = RegisterMaps(map, session, options.merge, &registration);
+  const Rigid3d map_from_session =
+      RegisterMaps(map, session, options.merge, &registration, map_from_session_guess);
   const SessionPoints seen(session, map_from_session, options.found_distance_m);
   std::vector<Rigid3d> cam_from_map;
   for (const Keyframe& k : session.keyframes) cam_from_map.push_back((map_from_session * k.map_from_cam).Inverse());
@@ -84,7 +86,10 @@ Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, 
       ++stats->removed_points;
     }
   }
-  Map updated = MergeMaps(WithoutPoints(map, remove), session, options.merge, &stats->merge);
+  // What remains of the map is where it was: the registration holds, and the merge only refines
+  // it with the points that are left.
+  Map updated = MergeMaps(WithoutPoints(map, remove), session, options.merge, &stats->merge,
+                          map_from_session);
   updated.metadata.lineage = MergedLineage(map.metadata, session.metadata, "update");
   return updated;
 }

@@ -2,7 +2,8 @@
 // A map brought up to date with a new session through a place that changed (`visloc map
 // update`): furniture moved, boxes gone, new things standing around.
 //
-//   1. the session (mapped on its own from stereo) is registered to the map (map_merge.h);
+//   1. the session (mapped on its own from stereo) is registered to the map (map_merge.h), near
+//      a guess when one is given (its images localized in the map, session_registration.h);
 //   2. every map point is checked against the session's keyframes: a keyframe "should see" the
 //      point when it projects into its image, in front and within `max_depth_m`, seen from a
 //      direction within `max_view_angle_deg` of the directions the map saw it from; it "sees"
@@ -12,6 +13,8 @@
 //   3. the session is merged into what remains (map_merge.h): what is new is added, duplicates
 //      fused, the kernel and the vocabulary learned again.
 // Points the session never came near are kept: no view, no evidence.
+
+#include <optional>
 
 #include "core/map/map.h"
 #include "mapping/map_merge.h"
@@ -35,6 +38,7 @@ struct UpdateStats {
 };
 
 // Throws InputError as MergeMaps does when the session does not overlap the map.
-Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats);
+Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats,
+              const std::optional<Rigid3d>& map_from_session_guess = std::nullopt);
 
 }  // namespace visloc::mapping

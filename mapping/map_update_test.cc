@@ -70,8 +70,10 @@ TEST(MapUpdateTest, RemovesWhatMovedKeepsTheRestAndAddsWhereItWent) {
   size_t next = 0;
   for (size_t p = 0; p < map.points.size(); ++p) {
     moved_count += moved[p];
+    // A kept point the session saw again is fused: it moves to the mean of the two estimates,
+    // which here agree to rounding.
     if (next < updated.points.size() &&
-        updated.points[next].position_in_map == map.points[p].position_in_map) {
+        (updated.points[next].position_in_map - map.points[p].position_in_map).norm() < 1e-6) {
       ++next;
     } else {
       ++(moved[p] ? removed_moved : removed_unmoved);
@@ -84,6 +86,28 @@ TEST(MapUpdateTest, RemovesWhatMovedKeepsTheRestAndAddsWhereItWent) {
   EXPECT_GE(stats.merge.added_points, stats.removed_points);
   EXPECT_TRUE(FindMapProblems(updated).empty());
   EXPECT_EQ(updated.metadata.lineage.rfind("update('lab' <- ", 0), 0u) << updated.metadata.lineage;
+}
+
+TEST(MapUpdateTest, ASessionPlacedByAGuessIsCheckedTheSameWay) {
+  SyntheticMapOptions synthetic;
+  synthetic.keyframes = 40;
+  synthetic.points = 3000;
+  const Map map = MakeSyntheticMap(synthetic);
+  const Rigid3d session_from_map(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY())),
+      Eigen::Vector3d(1.0, 0.0, -2.0));
+  std::vector<bool> moved;
+  const Map session = ChangedSession(map, session_from_map, &moved);
+  UpdateStats searched, placed;
+  UpdateMap(map, session, RigidOnly(), &searched);
+  // The guess: where the session's localized images put it, a centimetre off.
+  const Rigid3d guess = Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0.0, 0.005)) *
+                        session_from_map.Inverse();
+  UpdateMap(map, session, RigidOnly(), &placed, guess);
+  EXPECT_TRUE(placed.merge.from_guess);
+  EXPECT_EQ(placed.removed_points, searched.removed_points);
+  EXPECT_EQ(placed.merge.fused_points, searched.merge.fused_points);
+  EXPECT_TRUE(ApproxEqual(placed.merge.a_from_b, session_from_map.Inverse(), 1e-6, 1e-4));
 }
 
 TEST(MapUpdateTest, ASessionElsewhereIsRefused) {
