@@ -1,6 +1,8 @@
 // Maps across sessions (mapping/map_merge.h):
 //   `visloc map merge A.db B.db --out C.db`  two maps of overlapping places into one, in A's frame;
-//   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, then merged into MAP;
+//   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, its images localized
+//                                             in MAP (mapping/session_registration.h), then
+//                                             merged into MAP in MAP's frame;
 //   `visloc map update MAP.db --dataset DIR`  the same for a place that changed: what is gone
 //                                             removed first (mapping/map_update.h).
 // Maps or sessions with no verified overlap are refused with the evidence; files are written
@@ -19,13 +21,16 @@
 #include "mapping/dataset_mapping.h"
 #include "mapping/map_merge.h"
 #include "mapping/map_update.h"
+#include "mapping/session_registration.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::cli {
 namespace {
 
-// `update`: the update's point check, when there was one.
+// `session`: how a new session's images localized in the map (extend, update); `update`: the
+// update's point check, when there was one.
 std::string ToJson(const std::string& out, const Map& merged, const mapping::MergeStats& s,
+                   const mapping::SessionRegistrationStats* session = nullptr,
                    const mapping::UpdateStats* update = nullptr) {
   const Eigen::Vector3d& t = s.a_from_b.translation;
   const Eigen::Quaterniond& q = s.a_from_b.rotation;
@@ -55,6 +60,17 @@ std::string ToJson(const std::string& out, const Map& merged, const mapping::Mer
       .Field("adjustment_final_rmse_px", s.adjustment.final_rmse_px)
       .Field("adjustment_culled_observations", s.adjustment.culled_observations)
       .Field("visibility_fit_rmse", s.visibility.final_rmse);
+  if (session) {
+    json.Key("session_localization")
+        .BeginObject()
+        .Field("frames", session->frames)
+        .Field("localized_frames", session->localized_frames)
+        .Field("paired_frames", session->paired_frames)
+        .Field("agreeing_frames", session->agreeing_frames)
+        .Field("position_rmse_m", session->position_rmse_m)
+        .Field("seconds", session->localize_ms / 1e3)
+        .EndObject();
+  }
   if (update) {
     json.Field("checked_points", update->checked_points)
         .Field("removed_points", update->removed_points);
@@ -64,14 +80,24 @@ std::string ToJson(const std::string& out, const Map& merged, const mapping::Mer
 }
 
 void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeStats& stats,
-                const char* b_name) {
+                const char* b_name, const mapping::SessionRegistrationStats* session = nullptr) {
   std::printf("%s: %zu keyframes (%d + %d), %zu points (%d fused, %d added from %s)\n",
               out.c_str(), merged.keyframes.size(), stats.keyframes_a, stats.keyframes_b,
               merged.points.size(), stats.fused_points, stats.added_points, b_name);
-  std::printf("overlap: %d of %d descriptor matches agree on one alignment (RMSE %.1f mm); %s "
-              "moved by %.3f m, turned %.2f deg\n",
-              stats.inliers, stats.matches, stats.inlier_rmse_m * 1e3, b_name,
-              stats.a_from_b.translation.norm(), RotationAngleDeg(stats.a_from_b.rotation));
+  if (session) {
+    std::printf(
+        "localized in the map: %d of %d images, %d agreeing on one placement of the "
+        "session (camera centres within %.1f mm RMS), %.1f s\n",
+        session->localized_frames, session->frames, session->agreeing_frames,
+        session->position_rmse_m * 1e3, session->localize_ms / 1e3);
+  }
+  std::printf(
+      "overlap: %d of %d %s agree on one alignment (RMSE %.1f mm); %s "
+      "moved by %.3f m, turned %.2f deg\n",
+      stats.inliers, stats.matches,
+      stats.from_guess ? "point pairs near that placement" : "descriptor matches",
+      stats.inlier_rmse_m * 1e3, b_name, stats.a_from_b.translation.norm(),
+      RotationAngleDeg(stats.a_from_b.rotation));
   const mapping::MapAdjustmentStats& adjustment = stats.adjustment;
   if (adjustment.residual_blocks > 0) {
     std::printf(
@@ -85,24 +111,53 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
   std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
 }
 
-// A new session mapped on its own, with the existing map's detector, as `map build` would.
-Map BuildSessionMap(const Map& existing, const std::string& dataset_dir, const std::string& format,
-                    const std::string& verb, bool progress) {
-  const Dataset dataset = ReadDataset(
-      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+// A new session mapped on its own, with the existing map's detector, as `map build` would;
+// `frame_trajectory`: where the mapping placed each image.
+Map BuildSessionMap(const Map& existing, const Dataset& dataset, const std::string& dataset_dir,
+                    const std::string& verb, bool progress, Trajectory* frame_trajectory) {
   mapping::DatasetMappingOptions options;
   options.builder.features = DefaultFeatureSettings(existing.features.kind);
   const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)),
                              std::filesystem::absolute(dataset_dir).string(),
                              "visloc 0.1.0 map " + verb, ""};
   mapping::MapBuildStats stats;
-  Map session = mapping::BuildMap(
-      dataset, options, metadata, &stats, nullptr,
-      [&](int done, int total, const std::string& status) {
-        if (progress) std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total, status.c_str());
-      });
+  Map session = mapping::BuildMap(dataset, options, metadata, &stats, frame_trajectory,
+                                  [&](int done, int total, const std::string& status) {
+                                    if (progress)
+                                      std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total,
+                                                   status.c_str());
+                                  });
   if (progress) std::fprintf(stderr, "\r\33[K");
   return session;
+}
+
+// A new session in an existing map: mapped on its own, then its images localized in the map
+// (relocalization, then tracking), which places it there. The refusal names the session.
+struct PlacedSession {
+  Map map;
+  Rigid3d map_from_session;
+  mapping::SessionRegistrationStats stats;
+};
+
+PlacedSession PlaceSession(const Map& existing, const std::string& dataset_dir,
+                           const std::string& format, const std::string& verb, bool progress) {
+  const Dataset dataset = ReadDataset(
+      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  PlacedSession placed;
+  Trajectory session_from_cam;
+  placed.map = BuildSessionMap(existing, dataset, dataset_dir, verb, progress, &session_from_cam);
+  try {
+    placed.map_from_session = mapping::LocalizeSessionInMap(
+        existing, dataset, session_from_cam, mapping::SessionRegistrationOptions{}, &placed.stats,
+        [&](int done, int total) {
+          if (progress) std::fprintf(stderr, "\r\33[Klocalizing in the map: %d / %d", done, total);
+        });
+  } catch (const InputError& e) {
+    if (progress) std::fprintf(stderr, "\r\33[K");
+    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
+  }
+  if (progress) std::fprintf(stderr, "\r\33[K");
+  return placed;
 }
 
 void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
@@ -155,11 +210,13 @@ int RunMapExtend(const Args& args) {
   ArgParser parser(
       "visloc map extend",
       "Adds a new stereo session to a map, in the map's frame: the session is mapped on its own "
-      "(as map build does, with the map's detector), then registered to the map by its points "
-      "(descriptor matches verified by a RANSAC rigid alignment) and merged: duplicates fused, "
-      "the visibility kernel learned again over all keyframes and the vocabulary retrained, so "
-      "the new areas relocalize. A session that never overlaps the map is refused. The map file "
-      "is replaced atomically when the extended map is complete.");
+      "(as map build does, with the map's detector), its images are localized in the map as a "
+      "robot's would be (relocalization, then tracking), the keyframes that localized place it "
+      "in the map, its points near the map's refine that placement, and it is merged: "
+      "duplicates fused, old and new keyframes and points adjusted together, the visibility "
+      "kernel learned again over all keyframes and the vocabulary retrained, so the new areas "
+      "relocalize. A session that never localizes in the map is refused. The map file is "
+      "replaced atomically when the extended map is complete.");
   parser.AddPositional("MAP", &map_path, "the map file to extend (replaced)");
   parser.AddFlag("dataset", &dataset_dir, "the new session: a stereo dataset folder", true);
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
@@ -168,20 +225,22 @@ int RunMapExtend(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
   const Map existing = mapstore::LoadMap(map_path);
-  const Map session = BuildSessionMap(existing, dataset_dir, format, "extend", ShowProgress() && !json);
+  const PlacedSession session =
+      PlaceSession(existing, dataset_dir, format, "extend", ShowProgress() && !json);
   mapping::MergeStats stats;
   Map extended;
   try {
-    extended = mapping::MergeMaps(existing, session, options, &stats);
+    extended = mapping::MergeMaps(existing, session.map, options, &stats, session.map_from_session);
   } catch (const InputError& e) {
     throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
   }
-  extended.metadata.lineage = mapping::MergedLineage(existing.metadata, session.metadata, "extend");
+  extended.metadata.lineage =
+      mapping::MergedLineage(existing.metadata, session.map.metadata, "extend");
   mapstore::SaveMap(extended, map_path);
   if (json) {
-    std::cout << ToJson(map_path, extended, stats) << "\n";
+    std::cout << ToJson(map_path, extended, stats, &session.stats) << "\n";
   } else {
-    PrintHuman(map_path, extended, stats, "the session");
+    PrintHuman(map_path, extended, stats, "the session", &session.stats);
   }
   return 0;
 }
@@ -193,7 +252,8 @@ int RunMapUpdate(const Args& args) {
   ArgParser parser(
       "visloc map update",
       "Brings a map up to date with a new stereo session through a place that changed: the "
-      "session is mapped and registered to the map; map points that several of its keyframes "
+      "session is mapped and localized in the map (as extend does); map points that several of its "
+      "keyframes "
       "should have seen (in the image, in range, from a similar direction) and none did are "
       "removed; then the session is merged in, so what is new is added. Points the session never "
       "came near are kept. The map file is replaced atomically.");
@@ -207,21 +267,22 @@ int RunMapUpdate(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
   const Map existing = mapstore::LoadMap(map_path);
-  const Map session = BuildSessionMap(existing, dataset_dir, format, "update", ShowProgress() && !json);
+  const PlacedSession session =
+      PlaceSession(existing, dataset_dir, format, "update", ShowProgress() && !json);
   mapping::UpdateStats stats;
   Map updated;
   try {
-    updated = mapping::UpdateMap(existing, session, options, &stats);
+    updated = mapping::UpdateMap(existing, session.map, options, &stats, session.map_from_session);
   } catch (const InputError& e) {
     throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
   }
   mapstore::SaveMap(updated, map_path);
   if (json) {
-    std::cout << ToJson(map_path, updated, stats.merge, &stats) << "\n";
+    std::cout << ToJson(map_path, updated, stats.merge, &session.stats, &stats) << "\n";
   } else {
     std::printf("%s: %d of %zu points checked against the session, %d gone and removed\n",
                 map_path.c_str(), stats.checked_points, existing.points.size(), stats.removed_points);
-    PrintHuman(map_path, updated, stats.merge, "the session");
+    PrintHuman(map_path, updated, stats.merge, "the session", &session.stats);
   }
   return 0;
 }

@@ -3,7 +3,8 @@
 //   the same room (the circle, B) become one map in A's frame; B's keyframes must land on ground
 //   truth, the circle must localize in the merged map, and a map of a different room is refused;
 // - `visloc map extend`: a map of the square's first third extended with the offset-square
-//   session; a session in a different room is refused and leaves the map file as it was;
+//   session, placed by localizing its images in the map; a session in a different room localizes
+//   nowhere, is refused and leaves the map file as it was;
 // - `visloc map update`: the map of the room brought up to date with a session after the boxes
 //   were moved; what the map expects is found again about as often as before the change.
 
@@ -32,20 +33,6 @@ using testing::ProcessResult;
 using testing::Visloc;
 
 const std::string kData = VISLOC_LOCALIZATION_DATA;
-
-Trajectory ReadKeyframeLines(const std::string& path) {
-  Trajectory poses;
-  std::ifstream in(path);
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream fields(line);
-    double t, x, y, z, qx, qy, qz, qw;
-    fields >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
-    poses.push_back({SecondsToNs(t), Rigid3d(Eigen::Quaterniond(qw, qx, qy, qz), {x, y, z})});
-  }
-  return poses;
-}
 
 // One column of a `--stats` CSV (`visloc localize` or `visloc stream`), a value per frame.
 std::vector<double> StatsColumn(const std::string& stats_csv, const std::string& name) {
@@ -118,9 +105,8 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   // sequence's ground truth in the square map's frame).
   const std::string keyframes = dir_.File("keyframes.tum");
   ASSERT_EQ(Visloc({"map", "export", merged, "--keyframes", keyframes}).exit_code, 0);
-  // Both sessions were rendered from the same start time, so the keyframes' times repeat: read
-  // the export line by line (ReadTum insists on increasing times).
-  const Trajectory all = ReadKeyframeLines(keyframes);
+  // Both sessions were rendered from the same start time, so the keyframes' times repeat.
+  const Trajectory all = testing::ReadTumLines(keyframes);
   ASSERT_EQ(static_cast<int>(all.size()), keyframes_a + keyframes_b);
   const Trajectory gt = ReadTum(kData + "/circle/groundtruth_map.tum");
   double worst_m = 0.0;
@@ -225,6 +211,14 @@ TEST_F(MapMergeE2eTest, ExtendAddsASessionInTheMapsFrameAndRefusesAnotherRoom) {
       Visloc({"map", "extend", map, "--dataset", kData + "/query_square", "--json"});
   ASSERT_EQ(extend.exit_code, 0) << extend.err;
   ExpectRunningSessionsKeepTheOldMap(partial, map, dir_);
+  // The session was found in the map as a robot is: its images localized (relocalization, then
+  // tracking), and the keyframes that localized agree on where it lies; its points near the
+  // map's then refined that placement.
+  EXPECT_EQ(JsonNumber(extend.out, "session_localization", "frames"), 120);
+  EXPECT_GT(JsonNumber(extend.out, "session_localization", "localized_frames"), 100);
+  EXPECT_GE(JsonNumber(extend.out, "session_localization", "agreeing_frames"),
+            0.9 * JsonNumber(extend.out, "session_localization", "localized_frames"));
+  EXPECT_LT(JsonNumber(extend.out, "session_localization", "position_rmse_m"), 0.02);
   EXPECT_GE(JsonNumber(extend.out, "inliers"), 40);
   EXPECT_EQ(JsonNumber(extend.out, "keyframes"),
             JsonNumber(before.out, "keyframes") + JsonNumber(extend.out, "keyframes_b"));
@@ -244,7 +238,8 @@ TEST_F(MapMergeE2eTest, ExtendAddsASessionInTheMapsFrameAndRefusesAnotherRoom) {
   const std::string bytes_before = ReadFileBytes(map);
   const ProcessResult other = Visloc({"map", "extend", map, "--dataset", kData + "/outofmap"});
   EXPECT_EQ(other.exit_code, 1);
-  EXPECT_THAT(other.err, HasSubstr("does not overlap the map"));
+  EXPECT_THAT(other.err,
+              HasSubstr("does not overlap the map: 0 of the session's 45 images localized"));
   EXPECT_EQ(ReadFileBytes(map), bytes_before);
 }
 
@@ -267,6 +262,9 @@ TEST_F(MapMergeE2eTest, UpdateForAChangedPlaceRemovesWhatIsGoneAndRecoversTheFou
   const ProcessResult update =
       Visloc({"map", "update", map, "--dataset", kData + "/changed", "--json"});
   ASSERT_EQ(update.exit_code, 0) << update.err;
+  // The changed room localizes all the same: its images place the session.
+  EXPECT_GE(JsonNumber(update.out, "session_localization", "agreeing_frames"),
+            0.9 * JsonNumber(update.out, "session_localization", "frames"));
   EXPECT_GT(JsonNumber(update.out, "removed_points"), 0);
   EXPECT_GT(JsonNumber(update.out, "added_points"), 0);
   const double changed_after = found_ratio(map, "changed");

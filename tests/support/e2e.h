@@ -5,9 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "core/geometry/trajectory.h"
 #include "core/map/synthetic_map.h"
 #include "mapstore/map_store.h"
 #include "tests/support/process.h"
@@ -35,6 +38,22 @@ inline double JsonNumber(const std::string& json, const std::string& section,
 
 inline double JsonNumber(const std::string& json, const std::string& key) {
   return JsonNumber(json, "", key);
+}
+
+// The poses of a TUM file whose times may repeat (`visloc map export --keyframes` of a map that
+// holds two sessions of the same times), in file order; ReadTum insists on increasing times.
+inline Trajectory ReadTumLines(const std::string& path) {
+  Trajectory poses;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    double t, x, y, z, qx, qy, qz, qw;
+    fields >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
+    poses.push_back({SecondsToNs(t), Rigid3d(Eigen::Quaterniond(qw, qx, qy, qz), {x, y, z})});
+  }
+  return poses;
 }
 
 // Writes the small synthetic map the map-management and fault tests share: "lab", 20 keyframes,
