@@ -7,7 +7,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 
 #include "core/util/temp_dir.h"
 #include "dataset/dataset.h"
@@ -137,6 +139,101 @@ TEST_F(RealDataE2eTest, KittiTracksEveryFrameAndMovesLikeACar) {
   // at once, strongly supported, but reported relocalized), then tracking at the car's speed.
   EXPECT_EQ(JsonNumber(localize.out, "statuses", "relocalized"), 2);
   EXPECT_EQ(JsonNumber(localize.out, "statuses", "tracking"), 9);
+}
+
+// Frames [first, last) of the EuRoC snippet as a recording of their own in `out` (images linked,
+// not copied): a second session through the same place.
+std::string EurocPart(const std::string& out, int first, int last) {
+  for (const char* cam : {"cam0", "cam1"}) {
+    const std::filesystem::path from = std::filesystem::path(kEuroc) / "mav0" / cam;
+    const std::filesystem::path to = std::filesystem::path(out) / "mav0" / cam;
+    std::filesystem::create_directories(to / "data");
+    std::filesystem::copy_file(from / "sensor.yaml", to / "sensor.yaml");
+    std::ifstream rows(from / "data.csv");
+    std::ofstream part(to / "data.csv");
+    std::string row;
+    std::getline(rows, row);
+    part << row << "\n";
+    for (int i = 0; std::getline(rows, row); ++i) {
+      if (i < first || i >= last) continue;
+      part << row << "\n";
+      const std::string image =
+          row.substr(row.find(',') + 1, row.find_last_not_of("\r") - row.find(','));
+      std::filesystem::create_symlink(from / "data" / image, to / "data" / image);
+    }
+  }
+  return out;
+}
+
+// The same for KITTI (images renumbered from 000000, their times kept).
+std::string KittiPart(const std::string& out, int first, int last) {
+  const std::filesystem::path from(kKitti), to(out);
+  std::filesystem::create_directories(to);
+  std::filesystem::copy_file(from / "calib.txt", to / "calib.txt");
+  std::ifstream times(from / "times.txt");
+  std::ofstream part(to / "times.txt");
+  std::string time;
+  for (int i = 0; std::getline(times, time); ++i) {
+    if (i < first || i >= last) continue;
+    part << time << "\n";
+    for (const char* cam : {"image_0", "image_1"}) {
+      std::filesystem::create_directories(to / cam);
+      char from_name[16], to_name[16];
+      std::snprintf(from_name, sizeof from_name, "%06d.png", i);
+      std::snprintf(to_name, sizeof to_name, "%06d.png", i - first);
+      std::filesystem::create_symlink(from / cam / from_name, to / cam / to_name);
+    }
+  }
+  return out;
+}
+
+// A lab maps a place and comes back: a map of a real recording's first part, extended with a
+// session of a later part that overlaps it. The session is found by localizing its images in
+// the map and joins it in the map's frame.
+TEST_F(RealDataE2eTest, ALaterSessionExtendsAMapOfRealImagesInItsFrame) {
+  // EuRoC: the MAV stands still, so the second session's camera is where the first one's was
+  // (the ground truth moves by less than 3 mm).
+  const std::string euroc = dir_.File("euroc_first.db");
+  ASSERT_EQ(
+      Visloc({"map", "build", "--dataset", kEuroc, "--frames", "48", "--out", euroc}).exit_code, 0);
+  const ProcessResult euroc_extend = Visloc(
+      {"map", "extend", euroc, "--dataset", EurocPart(dir_.File("euroc_later"), 48, 95), "--json"});
+  ASSERT_EQ(euroc_extend.exit_code, 0) << euroc_extend.err;
+  EXPECT_EQ(JsonNumber(euroc_extend.out, "session_localization", "localized_frames"), 47);
+  EXPECT_EQ(JsonNumber(euroc_extend.out, "session_localization", "agreeing_frames"), 47);
+  ASSERT_EQ(Visloc({"map", "export", euroc, "--keyframes", dir_.File("euroc.tum")}).exit_code, 0);
+  const Trajectory euroc_keyframes = testing::ReadTumLines(dir_.File("euroc.tum"));
+  ASSERT_EQ(euroc_keyframes.size(), 2u);
+  EXPECT_TRUE(ApproxEqual(euroc_keyframes[1].pose, euroc_keyframes[0].pose, 0.003, 0.1));
+  const ProcessResult localize = Visloc({"localize", "--map", euroc, "--dataset", kEuroc,
+                                         "--trajectory", dir_.File("e.tum"), "--json"});
+  EXPECT_EQ(JsonNumber(localize.out, "localized_fraction"), 1.0);
+  EXPECT_LE(Spread(dir_.File("e.tum")).first, 0.005);
+
+  // KITTI: the car drives on at 0.8 m a frame; the later session (frames 4-10) shares two frames
+  // with the map (0-5). Its keyframes land where one build of all eleven frames puts them.
+  const std::string kitti = dir_.File("kitti_first.db"), whole = dir_.File("kitti_whole.db");
+  ASSERT_EQ(
+      Visloc({"map", "build", "--dataset", kKitti, "--frames", "6", "--out", kitti}).exit_code, 0);
+  ASSERT_EQ(Visloc({"map", "build", "--dataset", kKitti, "--out", whole}).exit_code, 0);
+  const ProcessResult kitti_extend = Visloc(
+      {"map", "extend", kitti, "--dataset", KittiPart(dir_.File("kitti_later"), 4, 11), "--json"});
+  ASSERT_EQ(kitti_extend.exit_code, 0) << kitti_extend.err;
+  EXPECT_GE(JsonNumber(kitti_extend.out, "session_localization", "agreeing_frames"), 5);
+  ASSERT_EQ(Visloc({"map", "export", kitti, "--keyframes", dir_.File("kitti.tum")}).exit_code, 0);
+  ASSERT_EQ(Visloc({"map", "export", whole, "--keyframes", dir_.File("whole.tum")}).exit_code, 0);
+  const Trajectory extended = testing::ReadTumLines(dir_.File("kitti.tum"));
+  const Trajectory reference = ReadTum(dir_.File("whole.tum"));
+  ASSERT_EQ(extended.size(), 13u);  // 6 + 7 keyframes.
+  double worst_m = 0.0;
+  for (size_t k = 6; k < extended.size(); ++k) {
+    const auto truth = InterpolateAt(reference, extended[k].timestamp_ns, 1'000'000);
+    ASSERT_TRUE(truth.has_value());
+    worst_m = std::max(worst_m, (truth->translation - extended[k].pose.translation).norm());
+  }
+  std::printf("KITTI: the later session's keyframes within %.1f mm of one build of all frames\n",
+              1e3 * worst_m);
+  EXPECT_LT(worst_m, 0.03);  // Measured 17 mm, 7.5 m from the first frame.
 }
 
 }  // namespace
