@@ -143,6 +143,13 @@ PlacedSession PlaceSession(const Map& existing, const std::string& dataset_dir,
                            const std::string& format, const std::string& verb, bool progress) {
   const Dataset dataset = ReadDataset(
       dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  // Before minutes of mapping: a map grows with sessions of its own camera.
+  if (!mapping::SameCamera(existing.camera, dataset.left.camera)) {
+    throw InputError(StrCat("the session ", dataset_dir, "'s left camera (",
+                            ToString(dataset.left.camera), ") is not the map's (",
+                            ToString(existing.camera),
+                            "): a map grows with sessions of its own camera"));
+  }
   PlacedSession placed;
   Trajectory session_from_cam;
   placed.map = BuildSessionMap(existing, dataset, dataset_dir, verb, progress, &session_from_cam);

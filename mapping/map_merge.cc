@@ -23,12 +23,7 @@ struct PointPair {
 };
 
 void RequireSameSensor(const Map& a, const Map& b) {
-  const auto pa = a.camera.Params(), pb = b.camera.Params();
-  bool same_camera = a.camera.width() == b.camera.width() &&
-                     a.camera.height() == b.camera.height() &&
-                     a.camera.lens().model == b.camera.lens().model;
-  for (size_t i = 0; i < pa.size(); ++i) same_camera &= std::abs(pa[i] - pb[i]) <= 1e-6 * (1 + std::abs(pa[i]));
-  if (!same_camera) {
+  if (!SameCamera(a.camera, b.camera)) {
     throw InputError(StrCat("the maps' cameras differ (", ToString(a.camera), " and ",
                             ToString(b.camera), "): maps of one camera can be merged"));
   }
@@ -171,6 +166,16 @@ std::vector<cv::Mat> KeyframeDescriptors(const Map& map) {
 }
 
 }  // namespace
+
+bool SameCamera(const Camera& a, const Camera& b) {
+  const auto pa = a.Params(), pb = b.Params();
+  bool same = a.width() == b.width() && a.height() == b.height() &&
+              a.lens().model == b.lens().model && pa.size() == pb.size();
+  for (size_t i = 0; same && i < pa.size(); ++i) {
+    same &= std::abs(pa[i] - pb[i]) <= 1e-6 * (1 + std::abs(pa[i]));
+  }
+  return same;
+}
 
 std::string MergeOptions::Problem() const {
   if (!(inlier_distance_m > 0 && inlier_distance_m < 10)) return "inlier distance must be 0 to 10 m";

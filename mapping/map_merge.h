@@ -84,6 +84,10 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
 Rigid3d RegisterMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStats* stats,
                      const std::optional<Rigid3d>& a_from_b_guess = std::nullopt);
 
+// Whether two maps' (or a map's and a session's) cameras are one: size, lens model and every
+// parameter within a part in a million. Maps of different cameras are not merged.
+bool SameCamera(const Camera& a, const Camera& b);
+
 // The keyframes the merge's adjustment holds, for a merged map whose first `keyframes_a` are
 // A's: A's first (the frame) and A's that share no point with B (beyond the seam; they anchor
 // the points they share with the seam's keyframes).

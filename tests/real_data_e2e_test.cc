@@ -12,6 +12,7 @@
 #include <fstream>
 
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "dataset/tum.h"
 #include "tests/support/e2e.h"
@@ -209,6 +210,12 @@ TEST_F(RealDataE2eTest, ALaterSessionExtendsAMapOfRealImagesInItsFrame) {
                                          "--trajectory", dir_.File("e.tum"), "--json"});
   EXPECT_EQ(JsonNumber(localize.out, "localized_fraction"), 1.0);
   EXPECT_LE(Spread(dir_.File("e.tum")).first, 0.005);
+  // Another camera's recording is refused before it is mapped, and the map stays as it was.
+  const std::string bytes = ReadFileBytes(euroc);
+  const ProcessResult other_camera = Visloc({"map", "extend", euroc, "--dataset", kKitti});
+  EXPECT_EQ(other_camera.exit_code, 1);
+  EXPECT_THAT(other_camera.err, HasSubstr("is not the map's"));
+  EXPECT_EQ(ReadFileBytes(euroc), bytes);
 
   // KITTI: the car drives on at 0.8 m a frame; the later session (frames 4-10) shares two frames
   // with the map (0-5). Its keyframes land where one build of all eleven frames puts them.
