@@ -131,8 +131,10 @@ Map BuildSessionMap(const Map& existing, const Dataset& dataset, const std::stri
   return session;
 }
 
-// A new session in an existing map: mapped on its own, then its images localized in the map
-// (relocalization, then tracking), which places it there. The refusal names the session.
+// A new session in an existing map: its images localized in the map (relocalization, then
+// tracking; a session that never sees the mapped place is refused here, before it is mapped),
+// then mapped on its own; the images placed both ways place the session. The refusal names
+// the session.
 struct PlacedSession {
   Map map;
   Rigid3d map_from_session;
@@ -151,17 +153,27 @@ PlacedSession PlaceSession(const Map& existing, const std::string& dataset_dir,
                             "): a map grows with sessions of its own camera"));
   }
   PlacedSession placed;
-  Trajectory session_from_cam;
-  placed.map = BuildSessionMap(existing, dataset, dataset_dir, verb, progress, &session_from_cam);
+  const mapping::SessionRegistrationOptions options;
+  const auto refused = [&](const InputError& e) {
+    if (progress) std::fprintf(stderr, "\r\33[K");
+    return InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
+  };
+  Trajectory map_from_cam;
   try {
-    placed.map_from_session = mapping::LocalizeSessionInMap(
-        existing, dataset, session_from_cam, mapping::SessionRegistrationOptions{}, &placed.stats,
-        [&](int done, int total) {
+    map_from_cam = mapping::LocalizeSessionImages(
+        existing, dataset, options, &placed.stats, [&](int done, int total) {
           if (progress) std::fprintf(stderr, "\r\33[Klocalizing in the map: %d / %d", done, total);
         });
   } catch (const InputError& e) {
-    if (progress) std::fprintf(stderr, "\r\33[K");
-    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
+    throw refused(e);
+  }
+  Trajectory session_from_cam;
+  placed.map = BuildSessionMap(existing, dataset, dataset_dir, verb, progress, &session_from_cam);
+  try {
+    placed.map_from_session =
+        mapping::FitMapFromSession(session_from_cam, map_from_cam, options, &placed.stats);
+  } catch (const InputError& e) {
+    throw refused(e);
   }
   if (progress) std::fprintf(stderr, "\r\33[K");
   return placed;
@@ -216,9 +228,9 @@ int RunMapExtend(const Args& args) {
   mapping::MergeOptions options;
   ArgParser parser(
       "visloc map extend",
-      "Adds a new stereo session to a map, in the map's frame: the session is mapped on its own "
-      "(as map build does, with the map's detector), its images are localized in the map as a "
-      "robot's would be (relocalization, then tracking), the keyframes that localized place it "
+      "Adds a new stereo session to a map, in the map's frame: its images are localized in the "
+      "map as a robot's would be (relocalization, then tracking), the session is mapped on its "
+      "own (as map build does, with the map's detector), the images placed both ways place it "
       "in the map, its points near the map's refine that placement, and it is merged: "
       "duplicates fused, old and new keyframes and points adjusted together, the visibility "
       "kernel learned again over all keyframes and the vocabulary retrained, so the new areas "

@@ -115,11 +115,10 @@ Rigid3d FitMapFromSession(const Trajectory& session_from_cam, const Trajectory& 
   return map_from_session;
 }
 
-Rigid3d LocalizeSessionInMap(const Map& map, const Dataset& dataset,
-                             const Trajectory& session_from_cam,
-                             const SessionRegistrationOptions& options,
-                             SessionRegistrationStats* stats,
-                             const std::function<void(int, int)>& progress) {
+Trajectory LocalizeSessionImages(const Map& map, const Dataset& dataset,
+                                 const SessionRegistrationOptions& options,
+                                 SessionRegistrationStats* stats,
+                                 const std::function<void(int, int)>& progress) {
   if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
   *stats = SessionRegistrationStats{};
   Timer timer;
@@ -133,8 +132,9 @@ Rigid3d LocalizeSessionInMap(const Map& map, const Dataset& dataset,
     input.image = LoadGreyImage(frame.left_path, camera.width(), camera.height());
     const LocalizationResult result = localizer.Process(input);
     ++stats->frames;
-    if (Strong(result, options.min_fix_inliers))
+    if (Strong(result, options.min_fix_inliers)) {
       localized.push_back({frame.timestamp_ns, result.map_from_cam});
+    }
     if (progress) progress(stats->frames, static_cast<int>(dataset.frames.size()));
   }
   stats->localized_frames = static_cast<int>(localized.size());
@@ -147,7 +147,7 @@ Rigid3d LocalizeSessionInMap(const Map& map, const Dataset& dataset,
                             " are needed. A session that never sees the mapped place is not "
                             "added to it"));
   }
-  return FitMapFromSession(session_from_cam, localized, options, stats);
+  return localized;
 }
 
 }  // namespace visloc::mapping

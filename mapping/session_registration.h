@@ -2,8 +2,9 @@
 // A new session found in an existing map the way a robot is found (`visloc map extend`, `map
 // update`): the session's left images go through the map's localization engine in order, as a
 // server session runs them (relocalization by appearance with geometric verification first,
-// then visibility-guided tracking). Each image with a strong visual fix that the session's own
-// stereo mapping also placed (its frame trajectory, which follows the mapper's bundle
+// then visibility-guided tracking); that needs no map of the session, so a session that never
+// localizes is refused before it is mapped. Each image with a strong visual fix that the
+// session's own stereo mapping also placed (its frame trajectory, which follows the mapper's bundle
 // adjustments) gives one candidate for the session's frame in the map:
 //
 //   map_from_session = map_from_cam (localized) * session_from_cam^-1 (the session's mapping).
@@ -51,13 +52,13 @@ Rigid3d FitMapFromSession(const Trajectory& session_from_cam, const Trajectory& 
                           SessionRegistrationStats* stats);
 
 // Localizes every left image of `dataset` in `map` (which needs its visibility kernel and
-// appearance index), then FitMapFromSession with the session mapping's frame trajectory
-// (`session_from_cam`, BuildMap's). `progress(done, total)` per image. Throws InputError for
-// unreadable images, and as FitMapFromSession does.
-Rigid3d LocalizeSessionInMap(const Map& map, const Dataset& dataset,
-                             const Trajectory& session_from_cam,
-                             const SessionRegistrationOptions& options,
-                             SessionRegistrationStats* stats,
-                             const std::function<void(int, int)>& progress = nullptr);
+// appearance index), in order: the map_from_cam of the images with a strong fix, for
+// FitMapFromSession. It needs no map of the session, so a session that never sees the mapped
+// place is refused before it is mapped: InputError when fewer than `min_agreeing_frames` images
+// localize, and for unreadable images. `progress(done, total)` per image.
+Trajectory LocalizeSessionImages(const Map& map, const Dataset& dataset,
+                                 const SessionRegistrationOptions& options,
+                                 SessionRegistrationStats* stats,
+                                 const std::function<void(int, int)>& progress = nullptr);
 
 }  // namespace visloc::mapping
