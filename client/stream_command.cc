@@ -47,10 +47,20 @@ struct StreamArgs {
   std::string encoding = "file";
   int jpeg_quality = 90;
   int max_in_flight = 2, max_queued = 2;
-  int frame_deadline_ms = 1000, stall_timeout_ms = 2000;
+  int frame_deadline_ms = 1000;
+  int stall_timeout_ms = 0;  // 0: StallTimeout's default.
   bool odometry = false, json = false;
   int frames = 0;
 };
+
+// How long the stream may go without an answer before it is reopened: 2 s for a robot's pace;
+// a minute for a replay as fast as possible, which promises every frame an answer however long
+// the engine takes (a slow frame, say a relocalization under a sanitizer, is no stalled link,
+// and reopening loses the frames on the wire; keepalive pings still find a dead connection).
+std::chrono::milliseconds StallTimeout(const StreamArgs& args) {
+  if (args.stall_timeout_ms > 0) return std::chrono::milliseconds(args.stall_timeout_ms);
+  return args.rate_hz == 0 ? std::chrono::milliseconds(60000) : std::chrono::milliseconds(2000);
+}
 
 client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& camera) {
   client::SessionOptions o;
@@ -67,7 +77,7 @@ client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& 
   o.max_in_flight = args.max_in_flight;
   o.max_queued = args.max_queued;
   o.frame_deadline = std::chrono::milliseconds(args.frame_deadline_ms);
-  o.stall_timeout = std::chrono::milliseconds(args.stall_timeout_ms);
+  o.stall_timeout = StallTimeout(args);
   if (args.rate_hz == 0) {
     // A replay as fast as possible: every frame is sent and answered however long it takes.
     o.wait_for_room = true;
@@ -243,7 +253,7 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.AddFlag("frame-deadline-ms", &args->frame_deadline_ms,
                  "frames waiting longer are dropped, answers later are reported late");
   parser.AddFlag("stall-timeout-ms", &args->stall_timeout_ms,
-                 "no answer this long: the stream is reopened");
+                 "no answer this long: the stream is reopened (default 2000; 60000 with --rate 0)");
   parser.AddSwitch("odometry", &args->odometry, "send the dataset's odometry and gyro");
   parser.AddFlag("trajectory", &args->trajectory_path, "write the estimated poses (TUM)");
   parser.AddFlag("stats", &args->stats_path, "write per-frame statistics (CSV)");
@@ -265,6 +275,8 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   }
   if (args->rate_hz > 1000)
     throw UsageError("--rate must be at most 1000 Hz (0: as fast as possible)");
+  if (args->stall_timeout_ms < 0)
+    throw UsageError("--stall-timeout-ms must not be negative (0: the default)");
   if (args->policy != "all" && args->policy != "newest")
     throw UsageError("--policy is all or newest");
   if (args->encoding != "file" && args->encoding != "jpeg" && args->encoding != "png" &&
@@ -465,7 +477,7 @@ int RunStream(const Args& raw_args) {
     }
   }
   const client::LinkState final_state = session->link_state();
-  session->Close(std::chrono::milliseconds(args.rate_hz == 0 ? 600000 : 2 * args.stall_timeout_ms));
+  session->Close(args.rate_hz == 0 ? std::chrono::milliseconds(600000) : 2 * StallTimeout(args));
   const client::SessionStats stats = session->stats();
   session.reset();
   if (ShowProgress() && !args.json) std::fprintf(stderr, "\n");
