@@ -327,12 +327,14 @@ TEST_F(ServerE2eTest, HealthServiceReportsServing) {
 
 TEST_F(ServerE2eTest, SigtermDrainsAnOpenStreamAndExitsCleanly) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
-  // 30 frames at 15 Hz: the stream is open for 2 s; SIGTERM arrives after ~0.7 s.
+  // 30 frames at 15 Hz: the stream is open for 2 s; SIGTERM arrives once it is open (however
+  // long the client takes to start).
   const int client = testing::SpawnProcess(
       {VISLOC_CLI_PATH, "stream", "--server", server.address(), "--map", "square", "--dataset",
        kData + "/query_square", "--frames", "30", "--json"},
       out_.File("drain.json"), out_.File("drain.err"));
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  ASSERT_TRUE(server.WaitForLog("event=session_start"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(server.Stop(), 0);
   EXPECT_EQ(testing::WaitProcess(client), 0);
   std::ifstream in(out_.File("drain.json"));

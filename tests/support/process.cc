@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "core/util/check.h"
 #include "core/util/temp_dir.h"
@@ -126,6 +127,14 @@ ServerProcess::~ServerProcess() {
 }
 
 std::string ServerProcess::Log() const { return ReadAll(dir_ + "/stderr"); }
+
+bool ServerProcess::WaitForLog(const std::string& text, int timeout_ms) const {
+  for (int waited_ms = 0; Log().find(text) == std::string::npos; waited_ms += 20) {
+    if (waited_ms >= timeout_ms) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
 
 int ServerProcess::Stop(int signal) {
   if (pid_ > 0) {

@@ -42,6 +42,8 @@ class ServerProcess {
   int pid() const { return pid_; }
   // What the server logged to stderr so far.
   std::string Log() const;
+  // Waits (polling, at most `timeout_ms`) until the log holds `text`; whether it came.
+  bool WaitForLog(const std::string& text, int timeout_ms = 10000) const;
   // Sends `signal` (SIGTERM: a drain; SIGKILL: a crash) and waits; returns the exit code.
   // Idempotent.
   int Stop(int signal = 15);
