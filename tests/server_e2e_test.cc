@@ -339,7 +339,13 @@ TEST_F(ServerE2eTest, SigtermDrainsAnOpenStreamAndExitsCleanly) {
   EXPECT_EQ(testing::WaitProcess(client), 0);
   std::ifstream in(out_.File("drain.json"));
   const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  EXPECT_EQ(JsonNumber(json, "frames"), 30) << json;
+  // Every frame the robot sent was answered before the server went: none undelivered. A loaded
+  // machine may make the robot drop frames itself (a real-time camera outrunning its link); they
+  // were never sent, so they count apart (a CI run under ASan dropped 2).
+  EXPECT_EQ(JsonNumber(json, "frames") + JsonNumber(json, "dropped"), 30) << json;
+  EXPECT_GE(JsonNumber(json, "frames"), 15) << json;
+  EXPECT_EQ(JsonNumber(json, "undelivered"), 0) << json;
+  EXPECT_EQ(JsonNumber(json, "errors"), 0) << json;
   EXPECT_THAT(server.Log(), HasSubstr("event=server_draining signal=SIGTERM open_sessions=1"));
 }
 
