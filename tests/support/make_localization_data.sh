@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Generates the data the localization end-to-end tests share (a CTest fixture):
 #   map.db        built from the 2 m square rendered at 5 fps (the whole loop, kept quick),
+#   map_build.json, map_trajectory.tum  that build's summary and estimated frame poses,
 #   <sequence>/   short query sequences at 15 fps with ground truth in the map frame.
 # Usage: make_localization_data.sh VISLOC_BINARY OUT_DIR. Skips the work when OUT_DIR is newer
 # than the binary (local re-runs); CI always starts from a fresh build folder.
@@ -19,7 +20,8 @@ sim() { "$visloc" sim --out "$out" --no-contact-sheet "$@" >/dev/null; }
 queries=(query_square:120 straight:0 circle:120 kidnap:150 lowlight:90 occluders:90 outofmap:45
          changed:120)
 sim --sequence map_square --fps 5
-"$visloc" map build --dataset "$out/map_square" --out "$out/map.db" >/dev/null &
+"$visloc" map build --dataset "$out/map_square" --out "$out/map.db" --json \
+  --trajectory "$out/map_trajectory.tum" > "$out/map_build.json" &
 build=$!
 pids=()
 for q in "${queries[@]}"; do
