@@ -48,9 +48,10 @@ echo "== ThreadSanitizer: the server's concurrency tests"
 # The map cache under racing sessions, the worker permits and the rate limiter, in-process.
 # (Debian's gRPC is not built with TSan, so the whole server under TSan reports false races
 # inside gRPC's code: docs/reliability.md. VISLOC_TEST_SERVER=build-tsan/server/visloc-server
-# runs the end-to-end tests against it by hand.)
+# runs the end-to-end tests against it by hand, after `cmake --build build-tsan --target
+# visloc-server`.)
 configure build-tsan -DVISLOC_SANITIZE=thread
-build build-tsan --target server_test visloc-server
+build build-tsan --target server_test
 TSAN_OPTIONS=$TSAN_OPTIONS:suppressions=$PWD/tests/tsan.supp build-tsan/server/server_test
 check_reports
 echo "all tests passed under ASan+UBSan, and the server's concurrency tests under TSan"
