@@ -1,7 +1,7 @@
 #include "server/localization_service.h"
 
-#include <grpcpp/grpcpp.h>
 #include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -58,6 +58,14 @@ class ServiceFixture : public ::testing::Test {
     return frame;
   }
 
+  // A Localize call on "lab" whose SessionStart is sent (the call keeps the channel, not the stub).
+  std::unique_ptr<grpc::ClientReaderWriter<v1::LocalizeRequest, v1::LocalizeResponse>> OpenSession(
+      grpc::ClientContext* context, v1::FrameDropPolicy policy = v1::PROCESS_ALL) const {
+    auto stream = v1::Localization::NewStub(channel_)->Localize(context);
+    EXPECT_TRUE(stream->Write(StartRequest(policy)));
+    return stream;
+  }
+
   TempDir maps_dir_{"visloc-service-test"};
   const TokenAuth auth_;
   const Camera camera_{160, 120, 80.0, 80.0, 79.5, 59.5};
@@ -79,10 +87,8 @@ TEST_F(ServiceFixture, ConcurrentSessionsShareTheWorkerPermits) {
   std::vector<std::thread> robots;
   for (int r = 0; r < kSessions; ++r) {
     robots.emplace_back([&, r] {
-      auto stub = v1::Localization::NewStub(channel_);
       grpc::ClientContext context;
-      auto stream = stub->Localize(&context);
-      if (!stream->Write(StartRequest(v1::PROCESS_ALL))) return;
+      auto stream = OpenSession(&context);
       for (int i = 0; i < kFrames; ++i) {
         v1::LocalizeResponse response;
         if (!stream->Write(FrameRequest(i)) || !stream->Read(&response)) return;
@@ -111,10 +117,8 @@ TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
     if (calls++ % 2 == 0) throw std::runtime_error("injected fault at engine.cc:42");
   });
   for (int session = 0; session < 2; ++session) {
-    auto stub = v1::Localization::NewStub(channel_);
     grpc::ClientContext context;
-    auto stream = stub->Localize(&context);
-    ASSERT_TRUE(stream->Write(StartRequest(GetParam())));
+    auto stream = OpenSession(&context, GetParam());
     int errors = 0, answered = 0;
     for (int i = 0; i < 6; ++i) {
       v1::LocalizeResponse response;
@@ -149,10 +153,8 @@ TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed)
   limits.max_sessions = 1;
   limits.session_idle_timeout = std::chrono::milliseconds(2000);
   Start(limits);
-  auto stub = v1::Localization::NewStub(channel_);
   grpc::ClientContext frozen_context;
-  auto frozen = stub->Localize(&frozen_context);
-  ASSERT_TRUE(frozen->Write(StartRequest(v1::PROCESS_ALL)));
+  auto frozen = OpenSession(&frozen_context);
   v1::LocalizeResponse response;
   ASSERT_TRUE(frozen->Write(FrameRequest(0)));
   ASSERT_TRUE(frozen->Read(&response));
@@ -175,8 +177,7 @@ TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed)
   EXPECT_EQ(service_->idle_sessions_closed(), 1);
   // The slot is free: a new robot is served.
   grpc::ClientContext next_context;
-  auto next = stub->Localize(&next_context);
-  ASSERT_TRUE(next->Write(StartRequest(v1::PROCESS_ALL)));
+  auto next = OpenSession(&next_context);
   ASSERT_TRUE(next->Write(FrameRequest(0)));
   ASSERT_TRUE(next->Read(&response));
   EXPECT_NE(response.status(), v1::STATUS_ERROR) << response.error();
@@ -185,16 +186,14 @@ TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed)
 }
 
 // A robot that is slow to read (its link stalls while the server closes the idle session) still
-// finds the closing answer when it reads again: the server gives the answer time to leave
-// before it cancels the call.
+// finds the closing answer when it reads again: the server's cancellation of the call, which
+// follows the answer, does not discard it.
 TEST_F(ServiceFixture, AClientSlowToReadStillGetsTheClosingAnswer) {
   ServiceLimits limits;
   limits.session_idle_timeout = std::chrono::milliseconds(200);
   Start(limits);
-  auto stub = v1::Localization::NewStub(channel_);
   grpc::ClientContext context;
-  auto stream = stub->Localize(&context);
-  ASSERT_TRUE(stream->Write(StartRequest(v1::PROCESS_ALL)));
+  auto stream = OpenSession(&context);
   std::this_thread::sleep_for(std::chrono::milliseconds(600));  // Closed by now.
   v1::LocalizeResponse response;
   ASSERT_TRUE(stream->Read(&response));

@@ -154,9 +154,9 @@ TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
 // settings, radii scaled to the camera): on the same 640x480 image they give the same fix.
 TEST_F(ServerE2eTest, TheRpcAndASessionGiveTheSameFirstFixAt640x480) {
   const std::string rendered = out_.File("q640");
-  const ProcessResult sim = Visloc({"sim", "--out", rendered, "--sequence", "query_square",
-                                    "--resolution", "640x480", "--frames", "1",
-                                    "--no-contact-sheet"});
+  const ProcessResult sim =
+      Visloc({"sim", "--out", rendered, "--sequence", "query_square", "--resolution", "640x480",
+              "--frames", "1", "--no-contact-sheet"});
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   const std::string dataset_dir = rendered + "/query_square";
   const Dataset dataset = ReadDataset(dataset_dir);
@@ -175,8 +175,9 @@ TEST_F(ServerE2eTest, TheRpcAndASessionGiveTheSameFirstFixAt640x480) {
   const Eigen::Vector3d rpc_position(JsonNumber(rpc.out, "tx"), JsonNumber(rpc.out, "ty"),
                                      JsonNumber(rpc.out, "tz"));
   EXPECT_LT((first[0].pose.translation - rpc_position).norm(), 1e-6);
-  EXPECT_THAT(ReadFileBytes(out_.File("first.csv")),
-              HasSubstr("," + std::to_string(static_cast<int>(JsonNumber(rpc.out, "inliers"))) + ","));
+  EXPECT_THAT(
+      ReadFileBytes(out_.File("first.csv")),
+      HasSubstr("," + std::to_string(static_cast<int>(JsonNumber(rpc.out, "inliers"))) + ","));
 }
 
 TEST_F(ServerE2eTest, ConcurrentSessionsOnDifferentMaps) {
