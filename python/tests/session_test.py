@@ -129,7 +129,8 @@ class PythonClientTest(unittest.TestCase):
             proxy.wait()
         resumed = [i for i, e in enumerate(events) if e.kind == "link" and e.detail == "resumed"]
         self.assertTrue(resumed, [(e.kind, e.detail) for e in events if e.kind == "link"])
-        posed_before = [e for e in events[:resumed[0]] if e.kind == "result" and e.response.has_pose]
+        posed_before = [e for e in events[:resumed[0]]
+                        if e.kind == "result" and e.response.has_pose]
         self.assertTrue(posed_before, "no pose before the cut to resume from")
         first = next(e for e in events[resumed[0]:] if e.kind == "result")
         self.assertEqual(first.response.source, pb.SOURCE_TRACKING)
