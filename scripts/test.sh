@@ -3,8 +3,7 @@
 #   1. builds everything with AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/) and runs
 #      the whole suite through CTest in parallel: unit, end-to-end, fault tests, and the replay
 #      of the fuzzing corpus and past crashes;
-#   2. builds the server's tests with ThreadSanitizer (build-tsan/, at the lowest CPU priority
-#      while step 1's tests run) and runs its concurrency tests.
+#   2. builds the server's tests with ThreadSanitizer (build-tsan/) and runs its concurrency tests.
 # Any sanitizer report fails the run (reports are kept in out/sanitizers/). The release build
 # (scripts/build.sh) is what the demo and the benchmarks run; these builds are slower and check
 # more.
@@ -42,19 +41,7 @@ check_reports() {
 echo "== AddressSanitizer + UndefinedBehaviorSanitizer: the whole suite"
 configure build-asan -DVISLOC_SANITIZE=address,undefined
 build build-asan
-# The ThreadSanitizer build of the next stage compiles meanwhile at the lowest CPU priority, on
-# what CPU the tests leave (end-to-end tests wait on sockets, timeouts and real-time streams part
-# of the time), while a test that wants the CPU still gets it at once (nice 19 against 0 is a
-# ~1.5% share). Measured: it was done before the tests, which took 2 min longer (20 min instead of
-# 18); the whole run took 32 min. It is waited for whatever the tests' outcome.
-configure build-tsan -DVISLOC_SANITIZE=thread
-(renice -n 19 "$BASHPID" > /dev/null && build build-tsan --target server_test) &
-tsan_build=$!
-status=0
-(cd build-asan && ctest -j"$jobs" --output-on-failure --timeout 900) || status=$?
-tsan_build_status=0
-wait "$tsan_build" || tsan_build_status=$?
-[[ $status == 0 ]] || exit "$status"
+(cd build-asan && ctest -j"$jobs" --output-on-failure --timeout 900)
 check_reports
 
 echo "== ThreadSanitizer: the server's concurrency tests"
@@ -63,7 +50,8 @@ echo "== ThreadSanitizer: the server's concurrency tests"
 # inside gRPC's code: docs/reliability.md. VISLOC_TEST_SERVER=build-tsan/server/visloc-server
 # runs the end-to-end tests against it by hand, after `cmake --build build-tsan --target
 # visloc-server`.)
-[[ $tsan_build_status == 0 ]] || exit "$tsan_build_status"
+configure build-tsan -DVISLOC_SANITIZE=thread
+build build-tsan --target server_test
 TSAN_OPTIONS=$TSAN_OPTIONS:suppressions=$PWD/tests/tsan.supp build-tsan/server/server_test
 check_reports
 echo "all tests passed under ASan+UBSan, and the server's concurrency tests under TSan"
