@@ -114,11 +114,11 @@ TEST_F(RobotLinkE2eTest, AFiveSecondCutIsResumedWithinASecondAndTracked) {
   // The cut comes 1.5 s in, and never before the robot's first pose (its trajectory file is
   // written as poses come): a cut before it leaves nothing to resume from, which a loaded
   // sanitizer run once did.
-  for (int i = 0; i < 500 && !(std::filesystem::exists(out_.File("poses.tum")) &&
-                               std::filesystem::file_size(out_.File("poses.tum")) > 0);
-       ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  ASSERT_TRUE(testing::WaitUntil([&] {
+    std::error_code error;
+    return std::filesystem::file_size(out_.File("poses.tum"), error) > 0 && !error;
+  })) << "no pose in 10 s: "
+      << RobotErr();
   std::this_thread::sleep_until(started + std::chrono::milliseconds(1500));
   link.Cut(std::chrono::milliseconds(5000));
   const int64_t link_back_ms = WallMs() + 5000;

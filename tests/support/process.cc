@@ -128,12 +128,16 @@ ServerProcess::~ServerProcess() {
 
 std::string ServerProcess::Log() const { return ReadAll(dir_ + "/stderr"); }
 
-bool ServerProcess::WaitForLog(const std::string& text, int timeout_ms) const {
-  for (int waited_ms = 0; Log().find(text) == std::string::npos; waited_ms += 20) {
+bool WaitUntil(const std::function<bool()>& ready, int timeout_ms) {
+  for (int waited_ms = 0; !ready(); waited_ms += 20) {
     if (waited_ms >= timeout_ms) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return true;
+}
+
+bool ServerProcess::WaitForLog(const std::string& text, int timeout_ms) const {
+  return WaitUntil([&] { return Log().find(text) != std::string::npos; }, timeout_ms);
 }
 
 int ServerProcess::Stop(int signal) {

@@ -2,6 +2,7 @@
 // Runs a program as a child process and captures what it prints, for end-to-end tests that
 // exercise the real binaries.
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,9 @@ int SpawnProcess(const std::vector<std::string>& argv, const std::string& out_pa
 int KillProcess(int pid, int signal);
 // Waits for the child to end. Returns the exit code as RunProcess reports it.
 int WaitProcess(int pid);
+// Polls `ready` every 20 ms until it holds or `timeout_ms` passed; whether it held. For tests
+// that wait on what another process does, never on a fixed sleep.
+bool WaitUntil(const std::function<bool()>& ready, int timeout_ms = 10000);
 
 // A real visloc-server on a free loopback port, for end-to-end tests: started in the
 // constructor (waits until it prints "listening on ADDRESS"), SIGTERMed in the destructor.
