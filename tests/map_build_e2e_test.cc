@@ -38,10 +38,7 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
   EXPECT_THAT(build.out, HasSubstr("\"frames\":150"));
   // Each key once (disparity_rmse_px was written twice).
   for (const char* key : {"\"disparity_rmse_px\"", "\"loop_closures\"", "\"loop_adjustments\""}) {
-    size_t count = 0;
-    for (size_t at = build.out.find(key); at != std::string::npos; at = build.out.find(key, at + 1))
-      ++count;
-    EXPECT_EQ(count, 1u) << key;
+    EXPECT_EQ(testing::CountOccurrences(build.out, key), 1u) << key;
   }
   EXPECT_LT(JsonNumber(build.out, "map", "reprojection_rmse_px"), 0.5);
   EXPECT_EQ(JsonNumber(build.out, "map", "tracking_failures"), 0);

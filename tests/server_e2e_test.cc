@@ -201,12 +201,7 @@ TEST_F(ServerE2eTest, ConcurrentSessionsOnDifferentMaps) {
   }
   server.Stop();
   const std::string log = server.Log();
-  size_t ends = 0;
-  for (size_t at = log.find("event=session_end"); at != std::string::npos;
-       at = log.find("event=session_end", at + 1)) {
-    ++ends;
-  }
-  EXPECT_EQ(ends, 4u);
+  EXPECT_EQ(testing::CountOccurrences(log, "event=session_end"), 4u);
   EXPECT_THAT(log, HasSubstr("maps_loaded=2"));
 }
 

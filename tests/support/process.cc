@@ -136,6 +136,14 @@ bool WaitUntil(const std::function<bool()>& ready, int timeout_ms) {
   return true;
 }
 
+size_t CountOccurrences(const std::string& text, const std::string& needle) {
+  size_t count = 0;
+  for (size_t at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) {
+    ++count;
+  }
+  return count;
+}
+
 bool ServerProcess::WaitForLog(const std::string& text, int timeout_ms) const {
   return WaitUntil([&] { return Log().find(text) != std::string::npos; }, timeout_ms);
 }

@@ -31,6 +31,9 @@ int WaitProcess(int pid);
 // that wait on what another process does, never on a fixed sleep.
 bool WaitUntil(const std::function<bool()>& ready, int timeout_ms = 10000);
 
+// How many times `needle` occurs in `text`, overlapping occurrences included (a log's events).
+size_t CountOccurrences(const std::string& text, const std::string& needle);
+
 // A real visloc-server on a free loopback port, for end-to-end tests: started in the
 // constructor (waits until it prints "listening on ADDRESS"), SIGTERMed in the destructor.
 // $VISLOC_TEST_SERVER, when set, names the server binary to run instead.
