@@ -47,15 +47,6 @@ std::set<std::string> FilesIn(const std::string& dir) {
   return names;
 }
 
-// Complete pose lines in a TUM file being written.
-int PosesIn(const std::string& tum) {
-  std::ifstream in(tum);
-  std::string line;
-  int poses = 0;
-  while (std::getline(in, line)) poses += !in.eof() && !line.empty() && line[0] != '#';
-  return poses;
-}
-
 std::vector<std::string> StreamArgs(const std::string& address, const std::string& map, int frames,
                                     const std::string& rate) {
   return {VISLOC_CLI_PATH, "stream",
@@ -99,10 +90,8 @@ TEST_F(FaultE2eTest, ASigkilledServerLeavesNoPartialMapAndRestartsWithEveryMapIn
   ASSERT_TRUE(server.WaitForLog("event=session_start session=2"));
   // Robot A has had answers (5 poses written) before the server dies: however slow the build,
   // there is something to keep.
-  for (int waited_ms = 0; waited_ms < 20000 && PosesIn(files_.File("robot_a.tum")) < 5;
-       waited_ms += 20) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  ASSERT_TRUE(testing::WaitUntil(
+      [&] { return testing::PosesWrittenTo(files_.File("robot_a.tum")) >= 5; }, 20000));
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   // The half upload is on disk, staged beside the maps under a name the server never lists.
   EXPECT_EQ(FilesIn(maps_.path()).size(), 3u);

@@ -8,7 +8,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <thread>
 
 #include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
@@ -109,10 +108,8 @@ TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
   const grpc::Status status = RawUpload("lab", bytes, Crc(bytes), bytes.size() / 2);
   EXPECT_FALSE(status.ok());
   // The server notices the cancellation and removes the staged half.
-  for (int i = 0; i < 100 && FilesIn(maps_.path()) > 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  EXPECT_EQ(FilesIn(maps_.path()), 0u);
+  EXPECT_TRUE(testing::WaitUntil([&] { return FilesIn(maps_.path()) == 0; }))
+      << FilesIn(maps_.path()) << " files left";
   EXPECT_THAT(Visloc({"map", "list", "--server", server_.address()}).out, HasSubstr("0 maps"));
   // And the server still takes a complete upload.
   EXPECT_TRUE(RawUpload("lab", bytes, Crc(bytes)).ok());

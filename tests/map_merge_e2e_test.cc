@@ -180,10 +180,13 @@ void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::s
   };
   ProcessResult robot_result;
   std::thread robot([&] { robot_result = stream(running, "15"); });  // 120 frames: 8 s.
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  // The replacement comes once the robot's session is open on the old map, however long the
+  // robot takes to start.
+  const bool robot_started = server.WaitForLog("event=session_start", 30000);
   const ProcessResult upload = Visloc(
       {"map", "upload", extended, "--server", server.address(), "--name", "lab", "--replace"});
   robot.join();
+  ASSERT_TRUE(robot_started) << server.Log();
   ASSERT_EQ(upload.exit_code, 0) << upload.err;
   ASSERT_EQ(robot_result.exit_code, 0) << robot_result.err;
   EXPECT_EQ(JsonNumber(robot_result.out, "frames"), 120);

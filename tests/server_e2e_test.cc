@@ -296,9 +296,7 @@ TEST_F(ServerE2eTest, AClientThatVanishesIsCleanedUpAndTheServerGoesOn) {
     ASSERT_TRUE(stream->Read(&response));  // The session is live...
     context.TryCancel();                   // ...and the robot drops off the network.
   }
-  for (int i = 0; i < 100 && server.Log().find("event=session_end") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  ASSERT_TRUE(server.WaitForLog("event=session_end")) << server.Log();
   EXPECT_THAT(server.Log(), HasSubstr("cancelled=true"));
   const ProcessResult next =
       Visloc({"stream", "--server", server.address(), "--map", "square", "--dataset",

@@ -56,6 +56,16 @@ inline Trajectory ReadTumLines(const std::string& path) {
   return poses;
 }
 
+// The complete pose lines (newline-terminated, not the '#' header) of a TUM file that a running
+// `visloc stream --trajectory` may be writing: how many poses the robot has had so far.
+inline int PosesWrittenTo(const std::string& tum_path) {
+  std::ifstream in(tum_path);
+  std::string line;
+  int poses = 0;
+  while (std::getline(in, line)) poses += !in.eof() && !line.empty() && line[0] != '#';
+  return poses;
+}
+
 // Writes the small synthetic map the map-management and fault tests share: "lab", 20 keyframes,
 // 2,000 points (about 0.5 MB). The test target links visloc::mapstore and visloc::map.
 inline void SaveLabMap(const std::string& path) {
