@@ -57,7 +57,7 @@ Map SecondSession(const Map& a, const Rigid3d& b_from_a, double noise_m,
 // MakeSyntheticMap's maps observe points outside the image (they are made for storage tests),
 // which no bundle adjustment can fit: these tests check registration and fusion, and
 // map_adjustment_test checks the adjustment.
-MergeOptions RigidOnly() {
+MergeOptions RigidOnlyMerge() {
   MergeOptions options;
   options.skip_adjustment = true;
   return options;
@@ -79,7 +79,7 @@ TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
                          Eigen::Vector3d(3.0, -1.0, 0.5));
   const Map b = SecondSession(a, b_from_a, 0.005);
   MergeStats stats;
-  const Map merged = MergeMaps(a, b, RigidOnly(), &stats);
+  const Map merged = MergeMaps(a, b, RigidOnlyMerge(), &stats);
   EXPECT_TRUE(ApproxEqual(stats.a_from_b, b_from_a.Inverse(), 0.005, 0.2));
   EXPECT_GT(stats.fused_points, 0.9 * b.points.size());
   EXPECT_EQ(stats.fused_points + stats.added_points, static_cast<int>(b.points.size()));
@@ -104,7 +104,7 @@ TEST(MapMergeTest, AFusedPointLiesHalfwayBetweenItsTwoMapsEstimates) {
   std::vector<int> a_point_of_b;
   const Map b = SecondSession(a, b_from_a, 0.005, &a_point_of_b);
   MergeStats stats;
-  const Map merged = MergeMaps(a, b, RigidOnly(), &stats);
+  const Map merged = MergeMaps(a, b, RigidOnlyMerge(), &stats);
   int halfway = 0;
   for (size_t q = 0; q < b.points.size(); ++q) {
     const int p = a_point_of_b[q];
@@ -128,7 +128,7 @@ TEST(MapMergeTest, NearAGuessTheFrameIsRefinedFromThePointsAlone) {
               Eigen::Vector3d(0.01, -0.005, 0.005)) *
       a_from_b;
   MergeStats stats;
-  const Map merged = MergeMaps(a, b, RigidOnly(), &stats, guess);
+  const Map merged = MergeMaps(a, b, RigidOnlyMerge(), &stats, guess);
   EXPECT_TRUE(stats.from_guess);
   EXPECT_TRUE(ApproxEqual(stats.a_from_b, a_from_b, 0.002, 0.05));
   EXPECT_GT(stats.fused_points, 0.9 * b.points.size());
@@ -137,7 +137,7 @@ TEST(MapMergeTest, NearAGuessTheFrameIsRefinedFromThePointsAlone) {
   const Rigid3d far_off =
       Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0)) * a_from_b;
   try {
-    MergeMaps(a, b, RigidOnly(), &stats, far_off);
+    MergeMaps(a, b, RigidOnlyMerge(), &stats, far_off);
     FAIL() << "merged at a placement where nothing meets";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("do not meet"));
@@ -157,7 +157,7 @@ TEST(MapMergeTest, WhatOnlyBSawIsFoundByAppearanceInTheMergedMap) {
                       Eigen::Vector3d(1.0, 0.5, 0.0)),
               0.003);
   MergeStats stats;
-  const LocalizationMap merged(MergeMaps(a, b, RigidOnly(), &stats));
+  const LocalizationMap merged(MergeMaps(a, b, RigidOnlyMerge(), &stats));
   // The points the walk's last keyframe saw, as a query image would describe them.
   cv::Mat query;
   for (const Observation& o : walk.observations) {
@@ -195,7 +195,7 @@ TEST(MapMergeTest, DuplicatesOfRepeatedTexturesAreFusedToo) {
     return x.keyframe != y.keyframe ? x.keyframe < y.keyframe : x.point < y.point;
   });
   MergeStats stats;
-  const Map merged = MergeMaps(a, b, RigidOnly(), &stats);
+  const Map merged = MergeMaps(a, b, RigidOnlyMerge(), &stats);
   EXPECT_LT(stats.inliers, 0.85 * b.points.size());  // The repeated ones match their twins...
   EXPECT_GT(stats.fused_points, 0.95 * b.points.size());  // ...but fused all the same.
   EXPECT_TRUE(FindMapProblems(merged).empty());
@@ -206,7 +206,7 @@ TEST(MapMergeTest, MapsOfDifferentPlacesAreRefused) {
   Map elsewhere = MondayMap(2);  // Other points, other descriptors.
   MergeStats stats;
   try {
-    MergeMaps(a, elsewhere, RigidOnly(), &stats);
+    MergeMaps(a, elsewhere, RigidOnlyMerge(), &stats);
     FAIL() << "merged maps with nothing in common";
   } catch (const InputError& e) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("no verified overlap"));
@@ -217,7 +217,7 @@ TEST(MapMergeTest, MapsOfDifferentPlacesAreRefused) {
   for (MapPoint& p : scrambled.points) {
     p.position_in_map = Eigen::Vector3d(rng.Uniform(-5, 5), rng.Uniform(-5, 5), rng.Uniform(-5, 5));
   }
-  EXPECT_THROW(MergeMaps(a, scrambled, RigidOnly(), &stats), InputError);
+  EXPECT_THROW(MergeMaps(a, scrambled, RigidOnlyMerge(), &stats), InputError);
 }
 
 TEST(MapMergeTest, MapsOfDifferentCamerasOrFeaturesAreRefused) {
@@ -226,10 +226,10 @@ TEST(MapMergeTest, MapsOfDifferentCamerasOrFeaturesAreRefused) {
   other_camera.camera = Camera(a.camera.width(), a.camera.height(), a.camera.fx() * 1.1,
                                a.camera.fy(), a.camera.cx(), a.camera.cy());
   MergeStats stats;
-  EXPECT_THROW(MergeMaps(a, other_camera, RigidOnly(), &stats), InputError);
+  EXPECT_THROW(MergeMaps(a, other_camera, RigidOnlyMerge(), &stats), InputError);
   Map other_features = a;
   other_features.features.kind = "orb";
-  EXPECT_THROW(MergeMaps(a, other_features, RigidOnly(), &stats), InputError);
+  EXPECT_THROW(MergeMaps(a, other_features, RigidOnlyMerge(), &stats), InputError);
 }
 
 TEST(MapMergeTest, TheAdjustmentHoldsTheFrameAndWhatLiesBeyondTheSeam) {

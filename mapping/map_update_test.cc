@@ -46,7 +46,7 @@ Map ChangedSession(const Map& map, const Rigid3d& session_from_map, std::vector<
 
 // MakeSyntheticMap's maps observe points outside the image, which no bundle adjustment can fit:
 // these tests check the update's point check (map_adjustment_test checks the adjustment).
-UpdateOptions RigidOnly() {
+UpdateOptions RigidOnlyUpdate() {
   UpdateOptions options;
   options.merge.skip_adjustment = true;
   return options;
@@ -63,7 +63,7 @@ TEST(MapUpdateTest, RemovesWhatMovedKeepsTheRestAndAddsWhereItWent) {
   std::vector<bool> moved;
   const Map session = ChangedSession(map, session_from_map, &moved);
   UpdateStats stats;
-  const Map updated = UpdateMap(map, session, RigidOnly(), &stats);
+  const Map updated = UpdateMap(map, session, RigidOnlyUpdate(), &stats);
   EXPECT_GT(stats.checked_points, 1000);
   // The kept points come first in the updated map, in their order: find which went.
   int removed_moved = 0, removed_unmoved = 0, moved_count = 0;
@@ -99,11 +99,11 @@ TEST(MapUpdateTest, ASessionPlacedByAGuessIsCheckedTheSameWay) {
   std::vector<bool> moved;
   const Map session = ChangedSession(map, session_from_map, &moved);
   UpdateStats searched, placed;
-  UpdateMap(map, session, RigidOnly(), &searched);
+  UpdateMap(map, session, RigidOnlyUpdate(), &searched);
   // The guess: where the session's localized images put it, a centimetre off.
   const Rigid3d guess = Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01, 0.0, 0.005)) *
                         session_from_map.Inverse();
-  UpdateMap(map, session, RigidOnly(), &placed, guess);
+  UpdateMap(map, session, RigidOnlyUpdate(), &placed, guess);
   EXPECT_TRUE(placed.merge.from_guess);
   EXPECT_EQ(placed.removed_points, searched.removed_points);
   EXPECT_EQ(placed.merge.fused_points, searched.merge.fused_points);
@@ -118,7 +118,7 @@ TEST(MapUpdateTest, ASessionElsewhereIsRefused) {
   synthetic.seed = 9;
   const Map elsewhere = MakeSyntheticMap(synthetic);
   UpdateStats stats;
-  EXPECT_THROW(UpdateMap(map, elsewhere, RigidOnly(), &stats), InputError);
+  EXPECT_THROW(UpdateMap(map, elsewhere, RigidOnlyUpdate(), &stats), InputError);
 }
 
 }  // namespace

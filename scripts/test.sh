@@ -17,11 +17,16 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:log_path=$reports/asan
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1:log_path=$reports/ubsan
 export TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:log_path=$reports/tsan
 
+# Unity builds (up to 8 of a target's sources compiled as one): the headers every file includes
+# (Eigen, OpenCV, Ceres, gRPC) are parsed once per batch instead of once per file. A fresh ASan
+# build took 8.3 min this way, against about 12 without. The release build (scripts/build.sh)
+# compiles file by file, so both ways must build.
 configure() {
   local dir=$1
   shift
   mkdir -p "$dir"
-  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 "$@" \
+  cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 \
+    -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 "$@" \
     > "$dir/configure.log" 2>&1 || { cat "$dir/configure.log"; exit 1; }
 }
 build() {

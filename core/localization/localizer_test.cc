@@ -12,7 +12,7 @@
 namespace visloc {
 namespace {
 
-std::shared_ptr<const LocalizationMap> TestMap() {
+std::shared_ptr<const LocalizationMap> SmallHarrisMap() {
   SyntheticMapOptions options;
   options.keyframes = 20;
   options.points = 1000;
@@ -29,7 +29,7 @@ FrameInput Frame(int64_t timestamp_ns, cv::Mat image) {
 }
 
 TEST(LocalizerTest, RejectsImagesThatDoNotFitTheSessionAndGoesOn) {
-  const auto map = TestMap();
+  const auto map = SmallHarrisMap();
   Localizer localizer(map, map->map().camera, LocalizerOptions{});
   try {
     localizer.Process(Frame(1, cv::Mat(100, 100, CV_8UC1, cv::Scalar(0))));
@@ -47,7 +47,7 @@ TEST(LocalizerTest, RejectsImagesThatDoNotFitTheSessionAndGoesOn) {
 }
 
 TEST(LocalizerTest, ACoveredCameraGetsNoPose) {
-  const auto map = TestMap();
+  const auto map = SmallHarrisMap();
   Localizer localizer(map, map->map().camera, LocalizerOptions{});
   for (int i = 1; i <= 3; ++i) {
     const LocalizationResult r =
@@ -63,7 +63,7 @@ TEST(LocalizerTest, ACoveredCameraGetsNoPose) {
 }
 
 TEST(LocalizerTest, OptionsAreChecked) {
-  const auto map = TestMap();
+  const auto map = SmallHarrisMap();
   LocalizerOptions options;
   options.min_tracking_inliers = 5;  // Below the limited threshold.
   EXPECT_THROW(Localizer(map, map->map().camera, options), CheckError);
@@ -73,7 +73,7 @@ TEST(LocalizerTest, OptionsAreChecked) {
 }
 
 TEST(LocalizerTest, KeyframePlaneOfARobotWalkingACircle) {
-  const auto map = TestMap();
+  const auto map = SmallHarrisMap();
   const auto plane = FitKeyframePlane(*map);
   ASSERT_TRUE(plane.has_value());
   // Keyframes lie in z = 0 with cameras looking sideways, y down = -z: the normal is +z.

@@ -19,7 +19,7 @@ namespace {
 
 // A map whose keyframe appearance vectors come from the descriptors of the points they see, as
 // the map builder makes them.
-std::shared_ptr<const LocalizationMap> TestMap() {
+std::shared_ptr<const LocalizationMap> MapWithAppearance() {
   SyntheticMapOptions options;
   options.keyframes = 40;
   options.points = 4000;
@@ -80,7 +80,7 @@ Rigid3d Perturbed(const Rigid3d& cam_from_map) {
 }
 
 TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
-  const auto map = TestMap();
+  const auto map = MapWithAppearance();
   const Rigid3d truth = TruePose(*map);
   const View view = RenderView(*map, truth, 150, 1);
   const QueryFrame frame(view.features, map->map().camera);
@@ -106,7 +106,7 @@ TEST(MapMatchingTest, GuidedMatchesAreTheTrueAssociations) {
 class PoseTrackerModeTest : public ::testing::TestWithParam<PredictionMode> {};
 
 TEST_P(PoseTrackerModeTest, RecoversThePoseFromAnOffPrior) {
-  const auto map = TestMap();
+  const auto map = MapWithAppearance();
   const Rigid3d truth = TruePose(*map);
   const View view = RenderView(*map, truth, 150, 2);
   const QueryFrame frame(view.features, map->map().camera);
@@ -138,7 +138,7 @@ INSTANTIATE_TEST_SUITE_P(Modes, PoseTrackerModeTest,
 // final refinement re-matches every point either way); a subset too small for RANSAC falls
 // back to all points.
 TEST(PoseTrackerTest, CoarseSubsetGivesThePoseAndFallsBackToAllPoints) {
-  const auto map = TestMap();
+  const auto map = MapWithAppearance();
   const Rigid3d truth = TruePose(*map);
   const View view = RenderView(*map, truth, 150, 5);
   const QueryFrame frame(view.features, map->map().camera);
@@ -161,7 +161,7 @@ TEST(PoseTrackerTest, PredictionModesParseByName) {
 }
 
 TEST(RelocalizerTest, FindsTheCameraWithoutAPriorAndRefusesClutter) {
-  const auto map = TestMap();
+  const auto map = MapWithAppearance();
   const Rigid3d truth = TruePose(*map);
   const PoseTracker tracker(map, map->map().camera, PoseTrackerOptions{});
   const Relocalizer relocalizer(tracker, RelocalizationOptions{});
