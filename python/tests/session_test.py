@@ -77,6 +77,18 @@ class PythonClientTest(unittest.TestCase):
                 events.append(event)
         return events
 
+    @staticmethod
+    def describe(event):
+        """One line per event, for failure messages."""
+        if event.kind == "link":
+            return f"link {event.link_state.value}: {event.detail}"
+        if event.kind in ("result", "late"):
+            r = event.response
+            return (f"{event.kind} {event.timestamp_ns} {event.latency_ms:.0f} ms "
+                    f"{pb.Status.Name(r.status)} {pb.PoseSource.Name(r.source)} "
+                    f"{r.relocalization.kind} inliers={r.stats.inliers}")
+        return f"{event.kind} {event.timestamp_ns}: {event.detail}"
+
     def position_error_m(self, event):
         truth = self.truth[event.timestamp_ns]
         p = event.response.map_from_cam
@@ -133,8 +145,9 @@ class PythonClientTest(unittest.TestCase):
                         if e.kind == "result" and e.response.has_pose]
         self.assertTrue(posed_before, "no pose before the cut to resume from")
         first = next(e for e in events[resumed[0]:] if e.kind == "result")
-        self.assertEqual(first.response.source, pb.SOURCE_TRACKING)
-        self.assertNotEqual(first.response.relocalization.kind, "global")
+        story = "\n".join(self.describe(e) for e in events)
+        self.assertEqual(first.response.source, pb.SOURCE_TRACKING, story)
+        self.assertNotEqual(first.response.relocalization.kind, "global", story)
         kinds = [e.kind for e in events]
         self.assertGreater(kinds.count("dropped") + kinds.count("undelivered"), 5)
         self.assertEqual(sum(kinds.count(k) for k in ("result", "late", "dropped", "undelivered")),

@@ -272,7 +272,7 @@ class Session:
                     return
                 item = self._queue.popleft()
                 self._in_flight.append(item)
-                resume = self.streams_opened > 1 and not stream_state["posed"]
+                resume = stream_state["resuming"] and not stream_state["posed"]
                 hint = item.hint
                 if hint is None and resume and self._last_pose is not None:
                     hint = self._last_pose
@@ -333,8 +333,11 @@ class Session:
         except grpc.FutureTimeoutError:
             channel.close()
             return None
+        # Whether this stream resumes is settled before the call exists: grpcio may read the
+        # request iterator, and so send the first frame, before Localize returns, that is
+        # before streams_opened counts this stream (a CI run sent it without the last pose).
         stream_state = {"ended": False, "posed": False, "answered": False, "why": "",
-                        "status": None}
+                        "status": None, "resuming": self.streams_opened > 0}
         metadata = [("authorization", "Bearer " + self._o.token)] if self._o.token else None
         call = pb_grpc.LocalizationStub(channel).Localize(self._requests(stream_state),
                                                            metadata=metadata)

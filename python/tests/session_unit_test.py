@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""The Python client's resume logic against a scripted in-process Localization service.
+
+A unit test of visloc.Session alone: the service is a few lines of grpcio that answer the first
+stream's first frame with a pose and then break the stream, as a lost access point does. What the
+session sends on the reopened stream is checked frame by frame.
+
+Usage: session_unit_test.py  (PYTHONPATH holds the assembled package, build/python)
+"""
+
+import concurrent.futures
+import itertools
+import threading
+import time
+import unittest
+from unittest import mock
+
+import grpc
+import numpy as np
+
+from visloc import Session, SessionOptions, pinhole_camera
+from visloc.v1 import visloc_pb2 as pb
+from visloc.v1 import visloc_pb2_grpc as pb_grpc
+
+# The pose the service answers (map_from_cam: 1 m along x, turned 90 degrees about z).
+ANSWERED = pb.Pose(tx=1.0, ty=0.5, tz=0.2, qw=0.7071067811865476, qx=0.0, qy=0.0,
+                   qz=0.7071067811865476)
+
+
+class ScriptedService(pb_grpc.LocalizationServicer):
+    """Answers every frame with ANSWERED; the first stream breaks after its first answer."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.streams = []  # The frames received, per stream.
+
+    def Localize(self, request_iterator, context):
+        with self.lock:
+            frames = []
+            self.streams.append(frames)
+            breaks = len(self.streams) == 1
+        for request in request_iterator:
+            if not request.HasField("frame"):
+                continue
+            with self.lock:
+                frames.append(request.frame)
+            yield pb.LocalizeResponse(timestamp_ns=request.frame.timestamp_ns,
+                                      status=pb.STATUS_TRACKING, source=pb.SOURCE_TRACKING,
+                                      has_pose=True, map_from_cam=ANSWERED)
+            if breaks:
+                context.abort(grpc.StatusCode.UNAVAILABLE, "the access point went away")
+
+    def first_frame_of(self, stream):
+        with self.lock:
+            frames = self.streams[stream] if len(self.streams) > stream else []
+            return frames[0] if frames else None
+
+
+class EagerStub:
+    """A Localization stub that reads the session start and the first frame from the request
+    iterator before Localize returns. grpcio reads request iterators in a thread of its own, at
+    any time from the call's creation on; this stub always reads at the earliest moment."""
+
+    real = pb_grpc.LocalizationStub
+
+    def __init__(self, channel):
+        self._stub = EagerStub.real(channel)
+
+    def Localize(self, requests, metadata=None):
+        early = [next(requests), next(requests)]
+        return self._stub.Localize(itertools.chain(early, requests), metadata=metadata)
+
+
+class ResumeTest(unittest.TestCase):
+    def setUp(self):
+        self.service = ScriptedService()
+        self.server = grpc.server(concurrent.futures.ThreadPoolExecutor(max_workers=4))
+        pb_grpc.add_LocalizationServicer_to_server(self.service, self.server)
+        self.port = self.server.add_insecure_port("127.0.0.1:0")
+        self.server.start()
+
+    def tearDown(self):
+        self.server.stop(grace=None)
+
+    def test_the_first_frame_of_a_reopened_stream_carries_the_last_pose(self):
+        image = np.zeros((240, 320), np.uint8)
+        options = SessionOptions(server=f"127.0.0.1:{self.port}", map_name="lab",
+                                 camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5),
+                                 encoding="raw")
+        with mock.patch.object(pb_grpc, "LocalizationStub", EagerStub):
+            session = Session(options)
+            # A camera at 20 Hz until the reopened stream has its first frame (at most 5 s).
+            timestamp_ns = 1_000_000_000
+            deadline = time.monotonic() + 5.0
+            while self.service.first_frame_of(1) is None and time.monotonic() < deadline:
+                session.submit(timestamp_ns, image)
+                timestamp_ns += 50_000_000
+                time.sleep(0.05)
+            session.close(drain_s=0.5)
+        self.assertGreaterEqual(session.streams_opened, 2)
+        first = self.service.first_frame_of(1)
+        self.assertIsNotNone(first, "the session never reopened its stream")
+        # Without odometry, the hint is the last answered pose itself.
+        self.assertTrue(first.HasField("map_from_cam_hint"),
+                        "the reopened stream's first frame went without the last pose: the "
+                        "service must relocalize globally")
+        self.assertEqual(first.map_from_cam_hint, ANSWERED)
+        # And the first stream's first frame had no hint: there was nothing to resume.
+        self.assertFalse(self.service.first_frame_of(0).HasField("map_from_cam_hint"))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
