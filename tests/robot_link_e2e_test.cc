@@ -97,11 +97,15 @@ class RobotLinkE2eTest : public ::testing::Test {
   }
   std::string RobotErr() const { return ReadFileBytes(out_.File("robot.err")); }
   std::string RobotEvents() const { return ReadFileBytes(out_.File("events.csv")); }
-  // Waits (up to 10 s, however loaded the machine) until the robot has written its first pose
-  // line. The file's size says nothing: its header is written before any pose, and waiting on
-  // it let a loaded CI run cut the link before the first pose.
-  bool WaitForFirstPose() const {
-    return testing::WaitUntil([&] { return testing::PosesWrittenTo(out_.File("poses.tum")) > 0; });
+  // Waits until the robot has written its first pose line (up to 10 s, however loaded the
+  // machine), then until `not_before`: a link fault before the first pose leaves nothing to
+  // resume from, which a loaded sanitizer run once did. The file's size says nothing: its header
+  // is written before any pose, and waiting on it let a CI run cut the link 23 ms in.
+  bool WaitForFirstPose(std::chrono::steady_clock::time_point not_before) const {
+    const bool posed =
+        testing::WaitUntil([&] { return testing::PosesWrittenTo(out_.File("poses.tum")) > 0; });
+    std::this_thread::sleep_until(not_before);
+    return posed;
   }
   std::string RobotOut() const { return ReadFileBytes(out_.File("robot.out")); }
 
@@ -118,10 +122,9 @@ TEST_F(RobotLinkE2eTest, AFiveSecondCutIsResumedWithinASecondAndTracked) {
   LinkProxy link(server.address(), LinkProfile{5, 0, 20});
   const auto started = std::chrono::steady_clock::now();
   const int robot = StartRobot(link.address());
-  // The cut comes 1.5 s in, and never before the robot's first pose: a cut before it leaves
-  // nothing to resume from, which a loaded sanitizer run once did.
-  ASSERT_TRUE(WaitForFirstPose()) << "no pose in 10 s: " << RobotErr();
-  std::this_thread::sleep_until(started + std::chrono::milliseconds(1500));
+  // The cut comes 1.5 s in, and never before the robot's first pose.
+  ASSERT_TRUE(WaitForFirstPose(started + std::chrono::milliseconds(1500)))
+      << "no pose in 10 s: " << RobotErr();
   const int64_t cut_ms = WallMs();
   link.Cut(std::chrono::milliseconds(5000));
   const int64_t link_back_ms = cut_ms + 5000;
@@ -161,11 +164,11 @@ TEST_F(RobotLinkE2eTest, AFiveSecondCutIsResumedWithinASecondAndTracked) {
 TEST_F(RobotLinkE2eTest, AfterADeadSpotAnswersAreFreshWithinASecond) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   LinkProxy link(server.address(), LinkProfile{5, 0, 20});
+  const auto started = std::chrono::steady_clock::now();
   const int robot = StartRobot(link.address());
   // The dead spot comes 1 s in, and never before the robot's first pose.
-  const auto started = std::chrono::steady_clock::now();
-  ASSERT_TRUE(WaitForFirstPose()) << "no pose in 10 s: " << RobotErr();
-  std::this_thread::sleep_until(started + std::chrono::milliseconds(1000));
+  ASSERT_TRUE(WaitForFirstPose(started + std::chrono::milliseconds(1000)))
+      << "no pose in 10 s: " << RobotErr();
   link.Stall(std::chrono::milliseconds(5000));
   const int64_t link_back_ms = WallMs() + 5000;
   ASSERT_EQ(testing::WaitProcess(robot), 0) << RobotErr();
