@@ -15,6 +15,7 @@
 #include "core/util/json.h"
 #include "core/util/strings.h"
 #include "dataset/dataset.h"
+#include "dataset/frame_range.h"
 #include "dataset/tum.h"
 #include "mapstore/map_store.h"
 
@@ -22,12 +23,11 @@ namespace visloc::cli {
 namespace {
 
 struct LocalizeArgs {
-  std::string map_path, dataset_dir, format, trajectory_path, stats_path, gt_path;
+  std::string map_path, dataset_dir, format, trajectory_path, stats_path, gt_path, frames;
   std::string mode = "visibility";
   std::string blackout;  // "START,DURATION" in seconds from the first frame.
   bool odometry = false, no_gyro = false, planar = false, bridge_constant_velocity = false;
   bool json = false, all_scales = false;
-  int frames = 0;
   int k = 10;
   int max_features = LocalizerOptions{}.max_query_features;
   double threshold = 0.2;
@@ -81,21 +81,23 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("mode", &args.mode, "visibility, transparent or brute_force (baselines)");
   parser.AddFlag("k", &args.k, "visibility: nearest keyframes K");
   parser.AddFlag("threshold", &args.threshold, "visibility: probability threshold P_t");
-  parser.AddFlag("max-features", &args.max_features, "keypoints per image (0: the map's own count)");
+  parser.AddFlag("max-features", &args.max_features,
+                 "keypoints per image (0: the map's own count)");
   parser.AddSwitch("all-scales", &args.all_scales,
                    "detect at all of the map's scales (default: the finest only, faster)");
   parser.AddFlag("blackout", &args.blackout,
                  "START,DURATION: black images in this window (s from the first frame)");
   parser.AddSwitch("bridge-constant-velocity", &args.bridge_constant_velocity,
                    "bridge frames without a fix by constant velocity (for comparison only)");
-  parser.AddFlag("frames", &args.frames, "stop after this many frames (0: all)");
+  parser.AddFlag("frames", &args.frames,
+                 "localize only these frames: N (the first N), BEGIN:END or BEGIN:END:STEP");
   parser.AddFlag("gt", &args.gt_path, "ground truth (TUM, map frame) for the summary");
   parser.AddSwitch("json", &args.json, "print the summary as one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
-  if (args.frames < 0) throw UsageError("--frames must not be negative");
   const auto blackout = ParseBlackout(args.blackout);
 
-  const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, args.odometry);
+  const Dataset dataset = SelectFrames(
+      ReadQueryDataset(args.dataset_dir, args.format, args.odometry), ParseFrameRange(args.frames));
   const Trajectory ground_truth = args.gt_path.empty() ? Trajectory{} : ReadTum(args.gt_path);
   auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(args.map_path));
 
@@ -110,8 +112,7 @@ int RunLocalize(const Args& raw_args) {
   Localizer localizer(map, dataset.left.camera, options,
                       args.odometry ? std::optional(dataset.left.body_from_cam) : std::nullopt);
 
-  const size_t count = args.frames > 0 ? std::min<size_t>(args.frames, dataset.frames.size())
-                                       : dataset.frames.size();
+  const size_t count = dataset.frames.size();
   RunReport report;
   int bad_frames = 0;
   for (size_t i = 0; i < count; ++i) {

@@ -14,6 +14,7 @@
 #include "core/util/json.h"
 #include "core/util/strings.h"
 #include "dataset/dataset.h"
+#include "dataset/frame_range.h"
 #include "dataset/ply.h"
 #include "dataset/tum.h"
 #include "mapping/dataset_mapping.h"
@@ -94,8 +95,8 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
       .Field("width", c.width())
       .Field("height", c.height());
   const auto lens_names = LensCoefficientNames(c.lens().model);
-  const char* names[8] = {"fx", "fy", "cx", "cy", lens_names[0], lens_names[1], lens_names[2],
-                          lens_names[3]};
+  const char* names[8] = {"fx",          "fy",          "cx",          "cy",
+                          lens_names[0], lens_names[1], lens_names[2], lens_names[3]};
   const auto params = c.Params();
   for (int i = 0; i < 8; ++i) json.Field(names[i], params[i]);
   json.EndObject()
@@ -237,8 +238,7 @@ int RunExport(const Args& args) {
 }
 
 int RunBuild(const Args& args) {
-  std::string dataset_dir, format, out, name, features = "harris_surf16", trajectory;
-  int frames = 0;
+  std::string dataset_dir, format, out, name, features = "harris_surf16", trajectory, frames;
   bool json = false;
   ArgParser parser("visloc map build",
                    "Builds a map from a stereo sequence (EuRoC or KITTI): stereo visual odometry, "
@@ -249,7 +249,8 @@ int RunBuild(const Args& args) {
   parser.AddFlag("out", &out, "map file to write", /*required=*/true);
   parser.AddFlag("name", &name, "the map's name (default: the file name without .db)");
   parser.AddFlag("features", &features, "harris_surf16 (the paper's) or orb");
-  parser.AddFlag("frames", &frames, "use only the first N frames (0: all)");
+  parser.AddFlag("frames", &frames,
+                 "use only these frames: N (the first N), BEGIN:END or BEGIN:END:STEP");
   parser.AddFlag("trajectory", &trajectory,
                  "also write the estimated frame poses (TUM, map frame)");
   mapping::DatasetMappingOptions options;
@@ -268,7 +269,6 @@ int RunBuild(const Args& args) {
                  "frames on which the rig is checked before the build (0: no check)");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  if (frames < 0) throw UsageError("--frames must not be negative");
   if (!(options.builder.keyframes.translation_m > 0) ||
       !(options.builder.keyframes.rotation_deg > 0)) {
     throw UsageError("keyframe thresholds must be positive");
@@ -279,9 +279,11 @@ int RunBuild(const Args& args) {
   options.builder.loop_closure.enabled = loop_closure != 0;
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
-  Dataset dataset = ReadDataset(
-      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
-  if (frames > 0 && frames < static_cast<int>(dataset.frames.size())) dataset.frames.resize(frames);
+  const FrameRange range = ParseFrameRange(frames);
+  const Dataset dataset = SelectFrames(
+      ReadDataset(dataset_dir,
+                  format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format))),
+      range);
   options.builder.features = DefaultFeatureSettings(features);
   if (max_features > 0) {
     options.builder.features = WithMaxFeatures(options.builder.features, max_features);
