@@ -1,7 +1,10 @@
 #include <cstdio>
 #include <iostream>
+#include <map>
+#include <optional>
 
 #include "client/commands.h"
+#include "client/localization_report.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -32,7 +35,18 @@ void WritePoseErrors(JsonWriter& json, const std::string& key, const PoseErrors&
   json.EndObject();
 }
 
-std::string ToJson(const TrajectoryEvaluation& eval, const EvalOptions& options) {
+void WriteConsistency(JsonWriter& json, const ConsistencyEvaluation& c) {
+  json.Key("consistency")
+      .BeginObject()
+      .Field("compared", static_cast<int64_t>(c.compared))
+      .Field("beyond_3_sigma", c.beyond_3_sigma)
+      .Field("beyond_6_sigma", c.beyond_6_sigma);
+  WriteStats(json, "normalized_error", c.normalized_error);
+  json.EndObject();
+}
+
+std::string ToJson(const TrajectoryEvaluation& eval, const EvalOptions& options,
+                   const std::optional<ConsistencyEvaluation>& consistency) {
   JsonWriter json;
   json.BeginObject()
       .Field("gt_poses", static_cast<int64_t>(eval.gt_poses))
@@ -40,6 +54,7 @@ std::string ToJson(const TrajectoryEvaluation& eval, const EvalOptions& options)
       .Field("matched_poses", static_cast<int64_t>(eval.matched_poses))
       .Field("coverage", eval.coverage);
   WritePoseErrors(json, "ate", eval.ate);
+  WriteStats(json, "ate_per_distance", eval.ate_per_distance);
   if (eval.ate_aligned) {
     WritePoseErrors(json, "ate_aligned", *eval.ate_aligned);
     const Eigen::Vector3d& t = eval.gt_from_est.translation;
@@ -57,6 +72,7 @@ std::string ToJson(const TrajectoryEvaluation& eval, const EvalOptions& options)
   }
   json.Field("rpe_delta_s", options.rpe_delta_s);
   WritePoseErrors(json, "rpe", eval.rpe);
+  if (consistency) WriteConsistency(json, *consistency);
   json.EndObject();
   return json.str();
 }
@@ -66,12 +82,16 @@ void PrintRow(const std::string& label, const ErrorStats& stats, double scale, c
               stats.rmse * scale, stats.median * scale, stats.max * scale, unit, stats.count);
 }
 
-void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options) {
+void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options,
+                const std::optional<ConsistencyEvaluation>& consistency) {
   std::printf("poses: %zu ground truth, %zu estimated, %zu associated (coverage %.1f%%)\n",
               eval.gt_poses, eval.est_poses, eval.matched_poses, 100.0 * eval.coverage);
   std::printf("ATE in the map frame (no alignment):\n");
   PrintRow("translation", eval.ate.translation_m, 100.0, "cm");
   PrintRow("rotation", eval.ate.rotation_deg, 1.0, "deg");
+  if (eval.ate_per_distance.count > 0) {
+    PrintRow("per distance travelled", eval.ate_per_distance, 100.0, "%");
+  }
   if (eval.ate_aligned) {
     std::printf("ATE after SE(3) alignment:\n");
     PrintRow("translation", eval.ate_aligned->translation_m, 100.0, "cm");
@@ -80,6 +100,14 @@ void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options) {
   std::printf("RPE over %.3g s:\n", options.rpe_delta_s);
   PrintRow("translation", eval.rpe.translation_m, 100.0, "cm");
   PrintRow("rotation", eval.rpe.rotation_deg, 1.0, "deg");
+  if (consistency) {
+    std::printf(
+        "covariance: position error / per-axis sigma over %zu poses: median %.2f (honest: 1.54), "
+        "%.1f%% beyond 3 sigma (honest: 2.9%%), %.1f%% beyond 6, max %.1f\n",
+        consistency->compared, consistency->normalized_error.median,
+        100.0 * consistency->beyond_3_sigma, 100.0 * consistency->beyond_6_sigma,
+        consistency->normalized_error.max);
+  }
 }
 
 std::string ToJson(const TrajectorySpread& spread) {
@@ -108,7 +136,7 @@ void PrintHuman(const TrajectorySpread& spread) {
 }  // namespace
 
 int RunEval(const Args& args) {
-  std::string gt_path, est_path;
+  std::string gt_path, est_path, stats_path;
   EvalOptions options;
   bool json = false;
   ArgParser parser("visloc eval",
@@ -122,13 +150,20 @@ int RunEval(const Args& args) {
   parser.AddFlag("est", &est_path, "estimated TUM file", /*required=*/true);
   parser.AddSwitch("spread", &spread, "deviations of the poses from their mean pose");
   parser.AddSwitch("align", &options.align, "also report ATE after SE(3) alignment");
+  parser.AddSwitch("gt-origin-first", &options.gt_origin_first,
+                   "take the ground truth relative to its first pose (a recording's ground truth "
+                   "against a map built from its first frame)");
+  parser.AddFlag("stats", &stats_path,
+                 "the run's stats CSV: also check its position sigmas against the errors");
   parser.AddFlag("delta", &options.rpe_delta_s, "RPE interval in seconds");
   parser.AddFlag("max-dt", &options.max_time_diff_s, "association tolerance in seconds");
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   if (options.rpe_delta_s <= 0) throw UsageError("--delta must be positive");
   if (options.max_time_diff_s < 0) throw UsageError("--max-dt must not be negative");
-  if (spread && !gt_path.empty()) throw UsageError("--spread takes no --gt");
+  if (spread && (!gt_path.empty() || !stats_path.empty())) {
+    throw UsageError("--spread takes no --gt or --stats");
+  }
   if (!spread && gt_path.empty()) throw UsageError("missing --gt");
   const Trajectory est = ReadTum(est_path);
   if (spread) {
@@ -144,10 +179,20 @@ int RunEval(const Args& args) {
   const Trajectory gt = ReadTum(gt_path);
   if (gt.empty()) throw InputError(gt_path + ": no poses");
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, options);
+  std::optional<ConsistencyEvaluation> consistency;
+  if (!stats_path.empty()) {
+    const std::map<int64_t, double> sigmas = ReadPositionSigmas(stats_path);
+    std::vector<double> sigma_m;
+    for (const StampedPose& p : est) {
+      const auto it = sigmas.find(p.timestamp_ns);
+      sigma_m.push_back(it == sigmas.end() ? 0.0 : it->second);
+    }
+    consistency = EvaluateConsistency(gt, est, sigma_m, options);
+  }
   if (json) {
-    std::cout << ToJson(eval, options) << "\n";
+    std::cout << ToJson(eval, options, consistency) << "\n";
   } else {
-    PrintHuman(eval, options);
+    PrintHuman(eval, options, consistency);
   }
   return 0;
 }

@@ -1,5 +1,6 @@
 #include "client/localization_report.h"
 
+#include <algorithm>
 #include <map>
 
 #include "core/util/check.h"
@@ -71,6 +72,25 @@ std::string StatsCsvRow(const LocalizationResult& r) {
   row += StrCat(",", RelocalizationKindName(r.relocalization.kind), ",", r.relocalization.keyframe,
                 ",", FormatFixed(sigma, 5));
   return row;
+}
+
+std::map<int64_t, double> ReadPositionSigmas(const std::string& path) {
+  const std::vector<TextLine> lines = ReadTextLines(path);
+  if (lines.empty()) throw InputError(path + ": empty, expected a stats CSV header");
+  const std::vector<std::string> header = Split(lines[0].text, ',');
+  const auto column = std::find(header.begin(), header.end(), "position_sigma_m");
+  if (header.empty() || header[0] != "timestamp_ns" || column == header.end()) {
+    throw InputError(path + ": not a visloc stats CSV (no timestamp_ns and position_sigma_m)");
+  }
+  const size_t sigma_index = static_cast<size_t>(column - header.begin());
+  std::map<int64_t, double> sigmas;
+  for (size_t l = 1; l < lines.size(); ++l) {
+    if (lines[l].text.empty()) continue;
+    const DataRow row{lines[l].number, Split(lines[l].text, ',')};
+    RequireFieldCount(path, row, header.size());
+    sigmas[FieldAsInt64(path, row, 0)] = FieldAsDouble(path, row, sigma_index);
+  }
+  return sigmas;
 }
 
 void RunReport::Add(const LocalizationResult& result) { results_.push_back(result); }

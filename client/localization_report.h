@@ -4,6 +4,7 @@
 // Both feed it core LocalizationResults, so their outputs are identical in form.
 
 #include <cstdio>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -25,6 +26,11 @@ std::vector<StepSummary> SummarizeSteps(const std::vector<LocalizationResult>& r
 // The CSV header line (no newline) and one row per frame.
 std::string StatsCsvHeader();
 std::string StatsCsvRow(const LocalizationResult& result);
+
+// The per-axis position sigma (m) of each posed frame of a stats CSV written by StatsCsvRow,
+// by timestamp (ns). Throws InputError naming the file and line of a malformed row, or the file
+// when it has no position_sigma_m column.
+std::map<int64_t, double> ReadPositionSigmas(const std::string& path);
 
 // Accumulates a run's results for the summary, the trajectory and the stats file.
 class RunReport {

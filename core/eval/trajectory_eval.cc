@@ -105,11 +105,31 @@ PoseErrors RelativeErrors(const std::vector<int64_t>& times_ns, const std::vecto
   return {ComputeErrorStats(translation), ComputeErrorStats(rotation)};
 }
 
+// The ground truth as the comparison sees it (relative to its first pose, when asked).
+Trajectory ComparedGroundTruth(const Trajectory& gt, const EvalOptions& options) {
+  if (!options.gt_origin_first || gt.empty()) return gt;
+  const Rigid3d first_from_world = gt.front().pose.Inverse();
+  Trajectory relative = gt;
+  for (StampedPose& p : relative) p.pose = first_from_world * p.pose;
+  return relative;
+}
+
+// Distance travelled along the ground truth from its first pose, per ground-truth pose (m).
+std::vector<double> DistanceTravelled(const Trajectory& gt) {
+  std::vector<double> distance(gt.size(), 0.0);
+  for (size_t i = 1; i < gt.size(); ++i) {
+    distance[i] = distance[i - 1] + (gt[i].pose.translation - gt[i - 1].pose.translation).norm();
+  }
+  return distance;
+}
+
 }  // namespace
 
-TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
+TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt_as_given, const Trajectory& est,
                                         const EvalOptions& options) {
   options.Check();
+  const Trajectory gt = ComparedGroundTruth(gt_as_given, options);
+  const std::vector<double> travelled_m = DistanceTravelled(gt);
   TrajectoryEvaluation result;
   result.gt_poses = gt.size();
   result.est_poses = est.size();
@@ -120,7 +140,12 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
   std::vector<int64_t> times_ns;
   std::vector<Rigid3d> gt_poses, est_poses;
   std::vector<Eigen::Vector3d> gt_positions, est_positions;
+  std::vector<double> per_distance;
   for (const auto& [g, e] : pairs) {
+    if (travelled_m[g] >= 0.01) {
+      per_distance.push_back((gt[g].pose.translation - est[e].pose.translation).norm() /
+                             travelled_m[g]);
+    }
     times_ns.push_back(gt[g].timestamp_ns);
     gt_poses.push_back(gt[g].pose);
     est_poses.push_back(est[e].pose);
@@ -128,11 +153,38 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
     est_positions.push_back(est[e].pose.translation);
   }
   result.ate = AbsoluteErrors(gt_poses, est_poses, Rigid3d::Identity());
+  result.ate_per_distance = ComputeErrorStats(std::move(per_distance));
   if (options.align) {
     if (pairs.size() >= 3) result.gt_from_est = AlignRigid(est_positions, gt_positions);
     result.ate_aligned = AbsoluteErrors(gt_poses, est_poses, result.gt_from_est);
   }
   result.rpe = RelativeErrors(times_ns, gt_poses, est_poses, options);
+  return result;
+}
+
+ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt_as_given, const Trajectory& est,
+                                          const std::vector<double>& sigma_m,
+                                          const EvalOptions& options) {
+  options.Check();
+  VISLOC_CHECK(sigma_m.size() == est.size(), sigma_m.size(), " sigmas for ", est.size(),
+               " estimates");
+  const Trajectory gt = ComparedGroundTruth(gt_as_given, options);
+  std::vector<double> normalized;
+  for (const auto& [g, e] : AssociateByTime(gt, est, options.max_time_diff_s)) {
+    if (!(sigma_m[e] > 0)) continue;  // Also NaN.
+    normalized.push_back((gt[g].pose.translation - est[e].pose.translation).norm() / sigma_m[e]);
+  }
+  ConsistencyEvaluation result;
+  result.compared = normalized.size();
+  for (double z : normalized) {
+    result.beyond_3_sigma += z > 3.0;
+    result.beyond_6_sigma += z > 6.0;
+  }
+  if (!normalized.empty()) {
+    result.beyond_3_sigma /= static_cast<double>(normalized.size());
+    result.beyond_6_sigma /= static_cast<double>(normalized.size());
+  }
+  result.normalized_error = ComputeErrorStats(std::move(normalized));
   return result;
 }
 

@@ -11,6 +11,9 @@
 // - RPE (relative pose error) over a time delta: for pairs i, j with t_j - t_i ~ delta,
 //   E = (gt_i^-1 gt_j)^-1 (est_i^-1 est_j); translation ||t_E|| m and rotation angle(E) deg.
 //   RPE measures drift and does not depend on the frame the estimate is expressed in.
+// - ATE per distance: each pair's translation error over the distance the ground truth has
+//   travelled from its first pose to that pose (pairs at the start, under 1 cm, are left out):
+//   drift as a share of the path, e.g. keyframes of an outdoor map against the path driven.
 // - Coverage: the share of ground-truth poses that have an associated estimate, i.e. the
 //   share of frames localized when the ground truth has one pose per frame.
 
@@ -25,7 +28,11 @@ namespace visloc {
 struct EvalOptions {
   double max_time_diff_s = 0.02;  // Association tolerance (TUM associate.py default).
   bool align = false;             // Also report ATE after SE(3) alignment.
-  double rpe_delta_s = 1.0;       // RPE interval (TUM evaluate_rpe.py default).
+  // Express the ground truth relative to its own first pose before comparing: the map frame
+  // when the map was built from the recording's first frame (a recording's ground truth lives
+  // in its own world frame).
+  bool gt_origin_first = false;
+  double rpe_delta_s = 1.0;  // RPE interval (TUM evaluate_rpe.py default).
   void Check() const;
 };
 
@@ -54,6 +61,7 @@ struct TrajectoryEvaluation {
   size_t matched_poses = 0;
   double coverage = 0.0;                  // matched_poses / gt_poses, in [0, 1].
   PoseErrors ate;                         // In the map frame, no alignment.
+  ErrorStats ate_per_distance;            // ATE translation / distance travelled (fraction).
   std::optional<PoseErrors> ate_aligned;  // With EvalOptions::align.
   Rigid3d gt_from_est;                    // The alignment used for ate_aligned.
   PoseErrors rpe;
@@ -67,6 +75,22 @@ std::vector<std::pair<size_t, size_t>> AssociateByTime(const Trajectory& gt, con
 // at identity (and ate_aligned equal to ate).
 TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
                                         const EvalOptions& options);
+
+// Whether the reported uncertainty tells the truth: each estimate's position error in units of
+// its per-axis standard deviation sigma = sqrt(trace(Sigma_position) / 3). For an honest
+// Gaussian the normalized error follows a chi distribution with 3 degrees of freedom: median
+// 1.54, 2.9% beyond 3 and none in practice beyond 6 (1 in 10^7).
+struct ConsistencyEvaluation {
+  size_t compared = 0;          // Estimates with a ground-truth pose and a positive sigma.
+  ErrorStats normalized_error;  // |error| / sigma.
+  double beyond_3_sigma = 0.0;  // Share of the compared estimates.
+  double beyond_6_sigma = 0.0;
+};
+
+// `sigma_m` holds one per-axis position sigma per estimate of `est` (0 or NaN: none reported).
+ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
+                                          const std::vector<double>& sigma_m,
+                                          const EvalOptions& options);
 
 // How far the poses of a trajectory scatter about their mean: the jitter of a camera that stands
 // still, with no ground truth needed. Deviations of each position from the mean position (m)

@@ -64,6 +64,61 @@ TEST(TrajectoryEvalTest, KnownRotationComesOutExactly) {
   EXPECT_NEAR(eval.ate.rotation_deg.max, 2.0, 1e-9);
 }
 
+TEST(TrajectoryEvalTest, GroundTruthInItsOwnWorldFrameComparesFromItsFirstPose) {
+  const Trajectory map_frame_gt = MakeGroundTruth();  // Starts at (1, 0, 0), turned.
+  // The same motion as a recording's ground truth gives it: in a world frame of its own.
+  const Rigid3d world_from_map(RotationFromRollPitchYaw(0.1, -0.2, 1.0),
+                               Eigen::Vector3d(3.0, -4.0, 0.5));
+  Trajectory world_gt;
+  for (const StampedPose& p : map_frame_gt)
+    world_gt.push_back({p.timestamp_ns, world_from_map * p.pose});
+  // The estimate of a map built from the first frame: the first pose is the origin.
+  const Rigid3d first_from_map = map_frame_gt.front().pose.Inverse();
+  Trajectory est;
+  for (const StampedPose& p : map_frame_gt)
+    est.push_back({p.timestamp_ns, first_from_map * p.pose});
+  EvalOptions options;
+  EXPECT_GT(EvaluateTrajectory(world_gt, est, options).ate.translation_m.max, 1.0);
+  options.gt_origin_first = true;
+  const TrajectoryEvaluation eval = EvaluateTrajectory(world_gt, est, options);
+  EXPECT_NEAR(eval.ate.translation_m.max, 0.0, 1e-9);
+  EXPECT_NEAR(eval.ate.rotation_deg.max, 0.0, 1e-6);
+}
+
+TEST(TrajectoryEvalTest, ErrorPerDistanceTravelledIsADriftShare) {
+  // A straight 10 m drive whose estimate is 1% too long: the error is 1% of the path throughout.
+  Trajectory gt, est;
+  for (int i = 0; i <= 10; ++i) {
+    const int64_t t = SecondsToNs(i);
+    gt.push_back({t, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, i))});
+    est.push_back({t, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 1.01 * i))});
+  }
+  const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, EvalOptions{});
+  EXPECT_EQ(eval.ate_per_distance.count, 10u);  // The first pose has travelled nothing.
+  EXPECT_NEAR(eval.ate_per_distance.median, 0.01, 1e-12);
+  EXPECT_NEAR(eval.ate_per_distance.max, 0.01, 1e-12);
+}
+
+TEST(TrajectoryEvalTest, ConsistencyCountsErrorsInSigmas) {
+  const Trajectory gt = MakeGroundTruth();
+  Trajectory est;
+  std::vector<double> sigma_m;
+  for (size_t i = 0; i < gt.size(); ++i) {
+    // Every tenth estimate 7 sigma off, the others 1 sigma; one estimate reports no sigma.
+    const double sigma = 0.01, off = (i % 10 == 0 ? 7.0 : 1.0) * sigma;
+    est.push_back(
+        {gt[i].timestamp_ns,
+         Rigid3d(gt[i].pose.rotation, gt[i].pose.translation + Eigen::Vector3d(0, off, 0))});
+    sigma_m.push_back(i == 5 ? 0.0 : sigma);
+  }
+  const ConsistencyEvaluation c = EvaluateConsistency(gt, est, sigma_m, EvalOptions{});
+  EXPECT_EQ(c.compared, gt.size() - 1);
+  EXPECT_NEAR(c.normalized_error.median, 1.0, 1e-9);
+  EXPECT_NEAR(c.normalized_error.max, 7.0, 1e-9);
+  EXPECT_NEAR(c.beyond_3_sigma, 15.0 / 149.0, 1e-12);
+  EXPECT_NEAR(c.beyond_6_sigma, 15.0 / 149.0, 1e-12);
+}
+
 TEST(TrajectoryEvalTest, CoverageCountsOnlyAssociatedPoses) {
   const Trajectory gt = MakeGroundTruth();
   Trajectory est;
