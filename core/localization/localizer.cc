@@ -62,7 +62,9 @@ void LocalizerOptions::Check() const {
   VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0, "jump gate ", max_jump_m, " m ", max_jump_deg,
                " deg");
   VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
-  VISLOC_CHECK(max_query_features >= 0, "max_query_features ", max_query_features);
+  VISLOC_CHECK(max_query_features >= 0 && max_relocalization_features >= 0,
+               "keypoint counts: query ", max_query_features, ", relocalization ",
+               max_relocalization_features);
 }
 
 std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map) {
@@ -204,17 +206,22 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
   result->covariance = filter_.covariance();
 }
 
-PoseFix Localizer::TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns,
+PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
                                  LocalizationResult* result) {
   RelocalizationReport& report = result->relocalization;
+  const Timer extract;
+  const QueryFrame frame = pipeline_.ExtractForRelocalization(image);
+  const double extract_ms = extract.ElapsedMs();
+  report.ms += extract_ms;
+  result->stats.times.relocalize_ms += extract_ms;
   RelocalizationResult found;
   const bool local =
       ever_localized_ && (timestamp_ns - last_fix_ns_) * 1e-9 <= options_.local_relocalization_s;
   if (local) {
     const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
                                                          : last_fix_map_from_cam_.translation;
-    found = pipeline_.relocalizer().Relocalize(frame,
-                                               RelocalizationScope{center, options_.local_radius_m});
+    found = pipeline_.relocalizer().Relocalize(
+        frame, RelocalizationScope{center, options_.local_radius_m});
     report.kind = RelocalizationReport::Kind::kLocal;
     report.ms += found.ms;
     report.candidates += static_cast<int>(found.candidates.size());
@@ -328,7 +335,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   }
   // 4. Relocalization: local around the last pose, then global.
   if (!accepted) {
-    const PoseFix fix = TryRelocalize(frame, input.timestamp_ns, &result);
+    const PoseFix fix = TryRelocalize(input.image, input.timestamp_ns, &result);
     if (fix.success) {
       const Rigid3d found = fix.cam_from_map.Inverse();
       const bool plausible =

@@ -130,7 +130,8 @@ class Localizer {
 
   Motion PredictMotion(const FrameInput& input, double dt_s) const;
   bool Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected, double sigma_m) const;
-  PoseFix TryRelocalize(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
+  // Local then global relocalization of `image`, with the relocalization features.
+  PoseFix TryRelocalize(const cv::Mat& image, int64_t timestamp_ns, LocalizationResult* result);
   // How a fix enters the filter: fused with the prediction (the velocity follows from the
   // previous fix), restarting it with no velocity (a relocalization: the pose may have jumped
   // anywhere), or restarting it with the velocity from the previous fix (a motion the

@@ -19,6 +19,18 @@ LocalizerOptions ScaledToCamera(LocalizerOptions options, const Camera& camera) 
   return options;
 }
 
+// Throws InputError unless `image` is 8-bit grey of the camera's size.
+void CheckImage(const cv::Mat& image, const Camera& camera) {
+  if (image.empty() || image.type() != CV_8UC1) {
+    throw InputError("the image must be 8-bit grey (got type " + std::to_string(image.type()) +
+                     (image.empty() ? ", empty)" : ")"));
+  }
+  if (image.cols != camera.width() || image.rows != camera.height()) {
+    throw InputError(StrCat("the image is ", image.cols, "x", image.rows, " but the camera is ",
+                            camera.width(), "x", camera.height()));
+  }
+}
+
 }  // namespace
 
 QueryPipeline::QueryPipeline(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
@@ -27,20 +39,15 @@ QueryPipeline::QueryPipeline(std::shared_ptr<const LocalizationMap> map, const C
   VISLOC_CHECK(map != nullptr, "no map");
   extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
       map->map().features, options_.max_query_features, options_.finest_scale_only));
+  relocalization_extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
+      map->map().features, options_.max_relocalization_features, /*finest_scale_only=*/false));
   tracker_ = std::make_unique<PoseTracker>(std::move(map), camera_, options_.tracker);
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
 }
 
 QueryFrame QueryPipeline::Extract(const cv::Mat& image, ExtractStats* stats,
                                   double* undistort_ms) const {
-  if (image.empty() || image.type() != CV_8UC1) {
-    throw InputError("the image must be 8-bit grey (got type " + std::to_string(image.type()) +
-                     (image.empty() ? ", empty)" : ")"));
-  }
-  if (image.cols != camera_.width() || image.rows != camera_.height()) {
-    throw InputError(StrCat("the image is ", image.cols, "x", image.rows, " but the camera is ",
-                            camera_.width(), "x", camera_.height()));
-  }
+  CheckImage(image, camera_);
   FeatureSet features = extractor_->Extract(image, stats);
   const Timer undistort;
   QueryFrame frame(std::move(features), camera_);
@@ -48,9 +55,14 @@ QueryFrame QueryPipeline::Extract(const cv::Mat& image, ExtractStats* stats,
   return frame;
 }
 
+QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
+  CheckImage(image, camera_);
+  return QueryFrame(relocalization_extractor_->Extract(image), camera_);
+}
+
 RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {
   const Timer timer;
-  RelocalizationResult found = relocalizer_->Relocalize(Extract(image));
+  RelocalizationResult found = relocalizer_->Relocalize(ExtractForRelocalization(image));
   found.ms = timer.ElapsedMs();
   return found;
 }

@@ -28,7 +28,11 @@ class QueryPipeline {
   // the camera's size.
   QueryFrame Extract(const cv::Mat& image, ExtractStats* stats = nullptr,
                      double* undistort_ms = nullptr) const;
-  // Global relocalization of one image, with nothing known about where it was taken.
+  // The same with the relocalization features: all of the map's scales, more corners
+  // (LocalizerOptions::max_relocalization_features). Throws as Extract does.
+  QueryFrame ExtractForRelocalization(const cv::Mat& image) const;
+  // Global relocalization of one image, with nothing known about where it was taken; `ms`
+  // includes the feature extraction.
   RelocalizationResult RelocalizeImage(const cv::Mat& image) const;
 
   const Camera& camera() const { return camera_; }
@@ -40,6 +44,7 @@ class QueryPipeline {
   Camera camera_;
   LocalizerOptions options_;
   std::unique_ptr<FeatureExtractor> extractor_;
+  std::unique_ptr<FeatureExtractor> relocalization_extractor_;
   std::unique_ptr<PoseTracker> tracker_;
   std::unique_ptr<Relocalizer> relocalizer_;
 };
