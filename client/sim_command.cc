@@ -1,3 +1,4 @@
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 
@@ -41,10 +42,11 @@ int RunSim(const Args& args) {
   bool list = false, no_sheet = false, json = false;
   ArgParser parser(
       "visloc sim",
-      "Renders synthetic stereo sequences of an indoor room with exact ground truth, "
-      "IMU and walking-planner odometry (EuRoC layout by default). Each sequence "
-      "folder also holds groundtruth_map.tum (left camera in the map frame, i.e. the "
-      "first frame of map_square), odometry_map.tum (dead reckoning from the true start pose), "
+      "Renders synthetic stereo sequences of an indoor room (and, `drive`, a street seen from "
+      "a car with KITTI's rig) with exact ground truth, IMU and walking-planner odometry "
+      "(EuRoC layout by default). Each sequence folder also holds groundtruth_map.tum (left "
+      "camera in the map frame, i.e. the first frame of map_square; of `drive`, its own first "
+      "frame), odometry_map.tum (dead reckoning from the true start pose), "
       "sequence.json and contact_sheet.png.");
   parser.AddFlag("out", &out_dir, "output folder (one sub-folder per sequence)");
   parser.AddFlag("sequence", &sequences, "'all' or a comma-separated list of names (see --list)");
@@ -64,6 +66,9 @@ int RunSim(const Args& args) {
   parser.AddSwitch("realistic", &realistic,
                    "what real cameras do: two cameras with their own intrinsics, a slightly "
                    "turned rig, auto-exposure changes, vignetting and motion blur");
+  parser.AddFlag("right-yaw-error", &options.rig.right_yaw_error_deg,
+                 "the right camera is really turned by this many degrees about its y axis against "
+                 "its written calibration (a stereo calibration's residual error)");
   std::string board;
   sim::BoardViewOptions board_views;
   parser.AddFlag("board", &board,
@@ -95,6 +100,9 @@ int RunSim(const Args& args) {
   if (!(options.rig.fisheye_fov_deg >= 90 && options.rig.fisheye_fov_deg < 180)) {
     throw UsageError("--fisheye-fov must be in [90, 180)");
   }
+  if (!(std::abs(options.rig.right_yaw_error_deg) <= 5.0)) {
+    throw UsageError("--right-yaw-error must be within +-5 degrees");
+  }
   if (realistic) {
     options.rig.imperfect = true;
     options.effects = sim::CameraEffects{};
@@ -104,7 +112,8 @@ int RunSim(const Args& args) {
                        : options.rig.fisheye  ? "--lens fisheye"
                        : realistic            ? "--realistic"
                                               : nullptr;
-    if (flag) throw UsageError(StrCat("KITTI sequences are rectified: ", flag, " needs --format euroc"));
+    if (flag)
+      throw UsageError(StrCat("KITTI sequences are rectified: ", flag, " needs --format euroc"));
   }
   options.contact_sheet = !no_sheet;
   if (!board.empty()) {

@@ -25,7 +25,8 @@ namespace {
 
 std::string WorldKey(const RoomOptions& room) {
   return StrCat(room.seed, "/", static_cast<int>(room.layout), "/", room.people, "/", room.width_m,
-                "x", room.depth_m, "x", room.height_m, "/", room.texel_m, "/", room.suite);
+                "x", room.depth_m, "x", room.height_m, "/", room.texel_m, "/", room.suite, "/",
+                room.street);
 }
 
 bool IsCovered(const SequenceSpec& spec, double t) {
@@ -95,23 +96,31 @@ SequenceGenerator::SequenceGenerator(const GenerateOptions& options) : options_(
 
 const World& SequenceGenerator::WorldFor(const RoomOptions& room) {
   auto& slot = worlds_[WorldKey(room)];
-  if (!slot) slot = std::make_unique<World>(MakeRoom(room));
+  if (!slot) slot = std::make_unique<World>(room.street ? MakeStreet(room) : MakeRoom(room));
   return *slot;
 }
 
 GenerateStats SequenceGenerator::Generate(const std::string& name, const std::string& out_dir,
                                           const std::function<void(int, int)>& progress) {
   const SequenceSpec spec = MakeSequenceSpec(name, options_.seed);
-  const StereoRig rig = MakeRig(options_.rig);
+  const RigOptions rig_options = spec.car ? CarRig(options_.rig) : options_.rig;
+  const StereoRig rig = MakeRig(rig_options);
   const World& world = WorldFor(spec.room);
-  const Rigid3d map_from_world = WorldFromMap(options_.rig).Inverse();
+  const Rigid3d map_from_world =
+      spec.car ? (spec.path.WorldFromBody(0.0) * rig.left.body_from_cam).Inverse()
+               : WorldFromMap(rig_options).Inverse();
+  // The right camera as it really is: turned against its calibration by the rig's yaw error.
+  const Rigid3d calibrated_from_true_right(
+      Eigen::Quaterniond(Eigen::AngleAxisd(rig_options.right_yaw_error_deg * M_PI / 180.0,
+                                           Eigen::Vector3d::UnitY())),
+      Eigen::Vector3d::Zero());
 
   GenerateStats stats;
   stats.name = name;
   stats.dir = (fs::path(out_dir) / name).string();
   stats.duration_s = spec.path.duration_s();
   stats.path_length_m = spec.path.length_m();
-  int frame_count = static_cast<int>(std::floor(spec.path.duration_s() * options_.rig.fps)) + 1;
+  int frame_count = static_cast<int>(std::floor(spec.path.duration_s() * rig_options.fps)) + 1;
   if (options_.max_frames > 0) frame_count = std::min(frame_count, options_.max_frames);
   stats.frames = frame_count;
   fs::remove_all(stats.dir);
@@ -121,9 +130,9 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   if (options_.format == DatasetFormat::kEuroc) {
     euroc = std::make_unique<EurocWriter>(stats.dir, rig.left, rig.right);
   } else {
-    VISLOC_CHECK(!options_.rig.distortion && !options_.rig.fisheye && !options_.rig.imperfect,
+    VISLOC_CHECK(!rig_options.distortion && !rig_options.fisheye && !rig_options.imperfect,
                  "KITTI sequences are rectified: no distortion, fisheye or imperfect rig");
-    WriteKittiCalibration(stats.dir, rig.left.camera, options_.rig.baseline_m);
+    WriteKittiCalibration(stats.dir, rig.left.camera, rig_options.baseline_m);
   }
 
   const Renderer left_renderer(rig.left.camera, options_.supersample);
@@ -134,15 +143,15 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   Trajectory world_from_body, map_from_cam;
   std::vector<int> covered_frames;
   std::vector<std::pair<std::string, cv::Mat>> sheet;
-  const std::set<int> sheet_frames = ContactSheetFrames(spec, frame_count, options_.rig.fps);
+  const std::set<int> sheet_frames = ContactSheetFrames(spec, frame_count, rig_options.fps);
   Timer render_timer;
   double render_ms = 0;
   for (int k = 0; k < frame_count; ++k) {
-    const double t = k / options_.rig.fps;
+    const double t = k / rig_options.fps;
     const int64_t stamp = options_.start_ns + static_cast<int64_t>(std::llround(t * 1e9));
     const Rigid3d body = spec.path.WorldFromBody(t);
     const Rigid3d world_from_left = body * rig.left.body_from_cam;
-    const Rigid3d world_from_right = body * rig.right.body_from_cam;
+    const Rigid3d world_from_right = body * rig.right.body_from_cam * calibrated_from_true_right;
     cv::Mat left_radiance, right_radiance;
     render_timer.Restart();
     if (IsCovered(spec, t)) {
@@ -154,11 +163,13 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
     } else if (options_.effects) {
       // The shutter opens half the exposure time before t and closes half after.
       const double half = 0.5 * options_.effects->exposure_time_s;
-      const Rigid3d open = spec.path.WorldFromBody(t - half), close = spec.path.WorldFromBody(t + half);
+      const Rigid3d open = spec.path.WorldFromBody(t - half),
+                    close = spec.path.WorldFromBody(t + half);
       left_radiance = left_renderer.RenderRadiance(world, open * rig.left.body_from_cam,
                                                    close * rig.left.body_from_cam, t, 2 * half);
-      right_radiance = right_renderer.RenderRadiance(world, open * rig.right.body_from_cam,
-                                                     close * rig.right.body_from_cam, t, 2 * half);
+      right_radiance = right_renderer.RenderRadiance(
+          world, open * rig.right.body_from_cam * calibrated_from_true_right,
+          close * rig.right.body_from_cam * calibrated_from_true_right, t, 2 * half);
     } else {
       left_radiance = left_renderer.RenderRadiance(world, world_from_left, t);
       right_radiance = right_renderer.RenderRadiance(world, world_from_right, t);
@@ -220,12 +231,13 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       .Field("description", spec.description)
       .Field("format", ToString(options_.format))
       .Field("frames", frame_count)
-      .Field("fps", options_.rig.fps)
-      .Field("width", options_.rig.width)
-      .Field("height", options_.rig.height)
-      .Field("distortion", options_.rig.distortion)
-      .Field("lens", options_.rig.fisheye ? "fisheye" : "pinhole")
-      .Field("imperfect_rig", options_.rig.imperfect)
+      .Field("fps", rig_options.fps)
+      .Field("width", rig_options.width)
+      .Field("height", rig_options.height)
+      .Field("distortion", rig_options.distortion)
+      .Field("lens", rig_options.fisheye ? "fisheye" : "pinhole")
+      .Field("imperfect_rig", rig_options.imperfect)
+      .Field("right_yaw_error_deg", rig_options.right_yaw_error_deg)
       .Field("camera_effects", options_.effects.has_value())
       .Field("seed", static_cast<int64_t>(options_.seed))
       .Field("duration_s", times_s.back())

@@ -322,6 +322,70 @@ std::vector<Surface> World::SurfacesAt(double time_s) const {
   return result;
 }
 
+World MakeStreet(const RoomOptions& options) {
+  World world;
+  world.width_m = 200.0;
+  world.depth_m = 200.0;
+  world.height_m = 20.0;
+  Rng rng(options.seed * 104729 + 7);
+  // Facades at a texel of 2 cm: corners from 10 cm up, which a 720 px focal length resolves
+  // to beyond 50 m. Several textures, so neighbouring buildings do not repeat one another.
+  constexpr double kFacadeTexelM = 0.02;
+  constexpr int kFacades = 8;
+  std::vector<int> facades;
+  for (int i = 0; i < kFacades; ++i) {
+    facades.push_back(AddTexture(&world,
+                                 GenerateTexture(TextureStyle::kPosterWall, 20.0, 16.0,
+                                                 kFacadeTexelM, options.seed * 100 + i),
+                                 kFacadeTexelM));
+  }
+  // The road and the land around it.
+  constexpr double kGroundTexelM = 0.02;
+  const int ground = AddTexture(
+      &world,
+      GenerateTexture(TextureStyle::kFloor, 60.0, 60.0, kGroundTexelM, options.seed * 100 + 50),
+      kGroundTexelM);
+  for (int gx = -1; gx < 3; ++gx) {
+    for (int gy = -1; gy < 2; ++gy) {
+      world.surfaces.push_back(MakeSurface(Eigen::Vector3d(gx * 60.0 - 20.0, gy * 60.0 - 10.0, 0),
+                                           Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), 60.0,
+                                           60.0, ground));
+    }
+  }
+  // Where the arc is at angle theta, and its outward normal (to the right of the car).
+  const Eigen::Vector2d centre(0.0, kStreetRadiusM);
+  const auto on_arc = [&](double theta, double right_m) {
+    const Eigen::Vector2d outward(std::sin(theta), -std::cos(theta));
+    return Eigen::Vector2d(centre + (kStreetRadiusM + right_m) * outward);
+  };
+  const auto building = [&](const Eigen::Vector2d& xy, double size_m, double height_m) {
+    Box box{xy, {size_m, size_m, height_m}, facades[rng.UniformInt(0, kFacades - 1)]};
+    AppendBoxFaces(box, &world.surfaces);
+  };
+  // Rows along the road, a building every 5-9 m, from a little behind the start to past the end.
+  for (const double side : {-1.0, 1.0}) {
+    for (const auto& [near_m, far_m] : {std::pair{6.0, 12.0}, std::pair{20.0, 30.0}}) {
+      for (double along_m = -10.0; along_m < kStreetRadiusM * kStreetAngleRad + 30.0;) {
+        const double size_m = rng.Uniform(3.0, 6.0);
+        const double offset_m = rng.Uniform(near_m, far_m) + size_m / 2;
+        building(on_arc(along_m / kStreetRadiusM, side * offset_m), size_m, rng.Uniform(4.0, 14.0));
+        along_m += size_m + rng.Uniform(2.0, 4.0);
+      }
+    }
+  }
+  // Large buildings far ahead of the start and of the end.
+  for (const double theta : {0.0, kStreetAngleRad}) {
+    const Eigen::Vector2d start = on_arc(theta, 0.0);
+    const Eigen::Vector2d ahead(std::cos(theta), std::sin(theta));
+    const Eigen::Vector2d left(-ahead.y(), ahead.x());
+    for (int i = -2; i <= 2; ++i) {
+      building(start + rng.Uniform(60.0, 100.0) * ahead + i * 25.0 * left, rng.Uniform(12.0, 18.0),
+               rng.Uniform(10.0, 20.0));
+    }
+  }
+  return world;
+}
+
 World MakeRoom(const RoomOptions& options) {
   VISLOC_CHECK(options.width_m > 4.6 && options.depth_m > 4.6 && options.height_m > 2.0, "room ",
                options.width_m, "x", options.depth_m, "x", options.height_m,

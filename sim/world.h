@@ -74,7 +74,14 @@ struct RoomOptions {
   // west, each behind a 0.1 m wall with a 1 m x 2.1 m doorway. Most of what a camera's frustum
   // holds is then hidden behind walls, as in a real building (seed paper 000, Sec. 5).
   bool suite = false;
+  // Outdoors instead of a room (MakeStreet): a road between buildings, seen from a car.
+  bool street = false;
 };
+
+// The street's road: from the origin heading +x, an arc curving left of this radius through
+// this angle (51 m), as a car drives it in the `drive` sequence.
+inline constexpr double kStreetRadiusM = 60.0;
+inline constexpr double kStreetAngleRad = 0.85;
 
 // The walking lanes of the suite: the doorways are centred on the lines x = kSuiteLaneX (north
 // and south walls) and y = kSuiteLaneY (east and west walls), and bands of +-1.5 m around these
@@ -88,6 +95,11 @@ inline constexpr double kSuiteWallM = 0.1;  // Wall thickness between rooms.
 // ~2.2 m around the centre, kept free for the robot). With `options.suite`, the room with its
 // four neighbours (their own textures and randomly placed boxes, the lanes kept free).
 World MakeRoom(const RoomOptions& options);
+
+// A street seen from a car, with KITTI's depths: a textured road, rows of buildings 6-12 m and
+// 20-30 m to either side of the arc above, 4-14 m tall, and large buildings 60-100 m ahead of
+// its start and its end. Every surface is textured like a facade (shapes from 10 cm to 3 m).
+World MakeStreet(const RoomOptions& options);
 
 // Appends the 5 visible faces (4 sides and the top) of `box` to `surfaces`.
 void AppendBoxFaces(const Box& box, std::vector<Surface>* surfaces);
