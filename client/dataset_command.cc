@@ -12,6 +12,7 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "dataset/tum.h"
 #include "mapping/dataset_check.h"
 
 namespace visloc::cli {
@@ -45,12 +46,13 @@ void PrintHuman(const std::string& dir, const Dataset& dataset,
         "epipolar residual: row difference of %d left/right descriptor matches after "
         "rectification: median %.2f px, 95th percentile %.2f px\n",
         check.descriptor_matches, check.row_difference_median_px, check.row_difference_p95_px);
-    std::printf("stereo: %.0f of %.0f left keypoints matched per frame (median); depth %.2f m "
-                "(median), %.2f - %.2f m (5th - 95th percentile)\n",
-                check.stereo_matches_median, check.keypoints_median, check.depth_median_m,
-                check.depth_p5_m, check.depth_p95_m);
-    std::printf("  %6s %10s %9s %8s %6s %9s %8s %10s\n", "frame", "time s", "keypoints",
-                "matched", "weak", "ambiguous", "refined", "row px");
+    std::printf(
+        "stereo: %.0f of %.0f left keypoints matched per frame (median); depth %.2f m "
+        "(median), %.2f - %.2f m (5th - 95th percentile)\n",
+        check.stereo_matches_median, check.keypoints_median, check.depth_median_m, check.depth_p5_m,
+        check.depth_p95_m);
+    std::printf("  %6s %10s %9s %8s %6s %9s %8s %10s\n", "frame", "time s", "keypoints", "matched",
+                "weak", "ambiguous", "refined", "row px");
     for (const mapping::SampledFrame& s : check.samples) {
       const auto& st = s.check.stereo;
       std::printf("  %6d %10.3f %9d %8d %6d %9d %8d %10.2f\n", s.index,
@@ -137,8 +139,8 @@ int RunCheck(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (options.sample_frames < 1) throw UsageError("--frames must be at least 1");
   options.features = DefaultFeatureSettings(features);
-  const Dataset dataset = ReadDataset(
-      dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Dataset dataset =
+      ReadDataset(dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
   const bool progress = ShowProgress() && !json;
   const mapping::DatasetCheck check =
       mapping::CheckDataset(dataset, options, [&](int done, int total) {
@@ -155,6 +157,27 @@ int RunCheck(const Args& args) {
   return 0;
 }
 
+int RunGroundTruth(const Args& args) {
+  std::string dir, format, out;
+  ArgParser parser("visloc dataset groundtruth",
+                   "Writes a dataset's ground truth for its left camera at the frame times, as "
+                   "TUM (what visloc eval --gt takes): KITTI's poses.txt, or EuRoC's "
+                   "state_groundtruth_estimate0 moved from the body to cam0 by T_BS. Frames with "
+                   "no ground truth within 50 ms are left out.");
+  parser.AddPositional("DIR", &dir, "dataset folder (EuRoC or KITTI layout)");
+  parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
+  parser.AddFlag("out", &out, "TUM file to write", /*required=*/true);
+  if (!parser.Parse(args, std::cout)) return 0;
+  const Dataset dataset =
+      ReadDataset(dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Trajectory left_cam = dataset.GroundTruthLeftCam();
+  if (left_cam.empty()) throw InputError(dir + ": no ground truth at the frames' times");
+  WriteTum(out, left_cam);
+  std::printf("%zu of %zu frames' left camera poses -> %s\n", left_cam.size(),
+              dataset.frames.size(), out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int RunDataset(const Args& args) {
@@ -162,6 +185,7 @@ int RunDataset(const Args& args) {
       {"check", "will this stereo rig map? calibration, epipolar residual, stereo matches",
        RunCheck},
       {"import", "a ROS 1 or ROS 2 bag into an EuRoC-layout sequence", RunDatasetImport},
+      {"groundtruth", "the left camera's ground truth at the frame times, as TUM", RunGroundTruth},
   };
   return DispatchSubcommand("visloc dataset VERB [options]", "Inspect datasets. Verbs:", kVerbs,
                             args);
