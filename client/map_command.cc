@@ -260,6 +260,11 @@ int RunBuild(const Args& args) {
                  "new keyframe after this many degrees");
   int loop_closure = 1;
   parser.AddFlag("loop-closure", &loop_closure, "1 to close loops, 0 not to");
+  int disparity_calibration = 1;
+  parser.AddFlag("disparity-calibration", &disparity_calibration,
+                 "1 to estimate the rig's disparity bias (a right camera turned or its principal "
+                 "point moved against the calibration) from the first frames' motion, 0 to trust "
+                 "the calibration");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features,
                  "corners per image (default: 600 at 320x240, more for larger images)");
@@ -277,6 +282,7 @@ int RunBuild(const Args& args) {
     throw UsageError("--max-features, --min-points and --check-frames must not be negative");
   }
   options.builder.loop_closure.enabled = loop_closure != 0;
+  options.builder.disparity_calibration.enabled = disparity_calibration != 0;
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   const FrameRange range = ParseFrameRange(frames);
@@ -316,6 +322,9 @@ int RunBuild(const Args& args) {
         .Field("tracking_failures", stats.tracking_failures)
         .Field("reprojection_rmse_px", stats.reprojection_rmse_px)
         .Field("disparity_rmse_px", stats.disparity_rmse_px)
+        .Field("disparity_offset_px", stats.disparity_correction.offset_px)
+        .Field("right_camera_yaw_deg", stats.disparity_correction.yaw_rad * 180.0 / M_PI)
+        .Field("calibration_passes", stats.calibration_passes)
         .Field("visibility_fit_rmse", stats.visibility.final_rmse)
         .Field("features_ms", stats.features_ms)
         .Field("tracking_ms", stats.tracking_ms)
@@ -339,6 +348,11 @@ int RunBuild(const Args& args) {
       stats.loop_closures, stats.loop_adjustments, stats.tracking_failures,
       stats.reprojection_rmse_px, stats.disparity_rmse_px, stats.visibility.final_rmse,
       stats.visibility.pairs);
+  std::printf(
+      "  the rig's disparities: %.2f px offset, right camera turned %.3f deg (estimated over %d "
+      "adjustments)\n",
+      stats.disparity_correction.offset_px, stats.disparity_correction.yaw_rad * 180.0 / M_PI,
+      stats.calibration_passes);
   std::printf(
       "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
       "%.1f s, "

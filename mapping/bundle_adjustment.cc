@@ -26,6 +26,15 @@ ObservationError ObservationErrors(const SlamState& state, int l, int k, int i,
   return error;
 }
 
+void ApplyDisparityCorrection(const DisparityCorrection& change,
+                              const RectifiedIntrinsics& intrinsics, SlamState* state) {
+  for (SlamKeyframe& keyframe : state->keyframes) {
+    for (double& right_x : keyframe.right_x_rect) {
+      if (std::isfinite(right_x)) right_x += change.BiasPx(right_x, intrinsics.f, intrinsics.cx);
+    }
+  }
+}
+
 namespace {
 
 // An observation stays when both errors, in the units bundle adjustment weighs them in, are
@@ -58,6 +67,7 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
   for (int k : window) poses[k] = ToPoseBlock(state->keyframes[k].cam_from_world);
   ceres::Problem problem;
   ceres::LossFunction* loss = new ceres::HuberLoss(options.huber_px);  // shared, owned by problem
+  double correction_change[2] = {0.0, 0.0};                            // Offset px, yaw rad.
   double initial_sq = 0;
   int residual_count = 0;
   for (int l : landmarks) {
@@ -72,7 +82,12 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
               ? StereoReprojectionCost::Create(keyframe.left_rect[i], right_x, intrinsics,
                                                options.disparity_weight)
               : MonoReprojectionCost::Create(keyframe.left_rect[i], intrinsics);
-      problem.AddResidualBlock(cost, loss, pose, pose + 4, landmark.position_in_world.data());
+      if (std::isfinite(right_x)) {
+        problem.AddResidualBlock(cost, loss, pose, pose + 4, landmark.position_in_world.data(),
+                                 correction_change);
+      } else {
+        problem.AddResidualBlock(cost, loss, pose, pose + 4, landmark.position_in_world.data());
+      }
       const double e = ObservationErrors(*state, l, k, i, intrinsics).left_px;
       initial_sq += e * e;
       ++residual_count;
@@ -83,8 +98,22 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
   summary.residual_blocks = residual_count;
   if (residual_count == 0) return summary;
   for (auto& [k, pose] : poses) SetUpPoseBlock(&problem, &pose, !free.count(k));
+  if (problem.HasParameterBlock(correction_change)) {
+    if (options.estimate_disparity_correction) {
+      problem.AddResidualBlock(
+          DisparityCorrectionPrior::Create(options.correction_offset_sigma_px,
+                                           options.correction_yaw_sigma_deg * M_PI / 180.0),
+          nullptr, correction_change);
+    } else {
+      problem.SetParameterBlockConstant(correction_change);
+    }
+  }
   summary.iterations = SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations);
   for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(pose);
+  summary.correction_change = {correction_change[0], correction_change[1]};
+  if (options.estimate_disparity_correction) {
+    ApplyDisparityCorrection(summary.correction_change, intrinsics, state);
+  }
   // Cull: observations above the error threshold, then landmarks seen fewer than twice.
   double final_sq = 0;
   int final_count = 0;

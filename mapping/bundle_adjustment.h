@@ -16,6 +16,13 @@ struct BundleAdjustmentOptions {
   double disparity_weight = 8.0;  // sigma_keypoint / sigma_disparity (see reprojection_cost.h).
   int max_iterations = 15;
   double cull_error_px = 3.0;  // Afterwards: drop observations above this; paper: 3 px.
+  // Also estimate a change of the rig's disparity correction (disparity_correction.h) with the
+  // poses and points, under a zero-mean prior of these sigmas (what keeps it where it is when
+  // the motion cannot tell: a camera standing still). The change is applied to every keyframe's
+  // stereo matches, since it belongs to the rig.
+  bool estimate_disparity_correction = false;
+  double correction_offset_sigma_px = 2.0;
+  double correction_yaw_sigma_deg = 0.3;
 };
 
 struct BundleAdjustmentSummary {
@@ -26,6 +33,7 @@ struct BundleAdjustmentSummary {
   double initial_rmse_px = 0.0;  // Left image reprojection error.
   double final_rmse_px = 0.0;
   int culled_observations = 0;
+  DisparityCorrection correction_change;  // Estimated and applied (when asked for).
   double time_ms = 0.0;
 };
 
@@ -33,6 +41,10 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
                                      const std::vector<int>& fixed_keyframes,
                                      const RectifiedIntrinsics& intrinsics,
                                      const BundleAdjustmentOptions& options);
+
+// Takes `change` off every stereo match of the state's keyframes (their right image columns).
+void ApplyDisparityCorrection(const DisparityCorrection& change,
+                              const RectifiedIntrinsics& intrinsics, SlamState* state);
 
 struct ObservationError {
   double left_px = 0.0;       // Reprojection error in the (rectified) left image.

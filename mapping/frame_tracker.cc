@@ -51,11 +51,29 @@ FrameTracker::FrameTracker(const TrackingOptions& options, const RectifiedView& 
 
 std::vector<LandmarkMatch> FrameTracker::Match(const SlamState& state, const StereoFrame& frame,
                                                const Rigid3d& cam_from_world,
-                                               const std::vector<int>& landmarks,
-                                               double radius_px,
+                                               const std::vector<int>& landmarks, double radius_px,
                                                std::vector<int>* in_view) const {
-  return MatchLandmarks(state, frame.grid, frame.left.descriptors, view_, cam_from_world,
-                        landmarks, radius_px, options_.matching, in_view);
+  return MatchLandmarks(state, frame.grid, frame.left.descriptors, view_, cam_from_world, landmarks,
+                        radius_px, options_.matching, in_view);
+}
+
+std::vector<LandmarkMatch> FrameTracker::MatchWithoutPrediction(const SlamState& state,
+                                                                const StereoFrame& frame) const {
+  if (state.keyframes.empty()) return {};
+  std::vector<int> landmarks;
+  cv::Mat descriptors;
+  for (int l : state.keyframes.back().landmark) {
+    if (l < 0 || state.landmarks[l].culled) continue;
+    const auto& [k, i] = state.landmarks[l].observations.back();
+    landmarks.push_back(l);
+    descriptors.push_back(state.keyframes[k].features.descriptors.row(i));
+  }
+  std::vector<LandmarkMatch> matches;
+  for (const auto& [a, b] :
+       MatchMutualNearest(descriptors, frame.left.descriptors, options_.matching)) {
+    matches.push_back({landmarks[a], b});
+  }
+  return matches;
 }
 
 TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame,
@@ -67,8 +85,14 @@ TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame
       Match(state, frame, predicted, landmarks, options_.search_radius_px);
   PnpRansacOptions pnp = pnp_;
   pnp.seed = seed;
-  const PnpResult ransac = SolvePnpRansac(
+  PnpResult ransac = SolvePnpRansac(
       LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
+  if (!ransac.success) {
+    matches = MatchWithoutPrediction(state, frame);
+    ransac = SolvePnpRansac(
+        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_),
+        pnp);
+  }
   if (!ransac.success) return result;
   // Re-match with the estimated pose in a tight radius: more tracks, fewer outliers.
   matches = Match(state, frame, ransac.cam_from_world, landmarks, options_.refine_radius_px,

@@ -4,6 +4,10 @@
 // (MatchLandmarks), PnP RANSAC with the rectified stereo residuals gives a pose, every landmark
 // is re-matched in a tight radius around it, and Levenberg-Marquardt refines the pose on the
 // matches within the inlier threshold, which are the frame's tracked landmarks.
+//
+// When the prediction is too far off for the search radius (the second frame, whose motion
+// nothing predicts; a car at 2 m and 5 degrees a frame; a jolt), the last keyframe's landmarks
+// are matched by descriptor alone (mutual nearest neighbours) and RANSAC runs on those.
 
 #include <cstdint>
 #include <vector>
@@ -52,6 +56,9 @@ class FrameTracker {
   const RectifiedView& view() const { return view_; }
 
  private:
+  // The last keyframe's landmarks matched to the frame's keypoints by descriptor alone.
+  std::vector<LandmarkMatch> MatchWithoutPrediction(const SlamState& state,
+                                                    const StereoFrame& frame) const;
   std::vector<LandmarkMatch> Match(const SlamState& state, const StereoFrame& frame,
                                    const Rigid3d& cam_from_world, const std::vector<int>& landmarks,
                                    double radius_px, std::vector<int>* in_view = nullptr) const;

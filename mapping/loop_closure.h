@@ -47,6 +47,8 @@ class LoopCloser {
 
   // Tries to close a loop at the state's last keyframe.
   LoopClosureEvent TryClose(SlamState* state);
+  // Forgets past closures, for a state mapped again from its first frame.
+  void Reset() { keyframes_since_loop_ = 1000; }
 
  private:
   // The landmarks of keyframe `j` that no keyframe of the window before `k` observes.

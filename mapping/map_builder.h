@@ -29,6 +29,30 @@
 
 namespace visloc::mapping {
 
+// The rig's disparity correction (disparity_correction.h), estimated while mapping. What
+// observes it is the parallax the camera's own motion adds to the stereo baseline, so the first
+// frames are mapped until the camera has travelled `travel_baselines` stereo baselines (KITTI:
+// 48 m; EuRoC: 10 m), or for `max_frames` frames, or to the end of a shorter sequence. Then,
+// when it has travelled at least `min_travel_baselines` (less says little: KITTI 00's first
+// 7.5 m put the offset at -0.4 px, its first 30 m at -0.6), a bundle adjustment of all their
+// keyframes estimates a change of the correction with the poses and points, under priors of the
+// given sigmas, and the frames are mapped again with it, until a change moves no disparity by
+// `converged_px` or after `max_passes`; later frames are mapped with it. An adjustment goes
+// only part of the way (a 0.1 deg yaw in a rendered drive: 0.083 deg first; on KITTI 01 about
+// half of what is left each time): the tracks and keyframes it adjusts were made with the old
+// correction, and adjusting them again finds no more, so the frames are mapped again.
+struct DisparityCalibrationOptions {
+  bool enabled = true;
+  double travel_baselines = 90.0;
+  double min_travel_baselines = 40.0;
+  int max_frames = 150;
+  int max_passes = 4;
+  double converged_px = 0.05;
+  double offset_sigma_px = 2.0;
+  double yaw_sigma_deg = 0.3;
+  void Check() const;
+};
+
 struct MapBuilderOptions {
   FeatureSettings features = DefaultFeatureSettings("harris_surf16");
   // features' max_features is the count at 320x240, scaled to the images (FeatureCountForImage);
@@ -40,6 +64,7 @@ struct MapBuilderOptions {
   BundleAdjustmentOptions local_ba;
   LoopClosureOptions loop_closure;
   int global_ba_iterations = 40;
+  DisparityCalibrationOptions disparity_calibration;
   AssemblyOptions assembly;
   void Check() const;  // Checks every nested options struct too.
 };
@@ -54,6 +79,8 @@ struct MapBuildStats {
   int loop_adjustments = 0;           // Closures large enough to re-adjust every keyframe at once.
   double reprojection_rmse_px = 0.0;  // Left image, after global BA.
   double disparity_rmse_px = 0.0;     // Predicted vs measured disparity, after global BA.
+  DisparityCorrection disparity_correction;  // The rig's, as estimated (DisparityCalibration).
+  int calibration_passes = 0;  // Adjustments that estimated it (each but the last remaps).
   VisibilityLearningStats visibility;
   double features_ms = 0, tracking_ms = 0, local_ba_ms = 0, loop_ms = 0, global_ba_ms = 0,
          learning_ms = 0, total_ms = 0;
@@ -77,8 +104,17 @@ class MapBuilder {
   std::string Status() const;
 
  private:
+  // Tracking, keyframing, local BA and loop closure of one frame whose stereo matches are made.
+  void Process(int64_t timestamp_ns, StereoFrame&& frame);
   void StartKeyframe(int64_t timestamp_ns, StereoFrame&& frame, const Rigid3d& cam_from_world,
                      const std::vector<LandmarkMatch>& tracked);
+  // Estimates the disparity correction from the frames so far, mapping them again with it
+  // (DisparityCalibrationOptions).
+  void CalibrateDisparity();
+  // How far the camera has travelled, along the keyframes so far (m).
+  double TravelledM() const;
+  // Forgets every frame processed, to map them again.
+  void Restart();
   Rigid3d MapFromWorld() const;
   Rigid3d RectFromRaw() const;
 
@@ -98,6 +134,10 @@ class MapBuilder {
   Rigid3d velocity_;  // cam_from_world(t) * cam_from_world(t-1)^-1
   MapBuildStats stats_;
   int last_tracked_ = 0;
+  DisparityCorrection correction_;  // Taken off the disparities of new frames.
+  bool calibrating_ = false;
+  // The frames so far while calibrating, with their matches as first made (zero correction).
+  std::vector<std::pair<int64_t, StereoFrame>> calibration_frames_;
 };
 
 }  // namespace visloc::mapping

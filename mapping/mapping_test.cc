@@ -8,6 +8,8 @@
 #include "core/util/temp_dir.h"
 #include "dataset/tum.h"
 #include "mapping/dataset_mapping.h"
+#include "mapping/frame_tracker.h"
+#include "mapping/keyframes.h"
 #include "mapping/reprojection_cost.h"
 #include "mapping/stereo_frame.h"
 #include "mapping/visibility_learning.h"
@@ -20,24 +22,30 @@ namespace {
 
 const RectifiedIntrinsics kIntrinsics{160.0, 159.5, 119.5, 0.144};
 
-// Compares a cost function's Jacobians with central numeric differences of the same functor.
-template <typename Functor, int kResiduals>
-void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor) {
+// Compares a cost function's Jacobians with central numeric differences of the same functor, at
+// `parameters` (one vector per block, of the sizes kBlocks).
+template <typename Functor, int kResiduals, int... kBlocks>
+void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor,
+                                 std::vector<std::vector<double>> parameters) {
   std::unique_ptr<ceres::CostFunction> autodiff(analytic);
-  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kResiduals, 4, 3, 3> numeric(functor);
-  const Eigen::Quaterniond q = RotationFromRollPitchYaw(0.1, -0.2, 0.3);
-  double rotation[4] = {q.x(), q.y(), q.z(), q.w()};
-  double translation[3] = {0.1, -0.05, 0.2};
-  double point[3] = {0.4, -0.3, 3.0};
-  const double* parameters[3] = {rotation, translation, point};
-  double residual_a[3], residual_n[3];
-  double ja[3][kResiduals * 4], jn[3][kResiduals * 4];
-  double* jacobians_a[3] = {ja[0], ja[1], ja[2]};
-  double* jacobians_n[3] = {jn[0], jn[1], jn[2]};
-  ASSERT_TRUE(autodiff->Evaluate(parameters, residual_a, jacobians_a));
-  ASSERT_TRUE(numeric.Evaluate(parameters, residual_n, jacobians_n));
-  const int sizes[3] = {4, 3, 3};
-  for (int block = 0; block < 3; ++block) {
+  ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kResiduals, kBlocks...> numeric(functor);
+  const std::vector<int> sizes = {kBlocks...};
+  std::vector<const double*> blocks;
+  std::vector<std::vector<double>> ja, jn;
+  std::vector<double*> jacobians_a, jacobians_n;
+  for (size_t b = 0; b < sizes.size(); ++b) {
+    blocks.push_back(parameters[b].data());
+    ja.emplace_back(kResiduals * sizes[b]);
+    jn.emplace_back(kResiduals * sizes[b]);
+  }
+  for (size_t b = 0; b < sizes.size(); ++b) {
+    jacobians_a.push_back(ja[b].data());
+    jacobians_n.push_back(jn[b].data());
+  }
+  double residual_a[kResiduals], residual_n[kResiduals];
+  ASSERT_TRUE(autodiff->Evaluate(blocks.data(), residual_a, jacobians_a.data()));
+  ASSERT_TRUE(numeric.Evaluate(blocks.data(), residual_n, jacobians_n.data()));
+  for (size_t block = 0; block < sizes.size(); ++block) {
     for (int i = 0; i < kResiduals * sizes[block]; ++i) {
       EXPECT_NEAR(ja[block][i], jn[block][i], 1e-5 * (1 + std::abs(jn[block][i])))
           << "block " << block << " entry " << i;
@@ -46,17 +54,26 @@ void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor
   for (int r = 0; r < kResiduals; ++r) EXPECT_DOUBLE_EQ(residual_a[r], residual_n[r]);
 }
 
+// A pose and a point in front of it, as parameter blocks.
+std::vector<std::vector<double>> PoseAndPoint() {
+  const Eigen::Quaterniond q = RotationFromRollPitchYaw(0.1, -0.2, 0.3);
+  return {{q.x(), q.y(), q.z(), q.w()}, {0.1, -0.05, 0.2}, {0.4, -0.3, 3.0}};
+}
+
 TEST(ReprojectionCostTest, StereoJacobiansMatchNumericDerivatives) {
   const Eigen::Vector2d left(170.0, 100.0);
-  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3>(
+  std::vector<std::vector<double>> parameters = PoseAndPoint();
+  parameters.push_back({0.4, 0.002});  // A disparity correction change: 0.4 px, 0.11 deg.
+  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3, 4, 3, 3, 2>(
       StereoReprojectionCost::Create(left, 160.0, kIntrinsics, 8.0),
-      new StereoReprojectionCost(left, 160.0, kIntrinsics, 8.0));
+      new StereoReprojectionCost(left, 160.0, kIntrinsics, 8.0), parameters);
 }
 
 TEST(ReprojectionCostTest, MonoJacobiansMatchNumericDerivatives) {
   const Eigen::Vector2d left(170.0, 100.0);
-  ExpectJacobiansMatchNumeric<MonoReprojectionCost, 2>(
-      MonoReprojectionCost::Create(left, kIntrinsics), new MonoReprojectionCost(left, kIntrinsics));
+  ExpectJacobiansMatchNumeric<MonoReprojectionCost, 2, 4, 3, 3>(
+      MonoReprojectionCost::Create(left, kIntrinsics), new MonoReprojectionCost(left, kIntrinsics),
+      PoseAndPoint());
 }
 
 TEST(ReprojectionCostTest, ZeroAtTheTruePose) {
@@ -65,10 +82,33 @@ TEST(ReprojectionCostTest, ZeroAtTheTruePose) {
                              kIntrinsics.f * -0.2 / 2.5 + kIntrinsics.cy);
   const double right_x = kIntrinsics.f * (0.3 - 0.144) / 2.5 + kIntrinsics.cx;
   StereoReprojectionCost cost(left, right_x, kIntrinsics, 8.0);
-  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0};
+  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0}, unchanged[2] = {0, 0};
   double residuals[3];
-  cost(rotation, translation, point.data(), residuals);
+  cost(rotation, translation, point.data(), unchanged, residuals);
   for (double r : residuals) EXPECT_NEAR(r, 0.0, 1e-12);
+}
+
+// A disparity measured with a bias is explained exactly by the correction change that takes the
+// bias off: the residual vanishes when the change equals the bias (disparity_correction.h).
+TEST(ReprojectionCostTest, ACorrectionChangeTakesABiasOffTheDisparity) {
+  const Eigen::Vector3d point(0.3, -0.2, 2.5);
+  const Eigen::Vector2d left(kIntrinsics.f * 0.3 / 2.5 + kIntrinsics.cx,
+                             kIntrinsics.f * -0.2 / 2.5 + kIntrinsics.cy);
+  const double true_right_x = kIntrinsics.f * (0.3 - 0.144) / 2.5 + kIntrinsics.cx;
+  const DisparityCorrection bias{0.5, 0.003};
+  // The measured right column: moved left by the bias (the disparity grows by it).
+  const double measured_right_x =
+      true_right_x - bias.BiasPx(true_right_x, kIntrinsics.f, kIntrinsics.cx);
+  StereoReprojectionCost cost(left, measured_right_x, kIntrinsics, 8.0);
+  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0};
+  const double change[2] = {bias.offset_px, bias.yaw_rad};
+  double residuals[3];
+  cost(rotation, translation, point.data(), change, residuals);
+  // First order in the yaw: the gain is taken at the measured column, not the true one.
+  EXPECT_NEAR(residuals[2], 0.0, 8.0 * 1e-3);
+  const double none[2] = {0, 0};
+  cost(rotation, translation, point.data(), none, residuals);
+  EXPECT_GT(std::abs(residuals[2]), 8.0 * 0.9);
 }
 
 // Stereo matches' disparity errors (px) against the rendered depth, with the patch refinement
@@ -145,6 +185,119 @@ TEST(StereoFrameTest, TheCorrelationPeakAloneIsGoodToAFewTenthsOfAPixel) {
   EXPECT_LT(p90, 0.3);
 }
 
+// The `drive` sequence's street seen by its car rig (KITTI's geometry), whose right camera is
+// really turned by `right_yaw_error_deg` against its calibration, rendered at one sample a pixel.
+class DriveScene {
+ public:
+  explicit DriveScene(double right_yaw_error_deg)
+      : spec_(sim::MakeSequenceSpec("drive", 1)),
+        rig_(sim::MakeRig(sim::CarRig({}))),
+        world_(sim::MakeStreet(spec_.room)),
+        rectifier_(rig_.left.camera, rig_.right.camera,
+                   rig_.right.body_from_cam.Inverse() * rig_.left.body_from_cam),
+        right_error_(Eigen::Quaterniond(Eigen::AngleAxisd(right_yaw_error_deg * M_PI / 180,
+                                                          Eigen::Vector3d::UnitY())),
+                     Eigen::Vector3d::Zero()) {}
+
+  // The left image (with its depth) and the right one at `time_s`.
+  void Render(double time_s, cv::Mat* left, cv::Mat* right, cv::Mat* depth = nullptr) const {
+    const Rigid3d body = spec_.path.WorldFromBody(time_s);
+    const sim::Renderer left_renderer(rig_.left.camera, 1), right_renderer(rig_.right.camera, 1);
+    sim::SensorModel sensor;
+    Rng noise(static_cast<uint64_t>(time_s * 1000) + 1);
+    *left = sensor.Capture(
+        left_renderer.RenderRadiance(world_, body * rig_.left.body_from_cam, time_s, depth),
+        &noise);
+    *right = sensor.Capture(right_renderer.RenderRadiance(
+                                world_, body * rig_.right.body_from_cam * right_error_, time_s),
+                            &noise);
+  }
+  // The left camera at `time_s` in the frame of the left camera at time 0 (the rectified frame:
+  // the rig is rectified as built).
+  Rigid3d CamFromFirst(double time_s) const {
+    return (spec_.path.WorldFromBody(time_s) * rig_.left.body_from_cam).Inverse() *
+           spec_.path.WorldFromBody(0.0) * rig_.left.body_from_cam;
+  }
+  const StereoRectifier& rectifier() const { return rectifier_; }
+
+ private:
+  sim::SequenceSpec spec_;
+  sim::StereoRig rig_;
+  sim::World world_;
+  StereoRectifier rectifier_;
+  Rigid3d right_error_;
+};
+
+// Disparities of a rig whose right camera is turned by 0.1 deg are 1.25-2.2 px too large; the
+// correction for that yaw takes it off, at build time or afterwards (CorrectStereoFrame).
+TEST(StereoFrameTest, TheRigsDisparityCorrectionTakesItsBiasOff) {
+  const DriveScene scene(0.1);
+  cv::Mat left, right, depth;
+  scene.Render(0.0, &left, &right, &depth);
+  const auto extractor = CreateFeatureExtractor(
+      FeatureSettingsForImage(DefaultFeatureSettings("harris_surf16"), left.cols, left.rows));
+  const double fb = scene.rectifier().rectified_camera().fx() * scene.rectifier().baseline_m();
+  // Median signed disparity error against the rendered depth, px.
+  const auto median_error_px = [&](const StereoFrame& frame) {
+    std::vector<double> errors;
+    for (size_t i = 0; i < frame.left.size(); ++i) {
+      const Eigen::Vector2f& px = frame.left.keypoints[i].pixel;
+      const float z = depth.at<float>(std::lround(px.y()), std::lround(px.x()));
+      if (frame.HasDepth(i) && z > 0) errors.push_back(fb / frame.point_in_rect[i].z() - fb / z);
+    }
+    std::sort(errors.begin(), errors.end());
+    return errors[errors.size() / 2];
+  };
+  const DisparityCorrection yaw{0.0, 0.1 * M_PI / 180};
+  const StereoMatchOptions options;
+  const StereoFrame trusting =
+      BuildStereoFrame(left, right, *extractor, scene.rectifier(), options);
+  const StereoFrame corrected =
+      BuildStereoFrame(left, right, *extractor, scene.rectifier(), options, yaw);
+  StereoFrame corrected_later = trusting;
+  CorrectStereoFrame(yaw, scene.rectifier(), options, &corrected_later);
+  std::printf("median disparity error: %.3f px trusting the calibration, %.3f px corrected\n",
+              median_error_px(trusting), median_error_px(corrected));
+  EXPECT_GT(median_error_px(trusting), 1.2);
+  EXPECT_LT(std::abs(median_error_px(corrected)), 0.1);
+  EXPECT_NEAR(median_error_px(corrected_later), median_error_px(corrected), 1e-9);
+  EXPECT_EQ(corrected_later.stereo_matches(), corrected.stereo_matches());
+}
+
+// A frame whose prediction is 10 deg off (a car's frame skipped, the second frame of a sequence
+// whose motion nothing predicts: KITTI 01's even frames lost tracking on 12 of 26 frames): every
+// landmark projects 125 px from its keypoint, twice the search radius, and the last keyframe's
+// landmarks matched by descriptor alone find the frame.
+TEST(FrameTrackerTest, AFrameFarFromItsPredictionIsFoundByDescriptorsAlone) {
+  const DriveScene scene(0.0);
+  const auto extractor = CreateFeatureExtractor(
+      FeatureSettingsForImage(DefaultFeatureSettings("harris_surf16"), 1241, 376));
+  const StereoMatchOptions options;
+  cv::Mat left, right;
+  scene.Render(0.0, &left, &right);
+  SlamState state;
+  AddKeyframe(&state, 0, BuildStereoFrame(left, right, *extractor, scene.rectifier(), options),
+              Rigid3d::Identity(), {});
+  scene.Render(0.6, &left, &right);
+  const StereoFrame frame = BuildStereoFrame(left, right, *extractor, scene.rectifier(), options);
+  const Camera& rect = scene.rectifier().rectified_camera();
+  const RectifiedIntrinsics intrinsics{rect.fx(), rect.cx(), rect.cy(),
+                                       scene.rectifier().baseline_m()};
+  const FrameTracker tracker(TrackingOptions{}, ViewOf(scene.rectifier()), intrinsics, 8.0);
+  const Rigid3d truth = scene.CamFromFirst(0.6);
+  const Rigid3d turned(
+      Eigen::Quaterniond(Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY())),
+      Eigen::Vector3d::Zero());
+  const TrackResult track =
+      tracker.Track(state, frame, turned * truth, RecentLandmarks(state, 10), 1);
+  ASSERT_TRUE(track.success);
+  const double error_m = (CameraCenter(track.cam_from_world) - CameraCenter(truth)).norm();
+  std::printf("%zu landmarks tracked, %.1f cm from the truth %.2f m away\n", track.tracked.size(),
+              100 * error_m, CameraCenter(truth).norm());
+  EXPECT_GT(track.tracked.size(), 100u);
+  EXPECT_LT(error_m, 0.05);
+}
+
 class MapBuilderTest : public ::testing::TestWithParam<bool> {};
 
 // With and without lens distortion: rectification and raw-pixel observations must agree.
@@ -161,7 +314,8 @@ TEST_P(MapBuilderTest, VisualOdometryFollowsAShortSequence) {
   builder_options.builder.loop_closure.enabled = false;
   MapBuildStats stats;
   Trajectory estimate;
-  const Map map = BuildMap(dataset, builder_options, {"vo", 0, "test", "test", ""}, &stats, &estimate);
+  const Map map =
+      BuildMap(dataset, builder_options, {"vo", 0, "test", "test", ""}, &stats, &estimate);
   const Trajectory truth = ReadTum(generated.dir + "/groundtruth_map.tum");
   ASSERT_EQ(estimate.size(), truth.size());
   double worst_m = 0;
@@ -191,7 +345,8 @@ TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
   TempDir dir;
   Dataset dataset = RenderShort("straight", 2, dir);
   dataset.right.reset();
-  EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", "", ""}, nullptr), InputError);
+  EXPECT_THROW(BuildMap(dataset, DatasetMappingOptions{}, {"m", 0, "", "", ""}, nullptr),
+               InputError);
 }
 
 TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
@@ -199,7 +354,8 @@ TEST(MapBuilderInputTest, ASingleStereoPairIsAMapOfItsStereoPoints) {
   TempDir dir;
   const Dataset dataset = RenderShort("map_square", 1, dir);
   MapBuildStats stats;
-  const Map map = BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test", ""}, &stats);
+  const Map map =
+      BuildMap(dataset, DatasetMappingOptions{}, {"one", 0, "test", "test", ""}, &stats);
   EXPECT_EQ(stats.keyframes, 1);
   EXPECT_GT(stats.points, 400);
   EXPECT_EQ(stats.observations, stats.points);
@@ -211,7 +367,8 @@ SlamState TwoKeyframes() {
   SlamState state;
   for (int k = 0; k < 2; ++k) {
     SlamKeyframe keyframe;
-    keyframe.cam_from_world = Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.1 * k, 0, 0));
+    keyframe.cam_from_world =
+        Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(-0.1 * k, 0, 0));
     keyframe.features.descriptors = cv::Mat(4, 16, CV_32F, cv::Scalar(0.25f));
     keyframe.features.keypoints.resize(4);
     for (int i = 0; i < 4; ++i) {
@@ -246,10 +403,10 @@ TEST(MapAssemblyTest, StereoViewsCountTwiceAndUnconfirmedLandmarksAreLeftOut) {
   state.Observe(3, 1, 3);
   state.landmarks[3].frames_in_view = 10;
   AssemblyStats stats;
-  const Map map = AssembleMap(state, Camera(320, 240, 160, 160, 159.5, 119.5),
-                              DefaultFeatureSettings("harris_surf16"), {"m", 0, "", "", ""},
-                              Rigid3d::Identity(), Rigid3d::Identity(), kIntrinsics,
-                              AssemblyOptions{}, &stats);
+  const Map map =
+      AssembleMap(state, Camera(320, 240, 160, 160, 159.5, 119.5),
+                  DefaultFeatureSettings("harris_surf16"), {"m", 0, "", "", ""},
+                  Rigid3d::Identity(), Rigid3d::Identity(), kIntrinsics, AssemblyOptions{}, &stats);
   ASSERT_EQ(map.points.size(), 2u);
   EXPECT_TRUE(map.points[0].position_in_map.isApprox(state.landmarks[0].position_in_world));
   EXPECT_TRUE(map.points[1].position_in_map.isApprox(state.landmarks[3].position_in_world));

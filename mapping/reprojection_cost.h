@@ -2,16 +2,21 @@
 // Ceres cost functors for bundle adjustment in the rectified stereo camera (pixels).
 //
 // Parameter blocks, in order: [0] rotation cam_from_world as an Eigen quaternion (x, y, z, w;
-// EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3).
+// EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3); stereo
+// only: [3] a change of the rig's disparity correction (offset px, yaw rad;
+// disparity_correction.h), held constant unless bundle adjustment estimates it.
 // With p = R X + t in the rectified left camera:
 //   mono:   r = (f p.x / p.z + cx - u, f p.y / p.z + cy - v)
-//   stereo: the mono residual plus w (f B / p.z - d), the disparity residual, with d = u - u_right
-//           the measured disparity. Disparity is measured far more precisely (patch alignment,
-//           ~0.04 px) than a keypoint's position (~0.3 px), so it gets its own weight
-//           w = sigma_keypoint / sigma_disparity; as a plain right-image residual it would be
-//           trusted no more than the keypoint, and depth would drift to fit other views.
+//   stereo: the mono residual plus w (f B / p.z - d + b), the disparity residual, with
+//           d = u - u_right the measured disparity and b = offset + f yaw (1 + x_right^2) the
+//           bias a change [3] of the disparity correction would take off it. Disparity is measured
+//           far more precisely (patch alignment, ~0.04 px) than a keypoint's position (~0.3 px), so
+//           it gets its own weight w = sigma_keypoint / sigma_disparity; as a plain right-image
+//           residual it would be trusted no more than the keypoint, and depth would drift to fit
+//           other views.
 
 #include <array>
+#include <cmath>
 
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
@@ -19,6 +24,7 @@
 #include <Eigen/Core>
 
 #include "core/geometry/rigid3.h"
+#include "mapping/disparity_correction.h"
 
 namespace visloc::mapping {
 
@@ -84,31 +90,59 @@ class StereoReprojectionCost {
                          const RectifiedIntrinsics& k, double disparity_weight)
       : left_px_(left_px),
         disparity_px_(left_px.x() - right_x_px),
+        yaw_gain_px_(k.f * (1.0 + std::pow((right_x_px - k.cx) / k.f, 2))),
         k_(k),
         disparity_weight_(disparity_weight) {}
 
   template <typename T>
-  bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
+  bool operator()(const T* rotation, const T* translation, const T* point, const T* correction,
+                  T* residuals) const {
     T p[3];
     TransformToCamera(rotation, translation, point, p);
     const T inverse_z = T(1.0) / p[2];
     residuals[0] = T(k_.f) * p[0] * inverse_z + T(k_.cx) - T(left_px_.x());
     residuals[1] = T(k_.f) * p[1] * inverse_z + T(k_.cy) - T(left_px_.y());
-    residuals[2] = T(disparity_weight_) * (T(k_.f * k_.baseline_m) * inverse_z - T(disparity_px_));
+    const T bias = correction[0] + T(yaw_gain_px_) * correction[1];
+    residuals[2] =
+        T(disparity_weight_) * (T(k_.f * k_.baseline_m) * inverse_z - T(disparity_px_) + bias);
     return true;
   }
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& left_px, double right_x_px,
                                      const RectifiedIntrinsics& k, double disparity_weight) {
-    return new ceres::AutoDiffCostFunction<StereoReprojectionCost, 3, 4, 3, 3>(
+    return new ceres::AutoDiffCostFunction<StereoReprojectionCost, 3, 4, 3, 3, 2>(
         new StereoReprojectionCost(left_px, right_x_px, k, disparity_weight));
   }
 
  private:
   Eigen::Vector2d left_px_;
   double disparity_px_;
+  double yaw_gain_px_;  // d bias / d yaw at this column: f (1 + x_right^2).
   RectifiedIntrinsics k_;
   double disparity_weight_;
+};
+
+// A zero-mean Gaussian prior on a change of the disparity correction, in the units of the
+// reprojection residuals (one pixel of keypoint noise): how far it may move with no evidence.
+class DisparityCorrectionPrior {
+ public:
+  DisparityCorrectionPrior(double offset_sigma_px, double yaw_sigma_rad)
+      : offset_sigma_px_(offset_sigma_px), yaw_sigma_rad_(yaw_sigma_rad) {}
+
+  template <typename T>
+  bool operator()(const T* correction, T* residuals) const {
+    residuals[0] = correction[0] / T(offset_sigma_px_);
+    residuals[1] = correction[1] / T(yaw_sigma_rad_);
+    return true;
+  }
+
+  static ceres::CostFunction* Create(double offset_sigma_px, double yaw_sigma_rad) {
+    return new ceres::AutoDiffCostFunction<DisparityCorrectionPrior, 2, 2>(
+        new DisparityCorrectionPrior(offset_sigma_px, yaw_sigma_rad));
+  }
+
+ private:
+  double offset_sigma_px_, yaw_sigma_rad_;
 };
 
 class MonoReprojectionCost {

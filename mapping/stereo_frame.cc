@@ -14,10 +14,10 @@ namespace visloc::mapping {
 void StereoMatchOptions::Check() const {
   VISLOC_CHECK(min_depth_m > 0 && min_disparity_px > 0, "stereo range: depth from ", min_depth_m,
                " m, disparity from ", min_disparity_px, " px");
-  VISLOC_CHECK(patch_radius_px >= 1 && min_zncc > 0 && min_zncc < 1 && uniqueness > 0 &&
-                   uniqueness <= 1,
-               "stereo correlation: radius ", patch_radius_px, " px, ZNCC ", min_zncc,
-               ", uniqueness ", uniqueness);
+  VISLOC_CHECK(
+      patch_radius_px >= 1 && min_zncc > 0 && min_zncc < 1 && uniqueness > 0 && uniqueness <= 1,
+      "stereo correlation: radius ", patch_radius_px, " px, ZNCC ", min_zncc, ", uniqueness ",
+      uniqueness);
   VISLOC_CHECK(refine_patch_radius_px >= 0 && refine_max_shift_px > 0, "disparity refinement ",
                refine_patch_radius_px, " px, ", refine_max_shift_px, " px");
 }
@@ -165,10 +165,10 @@ bool SearchRow(const RectifiedPair& pair, int x, int y, int d_min, int d_max,
     const double right_sum = pair.right_sum.at<int>(y0 + side, x0 + side) -
                              pair.right_sum.at<int>(y0, x0 + side) -
                              pair.right_sum.at<int>(y0 + side, x0) + pair.right_sum.at<int>(y0, x0);
-    const double right_sum_sq =
-        pair.right_sum_sq.at<double>(y0 + side, x0 + side) -
-        pair.right_sum_sq.at<double>(y0, x0 + side) - pair.right_sum_sq.at<double>(y0 + side, x0) +
-        pair.right_sum_sq.at<double>(y0, x0);
+    const double right_sum_sq = pair.right_sum_sq.at<double>(y0 + side, x0 + side) -
+                                pair.right_sum_sq.at<double>(y0, x0 + side) -
+                                pair.right_sum_sq.at<double>(y0 + side, x0) +
+                                pair.right_sum_sq.at<double>(y0, x0);
     const double right_var = right_sum_sq - right_sum * right_sum / n;
     if (right_var < n) continue;
     int cross = 0;
@@ -214,7 +214,8 @@ FeatureSet KeepRectifiable(FeatureSet features, const StereoRectifier& rectifier
   std::vector<int> kept;
   rectified->clear();
   for (size_t i = 0; i < features.size(); ++i) {
-    const Eigen::Vector2d p = rectifier.RectifyLeftPixel(features.keypoints[i].pixel.cast<double>());
+    const Eigen::Vector2d p =
+        rectifier.RectifyLeftPixel(features.keypoints[i].pixel.cast<double>());
     if (!p.allFinite() || (p.array() < low.array()).any() || (p.array() > high.array()).any()) {
       continue;
     }
@@ -224,11 +225,46 @@ FeatureSet KeepRectifiable(FeatureSet features, const StereoRectifier& rectifier
   return kept.size() == features.size() ? std::move(features) : features.Subset(kept);
 }
 
+// Records keypoint i's stereo match at `disparity` (rectified px, corrected), or counts it out of
+// range.
+void SetDisparity(const StereoRectifier& rectifier, const StereoMatchOptions& options, size_t i,
+                  double disparity, StereoFrame* frame) {
+  const Camera& rect = rectifier.rectified_camera();
+  const double f = rect.fx(), baseline = rectifier.baseline_m();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (disparity < options.min_disparity_px || disparity > f * baseline / options.min_depth_m) {
+    frame->right_x_rect[i] = nan;
+    frame->point_in_rect[i] = Eigen::Vector3d::Constant(nan);
+    ++frame->stats.out_of_range;
+    return;
+  }
+  const Eigen::Vector2d& l = frame->left_rect[i];
+  const double z = f * baseline / disparity;
+  frame->right_x_rect[i] = l.x() - disparity;
+  frame->point_in_rect[i] =
+      Eigen::Vector3d((l.x() - rect.cx()) * z / f, (l.y() - rect.cy()) * z / rect.fy(), z);
+  ++frame->stats.matched;
+}
+
 }  // namespace
+
+void CorrectStereoFrame(const DisparityCorrection& change, const StereoRectifier& rectifier,
+                        const StereoMatchOptions& options, StereoFrame* frame) {
+  const Camera& rect = rectifier.rectified_camera();
+  frame->stats.matched = 0;
+  for (size_t i = 0; i < frame->right_x_rect.size(); ++i) {
+    const double right_x = frame->right_x_rect[i];
+    if (!std::isfinite(right_x)) continue;
+    const double disparity =
+        frame->left_rect[i].x() - right_x - change.BiasPx(right_x, rect.fx(), rect.cx());
+    SetDisparity(rectifier, options, i, disparity, frame);
+  }
+}
 
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
-                             const StereoMatchOptions& options) {
+                             const StereoMatchOptions& options,
+                             const DisparityCorrection& correction) {
   options.Check();
   StereoFrame frame;
   frame.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame.left_rect);
@@ -239,8 +275,7 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
   const RectifiedPair pair = Rectify(left_raw, right_raw, rectifier, refine);
   const Eigen::Vector2d offset = rectifier.canvas_offset_px();
   // Patches must lie inside the canvas, and refinement needs a margin of its own.
-  const int margin =
-      std::max(options.patch_radius_px, options.refine_patch_radius_px + 2) + 1;
+  const int margin = std::max(options.patch_radius_px, options.refine_patch_radius_px + 2) + 1;
 
   const size_t n = frame.left.size();
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -273,15 +308,8 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
       }
       disparity = refined;
     }
-    if (disparity < options.min_disparity_px || disparity > max_disparity) {
-      ++frame.stats.out_of_range;
-      continue;
-    }
-    const double z = f * baseline / disparity;
-    frame.right_x_rect[i] = l.x() - disparity;
-    frame.point_in_rect[i] =
-        Eigen::Vector3d((l.x() - rect.cx()) * z / f, (l.y() - rect.cy()) * z / rect.fy(), z);
-    ++frame.stats.matched;
+    SetDisparity(rectifier, options, i,
+                 disparity - correction.BiasPx(l.x() - disparity, f, rect.cx()), &frame);
   }
   frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
   return frame;

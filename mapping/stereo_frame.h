@@ -20,8 +20,9 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera/stereo_rectifier.h"
-#include "core/features/features.h"
 #include "core/features/descriptor_matching.h"
+#include "core/features/features.h"
+#include "mapping/disparity_correction.h"
 
 namespace visloc::mapping {
 
@@ -75,8 +76,17 @@ struct StereoFrame {
 bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& right_gradient_x,
                      double x, double y, int radius, double* d);
 
+// Takes a further `change` of the disparity correction off a frame's stereo matches (their
+// right columns and points; a match whose disparity leaves the accepted range is dropped), as
+// BuildStereoFrame would have with the sum of the two.
+void CorrectStereoFrame(const DisparityCorrection& change, const StereoRectifier& rectifier,
+                        const StereoMatchOptions& options, StereoFrame* frame);
+
+// `correction` is the rig's disparity bias (disparity_correction.h), taken off every measured
+// disparity: right_x_rect and point_in_rect hold corrected values.
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
-                             const StereoMatchOptions& options);
+                             const StereoMatchOptions& options,
+                             const DisparityCorrection& correction = {});
 
 }  // namespace visloc::mapping

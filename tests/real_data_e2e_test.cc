@@ -30,6 +30,8 @@ using testing::Visloc;
 const std::string kReal = VISLOC_REAL_DATA;
 const std::string kEuroc = kReal + "/euroc_v1_01_micro";
 const std::string kKitti = kReal + "/kitti00_first11";
+// A car on KITTI 01's highway on-ramp, 51 frames, with KITTI's ground truth.
+const std::string kOnRamp = kReal + "/kitti01_first51";
 // A MAV shaken by hand in EuRoC's Machine Hall, with the left camera's ground truth.
 const std::string kMachineHall = kReal + "/euroc_mh01_moving";
 const std::string kMachineHallTruth = kMachineHall + "/groundtruth_cam0_tum.txt";
@@ -277,6 +279,62 @@ TEST_F(RealDataE2eTest, EachLaterMachineHallImageAloneIsFoundToCentimetres) {
   // The first "max" of ATE is its translation's, the first of "rotation_deg" ATE's rotation's.
   EXPECT_LE(JsonNumber(eval.out, "ate", "max"), 0.02);          // Measured 0.70 cm.
   EXPECT_LE(JsonNumber(eval.out, "rotation_deg", "max"), 1.0);  // Measured 0.29 deg.
+}
+
+// The on-ramp's ground truth as TUM, and the error of `trajectory` against it: {median share
+// of the distance travelled, the last pose's error over the path}.
+std::pair<double, double> OnRampDrift(const TempDir& dir, const std::string& trajectory) {
+  const std::string truth = dir.File("onramp_truth.tum");
+  EXPECT_EQ(Visloc({"dataset", "groundtruth", kOnRamp, "--out", truth}).exit_code, 0);
+  const ProcessResult all = Visloc({"eval", "--gt", truth, "--est", trajectory, "--json"});
+  EXPECT_EQ(all.exit_code, 0) << all.err;
+  const Trajectory poses = ReadTum(trajectory);
+  WriteTum(dir.File("ends.tum"), {poses.front(), poses.back()});
+  const ProcessResult end =
+      Visloc({"eval", "--gt", truth, "--est", dir.File("ends.tum"), "--json"});
+  return {JsonNumber(all.out, "ate_per_distance", "median"),
+          JsonNumber(end.out, "ate_per_distance", "max")};
+}
+
+// KITTI 01's rig behaves as if its right camera were turned by 0.1 deg: 2.6% of the strong,
+// unique stereo matches lie at negative disparities, to -1.1 px, and a map that trusts the
+// calibration is 9% too long. The rig's disparity correction estimated from the motion makes it
+// metric to about 1%; what is left is a heading that drifts against KITTI's ground truth by 1 deg
+// over the 98 deg turn, as much as OpenCV's five-point solver chained over the same frames drifts
+// (docs/real-world.md).
+TEST_F(RealDataE2eTest, KittiOnRampMapsMetricallyWithTheRigsEstimatedCorrection) {
+  if (!std::filesystem::is_directory(kOnRamp)) GTEST_SKIP() << "no " << kOnRamp;
+  const ProcessResult build =
+      Visloc({"map", "build", "--dataset", kOnRamp, "--out", dir_.File("onramp.db"), "--trajectory",
+              dir_.File("onramp.tum"), "--json"});
+  ASSERT_EQ(build.exit_code, 0) << build.err;
+  EXPECT_EQ(JsonNumber(build.out, "tracking_failures"), 0);
+  EXPECT_NEAR(JsonNumber(build.out, "right_camera_yaw_deg"), -0.08, 0.02);  // Measured -0.075.
+  const auto [median, end] = OnRampDrift(dir_, dir_.File("onramp.tum"));
+  std::printf("KITTI 01: %.2f%% of the distance travelled (median), %.2f%% at the end\n",
+              100 * median, 100 * end);
+  EXPECT_LT(median, 0.02);  // Measured 1.25% (7.6% trusting the calibration).
+  EXPECT_LT(end, 0.02);     // Measured 1.48% (9.2%).
+}
+
+// Every other frame (2 m and 5 deg apart) maps, and the frames between localize in that map as a
+// sequence: the tracker finds a frame its prediction misses by descriptors alone (was 12 of 26
+// frames lost), and a session relocalized without a velocity takes the next strongly supported
+// fix 2 m on at once (was 18 of 25 localized, each relocalization waiting a frame).
+TEST_F(RealDataE2eTest, KittiEveryOtherFrameMapsAndTheFramesBetweenLocalize) {
+  if (!std::filesystem::is_directory(kOnRamp)) GTEST_SKIP() << "no " << kOnRamp;
+  const ProcessResult even = Visloc({"map", "build", "--dataset", kOnRamp, "--frames", "0::2",
+                                     "--out", dir_.File("even.db"), "--json"});
+  ASSERT_EQ(even.exit_code, 0) << even.err;
+  EXPECT_EQ(JsonNumber(even.out, "frames"), 26);
+  EXPECT_EQ(JsonNumber(even.out, "tracking_failures"), 0);
+  const ProcessResult odd =
+      Visloc({"localize", "--map", dir_.File("even.db"), "--dataset", kOnRamp, "--frames", "1::2",
+              "--trajectory", dir_.File("odd.tum"), "--json"});
+  ASSERT_EQ(odd.exit_code, 0) << odd.err;
+  EXPECT_EQ(JsonNumber(odd.out, "frames"), 25);
+  EXPECT_GE(JsonNumber(odd.out, "localized_fraction") * 25, 23.99);  // Measured 24.
+  EXPECT_LT(OnRampDrift(dir_, dir_.File("odd.tum")).first, 0.03);
 }
 
 }  // namespace

@@ -315,21 +315,28 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
                &result, FilterUpdate::kRestartKeepingMotion);
         accepted = true;
       } else {
-        pending_ = Pending{fix.cam_from_map.Inverse()};
+        pending_ =
+            Pending{fix.cam_from_map.Inverse(), fix.cam_from_map.Inverse(), input.timestamp_ns};
       }
     }
   }
   // A jump or a weakly supported relocalization from the previous frame, confirmed by tracking
   // from it now.
   if (!accepted && had_pending && pending_) {
-    const Rigid3d expected = pending_->map_from_cam;
+    const Pending pending_found = *pending_;
+    const Rigid3d expected = pending_found.map_from_cam;
     pending_.reset();
     const PoseFix fix = pipeline_.tracker().Track(frame, expected.Inverse());
     add_times(fix);
     if (fix.success && strong(fix) && Consistent(fix.cam_from_map.Inverse(), expected, 0.0)) {
       CopyFixStats(fix, &stats);
+      // The confirmed fix counts as the last one: the motion from it to this frame is the
+      // velocity, so a camera that moves faster than the prior allows (a car's 2 m between
+      // frames) tracks the next frame instead of being lost and relocalized again.
+      last_fix_map_from_cam_ = pending_found.found_map_from_cam;
+      last_fix_ns_ = pending_found.found_ns;
       Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
-             &result);
+             &result, FilterUpdate::kRestartKeepingMotion);
       accepted = true;
     }
   }
@@ -338,16 +345,19 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
     const PoseFix fix = TryRelocalize(input.image, input.timestamp_ns, &result);
     if (fix.success) {
       const Rigid3d found = fix.cam_from_map.Inverse();
-      const bool plausible =
-          filter_.initialized()
-              ? Consistent(found, filter_.map_from_cam(), filter_.PositionSigmaM())
-              : fix.inliers >= options_.relocalization.strong_inliers;
-      if (plausible) {
+      const bool strongly_supported = fix.inliers >= options_.relocalization.strong_inliers;
+      // Without a velocity (the frame after a relocalization) the prior cannot tell where a
+      // fast camera went, so a strongly supported fix is taken as it would be with no prior at
+      // all, with its motion from the last fix as the velocity.
+      const bool no_velocity = !velocity_valid_ && !motion.from_sensors;
+      const bool consistent = filter_.initialized() &&
+                              Consistent(found, filter_.map_from_cam(), filter_.PositionSigmaM());
+      if (consistent || (strongly_supported && (!filter_.initialized() || no_velocity))) {
         Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
-               &result);
+               &result, consistent ? FilterUpdate::kRestart : FilterUpdate::kRestartKeepingMotion);
         accepted = true;
       } else {
-        pending_ = Pending{found};
+        pending_ = Pending{found, found, input.timestamp_ns};
         result.relocalization.awaiting_confirmation = true;
       }
     }

@@ -124,8 +124,11 @@ class Localizer {
     Matrix6d noise = Matrix6d::Zero();
     bool from_sensors = false;  // Odometry or gyro, not the constant-velocity model.
   };
+  // A fix held back until the next frame confirms it.
   struct Pending {
-    Rigid3d map_from_cam;
+    Rigid3d map_from_cam;        // Moved by the motion prediction to the latest frame.
+    Rigid3d found_map_from_cam;  // As found, at found_ns.
+    int64_t found_ns = 0;
   };
 
   Motion PredictMotion(const FrameInput& input, double dt_s) const;
