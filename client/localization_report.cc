@@ -67,10 +67,8 @@ std::string StatsCsvRow(const LocalizationResult& r) {
                            s.putatives, ",", s.inliers, ",", FormatFixed(s.inlier_ratio, 4), ",",
                            s.ransac_iterations, ",", FormatFixed(s.reproj_rmse_px, 4));
   for (const auto& [name, value] : StepColumns(s.times)) row += "," + FormatFixed(value, 4);
-  const double sigma =
-      r.has_pose ? std::sqrt(std::max(0.0, r.covariance.topLeftCorner<3, 3>().trace())) : 0.0;
   row += StrCat(",", RelocalizationKindName(r.relocalization.kind), ",", r.relocalization.keyframe,
-                ",", FormatFixed(sigma, 5));
+                ",", FormatFixed(r.PositionSigmaPerAxisM(), 5));
   return row;
 }
 

@@ -50,13 +50,15 @@ RelocalizationReport::Kind KindFromName(const std::string& name) {
 // Refuses a wire value outside its allowed range, naming the field, the value and the range.
 void RequireRange(const char* field, double value, double low, double high, const char* unit = "") {
   if (!(value >= low && value <= high)) {  // NaN fails both.
-    throw InputError(StrCat(field, " is ", value, unit, "; allowed ", low, unit, " to ", high, unit));
+    throw InputError(
+        StrCat(field, " is ", value, unit, "; allowed ", low, unit, " to ", high, unit));
   }
 }
 
 // A count sent as uint32 that becomes an int: refused before the cast could wrap.
 int CountInRange(const char* field, uint32_t value, uint32_t high) {
-  if (value > high) throw InputError(StrCat(field, " is ", value, "; allowed 0 (default) to ", high));
+  if (value > high)
+    throw InputError(StrCat(field, " is ", value, "; allowed 0 (default) to ", high));
   return static_cast<int>(value);
 }
 
@@ -126,8 +128,9 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
   Lens lens;
   if (c.lens_model() == v1::EQUIDISTANT) {
     if (c.distortion_size() != 4) {
-      throw InputError(StrCat("camera: an equidistant lens needs 4 distortion values (k1 k2 k3 k4), got ",
-                              c.distortion_size()));
+      throw InputError(
+          StrCat("camera: an equidistant lens needs 4 distortion values (k1 k2 k3 k4), got ",
+                 c.distortion_size()));
     }
     lens = Lens::Equidistant(c.distortion(0), c.distortion(1), c.distortion(2), c.distortion(3));
   } else if (c.lens_model() != v1::RADIAL_TANGENTIAL) {
@@ -143,8 +146,7 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
                 c.cy(), lens);
 }
 
-cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw,
-                    const Camera& camera) {
+cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const Camera& camera) {
   cv::Mat grey;
   if (raw) {
     const uint32_t stride = raw->stride() == 0 ? raw->width() : raw->stride();
@@ -227,9 +229,8 @@ LocalizerOptions FromProto(const v1::SessionOptions& o) {
     options.tracker.ransac.max_error_px = o.ransac_max_error_px();
   }
   if (o.ransac_max_iterations() > 0) {
-    options.tracker.ransac.max_iterations =
-        CountInRange("options.ransac_max_iterations", o.ransac_max_iterations(),
-                     kMaxRansacIterations);
+    options.tracker.ransac.max_iterations = CountInRange(
+        "options.ransac_max_iterations", o.ransac_max_iterations(), kMaxRansacIterations);
   }
   if (o.has_camera_height_m()) {
     RequireRange("options.camera_height_m", o.camera_height_m(), -kMaxCameraHeightM,
@@ -273,6 +274,7 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
     for (int i = 0; i < 6; ++i) {
       for (int j = 0; j < 6; ++j) out->add_covariance(r.covariance(i, j));
     }
+    out->set_position_sigma_m(r.PositionSigmaPerAxisM());
   }
   v1::FrameStats* s = out->mutable_stats();
   s->set_features(r.stats.features);
@@ -306,7 +308,7 @@ void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
   out->set_localized(found.success);
   if (found.success) {
     ToProto(found.fix.cam_from_map.Inverse(), out->mutable_map_from_cam());
-    for (int i = 0; i < 36; ++i) out->add_covariance(found.fix.covariance(i / 6, i % 6));
+    for (int i = 0; i < 36; ++i) out->add_covariance(found.fix.TotalCovariance()(i / 6, i % 6));
     out->set_inliers(found.fix.inliers);
     out->set_inlier_ratio(found.fix.inlier_ratio);
   }

@@ -279,6 +279,24 @@ TEST_F(RealDataE2eTest, EachLaterMachineHallImageAloneIsFoundToCentimetres) {
   // The first "max" of ATE is its translation's, the first of "rotation_deg" ATE's rotation's.
   EXPECT_LE(JsonNumber(eval.out, "ate", "max"), 0.02);          // Measured 0.70 cm.
   EXPECT_LE(JsonNumber(eval.out, "rotation_deg", "max"), 1.0);  // Measured 0.29 deg.
+
+  // The same frames as a session: the covariance each reports covers its error against the
+  // ground truth (an honest Gaussian: median 1.54 sigma, 2.9% beyond 3).
+  const ProcessResult session =
+      Visloc({"localize", "--map", dir_.File("maps/hall.db"), "--dataset", kMachineHall, "--frames",
+              "75:150", "--trajectory", dir_.File("session.tum"), "--stats",
+              dir_.File("session.csv"), "--json"});
+  ASSERT_EQ(session.exit_code, 0) << session.err;
+  const ProcessResult consistency =
+      Visloc({"eval", "--gt", kMachineHallTruth, "--gt-origin-first", "--est",
+              dir_.File("session.tum"), "--stats", dir_.File("session.csv"), "--json"});
+  ASSERT_EQ(consistency.exit_code, 0) << consistency.err;
+  const double median_sigmas = JsonNumber(consistency.out, "normalized_error", "median");
+  std::printf("Machine Hall session: error / sigma median %.2f\n", median_sigmas);
+  EXPECT_GT(median_sigmas, 1.0);  // Measured 1.89 (4.2 when the fused covariance was reported).
+  EXPECT_LT(median_sigmas, 2.0);
+  EXPECT_LE(JsonNumber(consistency.out, "consistency", "beyond_3_sigma"), 0.03);  // Measured 0.
+  EXPECT_EQ(JsonNumber(consistency.out, "consistency", "beyond_6_sigma"), 0.0);
 }
 
 // The on-ramp's ground truth as TUM, and the error of `trajectory` against it: {median share

@@ -52,6 +52,10 @@ const char* RelocalizationKindName(RelocalizationReport::Kind kind) {
   return "?";
 }
 
+double LocalizationResult::PositionSigmaPerAxisM() const {
+  return has_pose ? std::sqrt(std::max(0.0, covariance.topLeftCorner<3, 3>().trace() / 3.0)) : 0.0;
+}
+
 void LocalizerOptions::Check() const {
   tracker.Check();
   relocalization.Check();
@@ -173,11 +177,8 @@ void Localizer::ApplyPlane() {
 void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource source,
                        int64_t timestamp_ns, LocalizationResult* result, FilterUpdate update) {
   const Rigid3d measured = fix.cam_from_map.Inverse();
-  // Floor the measurement noise: the refinement's covariance ignores map point errors.
-  Matrix6d noise = fix.covariance;
-  noise.diagonal() += (Vector6d() << Eigen::Vector3d::Constant(1e-6),
-                       Eigen::Vector3d::Constant(std::pow(0.05 * M_PI / 180.0, 2)))
-                          .finished();
+  const Matrix6d& noise = fix.covariance;
+  systematic_ = fix.systematic_covariance;
   const double since_fix_s = (timestamp_ns - last_fix_ns_) * 1e-9;
   if (!filter_.initialized() ||
       (status == TrackingStatus::kRelocalized && update == FilterUpdate::kFuse)) {
@@ -203,7 +204,7 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
   result->source = source;
   result->has_pose = true;
   result->map_from_cam = filter_.map_from_cam();
-  result->covariance = filter_.covariance();
+  result->covariance = filter_.covariance() + systematic_;
 }
 
 PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
@@ -374,7 +375,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
       result.source = PoseSource::kMotion;
       result.has_pose = true;
       result.map_from_cam = filter_.map_from_cam();
-      result.covariance = filter_.covariance();
+      result.covariance = filter_.covariance() + systematic_;
     } else {
       filter_ = MotionFilter();
       velocity_valid_ = false;

@@ -1,5 +1,6 @@
 #include "core/localization/pose_tracker.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 
@@ -33,9 +34,11 @@ void PoseTrackerOptions::Check() const {
   visibility.Check();
   ransac.Check();
   matching.Check();
-  VISLOC_CHECK(search_radius_px > 0 && refine_radius_px > 0, "search radii ", search_radius_px,
-               " ", refine_radius_px);
+  VISLOC_CHECK(search_radius_px > 0 && refine_radius_px > 0, "search radii ", search_radius_px, " ",
+               refine_radius_px);
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
+  VISLOC_CHECK(map_error_px >= 0 && map_floor_m >= 0 && map_drift_fraction >= 0,
+               "map error: ", map_error_px, " px, ", map_floor_m, " m, drift ", map_drift_fraction);
 }
 
 PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
@@ -83,6 +86,26 @@ std::vector<uint32_t> PoseTracker::PredictPoints(const Rigid3d& cam_from_map, Po
   return points;
 }
 
+Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
+    const std::vector<PoseObservation>& observations, const std::vector<char>& inliers,
+    const Rigid3d& cam_from_map, double* median_depth_m) const {
+  std::vector<double> depths;
+  for (size_t m = 0; m < observations.size(); ++m) {
+    if (inliers[m]) depths.push_back((cam_from_map * observations[m].point_in_world).z());
+  }
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  *median_depth_m = depths.empty() ? 0.0 : depths[depths.size() / 2];
+  const double angle_rad = options_.map_error_px / camera_.fx();
+  const double from_origin_m = cam_from_map.Inverse().translation.norm();
+  const double position_variance = std::pow(angle_rad * *median_depth_m, 2) +
+                                   std::pow(options_.map_floor_m, 2) +
+                                   std::pow(options_.map_drift_fraction * from_origin_m, 2);
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  covariance.diagonal() << Eigen::Vector3d::Constant(position_variance),
+      Eigen::Vector3d::Constant(angle_rad * angle_rad);
+  return covariance;
+}
+
 void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& frame,
                                const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,
                                double radius_px, PoseFix* fix) const {
@@ -114,6 +137,8 @@ void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& fr
   const double sigma_px = std::max(0.3, fix->reproj_rmse_px);
   const double unit = options_.ransac.refine.pixel_sigma_px;
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
+  fix->systematic_covariance = SystematicCovariance(observations, refined.inlier_mask,
+                                                    fix->cam_from_map, &fix->median_depth_m);
 }
 
 const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(

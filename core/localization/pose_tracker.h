@@ -40,6 +40,19 @@ struct PoseTrackerOptions {
   // search is most of the matching time. When RANSAC fails on the subset, all points are tried.
   int coarse_points = 160;
   PnpRansacOptions ransac;  // max_error_px is also the inlier threshold of the refinement.
+  // The map's own error, which a fix inherits from the points it is made of. The keypoint noise
+  // of a fix averages out over its inliers and, in a session, over frames; this does not, since
+  // every frame that sees the same points sees the same error. A fix's systematic covariance
+  // holds, per position axis, in quadrature: map_error_px (at 320 px of width) as an angle at the
+  // inliers' median depth, the map's absolute registration map_floor_m, and its drift,
+  // map_drift_fraction of the distance from the map's origin; and map_error_px as an angle for
+  // the rotation. Measured against ground truth (docs/real-world.md), with these values: the
+  // rendered query sequences' median error is 0.6-0.8 of the reported per-axis sigma, EuRoC
+  // MH_01's 1.5-1.9, none beyond 3 sigma; a map whose own drift is larger (KITTI 01's, 1.25% of
+  // the distance against its ground truth) is not covered: the localizer cannot know it.
+  double map_error_px = 0.1;
+  double map_floor_m = 0.0025;
+  double map_drift_fraction = 0.003;
   void Check() const;
 };
 
@@ -53,12 +66,17 @@ struct PoseStepTimes {
 struct PoseFix {
   bool success = false;
   Rigid3d cam_from_map;
-  Eigen::Matrix<double, 6, 6> covariance =
-      Eigen::Matrix<double, 6, 6>::Zero();  // Translation (m) then rotation (rad).
-  int predicted = 0;                        // Points predicted visible.
-  int putatives = 0;                        // Matches after the final (tight) association.
-  int inliers = 0;            // Putatives within the inlier threshold of the final pose.
-  double inlier_ratio = 0.0;  // inliers / putatives.
+  // Translation (m) then rotation (rad): from the keypoints' noise (the refinement's, scaled by
+  // the measured reprojection error), and from the map's own error (map_error_px), which
+  // fusing fixes does not reduce. TotalCovariance() is their sum.
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 6> systematic_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 6> TotalCovariance() const { return covariance + systematic_covariance; }
+  double median_depth_m = 0.0;  // Of the inliers, in the camera frame.
+  int predicted = 0;            // Points predicted visible.
+  int putatives = 0;            // Matches after the final (tight) association.
+  int inliers = 0;              // Putatives within the inlier threshold of the final pose.
+  double inlier_ratio = 0.0;    // inliers / putatives.
   int ransac_iterations = 0;
   double reproj_rmse_px = 0.0;  // Over the inliers.
   PoseStepTimes times;
@@ -92,6 +110,12 @@ class PoseTracker {
   // RANSAC on the matches' observations (one refinement pass), timed into `fix`.
   PnpResult SolveFromMatches(const PointView& map_points, const QueryFrame& frame,
                              const std::vector<PointMatch>& matches, PoseFix* fix) const;
+  // A fix's systematic covariance (PoseTrackerOptions::map_error_px and after), from its inlier
+  // observations at `cam_from_map`; writes their median depth.
+  Eigen::Matrix<double, 6, 6> SystematicCovariance(const std::vector<PoseObservation>& observations,
+                                                   const std::vector<char>& inliers,
+                                                   const Rigid3d& cam_from_map,
+                                                   double* median_depth_m) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
   void RefineAround(const PointView& map_points, const QueryFrame& frame,
                     const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,

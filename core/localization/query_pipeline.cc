@@ -15,6 +15,7 @@ LocalizerOptions ScaledToCamera(LocalizerOptions options, const Camera& camera) 
     options.tracker.search_radius_px *= scale;
     options.tracker.refine_radius_px *= scale;
     options.relocalization.verify_radius_px *= scale;
+    options.tracker.map_error_px *= scale;
   }
   return options;
 }
