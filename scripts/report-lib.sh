@@ -15,10 +15,10 @@ field_in() {
 # VALUE times SCALE (default 1) with DIGITS decimals (default 2).
 fmt() { awk -v v="$1" -v s="${2:-1}" -v d="${3:-2}" 'BEGIN { printf "%.*f", d, v * s }'; }
 
-# start_server MAPS_DIR WORK_DIR [SERVER FLAGS...]: a visloc-server on a free loopback port;
-# sets SERVER_PID and SERVER_ADDRESS. stop_server ends it.
+# start_server MAPS_DIR WORK_DIR [SERVER FLAGS...]: a visloc-server (SERVER_BIN, by default the
+# release build's) on a free loopback port; sets SERVER_PID and SERVER_ADDRESS. stop_server ends it.
 start_server() {
-  build/server/visloc-server --maps "$1" --listen 127.0.0.1:0 "${@:3}" > "$2/server.out" 2> "$2/server.log" &
+  "${SERVER_BIN:-build/server/visloc-server}" --maps "$1" --listen 127.0.0.1:0 "${@:3}" > "$2/server.out" 2> "$2/server.log" &
   SERVER_PID=$!
   for _ in $(seq 100); do grep -q "listening on" "$2/server.out" 2>/dev/null && break; sleep 0.1; done
   SERVER_ADDRESS=$(sed -n 's/^listening on //p' "$2/server.out")

@@ -114,6 +114,10 @@ Trajectory ComparedGroundTruth(const Trajectory& gt, const EvalOptions& options)
   return relative;
 }
 
+// ATE per distance leaves out the poses before the ground truth has travelled this far: a share of
+// a few centimetres is noise (a still camera's ground truth wanders by millimetres).
+constexpr double kMinTravelM = 0.5;
+
 // Distance travelled along the ground truth from its first pose, per ground-truth pose (m).
 std::vector<double> DistanceTravelled(const Trajectory& gt) {
   std::vector<double> distance(gt.size(), 0.0);
@@ -142,7 +146,7 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt_as_given, const Tra
   std::vector<Eigen::Vector3d> gt_positions, est_positions;
   std::vector<double> per_distance;
   for (const auto& [g, e] : pairs) {
-    if (travelled_m[g] >= 0.01) {
+    if (travelled_m[g] >= kMinTravelM) {
       per_distance.push_back((gt[g].pose.translation - est[e].pose.translation).norm() /
                              travelled_m[g]);
     }

@@ -12,7 +12,7 @@
 //   E = (gt_i^-1 gt_j)^-1 (est_i^-1 est_j); translation ||t_E|| m and rotation angle(E) deg.
 //   RPE measures drift and does not depend on the frame the estimate is expressed in.
 // - ATE per distance: each pair's translation error over the distance the ground truth has
-//   travelled from its first pose to that pose (pairs at the start, under 1 cm, are left out):
+//   travelled from its first pose to that pose (pairs in its first half metre are left out):
 //   drift as a share of the path, e.g. keyframes of an outdoor map against the path driven.
 // - Coverage: the share of ground-truth poses that have an associated estimate, i.e. the
 //   share of frames localized when the ground truth has one pose per frame.

@@ -95,6 +95,13 @@ TEST(TrajectoryEvalTest, ErrorPerDistanceTravelledIsADriftShare) {
   }
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, EvalOptions{});
   EXPECT_EQ(eval.ate_per_distance.count, 10u);  // The first pose has travelled nothing.
+  // A still camera's wandering ground truth travels no distance to share an error over.
+  Trajectory still;
+  for (int i = 0; i < 50; ++i) {
+    still.push_back({SecondsToNs(i), Rigid3d(Eigen::Quaterniond::Identity(),
+                                             Eigen::Vector3d(0.001 * (i % 2), 0, 0))});
+  }
+  EXPECT_EQ(EvaluateTrajectory(still, still, EvalOptions{}).ate_per_distance.count, 0u);
   EXPECT_NEAR(eval.ate_per_distance.median, 0.01, 1e-12);
   EXPECT_NEAR(eval.ate_per_distance.max, 0.01, 1e-12);
 }

@@ -1,0 +1,286 @@
+#!/usr/bin/env bash
+# Regenerates docs/real-world.md (and the figures behind it, docs/real-world.tsv): visloc on
+# every recording in ../shared/real, each figure beside the same figure of a baseline, so that a
+# change that helps rendered data and hurts real data shows. Per recording:
+#   - the map of all its frames (`map build`): keyframes, points, frames a second; with ground
+#     truth, its keyframes against it from the first frame, no alignment (median and max error,
+#     error per distance travelled), and the last frame's error as a share of the path (drift);
+#   - held-apart frames: a map of the even frames, the odd frames localized in it as a sequence
+#     (`localize`): share localized, error, ms a frame, and whether the reported covariance
+#     tells the truth (`eval --stats`: error / per-axis sigma);
+#   - a kidnapped robot's first image: each odd frame alone through the real server
+#     (`relocalize`, no session, no prior): recall, error, server time; for an EuRoC recording
+#     (one place throughout) also each frame of its second half alone against a map of its
+#     first half.
+# The baseline is, with --baseline REV, revision REV built in a worktree and measured the same
+# way; without it, the figures docs/real-world.tsv holds at HEAD (the last regeneration).
+# Frame subsets are folders of links made here, and relocalization asks one image at a time, so
+# any revision's binaries can be measured; evaluation uses the current build's `visloc eval`.
+#
+# Usage: scripts/real-world.sh [--baseline REV] [WORK_DIR=out/real-world]
+# (about 5 minutes on 2 cores once built; a baseline adds its build, about 10 minutes).
+# VISLOC_REAL_DATA names the recordings folder.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+baseline_rev=""
+if [[ ${1:-} == --baseline ]]; then
+  baseline_rev=$2
+  shift 2
+fi
+bash scripts/build.sh
+source scripts/report-lib.sh
+T=$PWD/build/client/visloc  # The evaluation tools.
+WORK=$(realpath -m "${1:-out/real-world}")
+REAL=$(realpath "${VISLOC_REAL_DATA:-../shared/real}")
+REPORT=docs/real-world.md
+FIGURES=docs/real-world.tsv
+mkdir -p "$WORK"
+[[ -d $REAL ]] || { echo "real-world.sh: no recordings in $REAL" >&2; exit 1; }
+recordings=()
+for d in "$REAL"/*/; do
+  d=${d%/}
+  [[ -d $d/mav0 || -d $d/image_0 ]] && recordings+=("$(basename "$d")")
+done
+
+# subset SRC OUT FIRST END STEP: frames FIRST, FIRST+STEP, ... before END of recording SRC as a
+# recording of its own in OUT (links, not copies), and OUT/frames.txt: "timestamp_ns image" lines.
+subset() {
+  local src=$1 out=$2 first=$3 end=$4 step=$5
+  [[ -f $out/frames.txt ]] && return
+  rm -rf "$out"
+  mkdir -p "$out"
+  if [[ -d $src/mav0 ]]; then
+    for cam in cam0 cam1; do
+      mkdir -p "$out/mav0/$cam/data"
+      cp "$src/mav0/$cam/sensor.yaml" "$out/mav0/$cam/"
+      awk -F, -v f="$first" -v e="$end" -v s="$step" '
+        /^#/ { print; next }
+        { i = n++; if (i >= f && i < e && (i - f) % s == 0) print }' \
+        "$src/mav0/$cam/data.csv" | tr -d '\r' > "$out/mav0/$cam/data.csv"
+      grep -v '^#' "$out/mav0/$cam/data.csv" | cut -d, -f2 |
+        while read -r image; do ln -s "$src/mav0/$cam/data/$image" "$out/mav0/$cam/data/$image"; done
+    done
+    [[ -f $src/mav0/body.yaml ]] && cp "$src/mav0/body.yaml" "$out/mav0/"
+    grep -v '^#' "$out/mav0/cam0/data.csv" |
+      awk -F, -v dir="$out/mav0/cam0/data" '{ print $1, dir "/" $2 }' > "$out/frames.txt"
+  else
+    mkdir -p "$out/image_0" "$out/image_1"
+    cp "$src/calib.txt" "$out/"
+    local i=0 k=0 time
+    : > "$out/times.txt"
+    : > "$out/frames.txt"
+    while read -r time; do
+      if (( i >= first && i < end && (i - first) % step == 0 )); then
+        echo "$time" >> "$out/times.txt"
+        for cam in image_0 image_1; do
+          ln -s "$src/$cam/$(printf %06d $i).png" "$out/$cam/$(printf %06d $k).png"
+        done
+        awk -v t="$time" -v p="$out/image_0/$(printf %06d $k).png" \
+          'BEGIN { printf "%.0f %s\n", t * 1e9, p }' >> "$out/frames.txt"
+        k=$((k + 1))
+      fi
+      i=$((i + 1))
+    done < "$src/times.txt"
+  fi
+}
+
+# relocalize_each BIN_DIR MAP SUBSET OUT: each image of SUBSET alone through the server
+# (SERVER_ADDRESS); OUT.tum gets the poses found, OUT.txt "found ms" per image.
+relocalize_each() {
+  local bin=$1 map=$2 sub=$3 out=$4 t path json
+  : > "$out.txt"
+  echo "# timestamp tx ty tz qx qy qz qw" > "$out.tum"
+  while read -r t path; do
+    json=$("$bin/client/visloc" relocalize --server "$SERVER_ADDRESS" --map "$map" \
+      --dataset "$sub" "$path" --json) || true
+    echo "$json" > "$out.last.json"
+    if grep -q '"localized":true' <<< "$json"; then
+      echo "1 $(field "$out.last.json" ms)" >> "$out.txt"
+      awk -v t="$t" -v x="$(field "$out.last.json" tx)" -v y="$(field "$out.last.json" ty)" \
+        -v z="$(field "$out.last.json" tz)" -v qx="$(field "$out.last.json" qx)" \
+        -v qy="$(field "$out.last.json" qy)" -v qz="$(field "$out.last.json" qz)" \
+        -v qw="$(field "$out.last.json" qw)" \
+        'BEGIN { printf "%.9f %s %s %s %s %s %s %s\n", t / 1e9, x, y, z, qx, qy, qz, qw }' >> "$out.tum"
+    else
+      echo "0 $(field "$out.last.json" ms)" >> "$out.txt"
+    fi
+  done < "$sub/frames.txt"
+}
+
+# The median of a column of numbers on stdin.
+median() { sort -g | awk '{ v[NR] = $1 } END { if (NR == 0) print "nan"; else if (NR % 2) print v[(NR + 1) / 2]; else print (v[NR / 2] + v[NR / 2 + 1]) / 2 }'; }
+
+# measure BIN_DIR OUT: every figure of the binaries in BIN_DIR into OUT/figures.tsv
+# ("recording key value" lines).
+measure() {
+  local bin=$1 out=$2
+  local V=$bin/client/visloc
+  mkdir -p "$out/maps"
+  : > "$out/figures.tsv"
+  put() { printf '%s\t%s\t%s\n' "$rec" "$1" "$2" >> "$out/figures.tsv"; }
+  # eval_into PREFIX EST [ARGS...]: error figures of EST against the recording's ground truth.
+  eval_into() {
+    local prefix=$1 est=$2
+    shift 2
+    [[ -f $gt ]] || return 0
+    $T eval --gt "$gt" --gt-origin-first --est "$est" --json "$@" > "$out/$rec.$prefix.eval.json"
+    local e=$out/$rec.$prefix.eval.json
+    [[ $(field "$e" matched_poses) != 0 ]] || return 0  # Nothing localized: no error to give.
+    put "${prefix}_error_median_cm" "$(fmt "$(field_in "$e" ate median)" 100 2)"
+    put "${prefix}_error_max_cm" "$(fmt "$(field_in "$e" ate max)" 100 2)"
+    put "${prefix}_rotation_max_deg" "$(fmt "$(field_in "$e" rotation_deg max)" 1 2)"
+  }
+  for rec in "${recordings[@]}"; do
+    echo "== $rec ($bin)"
+    local d=$REAL/$rec subs=$WORK/subsets/$rec gt=$out/$rec.gt.tum
+    rm -f "$gt"
+    if [[ -f $d/groundtruth_cam0_tum.txt ]]; then
+      cp "$d/groundtruth_cam0_tum.txt" "$gt"
+    else
+      $T dataset groundtruth "$d" --out "$gt" > /dev/null 2>&1 || rm -f "$gt"
+    fi
+    local n
+    n=$(if [[ -d $d/mav0 ]]; then grep -vc '^#' "$d/mav0/cam0/data.csv"; else grep -c . "$d/times.txt"; fi)
+    subset "$d" "$subs/even" 0 "$n" 2
+    subset "$d" "$subs/odd" 1 "$n" 2
+    # The map of all frames.
+    $V map build --dataset "$d" --out "$out/maps/$rec.db" --trajectory "$out/$rec.frames.tum" \
+      --json > "$out/$rec.build.json"
+    put keyframes "$(field "$out/$rec.build.json" keyframes)"
+    put points "$(field "$out/$rec.build.json" points)"
+    put map_fps "$(fmt "$(field "$out/$rec.build.json" fps)" 1 1)"
+    $V map export "$out/maps/$rec.db" --keyframes "$out/$rec.keyframes.tum" > /dev/null
+    eval_into keyframe "$out/$rec.keyframes.tum"
+    # Shares of the distance travelled, where the ground truth travels far enough to share over.
+    if [[ -f $gt && $(field_in "$out/$rec.keyframe.eval.json" ate_per_distance count) != 0 ]]; then
+      put keyframe_error_per_distance_pct "$(fmt "$(field_in "$out/$rec.keyframe.eval.json" ate_per_distance median)" 100 2)"
+      { head -1 "$out/$rec.frames.tum"; tail -1 "$out/$rec.frames.tum"; } > "$out/$rec.last.tum"
+      $T eval --gt "$gt" --gt-origin-first --est "$out/$rec.last.tum" --json > "$out/$rec.last.eval.json"
+      put end_error_per_distance_pct "$(fmt "$(field_in "$out/$rec.last.eval.json" ate_per_distance max)" 100 2)"
+    fi
+    # Held-apart frames: the odd ones in a map of the even ones, as a sequence.
+    $V map build --dataset "$subs/even" --out "$out/maps/${rec}_even.db" --json > "$out/$rec.even.build.json"
+    $V localize --map "$out/maps/${rec}_even.db" --dataset "$subs/odd" --trajectory "$out/$rec.odd.tum" \
+      --stats "$out/$rec.odd.csv" --json > "$out/$rec.odd.json"
+    put odd_localized_pct "$(fmt "$(field "$out/$rec.odd.json" localized_fraction)" 100 1)"
+    put odd_ms_per_frame "$(fmt "$(field_in "$out/$rec.odd.json" total_ms median)" 1 2)"
+    eval_into odd "$out/$rec.odd.tum" --stats "$out/$rec.odd.csv"
+    if [[ -f $gt && $(field "$out/$rec.odd.eval.json" matched_poses) != 0 ]]; then
+      local e=$out/$rec.odd.eval.json
+      put covariance_median_sigmas "$(fmt "$(field_in "$e" normalized_error median)" 1 2)"
+      put covariance_beyond_3_sigma_pct "$(fmt "$(field_in "$e" consistency beyond_3_sigma)" 100 1)"
+      put covariance_beyond_6_sigma_pct "$(fmt "$(field_in "$e" consistency beyond_6_sigma)" 100 1)"
+    fi
+    # A kidnapped robot's first image: each odd frame alone, through the server.
+    SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
+    relocalize_each "$bin" "${rec}_even" "$subs/odd" "$out/$rec.reloc"
+    put relocalized_pct "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.reloc.txt")"
+    put relocalization_ms "$(cut -d' ' -f2 "$out/$rec.reloc.txt" | median | xargs -I{} awk 'BEGIN { printf "%.1f", {} }')"
+    eval_into relocalized "$out/$rec.reloc.tum"
+    if [[ -d $d/mav0 ]]; then
+      # One place throughout: the second half's images alone against a map of the first half.
+      local half=$((n / 2))
+      subset "$d" "$subs/first_half" 0 "$half" 1
+      subset "$d" "$subs/second_half" "$half" "$n" 1
+      $V map build --dataset "$subs/first_half" --out "$out/maps/${rec}_first_half.db" --json \
+        > "$out/$rec.first_half.build.json"
+      stop_server
+      SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
+      relocalize_each "$bin" "${rec}_first_half" "$subs/second_half" "$out/$rec.half"
+      put second_half_relocalized_pct "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.half.txt")"
+      eval_into second_half "$out/$rec.half.tum"
+    fi
+    stop_server
+  done
+}
+
+git rev-parse --short HEAD > "$WORK/commit"
+measure "$PWD/build" "$WORK/now"
+if [[ -n $baseline_rev ]]; then
+  base_src=$WORK/baseline/src
+  base_commit=$(git rev-parse --short "$baseline_rev")
+  if [[ $(cat "$WORK/baseline/commit" 2>/dev/null) != "$base_commit" ]]; then
+    rm -rf "$WORK/baseline"
+    git worktree prune
+    git worktree add --detach "$base_src" "$base_commit" > /dev/null
+    cmake -S "$base_src" -B "$WORK/baseline/build" -DCMAKE_BUILD_TYPE=Release > /dev/null
+    cmake --build "$WORK/baseline/build" -j"$(nproc)" --target visloc visloc-server > /dev/null
+    echo "$base_commit" > "$WORK/baseline/commit"
+  fi
+  measure "$WORK/baseline/build" "$WORK/baseline/figures"
+  cp "$WORK/baseline/figures/figures.tsv" "$WORK/before.tsv"
+  before_label="commit $base_commit"
+else
+  git show "HEAD:$FIGURES" > "$WORK/before.tsv" 2>/dev/null || : > "$WORK/before.tsv"
+  before_label="the figures at $(git log -1 --format=%h -- "$FIGURES" 2>/dev/null || echo none)"
+fi
+now_commit=$(cat "$WORK/commit")
+{
+  echo "# commit $now_commit"
+  cat "$WORK/now/figures.tsv"
+} > "$FIGURES"
+
+echo "== report"
+# cell REC KEY: "now (before)", or "now" when the baseline lacks the figure.
+value() { awk -F'\t' -v r="$2" -v k="$3" '$1 == r && $2 == k { print $3 }' "$1"; }
+cell() {
+  local now before
+  now=$(value "$WORK/now/figures.tsv" "$1" "$2")
+  before=$(value "$WORK/before.tsv" "$1" "$2")
+  [[ -z $now ]] && { echo "-"; return; }
+  [[ -n $before && $before != "$now" ]] && { echo "$now ($before)"; return; }
+  echo "$now"
+}
+rows=(
+  "keyframes|map of all frames: keyframes"
+  "points|map of all frames: points"
+  "map_fps|map building, frames a second"
+  "keyframe_error_median_cm|keyframes against ground truth, median error, cm (no alignment, from frame 0)"
+  "keyframe_error_max_cm|keyframes against ground truth, max error, cm"
+  "keyframe_rotation_max_deg|keyframes against ground truth, max rotation error, deg"
+  "keyframe_error_per_distance_pct|keyframe error per distance travelled, median, %"
+  "end_error_per_distance_pct|last frame's error per distance travelled (drift), %"
+  "odd_localized_pct|odd frames localized in a map of the even frames, %"
+  "odd_error_median_cm|odd frames, median error, cm"
+  "odd_error_max_cm|odd frames, max error, cm"
+  "odd_ms_per_frame|odd frames, ms a frame (median, in-process)"
+  "covariance_median_sigmas|covariance: median error / per-axis sigma (honest 1.54)"
+  "covariance_beyond_3_sigma_pct|covariance: poses beyond 3 sigma, % (honest 2.9)"
+  "covariance_beyond_6_sigma_pct|covariance: poses beyond 6 sigma, % (honest 0)"
+  "relocalized_pct|each odd frame alone through the server (relocalize): found, %"
+  "relocalized_error_max_cm|... max error, cm"
+  "relocalized_rotation_max_deg|... max rotation error, deg"
+  "relocalization_ms|... server time, ms (median)"
+  "second_half_relocalized_pct|each frame of the second half alone, map of the first half: found, %"
+  "second_half_error_max_cm|... max error, cm"
+  "second_half_rotation_max_deg|... max rotation error, deg"
+)
+{
+  echo "# visloc on real places"
+  echo
+  echo "Generated by \`scripts/real-world.sh\` on $(date -u +%Y-%m-%d) from the runs of commit"
+  echo "$now_commit; in brackets, where it differs, the same figure for $before_label. Do not edit"
+  echo "by hand: rerun the script (\`--baseline REV\` measures a revision of your choice beside it)."
+  echo
+  echo "The recordings are \`../shared/real\` (its README). Errors are against each recording's"
+  echo "ground truth taken from its first frame, which is the map frame (\`visloc eval"
+  echo "--gt-origin-first\`), with no alignment. The covariance figures compare each odd frame's"
+  echo "position error with the per-axis sigma the engine reported for it (\`visloc eval --stats\`;"
+  echo "before commit 0728694 the stats CSV's position_sigma_m was the trace's root, sqrt(3) times the"
+  echo "per-axis sigma, so a baseline before it looks sqrt(3) better here than it was)."
+  echo "kitti00_first11 has no ground truth."
+  echo
+  printf "| |"
+  for rec in "${recordings[@]}"; do printf " %s |" "$rec"; done
+  echo
+  printf "|---|"
+  for _ in "${recordings[@]}"; do printf -- "---|"; done
+  echo
+  for row in "${rows[@]}"; do
+    key=${row%%|*}
+    printf "| %s |" "${row#*|}"
+    for rec in "${recordings[@]}"; do printf " %s |" "$(cell "$rec" "$key")"; done
+    echo
+  done
+} > "$REPORT"
+echo "wrote $REPORT and $FIGURES"
