@@ -204,6 +204,9 @@ int Run(int argc, char** argv) {
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(args.listen, credentials, &port);
+  // gRPC sets SO_REUSEPORT by default: a second server on a port in use would start, and the
+  // kernel would share new connections out between the two at random. The address is ours alone.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   // The sync server gives each call a thread, and a Localize stream keeps its thread for its
   // life (mostly waiting on the network); room for every session plus admin calls.
   grpc::ResourceQuota quota("visloc-server");
@@ -214,7 +217,10 @@ int Run(int argc, char** argv) {
   builder.SetMaxReceiveMessageSize(64 << 20);  // A raw 4096x4096 frame is 16 MiB.
   SetLinkArguments(args, &builder);
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
-  if (!server || port == 0) throw InputError("cannot listen on " + args.listen);
+  if (!server || port == 0) {
+    throw InputError("cannot listen on " + args.listen +
+                     ": the address is in use (another visloc-server?) or not this machine's");
+  }
   grpc::HealthCheckServiceInterface* health = server->GetHealthCheckService();
   for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin"}) {
     health->SetServingStatus(service, true);

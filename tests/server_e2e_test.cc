@@ -305,6 +305,24 @@ TEST_F(ServerE2eTest, AClientThatVanishesIsCleanedUpAndTheServerGoesOn) {
   EXPECT_THAT(server.Log(), HasSubstr("event=session_start session=2"));
 }
 
+// gRPC lets a second server bind a port another already listens on (SO_REUSEPORT), and the
+// kernel then shares new connections out between the two at random: a lab that started a server
+// twice saw `map list` answer "0 maps" and "2 maps" by turns. A server refuses an address in use.
+TEST_F(ServerE2eTest, ASecondServerOnAnAddressInUseIsRefusedByName) {
+  ServerProcess first(VISLOC_SERVER_PATH, maps_.path());
+  TempDir other_maps;
+  // Bounded: a second server that did start would serve until stopped (timeout exits 124).
+  const ProcessResult second =
+      testing::RunProcess({"/usr/bin/timeout", "10", VISLOC_SERVER_PATH, "--maps",
+                           other_maps.path(), "--listen", first.address()});
+  EXPECT_EQ(second.exit_code, 1) << second.err;
+  EXPECT_THAT(second.err, HasSubstr("cannot listen on " + first.address()));
+  EXPECT_THAT(second.err, HasSubstr("in use"));
+  // The first one serves on, alone.
+  const ProcessResult list = Visloc({"map", "list", "--server", first.address(), "--json"});
+  EXPECT_EQ(list.exit_code, 0) << list.err;
+}
+
 TEST_F(ServerE2eTest, HealthServiceReportsServing) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   auto health = grpc::health::v1::Health::NewStub(
