@@ -118,8 +118,6 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   GenerateStats stats;
   stats.name = name;
   stats.dir = (fs::path(out_dir) / name).string();
-  stats.duration_s = spec.path.duration_s();
-  stats.path_length_m = spec.path.length_m();
   int frame_count = static_cast<int>(std::floor(spec.path.duration_s() * rig_options.fps)) + 1;
   if (options_.max_frames > 0) frame_count = std::min(frame_count, options_.max_frames);
   stats.frames = frame_count;
@@ -199,6 +197,14 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
     if (progress) progress(k + 1, frame_count);
   }
   stats.covered_frames = static_cast<int>(covered_frames.size());
+  // What was rendered, which max_frames may have cut short of the whole walk: its duration, and
+  // the distance walked between its frames (carried stretches left out, as length_m() does).
+  stats.duration_s = times_s.back();
+  for (size_t k = 1; k < times_s.size(); ++k) {
+    if (!spec.path.SteppingAt(times_s[k])) continue;
+    const PlanarPose a = spec.path.PlannedAt(times_s[k - 1]), b = spec.path.PlannedAt(times_s[k]);
+    stats.path_length_m += std::hypot(b.x - a.x, b.y - a.y);
+  }
   stats.render_ms_per_frame = render_ms / std::max(1, frame_count);
 
   const Trajectory odom_from_cam =

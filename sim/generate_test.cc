@@ -90,6 +90,20 @@ TEST(GenerateTest, KittiLayoutReadsBack) {
   EXPECT_TRUE(ApproxEqual(dataset.world_from_body[0].pose, Rigid3d::Identity(), 1e-9, 1e-6));
 }
 
+// A sequence cut short by max_frames reports the part it rendered, not the whole walk: 30 frames
+// of `straight` (2 s at 15 Hz of a 3 m, 14 s walk) once said "14.0 s, 3.00 m".
+TEST(GenerateTest, ACutSequenceReportsTheDurationAndPathItRendered) {
+  TempDir dir;
+  SequenceGenerator generator(SmallOptions(30));
+  const GenerateStats stats = generator.Generate("straight", dir.path());
+  EXPECT_EQ(stats.frames, 30);
+  EXPECT_NEAR(stats.duration_s, 29 / 15.0, 1e-9);
+  const Trajectory truth = ReadTum(stats.dir + "/groundtruth_map.tum");
+  const double walked_m = (truth.back().pose.translation - truth.front().pose.translation).norm();
+  EXPECT_NEAR(stats.path_length_m, walked_m, 0.01);  // A straight walk: the chord.
+  EXPECT_LT(stats.path_length_m, 0.5);
+}
+
 TEST(GenerateTest, UnknownSequenceIsNamed) {
   TempDir dir;
   SequenceGenerator generator(SmallOptions(1));
