@@ -11,6 +11,7 @@
 #include "core/features/features.h"
 #include "core/util/args.h"
 #include "core/util/memory.h"
+#include "core/util/version.h"
 
 namespace visloc::cli {
 
@@ -22,8 +23,11 @@ const std::vector<Subcommand> kCommands = {
     {"sim", "render synthetic stereo sequences with exact ground truth", RunSim},
     {"eval", "accuracy of a trajectory against ground truth (ATE, RPE, coverage)", RunEval},
     {"calibrate", "calibrate a camera or a stereo pair from chessboard images", RunCalibrate},
-    {"dataset", "inspect a dataset: will this stereo rig map? (check)", RunDataset},
-    {"map", "build and manage maps: build, info, verify, export, list, delete, rename", RunMap},
+    {"dataset", "inspect and prepare datasets: check, import, groundtruth", RunDataset},
+    {"map",
+     "build and manage maps: build, info, verify, export, merge, extend, update, list, delete, "
+     "rename, upload, download",
+     RunMap},
     {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},
     {"stream", "stream a dataset to visloc-server as one robot session", RunStream},
     {"relocalize", "ask visloc-server where one image was taken", RunRelocalize},
@@ -40,14 +44,21 @@ int main(int argc, char** argv) {
   visloc::KeepFreedMemoryForReuse();
   visloc::RunOpenCvOnCallingThread();
   const Args args(argv + 1, argv + argc);
+  if (args.size() == 1 && args[0] == "--version") {
+    std::cout << "visloc " << visloc::VislocVersion() << "\n";
+    return 0;
+  }
   // Errors are reported as "visloc VERB: reason", naming the command the user ran.
   std::string verb;
   for (const Subcommand& command : kCommands) {
     if (!args.empty() && args[0] == command.name) verb = std::string(" ") + command.name;
   }
   try {
-    return DispatchSubcommand("visloc COMMAND [options]",
-                              "visloc: visual localization for robots. Commands:", kCommands, args);
+    return DispatchSubcommand(
+        "visloc COMMAND [options]",
+        "visloc: visual localization for robots ('visloc --version' prints its version). "
+        "Commands:",
+        kCommands, args);
   } catch (const visloc::UsageError& e) {
     std::cerr << "visloc" << verb << ": " << e.what() << " (see 'visloc" << verb << " --help')\n";
     return 2;

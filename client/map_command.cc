@@ -13,6 +13,7 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "core/util/version.h"
 #include "dataset/dataset.h"
 #include "dataset/frame_range.h"
 #include "dataset/ply.h"
@@ -296,7 +297,8 @@ int RunBuild(const Args& args) {
     options.builder.scale_feature_count = false;
   }
   MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
-                       fs::absolute(dataset_dir).string(), "visloc 0.1.0 map build", ""};
+                       fs::absolute(dataset_dir).string(),
+                       StrCat("visloc ", VislocVersion(), " map build"), ""};
   mapping::MapBuildStats stats;
   Trajectory frame_trajectory;
   const bool progress = ShowProgress() && !json;

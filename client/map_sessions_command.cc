@@ -17,6 +17,7 @@
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
+#include "core/util/version.h"
 #include "dataset/dataset.h"
 #include "mapping/dataset_mapping.h"
 #include "mapping/map_merge.h"
@@ -81,9 +82,9 @@ std::string ToJson(const std::string& out, const Map& merged, const mapping::Mer
 
 void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeStats& stats,
                 const char* b_name, const mapping::SessionRegistrationStats* session = nullptr) {
-  std::printf("%s: %zu keyframes (%d + %d), %zu points (%d fused, %d added from %s)\n",
-              out.c_str(), merged.keyframes.size(), stats.keyframes_a, stats.keyframes_b,
-              merged.points.size(), stats.fused_points, stats.added_points, b_name);
+  std::printf("%s: %zu keyframes (%d + %d), %zu points (%d fused, %d added from %s)\n", out.c_str(),
+              merged.keyframes.size(), stats.keyframes_a, stats.keyframes_b, merged.points.size(),
+              stats.fused_points, stats.added_points, b_name);
   if (session) {
     std::printf(
         "localized in the map: %d of %d images, %d agreeing on one placement of the "
@@ -119,7 +120,7 @@ Map BuildSessionMap(const Map& existing, const Dataset& dataset, const std::stri
   options.builder.features = DefaultFeatureSettings(existing.features.kind);
   const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)),
                              std::filesystem::absolute(dataset_dir).string(),
-                             "visloc 0.1.0 map " + verb, ""};
+                             StrCat("visloc ", VislocVersion(), " map ", verb), ""};
   mapping::MapBuildStats stats;
   Map session = mapping::BuildMap(dataset, options, metadata, &stats, frame_trajectory,
                                   [&](int done, int total, const std::string& status) {
@@ -300,7 +301,8 @@ int RunMapUpdate(const Args& args) {
     std::cout << ToJson(map_path, updated, stats.merge, &session.stats, &stats) << "\n";
   } else {
     std::printf("%s: %d of %zu points checked against the session, %d gone and removed\n",
-                map_path.c_str(), stats.checked_points, existing.points.size(), stats.removed_points);
+                map_path.c_str(), stats.checked_points, existing.points.size(),
+                stats.removed_points);
     PrintHuman(map_path, updated, stats.merge, "the session", &session.stats);
   }
   return 0;

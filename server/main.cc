@@ -25,6 +25,7 @@
 #include "core/util/memory.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
+#include "core/util/version.h"
 #include "server/auth.h"
 #include "server/localization_service.h"
 #include "server/log.h"
@@ -117,10 +118,15 @@ bool IsLoopback(const std::string& address) {
 }
 
 int Run(int argc, char** argv) {
+  if (argc == 2 && std::string(argv[1]) == "--version") {
+    std::cout << "visloc-server " << VislocVersion() << "\n";
+    return 0;
+  }
   ServerArgs args;
   ArgParser parser("visloc-server",
                    "Serves visual localization (Localization.Localize / Relocalize) and map "
-                   "management (MapAdmin) over gRPC, with grpc.health.v1 and reflection.");
+                   "management (MapAdmin) over gRPC, with grpc.health.v1 and reflection. "
+                   "'visloc-server --version' prints its version.");
   parser.AddFlag("maps", &args.maps_dir, "folder of map files NAME.db", /*required=*/true);
   parser.AddFlag("listen", &args.listen, "address:port (port 0 picks a free port)");
   parser.AddFlag("max-sessions", &args.max_sessions, "concurrent Localize streams");

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
 
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
@@ -36,6 +37,36 @@ TEST(CliTest, EveryCommandHasHelpAndUnknownCommandsFail) {
   const ProcessResult unknown = Visloc({"teleport"});
   EXPECT_EQ(unknown.exit_code, 2);
   EXPECT_EQ(unknown.err, "visloc: unknown command 'teleport' (see 'visloc --help')\n");
+}
+
+// Both binaries say their version, the same one (CMake's project version, which map files record
+// as their builder), and the top-level help names every verb each command has: it listed map as
+// "build, info, verify, export, list, delete, rename" long after merge, extend, update, upload
+// and download came, and dataset as "(check)".
+TEST(CliTest, VersionsAgreeAndTheTopLevelHelpNamesEveryVerb) {
+  const ProcessResult client = Visloc({"--version"});
+  EXPECT_EQ(client.exit_code, 0);
+  const std::regex version_line("visloc (\\d+\\.\\d+\\.\\d+)\n");
+  std::smatch client_version;
+  ASSERT_TRUE(std::regex_match(client.out, client_version, version_line)) << client.out;
+  const ProcessResult server = testing::RunProcess({VISLOC_SERVER_PATH, "--version"});
+  EXPECT_EQ(server.exit_code, 0);
+  EXPECT_EQ(server.out, "visloc-server " + client_version[1].str() + "\n");
+
+  const std::string help = Visloc({"--help"}).out;
+  for (const std::string command : {"map", "dataset"}) {
+    const size_t line_start = help.find("\n  " + command + " ");
+    ASSERT_NE(line_start, std::string::npos) << command;
+    // The command's summary, up to the next command's line.
+    const std::string summary =
+        help.substr(line_start, help.find("\n  ", line_start + 1) - line_start);
+    const std::string verbs = Visloc({command, "--help"}).out;
+    const std::regex verb_line("\n  ([a-z]+) +");
+    for (auto it = std::sregex_iterator(verbs.begin(), verbs.end(), verb_line);
+         it != std::sregex_iterator(); ++it) {
+      EXPECT_THAT(summary, HasSubstr((*it)[1].str())) << "visloc --help's " << command << " line";
+    }
+  }
 }
 
 TEST(CliTest, SimWritesSequencesThatEvalScoresExactly) {

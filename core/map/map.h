@@ -24,7 +24,7 @@ struct MapMetadata {
   std::string name;
   int64_t created_unix_s = 0;
   std::string source_dataset;  // Where the mapping sequence came from.
-  std::string builder;         // Which program built it, e.g. "visloc 0.1.0".
+  std::string builder;         // Which program built it, e.g. "visloc 0.1.0 map build".
   // How the map came to be when it is more than one build: its sessions and merges, e.g.
   // "merge('lab' <- /data/mon; 'corridor' <- /data/tue)". Empty for a map of one build.
   std::string lineage;

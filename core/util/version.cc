@@ -1,0 +1,7 @@
+#include "core/util/version.h"
+
+namespace visloc {
+
+const char* VislocVersion() { return VISLOC_VERSION; }
+
+}  // namespace visloc
