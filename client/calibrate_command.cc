@@ -22,8 +22,10 @@ namespace {
 void ParseBoard(const std::string& text, ChessboardSpec* board) {
   const auto corners = ParseDimensions(text, 3, 100);
   if (!corners || corners->first == corners->second) {
-    throw UsageError(StrCat("--board wants COLSxROWS inner corners, 3 to 100 each and different "
-                            "(e.g. 9x6), got '", text, "'"));
+    throw UsageError(
+        StrCat("--board wants COLSxROWS inner corners, 3 to 100 each and different "
+               "(e.g. 9x6), got '",
+               text, "'"));
   }
   std::tie(board->cols, board->rows) = *corners;
 }
@@ -85,10 +87,11 @@ void PrintHuman(const CalibrationResult& r, const std::string& out,
     std::printf("right: %s\n       RMS %.3f px, corners in %.0f%% of the image\n",
                 ToString(r.right->camera).c_str(), r.right->rms_px, 100 * r.right->coverage);
     const Eigen::Vector3d& t = r.right_from_left.translation;
-    std::printf("pair:  baseline %.4f m, right_from_left t (%.4f, %.4f, %.4f) m, turned %.3f "
-                "deg; RMS %.3f px\n",
-                t.norm(), t.x(), t.y(), t.z(), RotationAngleDeg(r.right_from_left.rotation),
-                r.stereo_rms_px);
+    std::printf(
+        "pair:  baseline %.4f m, right_from_left t (%.4f, %.4f, %.4f) m, turned %.3f "
+        "deg; RMS %.3f px\n",
+        t.norm(), t.x(), t.y(), t.z(), RotationAngleDeg(r.right_from_left.rotation),
+        r.stereo_rms_px);
   }
   for (int i : r.board_not_found) {
     std::printf("board not found: %s\n", left_paths[i].c_str());
@@ -117,7 +120,7 @@ int RunCalibrate(const Args& args) {
   parser.AddList("left", &left_paths, "left (or only) camera's images", /*required=*/true);
   parser.AddList("right", &right_paths, "right camera's images, in the same order");
   parser.AddFlag("board", &board_text, "inner corners COLSxROWS, e.g. 9x6", /*required=*/true);
-  parser.AddFlag("square", &options.board.square_m, "square side in metres");
+  parser.AddFlag("square", &options.board.square_m, "square side in metres", /*required=*/true);
   parser.AddFlag("model", &model,
                  "pinhole (radial-tangential lens: k1 k2 p1 p2) or equidistant (fisheye: k1..k4)");
   parser.AddFlag("out", &out, "folder for cam0/sensor.yaml (and cam1/)", /*required=*/true);

@@ -130,11 +130,10 @@ class StreamRecorder {
                                   std::chrono::system_clock::now().time_since_epoch())
                                   .count();
       events_ << wall_ms << ',' << client::EventKindName(e.kind) << ',' << e.timestamp_ns << ','
-              << FormatFixed(e.latency_ms, 2) << ','
-              << (answer ? v1::Status_Name(r.status()) : "") << ','
-              << (answer ? v1::PoseSource_Name(r.source()) : "") << ','
-              << (answer ? r.relocalization().kind() : "") << ',' << (r.has_pose() ? 1 : 0)
-              << ',' << r.stats().inliers() << ','
+              << FormatFixed(e.latency_ms, 2) << ',' << (answer ? v1::Status_Name(r.status()) : "")
+              << ',' << (answer ? v1::PoseSource_Name(r.source()) : "") << ','
+              << (answer ? r.relocalization().kind() : "") << ',' << (r.has_pose() ? 1 : 0) << ','
+              << r.stats().inliers() << ','
               << (e.kind == Kind::kLinkState ? client::LinkStateName(e.link_state) : "") << ",\""
               << e.detail << "\"" << std::endl;
     }
@@ -211,9 +210,9 @@ class StreamRecorder {
   // strictly), or "frame at T s" for a live camera.
   std::string FrameName(int64_t timestamp_ns) const {
     if (!dataset_) return StrCat("frame at ", FormatFixed(timestamp_ns * 1e-9, 3), " s");
-    const auto it = std::lower_bound(
-        dataset_->frames.begin(), dataset_->frames.end(), timestamp_ns,
-        [](const FrameRecord& f, int64_t t) { return f.timestamp_ns < t; });
+    const auto it =
+        std::lower_bound(dataset_->frames.begin(), dataset_->frames.end(), timestamp_ns,
+                         [](const FrameRecord& f, int64_t t) { return f.timestamp_ns < t; });
     return StrCat("frame ", it - dataset_->frames.begin());
   }
 
@@ -253,7 +252,8 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.AddFlag("frame-deadline-ms", &args->frame_deadline_ms,
                  "frames waiting longer are dropped, answers later are reported late");
   parser.AddFlag("stall-timeout-ms", &args->stall_timeout_ms,
-                 "no answer this long: the stream is reopened (default 2000; 60000 with --rate 0)");
+                 "no answer this long: the stream is reopened");
+  parser.SetDefaultText("stall-timeout-ms", "2000; 60000 with --rate 0");
   parser.AddSwitch("odometry", &args->odometry, "send the dataset's odometry and gyro");
   parser.AddFlag("trajectory", &args->trajectory_path, "write the estimated poses (TUM)");
   parser.AddFlag("stats", &args->stats_path, "write per-frame statistics (CSV)");
@@ -286,8 +286,7 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
 }
 
 void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
-                        const client::SessionStats& stats, size_t count,
-                        const Trajectory* gt) {
+                        const client::SessionStats& stats, size_t count, const Trajectory* gt) {
   const ErrorStats latency = ComputeErrorStats(rec.latency_ms);
   std::vector<double> sorted = rec.latency_ms;
   std::sort(sorted.begin(), sorted.end());
@@ -313,15 +312,16 @@ void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
     std::cout << json.str() << "\n";
     return;
   }
-  std::printf("server %s, map %s: %zu frames, %d errors, %d skipped\n",
-              args.server.server.c_str(), args.map_name.c_str(), count, rec.errors, rec.skipped);
+  std::printf("server %s, map %s: %zu frames, %d errors, %d skipped\n", args.server.server.c_str(),
+              args.map_name.c_str(), count, rec.errors, rec.skipped);
   rec.report.PrintSummary(stdout, gt);
   std::printf("latency (client, submit to answer): mean %.2f ms, p50 %.2f ms, p99 %.2f ms\n",
               latency.mean, latency.median, p99);
-  std::printf("link: %.1f KiB a frame; %d dropped (link slower than the camera), %d late, %d "
-              "undelivered, %d breaks, %llu streams\n",
-              kb_per_frame, rec.dropped, rec.late, rec.undelivered, rec.link_breaks,
-              static_cast<unsigned long long>(stats.streams_opened));
+  std::printf(
+      "link: %.1f KiB a frame; %d dropped (link slower than the camera), %d late, %d "
+      "undelivered, %d breaks, %llu streams\n",
+      kb_per_frame, rec.dropped, rec.late, rec.undelivered, rec.link_breaks,
+      static_cast<unsigned long long>(stats.streams_opened));
 }
 
 // Where the frames come from: a dataset's files, or a live source through OpenCV.
@@ -351,9 +351,9 @@ class DatasetSource final : public FrameSource {
     if (next_ >= count_) return false;
     const size_t i = next_++;
     if (args_.rate_hz < 0) {
-      std::this_thread::sleep_until(start_ + std::chrono::nanoseconds(
-                                                 dataset_.frames[i].timestamp_ns -
-                                                 dataset_.frames.front().timestamp_ns));
+      std::this_thread::sleep_until(start_ +
+                                    std::chrono::nanoseconds(dataset_.frames[i].timestamp_ns -
+                                                             dataset_.frames.front().timestamp_ns));
     } else if (args_.rate_hz > 0) {
       std::this_thread::sleep_until(
           start_ + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args_.rate_hz)));
@@ -378,12 +378,13 @@ class CaptureSource final : public FrameSource {
   explicit CaptureSource(const StreamArgs& args)
       : args_(args), camera_(ReadSensorYaml(args.sensor_path)) {
     const std::string& source = args.camera_source;
-    const bool device = source.rfind("/dev/video", 0) == 0 ||
-                        (!source.empty() && source.find_first_not_of("0123456789") == std::string::npos);
+    const bool device =
+        source.rfind("/dev/video", 0) == 0 ||
+        (!source.empty() && source.find_first_not_of("0123456789") == std::string::npos);
     live_ = device || source.find('!') != std::string::npos;
     if (device) {
-      const int index = source.rfind("/dev/video", 0) == 0 ? std::stoi(source.substr(10))
-                                                           : std::stoi(source);
+      const int index =
+          source.rfind("/dev/video", 0) == 0 ? std::stoi(source.substr(10)) : std::stoi(source);
       capture_.open(index, cv::CAP_V4L2);
     } else if (source.find('!') != std::string::npos) {
       capture_.open(source, cv::CAP_GSTREAMER);
@@ -411,8 +412,8 @@ class CaptureSource final : public FrameSource {
     const size_t i = read_++;
     const double rate = args_.rate_hz > 0 ? args_.rate_hz : file_fps_;
     if (!live_ && rate > 0 && args_.rate_hz != 0) {
-      std::this_thread::sleep_until(
-          start_ + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
+      std::this_thread::sleep_until(start_ +
+                                    std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
     }
     const int64_t timestamp_ns =
         live_ || rate <= 0
@@ -481,7 +482,8 @@ int RunStream(const Args& raw_args) {
   const client::SessionStats stats = session->stats();
   session.reset();
   if (ShowProgress() && !args.json) std::fprintf(stderr, "\n");
-  if (!recorder.failure.empty()) throw InputError("server " + args.server.server + ": " + recorder.failure);
+  if (!recorder.failure.empty())
+    throw InputError("server " + args.server.server + ": " + recorder.failure);
   if (stats.answered + stats.late == 0 && count > 0) {
     throw InputError("server " + args.server.server + ": no frame was answered (gRPC code 14: " +
                      "the server could not be reached or kept)");

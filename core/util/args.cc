@@ -8,8 +8,8 @@
 namespace visloc {
 namespace {
 
-std::string DefaultText(
-    const std::variant<std::string*, int*, int64_t*, double*, bool*, std::vector<std::string>*>& t) {
+std::string DefaultText(const std::variant<std::string*, int*, int64_t*, double*, bool*,
+                                           std::vector<std::string>*>& t) {
   return std::visit(
       [](auto* ptr) -> std::string {
         using T = std::remove_pointer_t<decltype(ptr)>;
@@ -40,7 +40,7 @@ void ArgParser::Add(const std::string& name, Target target, const std::string& h
   option.help = help;
   option.required = required;
   option.positional = positional;
-  option.default_text = DefaultText(target);
+  if (!required) option.default_text = DefaultText(target);
   options_.push_back(std::move(option));
 }
 
@@ -48,14 +48,22 @@ void ArgParser::AddFlag(const std::string& name, std::string* target, const std:
                         bool required) {
   Add(name, target, help, required, /*positional=*/false);
 }
-void ArgParser::AddFlag(const std::string& name, int* target, const std::string& help) {
-  Add(name, target, help, /*required=*/false, /*positional=*/false);
+void ArgParser::AddFlag(const std::string& name, int* target, const std::string& help,
+                        bool required) {
+  Add(name, target, help, required, /*positional=*/false);
 }
-void ArgParser::AddFlag(const std::string& name, int64_t* target, const std::string& help) {
-  Add(name, target, help, /*required=*/false, /*positional=*/false);
+void ArgParser::AddFlag(const std::string& name, int64_t* target, const std::string& help,
+                        bool required) {
+  Add(name, target, help, required, /*positional=*/false);
 }
-void ArgParser::AddFlag(const std::string& name, double* target, const std::string& help) {
-  Add(name, target, help, /*required=*/false, /*positional=*/false);
+void ArgParser::AddFlag(const std::string& name, double* target, const std::string& help,
+                        bool required) {
+  Add(name, target, help, required, /*positional=*/false);
+}
+void ArgParser::SetDefaultText(const std::string& name, const std::string& text) {
+  Option* option = Find(name);
+  VISLOC_CHECK(option != nullptr, "no option ", name);
+  option->default_text = text;
 }
 void ArgParser::AddList(const std::string& name, std::vector<std::string>* target,
                         const std::string& help, bool required) {

@@ -27,9 +27,16 @@ class ArgParser {
   // Flags take a value ("--out DIR" or "--out=DIR"); the target keeps its default when absent.
   void AddFlag(const std::string& name, std::string* target, const std::string& help,
                bool required = false);
-  void AddFlag(const std::string& name, int* target, const std::string& help);
-  void AddFlag(const std::string& name, int64_t* target, const std::string& help);
-  void AddFlag(const std::string& name, double* target, const std::string& help);
+  // A required flag shows no default: its value before parsing means nothing.
+  void AddFlag(const std::string& name, int* target, const std::string& help,
+               bool required = false);
+  void AddFlag(const std::string& name, int64_t* target, const std::string& help,
+               bool required = false);
+  void AddFlag(const std::string& name, double* target, const std::string& help,
+               bool required = false);
+  // The default --help shows for flag `name` when its variable's initial value stands for
+  // something else (0: "computed from ..."); empty shows none.
+  void SetDefaultText(const std::string& name, const std::string& text);
   // A list flag: one or more values up to the next "--" argument ("--left a.png b.png"), or
   // given again ("--left a.png --left b.png"); values append.
   void AddList(const std::string& name, std::vector<std::string>* target, const std::string& help,

@@ -58,6 +58,28 @@ TEST(ArgParserTest, HelpListsEveryOptionAndStopsParsing) {
   EXPECT_NE(help.str().find("[default: default-dir]"), std::string::npos);
 }
 
+// `calibrate --square` showed "[default: 0]" though nothing but a given value will do, and
+// `stream --stall-timeout-ms` "[default: 0]" where 0 means 2000 (60000 with --rate 0).
+TEST(ArgParserTest, RequiredFlagsShowNoDefaultAndADefaultCanBeSaid) {
+  double square_m = 0;
+  int stall_ms = 0;
+  ArgParser parser("visloc test", "Does a test.");
+  parser.AddFlag("square", &square_m, "square side in metres", /*required=*/true);
+  parser.AddFlag("stall-timeout-ms", &stall_ms, "no answer this long: reopen");
+  parser.SetDefaultText("stall-timeout-ms", "2000; 60000 with --rate 0");
+  std::ostringstream help;
+  EXPECT_FALSE(parser.Parse({"--help"}, help));
+  EXPECT_NE(help.str().find("square side in metres (required)\n"), std::string::npos) << help.str();
+  EXPECT_NE(help.str().find("reopen [default: 2000; 60000 with --rate 0]"), std::string::npos);
+  EXPECT_EQ(help.str().find("[default: 0]"), std::string::npos) << help.str();
+  try {
+    parser.Parse({"--stall-timeout-ms", "5"}, help);
+    ADD_FAILURE() << "a missing required number was accepted";
+  } catch (const UsageError& e) {
+    EXPECT_STREQ(e.what(), "missing --square");
+  }
+}
+
 TEST(ArgParserTest, ListFlagsTakeValuesUpToTheNextFlag) {
   std::vector<std::string> left, right;
   std::string out;
@@ -66,9 +88,8 @@ TEST(ArgParserTest, ListFlagsTakeValuesUpToTheNextFlag) {
   parser.AddList("right", &right, "right images");
   parser.AddFlag("out", &out, "folder");
   std::ostringstream help;
-  ASSERT_TRUE(parser.Parse({"--left", "a.png", "b.png", "--out", "x", "--right", "c.png",
-                            "--left=d.png"},
-                           help));
+  ASSERT_TRUE(parser.Parse(
+      {"--left", "a.png", "b.png", "--out", "x", "--right", "c.png", "--left=d.png"}, help));
   EXPECT_EQ(left, (std::vector<std::string>{"a.png", "b.png", "d.png"}));
   EXPECT_EQ(right, (std::vector<std::string>{"c.png"}));
   EXPECT_EQ(out, "x");
