@@ -49,9 +49,14 @@ int main(int argc, char** argv) {
     return 0;
   }
   // Errors are reported as "visloc VERB: reason", naming the command the user ran.
+  // With its own verb for the commands that have verbs ("visloc map build"), so that the help
+  // an error points to is the one that lists the flag.
   std::string verb;
   for (const Subcommand& command : kCommands) {
     if (!args.empty() && args[0] == command.name) verb = std::string(" ") + command.name;
+  }
+  if ((verb == " map" || verb == " dataset") && args.size() > 1 && args[1].rfind("--", 0) != 0) {
+    verb += " " + args[1];
   }
   try {
     return DispatchSubcommand(

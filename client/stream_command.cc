@@ -265,7 +265,10 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   *run = parser.Parse(raw_args, std::cout);
   if (!*run) return;
   args->server.ApplyEnvironment();
-  if (args->dataset_dir.empty() == args->camera_source.empty()) {
+  if (!args->dataset_dir.empty() && !args->camera_source.empty()) {
+    throw UsageError("give --dataset DIR or --camera SOURCE, not both");
+  }
+  if (args->dataset_dir.empty() && args->camera_source.empty()) {
     throw UsageError("give --dataset DIR or --camera SOURCE (with --camera-yaml sensor.yaml)");
   }
   if (!args->camera_source.empty()) {

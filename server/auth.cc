@@ -28,7 +28,8 @@ grpc::Status TokenAuth::Check(const grpc::ServerContext& context, Role needed) c
   const std::string prefix = "Bearer ";
   if (it == metadata.end()) {
     return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                        "missing bearer token (metadata 'authorization: Bearer TOKEN')");
+                        "missing bearer token: give visloc --token TOKEN or $VISLOC_TOKEN (the "
+                        "metadata 'authorization: Bearer TOKEN')");
   }
   const std::string value(it->second.data(), it->second.size());
   const auto role =

@@ -142,7 +142,9 @@ int Run(int argc, char** argv) {
                  "mutual TLS: require client certificates signed by this CA (PEM)");
   parser.AddFlag("max-frame-rate", &args.max_frame_rate_hz,
                  "frames per second one session may send; more are answered SKIPPED (0: no limit)");
-  parser.AddFlag("tokens", &args.tokens, "bearer tokens file: 'TOKEN localize|admin' per line");
+  parser.AddFlag("tokens", &args.tokens,
+                 "bearer tokens file: 'TOKEN localize|admin' per line, each token at least 16 "
+                 "characters");
   parser.AddSwitch("allow-remote", &args.allow_remote,
                    "listen beyond loopback without tokens (trusted networks only)");
   parser.AddSwitch("maps-read-only", &args.maps_read_only,

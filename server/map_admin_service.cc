@@ -92,7 +92,9 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
     }
     if (!header.replace() && maps_->directory().Contains(header.name())) {
       return Status(StatusCode::ALREADY_EXISTS,
-                    "a map named '" + header.name() + "' already exists (set replace)");
+                    "a map named '" + header.name() +
+                        "' already exists; replace it with visloc map upload --replace (the "
+                        "upload header's replace field)");
     }
     staged = maps_->directory().StagingPathFor(header.name());
     uint64_t received = 0;

@@ -136,6 +136,15 @@ TEST(CliTest, BadInputGetsOneLineErrorsAndNonZeroExit) {
        2,
        "visloc sim: KITTI sequences are rectified: --distortion needs --format euroc (see 'visloc "
        "sim --help')\n"},
+      // The help that lists the missing flag is the verb's, not the command's.
+      {{"map", "build", "--out", dir.File("m.db")},
+       2,
+       "visloc map build: missing --dataset (see 'visloc map build --help')\n"},
+      {{"stream", "--server", "127.0.0.1:1", "--map", "m", "--dataset", dir.path(), "--camera", "0",
+        "--camera-yaml", dir.File("sensor.yaml")},
+       2,
+       "visloc stream: give --dataset DIR or --camera SOURCE, not both (see 'visloc stream "
+       "--help')\n"},
   };
   for (const auto& c : cases) {
     const ProcessResult result = Visloc(c.args);

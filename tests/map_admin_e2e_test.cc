@@ -23,8 +23,8 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
-using ::testing::Not;
 using testing::JsonNumber;
+using ::testing::Not;
 using testing::ProcessResult;
 using testing::ServerProcess;
 using testing::Visloc;
@@ -76,7 +76,7 @@ TEST_F(MapAdminE2eTest, UploadListDownloadRenameDelete) {
 
   const ProcessResult again = Visloc({"map", "upload", local_.File("lab.db"), "--server", address});
   EXPECT_EQ(again.exit_code, 1);
-  EXPECT_THAT(again.err, HasSubstr("already exists"));
+  EXPECT_THAT(again.err, HasSubstr("already exists; replace it with visloc map upload --replace"));
   EXPECT_EQ(
       Visloc({"map", "upload", local_.File("lab.db"), "--server", address, "--replace"}).exit_code,
       0);

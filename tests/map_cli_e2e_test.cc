@@ -85,7 +85,8 @@ TEST_F(MapCliTest, BadFilesGetOneLineErrors) {
     const ProcessResult result = Visloc({"map", "info", dir_.File(file)});
     EXPECT_EQ(result.exit_code, 1) << file;
     EXPECT_EQ(std::count(result.err.begin(), result.err.end(), '\n'), 1) << result.err;
-    EXPECT_THAT(result.err, HasSubstr("visloc map: " + dir_.File(file) + ": " + message)) << file;
+    EXPECT_THAT(result.err, HasSubstr("visloc map info: " + dir_.File(file) + ": " + message))
+        << file;
   }
 }
 

@@ -49,7 +49,9 @@ TEST_F(SecurityE2eTest, TokenRolesAreEnforcedOnEveryService) {
   const std::string address = server.address();
   const ProcessResult missing = Visloc({"map", "list", "--server", address});
   EXPECT_EQ(missing.exit_code, 1);
-  EXPECT_THAT(missing.err, HasSubstr("missing bearer token"));
+  // The way out is named: the CLI's flag and variable.
+  EXPECT_THAT(missing.err,
+              HasSubstr("missing bearer token: give visloc --token TOKEN or $VISLOC_TOKEN"));
   EXPECT_THAT(missing.err, HasSubstr("gRPC code 16"));  // UNAUTHENTICATED
   const ProcessResult wrong =
       Visloc({"map", "list", "--server", address, "--token", "nope-nope-nope-nope"});
@@ -180,9 +182,18 @@ TEST_F(SecurityE2eTest, MutualTlsServesOnlyClientsWithACertificateFromTheClientC
   const ProcessResult sim = Visloc({"sim", "--out", file("seq"), "--sequence", "query_square",
                                     "--frames", "5", "--no-contact-sheet"});
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
-  const std::vector<std::string> stream = {
-      "stream", "--server", server.address(), "--tls-ca", file("server.pem"), "--map", "lab",
-      "--dataset", file("seq") + "/query_square", "--rate", "0", "--json"};
+  const std::vector<std::string> stream = {"stream",
+                                           "--server",
+                                           server.address(),
+                                           "--tls-ca",
+                                           file("server.pem"),
+                                           "--map",
+                                           "lab",
+                                           "--dataset",
+                                           file("seq") + "/query_square",
+                                           "--rate",
+                                           "0",
+                                           "--json"};
   const ProcessResult streamed =
       Visloc(with(stream, {"--tls-cert", file("robot.pem"), "--tls-key", file("robot.key")}));
   ASSERT_EQ(streamed.exit_code, 0) << streamed.err;
