@@ -16,6 +16,7 @@
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
+#include "dataset/euroc.h"
 #include "dataset/frame_range.h"
 #include "dataset/tum.h"
 #include "proto/convert.h"
@@ -25,7 +26,7 @@ namespace visloc::cli {
 namespace {
 
 struct RelocalizeArgs {
-  std::string map_name, image_path, dataset_dir, frames, trajectory_path;
+  std::string map_name, image_path, dataset_dir, sensor_path, frames, trajectory_path;
   Connection server;
   bool json = false;
 };
@@ -170,11 +171,14 @@ int RunRelocalize(const Args& raw_args) {
                    "nothing known of the camera's whereabouts: prints the pose with its evidence "
                    "and the ranked candidate keyframes, or 'not localized' (exit 3). The image is "
                    "taken to come from the map's camera unless --dataset names the dataset whose "
-                   "left camera took it. With --frames, each of those frames of the --dataset is "
+                   "left camera took it, or --camera-yaml the camera's sensor.yaml. With --frames, "
+                   "each of those frames of the --dataset is "
                    "asked alone, and --trajectory keeps the poses found.");
   args.server.AddFlags(parser);
   parser.AddFlag("map", &args.map_name, "map name on the server", true);
   parser.AddFlag("dataset", &args.dataset_dir, "dataset whose left camera took the image(s)");
+  parser.AddFlag("camera-yaml", &args.sensor_path,
+                 "or the camera's sensor.yaml (EuRoC's, as visloc calibrate writes it)");
   parser.AddFlag("frames", &args.frames,
                  "with --dataset and no IMAGE: its frames to relocalize, each alone: N (the first "
                  "N), BEGIN:END or BEGIN:END:STEP; 'all' for every frame");
@@ -188,6 +192,9 @@ int RunRelocalize(const Args& raw_args) {
     throw UsageError("give either IMAGE or --frames (with --dataset)");
   }
   if (many && args.dataset_dir.empty()) throw UsageError("--frames needs --dataset");
+  if (!args.dataset_dir.empty() && !args.sensor_path.empty()) {
+    throw UsageError("give --dataset or --camera-yaml, not both");
+  }
   if (!many && !args.trajectory_path.empty()) throw UsageError("--trajectory needs --frames");
   args.server.ApplyEnvironment();
   v1::RelocalizeRequest base;
@@ -196,6 +203,8 @@ int RunRelocalize(const Args& raw_args) {
   if (!args.dataset_dir.empty()) {
     dataset = ReadDataset(args.dataset_dir);
     proto::ToProto(dataset->left.camera, base.mutable_camera());
+  } else if (!args.sensor_path.empty()) {
+    proto::ToProto(ReadSensorYaml(args.sensor_path).camera, base.mutable_camera());
   }
   auto stub = v1::Localization::NewStub(args.server.OpenChannel());
   if (!many) return RelocalizeOneImage(*stub, args, base);

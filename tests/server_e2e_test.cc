@@ -141,6 +141,19 @@ TEST_F(ServerE2eTest, RelocalizesOneImageAndRefusesAnOutOfMapImage) {
                                  JsonNumber(found.out, "tz"));
   EXPECT_LT((position - truth->translation).norm(), 0.05);
   EXPECT_GT(JsonNumber(found.out, "inliers"), 40);
+  // A robot with no dataset names its camera by the sensor.yaml its calibration wrote.
+  const ProcessResult by_yaml = Visloc(
+      {"relocalize", "--server", server.address(), "--map", "square", "--camera-yaml",
+       kData + "/query_square/mav0/cam0/sensor.yaml", dataset.frames[60].left_path, "--json"});
+  ASSERT_EQ(by_yaml.exit_code, 0) << by_yaml.err << by_yaml.out;
+  EXPECT_EQ(JsonNumber(by_yaml.out, "tx"), JsonNumber(found.out, "tx"));
+  EXPECT_EQ(JsonNumber(by_yaml.out, "inliers"), JsonNumber(found.out, "inliers"));
+  const ProcessResult both =
+      Visloc({"relocalize", "--server", server.address(), "--map", "square", "--dataset",
+              kData + "/query_square", "--camera-yaml",
+              kData + "/query_square/mav0/cam0/sensor.yaml", dataset.frames[60].left_path});
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_THAT(both.err, HasSubstr("--dataset or --camera-yaml, not both"));
 
   const Dataset elsewhere = ReadDataset(kData + "/outofmap");
   // Without --dataset the map's camera is assumed (the same rig here).
