@@ -139,8 +139,7 @@ int RunCheck(const Args& args) {
   if (!parser.Parse(args, std::cout)) return 0;
   if (options.sample_frames < 1) throw UsageError("--frames must be at least 1");
   options.features = DefaultFeatureSettings(features);
-  const Dataset dataset =
-      ReadDataset(dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Dataset dataset = ReadDataset(dir, ParseOptionalDatasetFormat(format));
   const bool progress = ShowProgress() && !json;
   const mapping::DatasetCheck check =
       mapping::CheckDataset(dataset, options, [&](int done, int total) {
@@ -168,8 +167,7 @@ int RunGroundTruth(const Args& args) {
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
   parser.AddFlag("out", &out, "TUM file to write", /*required=*/true);
   if (!parser.Parse(args, std::cout)) return 0;
-  const Dataset dataset =
-      ReadDataset(dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Dataset dataset = ReadDataset(dir, ParseOptionalDatasetFormat(format));
   const Trajectory left_cam = dataset.GroundTruthLeftCam();
   if (left_cam.empty()) throw InputError(dir + ": no ground truth at the frames' times");
   WriteTum(out, left_cam);

@@ -7,8 +7,7 @@
 namespace visloc::cli {
 
 Dataset ReadQueryDataset(const std::string& dir, const std::string& format, bool odometry) {
-  Dataset dataset =
-      ReadDataset(dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  Dataset dataset = ReadDataset(dir, ParseOptionalDatasetFormat(format));
   if (odometry && dataset.odom_from_cam.empty()) {
     throw InputError(dir + ": --odometry given but the dataset has no odometry");
   }

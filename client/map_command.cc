@@ -287,10 +287,8 @@ int RunBuild(const Args& args) {
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   const FrameRange range = ParseFrameRange(frames);
-  const Dataset dataset = SelectFrames(
-      ReadDataset(dataset_dir,
-                  format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format))),
-      range);
+  const Dataset dataset =
+      SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
   options.builder.features = DefaultFeatureSettings(features);
   if (max_features > 0) {
     options.builder.features = WithMaxFeatures(options.builder.features, max_features);

@@ -144,8 +144,7 @@ struct PlacedSession {
 
 PlacedSession PlaceSession(const Map& existing, const std::string& dataset_dir,
                            const std::string& format, const std::string& verb, bool progress) {
-  const Dataset dataset = ReadDataset(
-      dataset_dir, format.empty() ? std::nullopt : std::optional(ParseDatasetFormat(format)));
+  const Dataset dataset = ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format));
   // Before minutes of mapping: a map grows with sessions of its own camera.
   if (!mapping::SameCamera(existing.camera, dataset.left.camera)) {
     throw InputError(StrCat("the session ", dataset_dir, "'s left camera (",

@@ -22,6 +22,11 @@ DatasetFormat ParseDatasetFormat(const std::string& text) {
   throw InputError(StrCat("unknown dataset format '", text, "' (expected euroc or kitti)"));
 }
 
+std::optional<DatasetFormat> ParseOptionalDatasetFormat(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  return ParseDatasetFormat(text);
+}
+
 Rigid3d Dataset::right_from_left() const {
   VISLOC_CHECK(right.has_value(), "dataset ", root, " has no right camera");
   return right->body_from_cam.Inverse() * left.body_from_cam;

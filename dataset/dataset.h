@@ -24,6 +24,8 @@ enum class DatasetFormat { kEuroc, kKitti };
 std::string ToString(DatasetFormat format);
 // "euroc" or "kitti"; throws InputError otherwise.
 DatasetFormat ParseDatasetFormat(const std::string& text);
+// The same for a --format flag that may be left empty: none, the layout is detected.
+std::optional<DatasetFormat> ParseOptionalDatasetFormat(const std::string& text);
 
 struct CameraInfo {
   Camera camera;
@@ -46,8 +48,8 @@ struct ImuSample {
 
 // How the left and right images were paired into stereo frames (by timestamp).
 struct StereoPairing {
-  int unpaired_left = 0;   // Left images with no right image close enough in time: left out.
-  int unpaired_right = 0;  // Right images with no left image: left out.
+  int unpaired_left = 0;      // Left images with no right image close enough in time: left out.
+  int unpaired_right = 0;     // Right images with no left image: left out.
   int64_t max_offset_ns = 0;  // Largest time difference within a pair.
 };
 

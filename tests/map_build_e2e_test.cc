@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <fstream>
 
 #include "core/util/temp_dir.h"
 #include "dataset/dataset.h"
@@ -98,28 +97,6 @@ std::string RenderDrive(const TempDir& dir) {
   return dir.File("drive");
 }
 
-// The error of `trajectory` against the drive's ground truth: {median share of the distance
-// travelled, the last pose's error as a share of the path}.
-std::pair<double, double> DriftShares(const std::string& drive, const std::string& trajectory,
-                                      const std::string& last) {
-  const std::string truth = drive + "/groundtruth_map.tum";
-  const ProcessResult all = Visloc({"eval", "--gt", truth, "--est", trajectory, "--json"});
-  EXPECT_EQ(all.exit_code, 0) << all.err;
-  // The first and the last pose alone: the last one's error over the whole path.
-  std::ifstream in(trajectory);
-  std::string line, first_pose, last_pose;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    if (first_pose.empty()) first_pose = line;
-    last_pose = line;
-  }
-  std::ofstream(last) << first_pose << "\n" << last_pose << "\n";
-  const ProcessResult end = Visloc({"eval", "--gt", truth, "--est", last, "--json"});
-  EXPECT_EQ(end.exit_code, 0) << end.err;
-  return {JsonNumber(all.out, "ate_per_distance", "median"),
-          JsonNumber(end.out, "ate_per_distance", "max")};
-}
-
 TEST(OutdoorMapE2eTest, ARigWhoseRightCameraIsTurnedIsCalibratedByItsMotionAndMapsMetrically) {
   TempDir dir;
   const std::string drive = RenderDrive(dir);
@@ -128,8 +105,8 @@ TEST(OutdoorMapE2eTest, ARigWhoseRightCameraIsTurnedIsCalibratedByItsMotionAndMa
       Visloc({"map", "build", "--dataset", drive, "--disparity-calibration", "0", "--out",
               dir.File("trusting.db"), "--trajectory", dir.File("trusting.tum"), "--json"});
   ASSERT_EQ(trusting.exit_code, 0) << trusting.err;
-  const auto [trusting_median, trusting_end] =
-      DriftShares(drive, dir.File("trusting.tum"), dir.File("last.tum"));
+  const auto [trusting_median, trusting_end] = testing::DriftShares(
+      drive + "/groundtruth_map.tum", dir.File("trusting.tum"), dir.File("last.tum"));
   std::printf("trusting the calibration: %.2f%% of the distance (median), %.2f%% at the end\n",
               100 * trusting_median, 100 * trusting_end);
   EXPECT_GT(trusting_median, 0.03);  // Measured 5.9%.
@@ -144,7 +121,8 @@ TEST(OutdoorMapE2eTest, ARigWhoseRightCameraIsTurnedIsCalibratedByItsMotionAndMa
   std::printf("estimated: right camera turned %.4f deg, offset %.3f px\n", yaw_deg, offset_px);
   EXPECT_NEAR(yaw_deg, 0.1, 0.01);  // Measured 0.1001.
   EXPECT_NEAR(offset_px, 0.0, 0.2);
-  const auto [median, end] = DriftShares(drive, dir.File("drive.tum"), dir.File("last.tum"));
+  const auto [median, end] = testing::DriftShares(drive + "/groundtruth_map.tum",
+                                                  dir.File("drive.tum"), dir.File("last.tum"));
   std::printf("calibrated: %.2f%% of the distance (median), %.2f%% at the end\n", 100 * median,
               100 * end);
   EXPECT_LT(median, 0.005);  // Measured 0.18%.

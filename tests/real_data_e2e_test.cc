@@ -304,14 +304,7 @@ TEST_F(RealDataE2eTest, EachLaterMachineHallImageAloneIsFoundToCentimetres) {
 std::pair<double, double> OnRampDrift(const TempDir& dir, const std::string& trajectory) {
   const std::string truth = dir.File("onramp_truth.tum");
   EXPECT_EQ(Visloc({"dataset", "groundtruth", kOnRamp, "--out", truth}).exit_code, 0);
-  const ProcessResult all = Visloc({"eval", "--gt", truth, "--est", trajectory, "--json"});
-  EXPECT_EQ(all.exit_code, 0) << all.err;
-  const Trajectory poses = ReadTum(trajectory);
-  WriteTum(dir.File("ends.tum"), {poses.front(), poses.back()});
-  const ProcessResult end =
-      Visloc({"eval", "--gt", truth, "--est", dir.File("ends.tum"), "--json"});
-  return {JsonNumber(all.out, "ate_per_distance", "median"),
-          JsonNumber(end.out, "ate_per_distance", "max")};
+  return testing::DriftShares(truth, trajectory, dir.File("ends.tum"));
 }
 
 // KITTI 01's rig behaves as if its right camera were turned by 0.1 deg: 2.6% of the strong,

@@ -88,16 +88,16 @@ std::vector<uint32_t> PoseTracker::PredictPoints(const Rigid3d& cam_from_map, Po
 
 Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
     const std::vector<PoseObservation>& observations, const std::vector<char>& inliers,
-    const Rigid3d& cam_from_map, double* median_depth_m) const {
+    const Rigid3d& cam_from_map) const {
   std::vector<double> depths;
   for (size_t m = 0; m < observations.size(); ++m) {
     if (inliers[m]) depths.push_back((cam_from_map * observations[m].point_in_world).z());
   }
   std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
-  *median_depth_m = depths.empty() ? 0.0 : depths[depths.size() / 2];
+  const double median_depth_m = depths.empty() ? 0.0 : depths[depths.size() / 2];
   const double angle_rad = options_.map_error_px / camera_.fx();
   const double from_origin_m = cam_from_map.Inverse().translation.norm();
-  const double position_variance = std::pow(angle_rad * *median_depth_m, 2) +
+  const double position_variance = std::pow(angle_rad * median_depth_m, 2) +
                                    std::pow(options_.map_floor_m, 2) +
                                    std::pow(options_.map_drift_fraction * from_origin_m, 2);
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
@@ -137,8 +137,8 @@ void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& fr
   const double sigma_px = std::max(0.3, fix->reproj_rmse_px);
   const double unit = options_.ransac.refine.pixel_sigma_px;
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
-  fix->systematic_covariance = SystematicCovariance(observations, refined.inlier_mask,
-                                                    fix->cam_from_map, &fix->median_depth_m);
+  fix->systematic_covariance =
+      SystematicCovariance(observations, refined.inlier_mask, fix->cam_from_map);
 }
 
 const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(

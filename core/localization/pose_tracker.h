@@ -72,11 +72,10 @@ struct PoseFix {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 6> systematic_covariance = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 6> TotalCovariance() const { return covariance + systematic_covariance; }
-  double median_depth_m = 0.0;  // Of the inliers, in the camera frame.
-  int predicted = 0;            // Points predicted visible.
-  int putatives = 0;            // Matches after the final (tight) association.
-  int inliers = 0;              // Putatives within the inlier threshold of the final pose.
-  double inlier_ratio = 0.0;    // inliers / putatives.
+  int predicted = 0;          // Points predicted visible.
+  int putatives = 0;          // Matches after the final (tight) association.
+  int inliers = 0;            // Putatives within the inlier threshold of the final pose.
+  double inlier_ratio = 0.0;  // inliers / putatives.
   int ransac_iterations = 0;
   double reproj_rmse_px = 0.0;  // Over the inliers.
   PoseStepTimes times;
@@ -111,11 +110,10 @@ class PoseTracker {
   PnpResult SolveFromMatches(const PointView& map_points, const QueryFrame& frame,
                              const std::vector<PointMatch>& matches, PoseFix* fix) const;
   // A fix's systematic covariance (PoseTrackerOptions::map_error_px and after), from its inlier
-  // observations at `cam_from_map`; writes their median depth.
+  // observations at `cam_from_map`.
   Eigen::Matrix<double, 6, 6> SystematicCovariance(const std::vector<PoseObservation>& observations,
                                                    const std::vector<char>& inliers,
-                                                   const Rigid3d& cam_from_map,
-                                                   double* median_depth_m) const;
+                                                   const Rigid3d& cam_from_map) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
   void RefineAround(const PointView& map_points, const QueryFrame& frame,
                     const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,

@@ -12,6 +12,7 @@
 
 #include "core/geometry/trajectory.h"
 #include "core/map/synthetic_map.h"
+#include "dataset/tum.h"
 #include "mapstore/map_store.h"
 #include "tests/support/process.h"
 
@@ -38,6 +39,24 @@ inline double JsonNumber(const std::string& json, const std::string& section,
 
 inline double JsonNumber(const std::string& json, const std::string& key) {
   return JsonNumber(json, "", key);
+}
+
+// How far `trajectory` drifts from the ground truth `truth_tum` (both TUM, the map frame):
+// {the median error as a share of the distance travelled, the last pose's error as a share of
+// the whole path}. `scratch_tum` receives the trajectory's first and last poses.
+inline std::pair<double, double> DriftShares(const std::string& truth_tum,
+                                             const std::string& trajectory,
+                                             const std::string& scratch_tum) {
+  const ProcessResult all = Visloc({"eval", "--gt", truth_tum, "--est", trajectory, "--json"});
+  EXPECT_EQ(all.exit_code, 0) << all.err;
+  const Trajectory poses = ReadTum(trajectory);
+  EXPECT_FALSE(poses.empty()) << trajectory;
+  if (poses.empty()) return {-1, -1};
+  WriteTum(scratch_tum, {poses.front(), poses.back()});
+  const ProcessResult end = Visloc({"eval", "--gt", truth_tum, "--est", scratch_tum, "--json"});
+  EXPECT_EQ(end.exit_code, 0) << end.err;
+  return {JsonNumber(all.out, "ate_per_distance", "median"),
+          JsonNumber(end.out, "ate_per_distance", "max")};
 }
 
 // The poses of a TUM file whose times may repeat (`visloc map export --keyframes` of a map that
