@@ -2,7 +2,10 @@
 // frames, named by their timestamps in nanoseconds, as in EuRoC's cam0/data) to visloc-server at
 // 15 Hz and prints each pose. A real robot hands its camera driver's frames to Submit() instead.
 //
-//   robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY
+//   robot_client SERVER MAP IMAGE_DIR --camera-yaml SENSOR_YAML   the camera of a calibration
+//   robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY     an undistorted pinhole camera
+//
+// SENSOR_YAML is the camera's sensor.yaml as `visloc calibrate` writes it (or EuRoC's cam0).
 
 #include <visloc/client/session.h>
 
@@ -11,22 +14,44 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
 
+namespace {
+
+const char kUsage[] =
+    "usage: robot_client SERVER MAP IMAGE_DIR --camera-yaml SENSOR_YAML\n"
+    "       robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY\n";
+
+// The camera from the arguments after IMAGE_DIR; throws std::invalid_argument.
+visloc::v1::CameraModel CameraFromArguments(int argc, char** argv) {
+  if (argc == 6 && std::string(argv[4]) == "--camera-yaml") {
+    return visloc::client::CameraFromYaml(argv[5]);
+  }
+  if (argc == 10) {
+    return visloc::client::PinholeCamera(std::stoi(argv[4]), std::stoi(argv[5]),
+                                         std::stod(argv[6]), std::stod(argv[7]),
+                                         std::stod(argv[8]), std::stod(argv[9]));
+  }
+  throw std::invalid_argument("wrong arguments");
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  if (argc != 10) {
-    std::fprintf(stderr, "usage: robot_client SERVER MAP IMAGE_DIR WIDTH HEIGHT FX FY CX CY\n");
+  visloc::client::SessionOptions options;
+  try {
+    if (argc < 4) throw std::invalid_argument("wrong arguments");
+    options.camera = CameraFromArguments(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "robot_client: %s\n%s", e.what(), kUsage);
     return 2;
   }
-  visloc::client::SessionOptions options;
   options.server = argv[1];
   options.map_name = argv[2];
   options.robot_id = "example-robot";
-  options.camera = visloc::client::PinholeCamera(std::stoi(argv[4]), std::stoi(argv[5]),
-                                                 std::stod(argv[6]), std::stod(argv[7]),
-                                                 std::stod(argv[8]), std::stod(argv[9]));
   options.encoding = visloc::client::Encoding::kJpeg;
   options.jpeg_quality = 90;
   int posed = 0, answered = 0;

@@ -42,8 +42,18 @@ address=$(sed -n 's/^listening on //p' "$work/server.out")
 [[ -n $address ]] || { cat "$work/server.log"; exit 1; }
 images=$data/query_square/mav0/cam0/data
 frames=$(ls "$images" | wc -l)
+# The CMake-built robot reads its camera from the calibration's sensor.yaml; the other is given
+# the same camera by hand. A broken sensor.yaml is refused by name before anything is sent.
+printf 'camera_model: pinhole\nresolution: [320, 240]\n' > "$work/broken.yaml"
+if "$work/robot/robot_client" "$address" square "$images" --camera-yaml "$work/broken.yaml" \
+    2> "$work/broken.err"; then
+  echo "robot_client accepted a sensor.yaml without intrinsics"; exit 1
+fi
+grep -q "broken.yaml: missing 'intrinsics'" "$work/broken.err" || { cat "$work/broken.err"; exit 1; }
 for robot in "$work/robot/robot_client" "$work/robot_pc"; do
-  "$robot" "$address" square "$images" 320 240 160 160 159.5 119.5 > "$work/robot.out"
+  camera=(320 240 160 160 159.5 119.5)
+  [[ $robot == */robot/robot_client ]] && camera=(--camera-yaml "$data/query_square/mav0/cam0/sensor.yaml")
+  "$robot" "$address" square "$images" "${camera[@]}" > "$work/robot.out"
   tail -1 "$work/robot.out"
   # Every frame sent, all but a few answered in time (a real-time robot on a loaded sanitizer
   # build may drop or be late with one: a CI run answered 119 of 120), all but the first few
@@ -52,4 +62,4 @@ for robot in "$work/robot/robot_client" "$work/robot_pc"; do
   [[ $total == "$frames" && $answered -ge $((frames - 3)) && $posed -ge $((answered - 3)) ]] || {
     echo "$robot: answered ${answered:-?} of $frames, ${posed:-?} posed"; exit 1; }
 done
-echo "installed client library: built with CMake and pkg-config, both localized $frames frames"
+echo "installed client library: built with CMake and pkg-config, both localized $frames frames (one camera from sensor.yaml)"

@@ -6,7 +6,7 @@
 //   visloc::client::SessionOptions options;
 //   options.server = "10.0.0.5:50051";
 //   options.map_name = "lab";
-//   options.camera = visloc::client::PinholeCamera(640, 480, 525, 525, 319.5, 239.5);
+//   options.camera = visloc::client::CameraFromYaml("calib/cam0/sensor.yaml");
 //   auto session = visloc::client::Session::Open(options);
 //   session->Submit(frame);                      // every camera frame; never blocks
 //   while (auto event = session->Next(50ms)) {}  // answers, drops and link changes
@@ -179,6 +179,12 @@ v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& fr
 // A pinhole camera without distortion (add four distortion values for radial-tangential, or
 // set lens_model EQUIDISTANT with k1..k4).
 v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, double cx, double cy);
+
+// The camera a calibration's sensor.yaml describes (the EuRoC/Kalibr layout that `visloc
+// calibrate` and `visloc sim` write): resolution, pinhole intrinsics [fu, fv, cu, cv] and the
+// lens (distortion_model radial-tangential, equidistant or none, with its four coefficients).
+// Throws std::invalid_argument naming the file and what is wrong with it.
+v1::CameraModel CameraFromYaml(const std::string& path);
 
 // The frame's image as it would go on the wire: grey, then encoded. Throws
 // std::invalid_argument for an empty image or one the encoder refuses.
