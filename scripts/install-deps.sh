@@ -12,7 +12,7 @@ PACKAGES=(
   sqlite3 libyaml-cpp-dev zlib1g-dev openssl
   opencv-doc  # OpenCV's stereo chessboard images and stereo_calib sample: calibration's reference
   python3 python3-grpcio python3-protobuf python3-opencv python3-numpy  # the Python client
-  python3-pip python3-setuptools  # ...installed as a package by its test
+  python3-pip python3-setuptools python3-venv  # ...installed from the checkout by its test
   # ROS 1 (Debian's own packages): bag import, visloc_ros_node, and ROS's tools for their tests.
   libroscpp-dev librosbag-dev libimage-transport-dev libtf2-ros-dev libsensor-msgs-dev
   libnav-msgs-dev libgeometry-msgs-dev libdiagnostic-msgs-dev libstd-srvs-dev pluginlib-dev

@@ -117,7 +117,9 @@ class PythonClientTest(unittest.TestCase):
         failed = [e for e in events if e.kind == "link" and e.link_state.value == "failed"]
         self.assertEqual(len(failed), 1)
         self.assertIn("no map named 'nope'", failed[0].detail)
-        self.assertFalse(session.submit(*self.frames[1]))
+        refused = session.submit(*self.frames[1])
+        self.assertFalse(refused)
+        self.assertIn("no map named 'nope'", refused.reason)
         session.close()
 
     def test_a_cut_link_is_resumed_and_tracked(self):

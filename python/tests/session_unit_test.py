@@ -109,5 +109,25 @@ class ResumeTest(unittest.TestCase):
         self.assertFalse(self.service.first_frame_of(0).HasField("map_from_cam_hint"))
 
 
+class RefusedFramesTest(unittest.TestCase):
+    """Frames the session cannot send are refused at once with the reason, as in C++."""
+
+    def test_bad_frames_and_a_closed_session_say_why(self):
+        options = SessionOptions(server="127.0.0.1:1", map_name="lab",
+                                 camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5),
+                                 give_up_after_s=0.2)
+        session = Session(options)
+        wrong = session.submit(1, np.zeros((100, 100), np.uint8))
+        self.assertFalse(wrong)
+        self.assertEqual(wrong.reason, "the image is 100x100 but the session camera is 320x240")
+        self.assertEqual(session.submit(2, None).reason, "the frame has no image")
+        self.assertEqual(session.submit(3, np.zeros((240, 320), np.float32)).reason,
+                         "the image is not 8-bit")
+        self.assertIs(session.submit(4, np.zeros((240, 320), np.uint8)), True)
+        session.close(drain_s=0.0)
+        self.assertEqual(str(session.submit(5, np.zeros((240, 320), np.uint8))),
+                         "the session is closed")
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

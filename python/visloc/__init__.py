@@ -6,10 +6,11 @@ the link is slower than the camera, answers later than ``frame_deadline_s`` are 
 and a broken or stalled stream is reopened with backoff and resumed from the last good pose (as
 the frame's map_from_cam_hint) so tracking goes on.
 
-    from visloc import Session, SessionOptions, pinhole_camera
+    from visloc import Session, SessionOptions, camera_from_yaml
     session = Session(SessionOptions(server="127.0.0.1:50051", map_name="lab",
-                                     camera=pinhole_camera(640, 480, 525, 525, 319.5, 239.5)))
-    session.submit(timestamp_ns, grey_image)          # every camera frame; never blocks
+                                     camera=camera_from_yaml("calib/cam0/sensor.yaml")))
+    sent = session.submit(timestamp_ns, grey_image)   # every camera frame; never blocks
+    if not sent: print(sent.reason)                    # wrong size, closed, refused map ...
     event = session.next(timeout_s=0.05)               # answers, drops, link changes
     session.close()
 
@@ -17,7 +18,8 @@ The wire messages are visloc.v1 (``from visloc.v1 import visloc_pb2``), generate
 repository's proto/ by Debian's protoc and grpc_python_plugin at build time.
 """
 
-from visloc.session import (Event, LinkState, Session, SessionOptions, encode_image,
-                            pinhole_camera)
+from visloc.camera import camera_from_yaml, pinhole_camera
+from visloc.session import Event, LinkState, NotSent, Session, SessionOptions, encode_image
 
-__all__ = ["Event", "LinkState", "Session", "SessionOptions", "encode_image", "pinhole_camera"]
+__all__ = ["Event", "LinkState", "NotSent", "Session", "SessionOptions", "camera_from_yaml",
+           "encode_image", "pinhole_camera"]

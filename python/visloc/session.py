@@ -84,10 +84,23 @@ class SessionOptions:
         return ""
 
 
-def pinhole_camera(width, height, fx, fy, cx, cy, distortion=()) -> pb.CameraModel:
-    """A pinhole camera (four radial-tangential distortion values, or none)."""
-    return pb.CameraModel(width=width, height=height, fx=fx, fy=fy, cx=cx, cy=cy,
-                          distortion=list(distortion))
+class NotSent:
+    """What submit() answers for a frame it cannot send: false, with the reason (the C++
+    library's why_not), e.g. ``if not (sent := session.submit(t, image)): log(sent.reason)``."""
+
+    __slots__ = ("reason",)
+
+    def __init__(self, reason: str):
+        self.reason = reason
+
+    def __bool__(self) -> bool:
+        return False
+
+    def __str__(self) -> str:
+        return self.reason
+
+    def __repr__(self) -> str:
+        return f"NotSent({self.reason!r})"
 
 
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 90) -> bytes:
@@ -183,17 +196,23 @@ class Session:
     def submit(self, timestamp_ns: int, image: Optional[np.ndarray] = None, *,
                encoded: bytes = b"", odom_from_cam: Optional[pb.Pose] = None,
                hint: Optional[pb.Pose] = None) -> bool:
-        """Hands a frame over; never blocks. False when it cannot be sent (see link_state)."""
+        """Hands a frame over; never blocks. True when taken; a false NotSent with the reason
+        when it cannot be sent (wrong size, no image, not 8-bit, closed, or refused by the
+        server: link_state FAILED), as the C++ library's Submit answers."""
         if not encoded:
             if image is None or image.size == 0:
-                return False
+                return NotSent("the frame has no image")
             if image.shape[1] != self._o.camera.width or image.shape[0] != self._o.camera.height:
-                raise ValueError(f"the image is {image.shape[1]}x{image.shape[0]} but the session "
-                                 f"camera is {self._o.camera.width}x{self._o.camera.height}")
+                return NotSent(f"the image is {image.shape[1]}x{image.shape[0]} but the session "
+                               f"camera is {self._o.camera.width}x{self._o.camera.height}")
+            if image.dtype != np.uint8:
+                return NotSent("the image is not 8-bit")
         events = []
         with self._lock:
-            if self._closing or self._refused:
-                return False
+            if self._closing:
+                return NotSent("the session is closed")
+            if self._refused:
+                return NotSent(self._refused)
             self._queue.append(_Queued(timestamp_ns, None if image is None else image.copy(),
                                        encoded, odom_from_cam, hint, time.monotonic()))
             self.stats["submitted"] += 1
