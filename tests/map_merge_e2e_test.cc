@@ -173,10 +173,10 @@ void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::s
   testing::ServerProcess server(VISLOC_SERVER_PATH, maps.path());
   auto stream = [&](const std::string& stats, const std::string& rate) {
     // Nothing dropped or late however loaded the machine (a CI run under ASan dropped 1 of
-    // 120 at 15 Hz): the frames are compared one by one.
+    // 120 at 15 Hz), and the files' own bytes at both paces: the frames are compared one by one.
     return Visloc({"stream", "--server", server.address(), "--map", "lab", "--dataset",
-                   kData + "/circle", "--rate", rate, "--max-queued", "1000", "--frame-deadline-ms",
-                   "600000", "--stats", stats, "--json"});
+                   kData + "/circle", "--rate", rate, "--encoding", "file", "--max-queued",
+                   "1000", "--frame-deadline-ms", "600000", "--stats", stats, "--json"});
   };
   ProcessResult robot_result;
   std::thread robot([&] { robot_result = stream(running, "15"); });  // 120 frames: 8 s.

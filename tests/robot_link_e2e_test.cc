@@ -234,6 +234,34 @@ TEST_F(RobotLinkE2eTest, AFrozenRobotsSlotIsFreedByTheIdleTimeout) {
   EXPECT_THAT(server.Log(), HasSubstr("event=session_idle"));
 }
 
+// At a robot's pace the CLI sends what the robot library sends (JPEG, quality 90), so a paced
+// replay meets the link as a robot would; a replay as fast as possible sends the files' bytes.
+// The summary says which.
+TEST_F(RobotLinkE2eTest, AtARobotsPaceTheCliSendsTheLibrarysJpegAndAReplayTheFiles) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const auto stream = [&](std::vector<std::string> extra) {
+    std::vector<std::string> argv = {"stream", "--server", server.address(), "--map", "square",
+                                     "--dataset", kData + "/query_square", "--frames", "12",
+                                     "--json"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return Visloc(argv);
+  };
+  const ProcessResult paced = stream({"--rate", "30"});
+  const ProcessResult replay = stream({"--rate", "0"});
+  const ProcessResult png = stream({"--rate", "30", "--encoding", "png"});
+  for (const ProcessResult* run : {&paced, &replay, &png}) {
+    ASSERT_EQ(run->exit_code, 0) << run->err;
+    EXPECT_GE(JsonNumber(run->out, "localized_fraction"), 0.9) << run->out;
+  }
+  EXPECT_THAT(paced.out, HasSubstr("\"encoding\":\"jpeg q90\""));
+  EXPECT_THAT(replay.out, HasSubstr("\"encoding\":\"file\""));
+  EXPECT_THAT(png.out, HasSubstr("\"encoding\":\"png\""));
+  EXPECT_LT(JsonNumber(paced.out, "kb_per_frame"), 0.8 * JsonNumber(replay.out, "kb_per_frame"));
+  const ProcessResult text = Visloc({"stream", "--server", server.address(), "--map", "square",
+                                     "--dataset", kData + "/query_square", "--frames", "3"});
+  EXPECT_THAT(text.out, HasSubstr("link: jpeg q90, "));
+}
+
 // A live source through OpenCV's VideoCapture: the square query written as a video file (MJPG)
 // and streamed with `--camera FILE --camera-yaml sensor.yaml`, as a robot streams its camera.
 TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
@@ -266,6 +294,11 @@ TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
       Visloc({"stream", "--server", server.address(), "--map", "square", "--camera", video});
   EXPECT_EQ(no_model.exit_code, 2);
   EXPECT_THAT(no_model.err, HasSubstr("--camera needs --camera-yaml sensor.yaml"));
+  const ProcessResult file_from_camera = Visloc(
+      {"stream", "--server", server.address(), "--map", "square", "--camera", video,
+       "--camera-yaml", kData + "/query_square/mav0/cam0/sensor.yaml", "--encoding", "file"});
+  EXPECT_EQ(file_from_camera.exit_code, 2);
+  EXPECT_THAT(file_from_camera.err, HasSubstr("--encoding file needs --dataset"));
 }
 
 }  // namespace
