@@ -1,6 +1,8 @@
 // visloc: the command-line client. See ../shared/product.md for the verbs and flags.
 
 #include <unistd.h>
+
+#include <algorithm>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -10,6 +12,7 @@
 #include "client/subcommands.h"
 #include "core/features/features.h"
 #include "core/util/args.h"
+#include "core/util/json.h"
 #include "core/util/memory.h"
 #include "core/util/version.h"
 
@@ -35,6 +38,25 @@ const std::vector<Subcommand> kCommands = {
     {"bench", "time the engine, its baselines and a reference on a dataset", RunBench},
     {"health", "ask visloc-server whether it is serving (grpc.health.v1)", RunHealth},
 };
+
+// A failed command says why on stderr ("visloc VERB: reason"). Asked for --json, it also prints
+// one JSON object on stdout, so a script that reads stdout sees the failure and its reason:
+// {"ok":false,"command":"visloc map info","error":"...","exit_code":1}. Returns `exit_code`.
+int ReportFailure(const Args& args, const std::string& command, const std::string& message,
+                  int exit_code) {
+  std::cerr << command << ": " << message << "\n";
+  if (std::find(args.begin(), args.end(), "--json") != args.end()) {
+    JsonWriter json;
+    json.BeginObject()
+        .Field("ok", false)
+        .Field("command", command)
+        .Field("error", message)
+        .Field("exit_code", exit_code)
+        .EndObject();
+    std::cout << json.str() << std::endl;
+  }
+  return exit_code;
+}
 
 }  // namespace
 }  // namespace visloc::cli
@@ -65,10 +87,9 @@ int main(int argc, char** argv) {
         "Commands:",
         kCommands, args);
   } catch (const visloc::UsageError& e) {
-    std::cerr << "visloc" << verb << ": " << e.what() << " (see 'visloc" << verb << " --help')\n";
-    return 2;
+    const std::string message = std::string(e.what()) + " (see 'visloc" + verb + " --help')";
+    return ReportFailure(args, "visloc" + verb, message, 2);
   } catch (const std::exception& e) {
-    std::cerr << "visloc" << verb << ": " << e.what() << "\n";
-    return 1;
+    return ReportFailure(args, "visloc" + verb, e.what(), 1);
   }
 }

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/outcome.h"
 #include "client/remote_map.h"
 #include "client/subcommands.h"
 #include "core/util/args.h"
@@ -212,16 +213,19 @@ int RunExport(const Args& args) {
   parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
   parser.AddFlag("keyframes", &keyframes_path, "TUM file of keyframe poses to write");
   parser.AddFlag("ply", &ply_path, "PLY file to write");
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   if (keyframes_path.empty() && ply_path.empty())
     throw UsageError("nothing to export: give --keyframes and/or --ply");
   const Map loaded = mapstore::LoadMap(ResolveMap(map, maps_dir));
+  std::string written;  // One line per file written.
   if (!keyframes_path.empty()) {
     Trajectory keyframes;
     for (const Keyframe& k : loaded.keyframes)
       keyframes.push_back({k.timestamp_ns, k.map_from_cam});
     WriteTum(keyframes_path, keyframes);
-    std::printf("%zu keyframe poses -> %s\n", keyframes.size(), keyframes_path.c_str());
+    written = StrCat(keyframes.size(), " keyframe poses -> ", keyframes_path);
   }
   if (!ply_path.empty()) {
     std::vector<ColoredPoint> cloud;
@@ -232,10 +236,15 @@ int RunExport(const Args& args) {
     WritePly(ply_path, cloud,
              StrCat("visloc map ", loaded.metadata.name, ": ", loaded.points.size(),
                     " points (grey), ", loaded.keyframes.size(), " keyframes (red)"));
-    std::printf("%zu points and %zu keyframes -> %s\n", loaded.points.size(),
-                loaded.keyframes.size(), ply_path.c_str());
+    written += StrCat(written.empty() ? "" : "\n", loaded.points.size(), " points and ",
+                      loaded.keyframes.size(), " keyframes -> ", ply_path);
   }
-  return 0;
+  return PrintOutcome(json, written,
+                      {{"map", loaded.metadata.name},
+                       {"keyframes", static_cast<int64_t>(loaded.keyframes.size())},
+                       {"points", static_cast<int64_t>(loaded.points.size())},
+                       {"keyframes_tum", keyframes_path},
+                       {"ply", ply_path}});
 }
 
 int RunBuild(const Args& args) {
@@ -415,12 +424,13 @@ int RunDelete(const Args& args) {
   parser.AddPositional("NAME", &name, "the map's name");
   parser.AddFlag("maps", &maps_dir, "maps folder");
   server.AddFlags(parser, /*server_required=*/false);
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.server.empty()) return RemoteMapDelete(server, name);
+  if (!server.server.empty()) return RemoteMapDelete(server, name, json);
   mapstore::MapDirectory(maps_dir).Remove(name);
-  std::printf("deleted %s\n", name.c_str());
-  return 0;
+  return PrintOutcome(json, StrCat("deleted ", name), {{"deleted", name}, {"maps", maps_dir}});
 }
 
 int RunRename(const Args& args) {
@@ -432,12 +442,14 @@ int RunRename(const Args& args) {
   parser.AddPositional("NEW", &to, "the new name");
   parser.AddFlag("maps", &maps_dir, "maps folder");
   server.AddFlags(parser, /*server_required=*/false);
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.server.empty()) return RemoteMapRename(server, from, to);
+  if (!server.server.empty()) return RemoteMapRename(server, from, to, json);
   mapstore::MapDirectory(maps_dir).Rename(from, to);
-  std::printf("renamed %s -> %s\n", from.c_str(), to.c_str());
-  return 0;
+  return PrintOutcome(json, StrCat("renamed ", from, " -> ", to),
+                      {{"renamed", from}, {"to", to}, {"maps", maps_dir}});
 }
 
 int RunUpload(const Args& args) {
@@ -451,9 +463,11 @@ int RunUpload(const Args& args) {
   parser.AddFlag("name", &name, "name on the server (default: the map's own name)");
   server.AddFlags(parser);
   parser.AddSwitch("replace", &replace, "replace a map of that name");
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   server.ApplyEnvironment();
-  return RemoteMapUpload(server, path, name, replace);
+  return RemoteMapUpload(server, path, name, replace, json);
 }
 
 int RunDownload(const Args& args) {
@@ -463,9 +477,11 @@ int RunDownload(const Args& args) {
   parser.AddPositional("NAME", &name, "the map's name on the server");
   parser.AddFlag("out", &out, "map file to write", /*required=*/true);
   server.AddFlags(parser);
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   server.ApplyEnvironment();
-  return RemoteMapDownload(server, name, out);
+  return RemoteMapDownload(server, name, out, json);
 }
 
 }  // namespace

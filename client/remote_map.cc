@@ -1,5 +1,7 @@
 #include "client/remote_map.h"
 
+#include "client/outcome.h"
+
 #include <grpcpp/grpcpp.h>
 
 #include <cstdio>
@@ -92,7 +94,7 @@ int RemoteMapInfo(const Connection& server, const std::string& name, bool json) 
 }
 
 int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,
-                    bool replace) {
+                    bool replace, bool json) {
   // Refuse to send what the server would refuse anyway, with the local file's problem.
   const mapstore::MapInfo local = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
   const std::string bytes = ReadFileBytes(path);
@@ -115,13 +117,19 @@ int RemoteMapUpload(const Connection& server, const std::string& path, const std
   }
   writer->WritesDone();
   CheckCall(writer->Finish(), server.server);
-  std::printf("uploaded %s as '%s' (%zu bytes, %u keyframes, %llu points)\n", path.c_str(),
-              target.c_str(), bytes.size(), info.keyframes(),
-              static_cast<unsigned long long>(info.points()));
-  return 0;
+  return PrintOutcome(json,
+                      StrCat("uploaded ", path, " as '", target, "' (", bytes.size(), " bytes, ",
+                             info.keyframes(), " keyframes, ", info.points(), " points)"),
+                      {{"map", target},
+                       {"server", server.server},
+                       {"bytes", static_cast<int64_t>(bytes.size())},
+                       {"keyframes", static_cast<int64_t>(info.keyframes())},
+                       {"points", static_cast<int64_t>(info.points())},
+                       {"replaced", static_cast<int64_t>(replace)}});
 }
 
-int RemoteMapDownload(const Connection& server, const std::string& name, const std::string& out) {
+int RemoteMapDownload(const Connection& server, const std::string& name, const std::string& out,
+                      bool json) {
   grpc::ClientContext context;
   server.Prepare(&context);
   v1::MapName request;
@@ -149,23 +157,25 @@ int RemoteMapDownload(const Connection& server, const std::string& name, const s
   WriteFileAtomically(out, bytes);
   const auto report = mapstore::VerifyMapFile(out);
   if (!report.ok()) throw InputError(out + ": downloaded map is not sound: " + report.problems[0]);
-  std::printf("downloaded '%s' to %s (%zu bytes, CRC-32 checked, map verified)\n", name.c_str(),
-              out.c_str(), bytes.size());
-  return 0;
+  return PrintOutcome(
+      json, StrCat("downloaded '", name, "' to ", out, " (", bytes.size(),
+                   " bytes, CRC-32 checked, map verified)"),
+      {{"map", name}, {"out", out}, {"bytes", static_cast<int64_t>(bytes.size())}});
 }
 
-int RemoteMapDelete(const Connection& server, const std::string& name) {
+int RemoteMapDelete(const Connection& server, const std::string& name, bool json) {
   grpc::ClientContext context;
   server.Prepare(&context);
   v1::MapName request;
   request.set_name(name);
   v1::Empty response;
   CheckCall(Connect(server)->DeleteMap(&context, request, &response), server.server);
-  std::printf("deleted '%s' on %s\n", name.c_str(), server.server.c_str());
-  return 0;
+  return PrintOutcome(json, StrCat("deleted '", name, "' on ", server.server),
+                      {{"deleted", name}, {"server", server.server}});
 }
 
-int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to) {
+int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to,
+                    bool json) {
   grpc::ClientContext context;
   server.Prepare(&context);
   v1::RenameMapRequest request;
@@ -173,8 +183,8 @@ int RemoteMapRename(const Connection& server, const std::string& from, const std
   request.set_to(to);
   v1::MapInfo info;
   CheckCall(Connect(server)->RenameMap(&context, request, &info), server.server);
-  std::printf("renamed '%s' -> '%s' on %s\n", from.c_str(), to.c_str(), server.server.c_str());
-  return 0;
+  return PrintOutcome(json, StrCat("renamed '", from, "' -> '", to, "' on ", server.server),
+                      {{"renamed", from}, {"to", to}, {"server", server.server}});
 }
 
 }  // namespace visloc::cli

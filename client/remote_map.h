@@ -12,10 +12,12 @@ int RemoteMapList(const Connection& server, bool json);
 int RemoteMapInfo(const Connection& server, const std::string& name, bool json);
 // `name` empty: the map's own name. Sends the file in chunks with its size and CRC-32.
 int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,
-                    bool replace);
+                    bool replace, bool json);
 // Writes the map atomically to `out` after checking size, CRC-32 and the map itself.
-int RemoteMapDownload(const Connection& server, const std::string& name, const std::string& out);
-int RemoteMapDelete(const Connection& server, const std::string& name);
-int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to);
+int RemoteMapDownload(const Connection& server, const std::string& name, const std::string& out,
+                      bool json);
+int RemoteMapDelete(const Connection& server, const std::string& name, bool json);
+int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to,
+                    bool json);
 
 }  // namespace visloc::cli

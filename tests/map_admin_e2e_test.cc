@@ -6,6 +6,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -101,6 +102,46 @@ TEST_F(MapAdminE2eTest, UploadListDownloadRenameDelete) {
   const ProcessResult gone = Visloc({"map", "delete", "lab2", "--server", address});
   EXPECT_EQ(gone.exit_code, 1);
   EXPECT_THAT(gone.err, HasSubstr("no map named 'lab2'"));
+}
+
+// With --json every map verb prints one JSON object on stdout, whether it worked ("ok":true and
+// what it did) or not ("ok":false, the error and the exit code), remote and local alike.
+TEST_F(MapAdminE2eTest, EveryMapVerbAnswersInJsonWhenAsked) {
+  const std::string address = server_.address();
+  const auto json = [](std::vector<std::string> argv, int exit_code) {
+    argv.push_back("--json");
+    const ProcessResult run = Visloc(argv);
+    EXPECT_EQ(run.exit_code, exit_code) << run.err;
+    EXPECT_EQ(run.out.front(), '{') << run.out;
+    EXPECT_EQ(run.out.substr(run.out.size() - 2), "}\n") << run.out;
+    EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 1) << run.out;
+    return run.out;
+  };
+  EXPECT_THAT(json({"map", "upload", local_.File("lab.db"), "--server", address}, 0),
+              HasSubstr("\"ok\":true,\"map\":\"lab\""));
+  EXPECT_THAT(json({"map", "upload", local_.File("lab.db"), "--server", address}, 1),
+              HasSubstr("\"ok\":false,\"command\":\"visloc map upload\",\"error\":\"server "));
+  EXPECT_THAT(json({"map", "download", "lab", "--out", local_.File("copy.db"), "--server",
+                    address}, 0),
+              HasSubstr("\"bytes\":"));
+  EXPECT_THAT(json({"map", "rename", "lab", "lab2", "--server", address}, 0),
+              HasSubstr("\"renamed\":\"lab\",\"to\":\"lab2\""));
+  EXPECT_THAT(json({"map", "delete", "lab2", "--server", address}, 0),
+              HasSubstr("\"deleted\":\"lab2\""));
+  EXPECT_THAT(json({"map", "info", "lab2", "--server", address}, 1),
+              HasSubstr("no map named 'lab2'"));
+  EXPECT_THAT(json({"map", "export", local_.File("copy.db"), "--keyframes",
+                    local_.File("k.tum")}, 0),
+              HasSubstr("\"keyframes\":20"));
+  EXPECT_THAT(json({"map", "info", local_.File("nope.db")}, 1),
+              HasSubstr("\"error\":\"" + local_.File("nope.db") + ": no such map file\""));
+  EXPECT_THAT(json({"map", "rename", "copy", "lab3", "--maps", local_.path()}, 0),
+              HasSubstr("\"to\":\"lab3\""));
+  EXPECT_THAT(json({"map", "delete", "lab3", "--maps", local_.path()}, 0),
+              HasSubstr("\"deleted\":\"lab3\""));
+  EXPECT_THAT(json({"map", "build"}, 2), HasSubstr("\"exit_code\":2"));
+  EXPECT_THAT(json({"health", "--server", "127.0.0.1:1", "--timeout-s", "1"}, 1),
+              HasSubstr("\"command\":\"visloc health\""));
 }
 
 TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
