@@ -424,11 +424,14 @@ int RunDelete(const Args& args) {
   parser.AddPositional("NAME", &name, "the map's name");
   parser.AddFlag("maps", &maps_dir, "maps folder");
   server.AddFlags(parser, /*server_required=*/false);
-  bool json = false;
+  bool force = false, json = false;
+  parser.AddSwitch("force", &force,
+                   "with --server: delete it although robots are localizing in it (they keep it "
+                   "until their sessions end)");
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   RequireOneOf(maps_dir, server);
-  if (!server.server.empty()) return RemoteMapDelete(server, name, json);
+  if (!server.server.empty()) return RemoteMapDelete(server, name, force, json);
   mapstore::MapDirectory(maps_dir).Remove(name);
   return PrintOutcome(json, StrCat("deleted ", name), {{"deleted", name}, {"maps", maps_dir}});
 }
@@ -463,11 +466,15 @@ int RunUpload(const Args& args) {
   parser.AddFlag("name", &name, "name on the server (default: the map's own name)");
   server.AddFlags(parser);
   parser.AddSwitch("replace", &replace, "replace a map of that name");
-  bool json = false;
+  bool force = false, json = false;
+  parser.AddSwitch("force", &force,
+                   "with --replace: replace it although robots are localizing in it (running "
+                   "sessions keep the old map, new ones get the new)");
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
+  if (force && !replace) throw UsageError("--force goes with --replace");
   server.ApplyEnvironment();
-  return RemoteMapUpload(server, path, name, replace, json);
+  return RemoteMapUpload(server, path, name, replace, force, json);
 }
 
 int RunDownload(const Args& args) {

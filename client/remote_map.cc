@@ -94,7 +94,7 @@ int RemoteMapInfo(const Connection& server, const std::string& name, bool json) 
 }
 
 int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,
-                    bool replace, bool json) {
+                    bool replace, bool force, bool json) {
   // Refuse to send what the server would refuse anyway, with the local file's problem.
   const mapstore::MapInfo local = mapstore::SummarizeMap(mapstore::LoadMap(path), path);
   const std::string bytes = ReadFileBytes(path);
@@ -104,6 +104,7 @@ int RemoteMapUpload(const Connection& server, const std::string& path, const std
   header->set_size_bytes(bytes.size());
   header->set_crc32(mapstore::Crc32(bytes));
   header->set_replace(replace);
+  header->set_force(force);
   const std::string target = header->name();
   grpc::ClientContext context;
   server.Prepare(&context);
@@ -163,11 +164,12 @@ int RemoteMapDownload(const Connection& server, const std::string& name, const s
       {{"map", name}, {"out", out}, {"bytes", static_cast<int64_t>(bytes.size())}});
 }
 
-int RemoteMapDelete(const Connection& server, const std::string& name, bool json) {
+int RemoteMapDelete(const Connection& server, const std::string& name, bool force, bool json) {
   grpc::ClientContext context;
   server.Prepare(&context);
   v1::MapName request;
   request.set_name(name);
+  request.set_force(force);
   v1::Empty response;
   CheckCall(Connect(server)->DeleteMap(&context, request, &response), server.server);
   return PrintOutcome(json, StrCat("deleted '", name, "' on ", server.server),

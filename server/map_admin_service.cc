@@ -35,6 +35,18 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
   }
 }
 
+// Refuses to delete or replace a map sessions are localizing in, unless forced: the operator
+// should know robots are on it. `how` is the command that would force it.
+Status RefuseIfInUse(const MapCache& maps, const std::string& name, bool force,
+                     const std::string& what, const std::string& how) {
+  const int users = maps.UsersOf(name);
+  if (force || users == 0) return Status::OK;
+  return Status(StatusCode::FAILED_PRECONDITION,
+                StrCat("map '", name, "' is in use by ", users,
+                       users == 1 ? " session" : " sessions", "; ", what, " it anyway with ", how,
+                       " (running sessions keep the map they hold until they end)"));
+}
+
 }  // namespace
 
 MapAdminService::MapAdminService(MapCache* maps, const MapAdminOptions& options,
@@ -95,6 +107,13 @@ Status MapAdminService::UploadMap(grpc::ServerContext* context,
                     "a map named '" + header.name() +
                         "' already exists; replace it with visloc map upload --replace (the "
                         "upload header's replace field)");
+    }
+    if (header.replace() && maps_->directory().Contains(header.name())) {
+      if (Status in_use = RefuseIfInUse(*maps_, header.name(), header.force(), "replace",
+                                        "visloc map upload --replace --force");
+          !in_use.ok()) {
+        return in_use;
+      }
     }
     staged = maps_->directory().StagingPathFor(header.name());
     uint64_t received = 0;
@@ -174,8 +193,15 @@ Status MapAdminService::DeleteMap(grpc::ServerContext* context, const v1::MapNam
     if (!maps_->directory().Contains(request->name())) {
       return Status(StatusCode::NOT_FOUND, "no map named '" + request->name() + "'");
     }
+    if (Status in_use = RefuseIfInUse(*maps_, request->name(), request->force(), "delete",
+                                      "visloc map delete --force");
+        !in_use.ok()) {
+      return in_use;
+    }
     mapstore::MapDirectory(maps_->directory().dir()).Remove(request->name());
-    Log("map_deleted", {{"map", request->name()}, {"peer", context->peer()}});
+    Log("map_deleted", {{"map", request->name()},
+                        {"sessions_using", StrCat(maps_->UsersOf(request->name()))},
+                        {"peer", context->peer()}});
     return Status::OK;
   } catch (const std::exception& e) {
     return StatusFromException(e, "DeleteMap");

@@ -72,7 +72,7 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
     if (it != entries_.end() && it->second.identity == identity) {
       it->second.last_used = std::chrono::steady_clock::now();
       ++stats_.hits;
-      return it->second.map;
+      return Lease(name, it->second.map);
     }
   }
   // Loaded under this name's lock only: other maps stay available meanwhile.
@@ -82,7 +82,36 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
   entries_[name] = {map, identity, std::chrono::steady_clock::now()};
   ++stats_.loads;
   stats_.paged_loads += paged ? 1 : 0;
-  return map;
+  return Lease(name, map);
+}
+
+std::shared_ptr<const LocalizationMap> MapCache::Lease(const std::string& name,
+                                                       std::shared_ptr<const LocalizationMap> map) {
+  struct Held {
+    std::shared_ptr<const LocalizationMap> map;
+    std::shared_ptr<Users> users;
+    std::string name;
+    ~Held() {
+      std::lock_guard<std::mutex> lock(users->mutex);
+      if (--users->count[name] <= 0) users->count.erase(name);
+    }
+  };
+  {
+    std::lock_guard<std::mutex> lock(users_->mutex);
+    ++users_->count[name];
+  }
+  auto held = std::make_shared<Held>();
+  held->map = std::move(map);
+  held->users = users_;
+  held->name = name;
+  const LocalizationMap* raw = held->map.get();
+  return std::shared_ptr<const LocalizationMap>(std::move(held), raw);  // Aliasing: owns `held`.
+}
+
+int MapCache::UsersOf(const std::string& name) const {
+  std::lock_guard<std::mutex> lock(users_->mutex);
+  const auto it = users_->count.find(name);
+  return it == users_->count.end() ? 0 : it->second;
 }
 
 int MapCache::UnloadIdle() {

@@ -36,8 +36,12 @@ class MapCache {
   MapCache(std::string maps_dir, std::chrono::seconds idle_unload, size_t map_memory_bytes = 0);
 
   // The map NAME, loading it if needed. Throws NotFoundError for a missing map ("no map named
-  // ..."), InputError for an invalid name or a map file that does not load (the reason).
+  // ..."), InputError for an invalid name or a map file that does not load (the reason). The
+  // caller holds the map as long as it keeps the pointer, and counts as its user meanwhile.
   std::shared_ptr<const LocalizationMap> Acquire(const std::string& name);
+  // How many holders of Acquire()'s pointers NAME has now (sessions localizing in it, a
+  // relocalization under way), whichever version of the file they hold.
+  int UsersOf(const std::string& name) const;
   // Drops maps no session holds that have been idle longer than the limit. Returns how many.
   int UnloadIdle();
 
@@ -67,6 +71,16 @@ class MapCache {
   // other maps stay available.
   std::shared_ptr<std::mutex> LoadLockFor(const std::string& name);
 
+  // The pointer Acquire() hands out: `map`, counted as a user of `name` while it lives.
+  std::shared_ptr<const LocalizationMap> Lease(const std::string& name,
+                                               std::shared_ptr<const LocalizationMap> map);
+
+  // Users per map name; shared with the leases, which may outlive the cache.
+  struct Users {
+    std::mutex mutex;
+    std::map<std::string, int> count;
+  };
+
   mapstore::MapDirectory directory_;
   std::chrono::seconds idle_unload_;
   size_t map_memory_bytes_;
@@ -74,6 +88,7 @@ class MapCache {
   std::map<std::string, Entry> entries_;
   std::map<std::string, std::shared_ptr<std::mutex>> load_locks_;
   MapCacheStats stats_;
+  std::shared_ptr<Users> users_ = std::make_shared<Users>();
 };
 
 }  // namespace visloc::server

@@ -107,6 +107,33 @@ TEST(MapCacheTest, UnloadsOnlyMapsNoSessionHolds) {
   EXPECT_EQ(cache.loaded(), 0);
 }
 
+TEST(MapCacheTest, CountsTheUsersOfAMapAcrossItsVersions) {
+  TempDir dir;
+  mapstore::SaveMap(SmallMap(100), dir.File("lab.db"));
+  MapCache cache(dir.path(), std::chrono::seconds(0));
+  EXPECT_EQ(cache.UsersOf("lab"), 0);
+  auto first = cache.Acquire("lab");
+  auto second = cache.Acquire("lab");
+  EXPECT_EQ(cache.UsersOf("lab"), 2);
+  mapstore::SaveMap(SmallMap(150), dir.File("lab.db"));  // Replaced: a third user, new version.
+  auto third = cache.Acquire("lab");
+  EXPECT_EQ(cache.UsersOf("lab"), 3);
+  EXPECT_EQ(cache.UsersOf("other"), 0);
+  first.reset();
+  third.reset();
+  EXPECT_EQ(cache.UsersOf("lab"), 1);
+  second.reset();
+  EXPECT_EQ(cache.UsersOf("lab"), 0);
+  // A session may outlive the cache (a server shutting down): its lease still lets go safely.
+  std::shared_ptr<const LocalizationMap> late;
+  {
+    MapCache gone(dir.path(), std::chrono::seconds(0));
+    late = gone.Acquire("lab");
+  }
+  EXPECT_EQ(late->point_count(), 150u);
+  late.reset();
+}
+
 TEST(MapCacheTest, UnknownBrokenAndEscapingNamesAreRefusedClearly) {
   TempDir dir;
   MapCache cache(dir.path(), std::chrono::seconds(60));

@@ -183,10 +183,22 @@ void ExpectRunningSessionsKeepTheOldMap(const std::string& partial, const std::s
   // The replacement comes once the robot's session is open on the old map, however long the
   // robot takes to start.
   const bool robot_started = server.WaitForLog("event=session_start", 30000);
-  const ProcessResult upload = Visloc(
+  // A map a robot is on is neither deleted nor replaced without --force, and the refusal says
+  // how many sessions use it.
+  const ProcessResult delete_in_use = Visloc({"map", "delete", "lab", "--server", server.address()});
+  const ProcessResult replace_in_use = Visloc(
       {"map", "upload", extended, "--server", server.address(), "--name", "lab", "--replace"});
+  const ProcessResult upload = Visloc({"map", "upload", extended, "--server", server.address(),
+                                       "--name", "lab", "--replace", "--force"});
   robot.join();
   ASSERT_TRUE(robot_started) << server.Log();
+  EXPECT_EQ(delete_in_use.exit_code, 1);
+  EXPECT_THAT(delete_in_use.err,
+              HasSubstr("map 'lab' is in use by 1 session; delete it anyway with visloc map "
+                        "delete --force"));
+  EXPECT_EQ(replace_in_use.exit_code, 1);
+  EXPECT_THAT(replace_in_use.err, HasSubstr("replace it anyway with visloc map upload --replace "
+                                            "--force"));
   ASSERT_EQ(upload.exit_code, 0) << upload.err;
   ASSERT_EQ(robot_result.exit_code, 0) << robot_result.err;
   EXPECT_EQ(JsonNumber(robot_result.out, "frames"), 120);
