@@ -1,5 +1,6 @@
 #include "client/remote_map.h"
 
+#include "client/map_report.h"
 #include "client/outcome.h"
 
 #include <grpcpp/grpcpp.h>
@@ -13,6 +14,7 @@
 #include "core/util/text_file.h"
 #include "mapstore/checksum.h"
 #include "mapstore/map_store.h"
+#include "proto/map_info_convert.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc::cli {
@@ -25,34 +27,9 @@ std::unique_ptr<v1::MapAdmin::Stub> Connect(const Connection& server) {
   return v1::MapAdmin::NewStub(server.OpenChannel());
 }
 
-void WriteJson(JsonWriter& json, const v1::MapInfo& info) {
-  json.BeginObject()
-      .Field("name", info.name())
-      .Field("available", info.available())
-      .Field("size_bytes", static_cast<int64_t>(info.size_bytes()));
-  if (info.available()) {
-    json.Field("keyframes", static_cast<int64_t>(info.keyframes()))
-        .Field("points", static_cast<int64_t>(info.points()))
-        .Field("features", info.feature_kind())
-        .Field("schema_version", static_cast<int64_t>(info.schema_version()))
-        .Field("builder", info.builder())
-        .Field("source_dataset", info.source_dataset())
-        .Field("created_unix_s", static_cast<int64_t>(info.created_unix_s()))
-        .Field("lineage", info.lineage());
-  } else {
-    json.Field("problem", info.problem());
-  }
-  json.EndObject();
-}
-
-void PrintRow(const v1::MapInfo& info) {
-  if (info.available()) {
-    std::printf("%-24s %10u %10llu %12llu B  %s\n", info.name().c_str(), info.keyframes(),
-                static_cast<unsigned long long>(info.points()),
-                static_cast<unsigned long long>(info.size_bytes()), info.feature_kind().c_str());
-  } else {
-    std::printf("%-24s unavailable: %s\n", info.name().c_str(), info.problem().c_str());
-  }
+// A server's map as the entry a local maps folder would list.
+mapstore::MapDirectory::Entry EntryOf(const v1::MapInfo& info, const Connection& server) {
+  return proto::FromProto(info, StrCat(info.name(), " on ", server.server));
 }
 
 }  // namespace
@@ -62,18 +39,9 @@ int RemoteMapList(const Connection& server, bool json) {
   server.Prepare(&context);
   v1::ListMapsResponse response;
   CheckCall(Connect(server)->ListMaps(&context, v1::ListMapsRequest(), &response), server.server);
-  if (json) {
-    JsonWriter writer;
-    writer.BeginArray();
-    for (const auto& info : response.maps()) WriteJson(writer, info);
-    writer.EndArray();
-    std::cout << writer.str() << "\n";
-    return 0;
-  }
-  std::printf("%-24s %10s %10s %14s  %s\n", "NAME", "KEYFRAMES", "POINTS", "SIZE", "FEATURES");
-  for (const auto& info : response.maps()) PrintRow(info);
-  std::printf("%d maps on %s\n", response.maps_size(), server.server.c_str());
-  return 0;
+  std::vector<mapstore::MapDirectory::Entry> entries;
+  for (const v1::MapInfo& info : response.maps()) entries.push_back(EntryOf(info, server));
+  return PrintMapList(entries, "on " + server.server, json);
 }
 
 int RemoteMapInfo(const Connection& server, const std::string& name, bool json) {
@@ -83,14 +51,9 @@ int RemoteMapInfo(const Connection& server, const std::string& name, bool json) 
   request.set_name(name);
   v1::MapInfo info;
   CheckCall(Connect(server)->GetMapInfo(&context, request, &info), server.server);
-  if (json) {
-    JsonWriter writer;
-    WriteJson(writer, info);
-    std::cout << writer.str() << "\n";
-  } else {
-    PrintRow(info);
-  }
-  return 0;
+  const mapstore::MapDirectory::Entry entry = EntryOf(info, server);
+  if (!entry.info) throw InputError(StrCat(entry.path, ": unavailable: ", entry.error));
+  return PrintMapInfo(*entry.info, json);
 }
 
 int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,

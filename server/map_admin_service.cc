@@ -6,6 +6,7 @@
 #include "core/util/check.h"
 #include "core/util/text_file.h"
 #include "mapstore/checksum.h"
+#include "proto/map_info_convert.h"
 #include "server/client_errors.h"
 #include "server/localization_service.h"
 #include "server/log.h"
@@ -18,21 +19,10 @@ using grpc::StatusCode;
 
 constexpr size_t kChunkBytes = 1 << 20;
 
+// The entry as the client sees it: no server paths, and a problem redacted for clients.
 void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
-  out->set_name(entry.name);
-  out->set_size_bytes(entry.file_bytes);
-  out->set_available(entry.info.has_value());
+  proto::ToProto(entry, out);
   out->set_problem(RedactForClient(entry.error));
-  if (entry.info) {
-    out->set_keyframes(static_cast<uint32_t>(entry.info->keyframes));
-    out->set_points(entry.info->points);
-    out->set_feature_kind(entry.info->features.kind);
-    out->set_schema_version(entry.info->schema_version);
-    out->set_builder(entry.info->metadata.builder);
-    out->set_source_dataset(entry.info->metadata.source_dataset);
-    out->set_created_unix_s(entry.info->metadata.created_unix_s);
-    out->set_lineage(entry.info->metadata.lineage);
-  }
 }
 
 // Refuses to delete or replace a map sessions are localizing in, unless forced: the operator

@@ -144,6 +144,49 @@ TEST_F(MapAdminE2eTest, EveryMapVerbAnswersInJsonWhenAsked) {
               HasSubstr("\"command\":\"visloc health\""));
 }
 
+// A map on the server reads as the same file does locally: `map info` shows the camera, extent,
+// features and the rest line for line, `map list` has the same columns, and a broken map on
+// the server fails `map info` (exit 1) as a broken local file does.
+TEST_F(MapAdminE2eTest, RemoteInfoAndListReadAsTheLocalFile) {
+  const std::string address = server_.address();
+  ASSERT_EQ(Visloc({"map", "upload", local_.File("lab.db"), "--server", address}).exit_code, 0);
+  const ProcessResult local = Visloc({"map", "info", local_.File("lab.db")});
+  const ProcessResult remote = Visloc({"map", "info", "lab", "--server", address});
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  ASSERT_EQ(remote.exit_code, 0) << remote.err;
+  // All but the first line (which names where the map is) are the same.
+  const auto after_first_line = [](const std::string& text) {
+    return text.substr(text.find('\n') + 1);
+  };
+  EXPECT_EQ(after_first_line(remote.out), after_first_line(local.out));
+  EXPECT_THAT(remote.out, HasSubstr("camera        "));
+  EXPECT_THAT(remote.out, HasSubstr("lab on " + address));
+  const ProcessResult local_json = Visloc({"map", "info", local_.File("lab.db"), "--json"});
+  const ProcessResult remote_json = Visloc({"map", "info", "lab", "--server", address, "--json"});
+  const auto without_path = [](const std::string& json) {
+    const size_t start = json.find("\"path\":");
+    return json.substr(0, start) + json.substr(json.find(',', start) + 1);
+  };
+  EXPECT_EQ(without_path(remote_json.out), without_path(local_json.out));
+
+  std::filesystem::copy_file(local_.File("lab.db"), local_.File("folder_lab.db"));
+  const ProcessResult local_list = Visloc({"map", "list", "--maps", maps_.path()});
+  const ProcessResult remote_list = Visloc({"map", "list", "--server", address});
+  const auto first_two_lines = [](const std::string& text) {
+    return text.substr(0, text.find('\n', text.find('\n') + 1));
+  };
+  EXPECT_EQ(first_two_lines(remote_list.out), first_two_lines(local_list.out));
+  EXPECT_THAT(remote_list.out, HasSubstr("1 maps on " + address));
+
+  const std::string bytes = ReadFileBytes(local_.File("lab.db"));
+  std::ofstream(maps_.File("broken.db"), std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  const ProcessResult broken = Visloc({"map", "info", "broken", "--server", address});
+  EXPECT_EQ(broken.exit_code, 1);
+  EXPECT_THAT(broken.err, HasSubstr("broken on " + address + ": unavailable: "));
+  EXPECT_THAT(Visloc({"map", "list", "--server", address}).out,
+              HasSubstr("broken                   unavailable: "));
+}
+
 TEST_F(MapAdminE2eTest, AnUploadCutOffHalfWayLeavesNoMapBehind) {
   const std::string bytes = ReadFileBytes(local_.File("lab.db"));
   const grpc::Status status = RawUpload("lab", bytes, Crc(bytes), bytes.size() / 2);

@@ -1,0 +1,97 @@
+#include "proto/map_info_convert.h"
+
+#include "proto/convert.h"
+
+namespace visloc::proto {
+namespace {
+
+void BoxToProto(const Eigen::AlignedBox3d& box, v1::Box3* out) {
+  out->set_min_x(box.min().x());
+  out->set_min_y(box.min().y());
+  out->set_min_z(box.min().z());
+  out->set_max_x(box.max().x());
+  out->set_max_y(box.max().y());
+  out->set_max_z(box.max().z());
+}
+
+// An unset box is empty (Eigen's default box is).
+Eigen::AlignedBox3d BoxFromProto(bool has_box, const v1::Box3& box) {
+  if (!has_box) return Eigen::AlignedBox3d();
+  return Eigen::AlignedBox3d(Eigen::Vector3d(box.min_x(), box.min_y(), box.min_z()),
+                             Eigen::Vector3d(box.max_x(), box.max_y(), box.max_z()));
+}
+
+void DetailsToProto(const mapstore::MapInfo& info, v1::MapDetails* out) {
+  ToProto(info.camera, out->mutable_camera());
+  out->set_descriptor_type(ToString(info.features.descriptor_type));
+  out->set_descriptor_dim(info.features.descriptor_dim);
+  out->set_observations(info.observations);
+  out->set_mean_reproj_error_px(info.mean_reproj_error_px);
+  if (!info.point_extent.isEmpty()) BoxToProto(info.point_extent, out->mutable_point_extent());
+  if (!info.keyframe_extent.isEmpty()) {
+    BoxToProto(info.keyframe_extent, out->mutable_keyframe_extent());
+  }
+  out->set_kernel_learned(info.kernel_learned);
+  out->set_default_k(info.kernel.default_k);
+  out->set_default_probability_threshold(info.kernel.default_probability_threshold);
+  out->set_vocabulary_words(info.vocabulary_words);
+  out->set_memory_bytes(info.memory_bytes);
+}
+
+}  // namespace
+
+void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
+  out->set_name(entry.name);
+  out->set_size_bytes(entry.file_bytes);
+  out->set_available(entry.info.has_value());
+  if (!entry.info) return;
+  const mapstore::MapInfo& info = *entry.info;
+  out->set_keyframes(static_cast<uint32_t>(info.keyframes));
+  out->set_points(info.points);
+  out->set_feature_kind(info.features.kind);
+  out->set_schema_version(info.schema_version);
+  out->set_builder(info.metadata.builder);
+  out->set_source_dataset(info.metadata.source_dataset);
+  out->set_created_unix_s(info.metadata.created_unix_s);
+  out->set_lineage(info.metadata.lineage);
+  DetailsToProto(info, out->mutable_details());
+}
+
+mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::string& path) {
+  mapstore::MapDirectory::Entry entry;
+  entry.name = wire.name();
+  entry.path = path;
+  entry.file_bytes = wire.size_bytes();
+  if (!wire.available()) {
+    entry.error = wire.problem();
+    return entry;
+  }
+  mapstore::MapInfo info;
+  info.path = path;
+  info.file_bytes = wire.size_bytes();
+  info.schema_version = static_cast<int>(wire.schema_version());
+  info.metadata = {wire.name(), wire.created_unix_s(), wire.source_dataset(), wire.builder(),
+                   wire.lineage()};
+  info.features.kind = wire.feature_kind();
+  info.keyframes = wire.keyframes();
+  info.points = wire.points();
+  const v1::MapDetails& details = wire.details();
+  if (wire.has_details()) {  // A server from before MapDetails sends counts only.
+    info.camera = FromProto(details.camera(), WireLimits{1 << 16, 1 << 16});
+    info.features.descriptor_type = ParseDescriptorType(details.descriptor_type());
+    info.features.descriptor_dim = static_cast<int>(details.descriptor_dim());
+  }
+  info.observations = details.observations();
+  info.mean_reproj_error_px = details.mean_reproj_error_px();
+  info.point_extent = BoxFromProto(details.has_point_extent(), details.point_extent());
+  info.keyframe_extent = BoxFromProto(details.has_keyframe_extent(), details.keyframe_extent());
+  info.kernel_learned = details.kernel_learned();
+  info.kernel.default_k = static_cast<int>(details.default_k());
+  info.kernel.default_probability_threshold = details.default_probability_threshold();
+  info.vocabulary_words = details.vocabulary_words();
+  info.memory_bytes = details.memory_bytes();
+  entry.info = info;
+  return entry;
+}
+
+}  // namespace visloc::proto

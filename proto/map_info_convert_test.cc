@@ -1,0 +1,70 @@
+// A map's summary survives the wire: what `visloc map info` prints of a remote map is what it
+// prints of the file.
+
+#include "proto/map_info_convert.h"
+
+#include <gtest/gtest.h>
+
+#include "core/map/synthetic_map.h"
+#include "core/util/temp_dir.h"
+#include "mapstore/map_store.h"
+
+namespace visloc {
+namespace {
+
+TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
+  TempDir dir;
+  mapstore::SaveMap(MakeSyntheticMap({}), dir.File("lab.db"));
+  const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
+  ASSERT_TRUE(local.info.has_value()) << local.error;
+  v1::MapInfo wire;
+  proto::ToProto(local, &wire);
+  const mapstore::MapDirectory::Entry remote = proto::FromProto(wire, "lab on server");
+  ASSERT_TRUE(remote.info.has_value());
+  const mapstore::MapInfo& a = *local.info;
+  const mapstore::MapInfo& b = *remote.info;
+  EXPECT_EQ(remote.name, "lab");
+  EXPECT_EQ(b.path, "lab on server");
+  EXPECT_EQ(b.file_bytes, a.file_bytes);
+  EXPECT_EQ(b.schema_version, a.schema_version);
+  EXPECT_EQ(b.metadata.name, "lab");  // A server's maps are named by their files.
+  EXPECT_EQ(b.metadata.created_unix_s, a.metadata.created_unix_s);
+  EXPECT_EQ(b.metadata.builder, a.metadata.builder);
+  EXPECT_EQ(b.camera.Params(), a.camera.Params());
+  EXPECT_EQ(b.camera.width(), a.camera.width());
+  EXPECT_EQ(b.features.kind, a.features.kind);
+  EXPECT_EQ(b.features.descriptor_type, a.features.descriptor_type);
+  EXPECT_EQ(b.features.descriptor_dim, a.features.descriptor_dim);
+  EXPECT_EQ(b.keyframes, a.keyframes);
+  EXPECT_EQ(b.points, a.points);
+  EXPECT_EQ(b.observations, a.observations);
+  EXPECT_DOUBLE_EQ(b.mean_reproj_error_px, a.mean_reproj_error_px);
+  EXPECT_TRUE(b.point_extent.isApprox(a.point_extent));
+  EXPECT_TRUE(b.keyframe_extent.isApprox(a.keyframe_extent));
+  EXPECT_EQ(b.kernel_learned, a.kernel_learned);
+  EXPECT_EQ(b.kernel.default_k, a.kernel.default_k);
+  EXPECT_EQ(b.vocabulary_words, a.vocabulary_words);
+  EXPECT_EQ(b.memory_bytes, a.memory_bytes);
+}
+
+TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {
+  v1::MapInfo broken;
+  broken.set_name("old");
+  broken.set_available(false);
+  broken.set_problem("schema 1 is too old");
+  const auto entry = proto::FromProto(broken, "old on server");
+  EXPECT_FALSE(entry.info.has_value());
+  EXPECT_EQ(entry.error, "schema 1 is too old");
+
+  mapstore::MapDirectory::Entry empty;
+  empty.name = "empty";
+  empty.info = mapstore::MapInfo{};
+  empty.info->camera = Camera(320, 240, 160, 160, 159.5, 119.5);
+  v1::MapInfo wire;
+  proto::ToProto(empty, &wire);
+  EXPECT_FALSE(wire.details().has_point_extent());
+  EXPECT_TRUE(proto::FromProto(wire, "x").info->point_extent.isEmpty());
+}
+
+}  // namespace
+}  // namespace visloc
