@@ -164,8 +164,8 @@ int RunBuild(const Args& args) {
                  "point moved against the calibration) from the first frames' motion, 0 to trust "
                  "the calibration");
   int max_features = 0;
-  parser.AddFlag("max-features", &max_features,
-                 "corners per image (default: 600 at 320x240, more for larger images)");
+  parser.AddFlag("max-features", &max_features, "corners per image");
+  parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");
   parser.AddFlag("min-points", &options.min_points,
                  "refuse to write a map with fewer points, saying why");
   parser.AddFlag("check-frames", &options.check_frames,

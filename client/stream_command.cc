@@ -253,8 +253,8 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
   parser.AddFlag(
       "rate", &args->rate_hz,
-      "frames per second to send (default: the dataset's timing; 0: as fast as possible, every "
-      "frame answered)");
+      "frames per second to send (0: as fast as possible, every frame answered)");
+  parser.SetDefaultText("rate", "the dataset's timing");
   parser.AddFlag("policy", &args->policy, "all (answer every frame) or newest (drop stale frames)");
   parser.AddFlag("encoding", &args->encoding,
                  "jpeg (the client library's), file (the image files' bytes), png or raw (grey "

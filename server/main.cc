@@ -150,8 +150,8 @@ int Run(int argc, char** argv) {
   parser.AddSwitch("maps-read-only", &args.maps_read_only,
                    "never change the maps folder (a replica of a shared folder another server "
                    "writes): map upload, delete and rename are refused");
-  parser.AddFlag("threads", &args.threads,
-                 "frames processed at once across sessions (default: one per core)");
+  parser.AddFlag("threads", &args.threads, "frames processed at once across sessions");
+  parser.SetDefaultText("threads", "0: one per core");
   parser.AddFlag("session-idle-timeout", &args.session_idle_timeout_s,
                  "close a session with no frame for this many seconds and free its slot (0: off)");
   parser.AddFlag("keepalive-min-ping-interval", &args.keepalive_min_ping_interval_s,
