@@ -144,7 +144,13 @@ TEST_F(FaultE2eTest, AMapDeletedDuringASessionServesThatSessionToItsEnd) {
                                           files_.File("robot.out"), files_.File("robot.err"));
   ASSERT_TRUE(server.WaitForLog("event=session_start"));
   std::this_thread::sleep_for(std::chrono::seconds(1));
-  const ProcessResult removed = Visloc({"map", "delete", "square", "--server", server.address()});
+  // A robot is on it: refused with the count, then deleted with --force.
+  const ProcessResult refused = Visloc({"map", "delete", "square", "--server", server.address()});
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_THAT(refused.err, HasSubstr("in use by 1 session"));
+  EXPECT_TRUE(fs::exists(maps_.File("square.db")));
+  const ProcessResult removed =
+      Visloc({"map", "delete", "square", "--server", server.address(), "--force"});
   ASSERT_EQ(removed.exit_code, 0) << removed.err;
   EXPECT_FALSE(fs::exists(maps_.File("square.db")));
   ASSERT_EQ(testing::WaitProcess(robot), 0) << ReadFileBytes(files_.File("robot.err"));
