@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/outcome.h"
 #include "client/subcommands.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -166,14 +167,19 @@ int RunGroundTruth(const Args& args) {
   parser.AddPositional("DIR", &dir, "dataset folder (EuRoC or KITTI layout)");
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
   parser.AddFlag("out", &out, "TUM file to write", /*required=*/true);
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   const Dataset dataset = ReadDataset(dir, ParseOptionalDatasetFormat(format));
   const Trajectory left_cam = dataset.GroundTruthLeftCam();
   if (left_cam.empty()) throw InputError(dir + ": no ground truth at the frames' times");
   WriteTum(out, left_cam);
-  std::printf("%zu of %zu frames' left camera poses -> %s\n", left_cam.size(),
-              dataset.frames.size(), out.c_str());
-  return 0;
+  return PrintOutcome(json,
+                      StrCat(left_cam.size(), " of ", dataset.frames.size(),
+                             " frames' left camera poses -> ", out),
+                      {{"out", out},
+                       {"poses", static_cast<int64_t>(left_cam.size())},
+                       {"frames", static_cast<int64_t>(dataset.frames.size())}});
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "client/commands.h"
+#include "client/outcome.h"
 #include "client/plot.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -107,6 +108,8 @@ int RunPlot(const Args& args) {
   parser.AddFlag("stats", &stats_path, "per-frame statistics (CSV) for the colours");
   parser.AddFlag("gt", &gt_path, "ground truth (TUM, map frame)");
   parser.AddFlag("out", &out, "PLOT.png or PLOT.svg", true);
+  bool json = false;
+  parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   if (!curves_path.empty()) {
     std::string x_label;
@@ -115,9 +118,11 @@ int RunPlot(const Args& args) {
                    CurveAxes{std::filesystem::path(curves_path).filename().string(),
                              x_label + (log_x ? " (log scale)" : ""), log_x},
                    out);
-    std::printf("wrote %s: %zu curves of %zu points\n", out.c_str(), curves.size(),
-                curves[0].x.size());
-    return 0;
+    return PrintOutcome(
+        json, StrCat("wrote ", out, ": ", curves.size(), " curves of ", curves[0].x.size(), " points"),
+        {{"out", out},
+         {"curves", static_cast<int64_t>(curves.size())},
+         {"points", static_cast<int64_t>(curves[0].x.size())}});
   }
   if (series) {
     if (stats_path.empty()) throw UsageError("--series needs --stats");
@@ -127,8 +132,8 @@ int RunPlot(const Args& args) {
                      {"inlier ratio", table.columns.at("inlier_ratio")},
                      {"RANSAC iterations", table.columns.at("ransac_iterations")}},
                     std::filesystem::path(stats_path).filename().string(), out);
-    std::printf("wrote %s: %zu frames\n", out.c_str(), table.timestamps.size());
-    return 0;
+    return PrintOutcome(json, StrCat("wrote ", out, ": ", table.timestamps.size(), " frames"),
+                        {{"out", out}, {"frames", static_cast<int64_t>(table.timestamps.size())}});
   }
   if (map_path.empty() || trajectory_path.empty()) {
     throw UsageError("a top view needs --map and --trajectory (or use --series --stats)");
@@ -148,10 +153,15 @@ int RunPlot(const Args& args) {
   input.title = std::filesystem::path(map_path).filename().string() + "  /  " +
                 std::filesystem::path(trajectory_path).filename().string();
   const PlotStats stats = WriteTopViewPlot(input, out);
-  std::printf("wrote %s: %d map points, %d keyframes, %d trajectory segments, %d gaps\n",
-              out.c_str(), stats.points_drawn, stats.keyframes_drawn, stats.estimate_segments,
-              stats.gaps);
-  return 0;
+  return PrintOutcome(json,
+                      StrCat("wrote ", out, ": ", stats.points_drawn, " map points, ",
+                             stats.keyframes_drawn, " keyframes, ", stats.estimate_segments,
+                             " trajectory segments, ", stats.gaps, " gaps"),
+                      {{"out", out},
+                       {"points", static_cast<int64_t>(stats.points_drawn)},
+                       {"keyframes", static_cast<int64_t>(stats.keyframes_drawn)},
+                       {"segments", static_cast<int64_t>(stats.estimate_segments)},
+                       {"gaps", static_cast<int64_t>(stats.gaps)}});
 }
 
 }  // namespace visloc::cli

@@ -133,6 +133,9 @@ TEST_F(MapAdminE2eTest, EveryMapVerbAnswersInJsonWhenAsked) {
   EXPECT_THAT(json({"map", "export", local_.File("copy.db"), "--keyframes",
                     local_.File("k.tum")}, 0),
               HasSubstr("\"keyframes\":20"));
+  EXPECT_THAT(json({"plot", "--map", local_.File("copy.db"), "--trajectory", local_.File("k.tum"),
+                    "--out", local_.File("top.png")}, 0),
+              HasSubstr("\"keyframes\":20"));
   EXPECT_THAT(json({"map", "info", local_.File("nope.db")}, 1),
               HasSubstr("\"error\":\"" + local_.File("nope.db") + ": no such map file\""));
   EXPECT_THAT(json({"map", "rename", "copy", "lab3", "--maps", local_.path()}, 0),

@@ -5,7 +5,8 @@
   open issues are named below and skipped, loudly).
 - Every verb the binaries list has a --help that parses: no flag shows two defaults (a
   "(default ...)" in its text and a "[default: ...]" beside it), no required flag shows a
-  default, and no flag appears twice.
+  default, and no flag appears twice; and every visloc verb takes --json (one JSON object on
+  stdout, failures included: README).
 
 Usage: help_contract_test.py VISLOC VISLOC_SERVER PRODUCT_MD   (exit 77: no product.md)
 """
@@ -91,6 +92,8 @@ def main():
     for command in verbs:
         out = help_text(command)
         seen = flags_in(out)
+        if command.startswith("visloc ") and "--json" not in seen:
+            problems.append(f"'{command}' does not take --json")
         for flag in {f for f in seen if seen.count(f) > 1}:
             problems.append(f"'{command} --help' lists {flag} twice")
         for line in out.splitlines():
