@@ -8,7 +8,8 @@
 #
 # Usage: scripts/docs.sh [--baseline REV]   (about 70 minutes on 2 cores from scratch; each script
 # keeps its runs in out/NAME and reuses them; logs in out/docs. Run it on a quiet machine: the
-# timings are ratios, but a busy machine still skews them)
+# timings are ratios, but a busy machine still skews them. Each script reads HEAD when it starts:
+# do not commit while this runs, or the docs name different commits)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 baseline=()
