@@ -56,7 +56,7 @@ std::shared_ptr<grpc::Channel> Connection::OpenChannel() const {
     credentials = grpc::SslCredentials(options);
   }
   grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
+  args.SetMaxReceiveMessageSize(client::kMaxReceiveMessageBytes);
   // Replicas (a name with several addresses, or an ipv4:/ipv6: list): each new stream goes to
   // the next ready replica, starting at a random one per process (client/replicas.h).
   args.SetLoadBalancingPolicyName("round_robin");

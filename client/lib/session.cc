@@ -61,7 +61,7 @@ std::shared_ptr<grpc::Channel> NewChannel(const SessionOptions& o) {
   args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_max.count()));
-  args.SetMaxReceiveMessageSize(64 << 20);
+  args.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
   // Replicas (several addresses): each new stream goes to the next ready one.
   args.SetLoadBalancingPolicyName("round_robin");
   if (!o.credentials.tls_target_name.empty()) {

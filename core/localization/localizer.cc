@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "core/geometry/trajectory.h"
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -133,7 +134,7 @@ Localizer::Motion Localizer::PredictMotion(const FrameInput& input, double dt_s)
     Eigen::Quaterniond body_delta = Eigen::Quaterniond::Identity();
     int64_t previous_ns = *last_timestamp_ns_;
     for (const GyroSample& sample : input.gyro) {
-      const double dt = std::max<int64_t>(0, sample.timestamp_ns - previous_ns) * 1e-9;
+      const double dt = NsToSeconds(std::max<int64_t>(0, sample.timestamp_ns - previous_ns));
       previous_ns = std::max(previous_ns, sample.timestamp_ns);
       const Eigen::Vector3d angle = sample.rate_radps * dt;
       if (angle.norm() > 1e-15) {
@@ -179,7 +180,7 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
   const Rigid3d measured = fix.cam_from_map.Inverse();
   const Matrix6d& noise = fix.covariance;
   systematic_ = fix.systematic_covariance;
-  const double since_fix_s = (timestamp_ns - last_fix_ns_) * 1e-9;
+  const double since_fix_s = NsToSeconds(timestamp_ns - last_fix_ns_);
   if (!filter_.initialized() ||
       (status == TrackingStatus::kRelocalized && update == FilterUpdate::kFuse)) {
     update = FilterUpdate::kRestart;
@@ -216,8 +217,8 @@ PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
   report.ms += extract_ms;
   result->stats.times.relocalize_ms += extract_ms;
   RelocalizationResult found;
-  const bool local =
-      ever_localized_ && (timestamp_ns - last_fix_ns_) * 1e-9 <= options_.local_relocalization_s;
+  const bool local = ever_localized_ &&
+                     NsToSeconds(timestamp_ns - last_fix_ns_) <= options_.local_relocalization_s;
   if (local) {
     const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
                                                          : last_fix_map_from_cam_.translation;
@@ -263,7 +264,8 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   stats.times.describe_ms = extract.describe_ms;
   stats.features = static_cast<int>(frame.size());
 
-  const double dt_s = last_timestamp_ns_ ? (input.timestamp_ns - *last_timestamp_ns_) * 1e-9 : 0.0;
+  const double dt_s =
+      last_timestamp_ns_ ? NsToSeconds(input.timestamp_ns - *last_timestamp_ns_) : 0.0;
   const Motion motion = PredictMotion(input, dt_s);
   last_timestamp_ns_ = input.timestamp_ns;
   last_odom_from_cam_ = input.odom_from_cam;
@@ -368,7 +370,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
     const MotionOptions& o = options_.motion;
     const bool bridge = filter_.initialized() &&
                         (motion.from_sensors || o.bridge_with_constant_velocity) &&
-                        (input.timestamp_ns - last_fix_ns_) * 1e-9 <= o.max_bridge_s &&
+                        NsToSeconds(input.timestamp_ns - last_fix_ns_) <= o.max_bridge_s &&
                         filter_.PositionSigmaM() <= o.max_bridge_sigma_m;
     if (bridge) {
       result.status = TrackingStatus::kLimited;

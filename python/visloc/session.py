@@ -268,6 +268,7 @@ class Session:
                    ("grpc.use_local_subchannel_pool", 1),  # A fresh connection every time.
                    ("grpc.initial_reconnect_backoff_ms", int(self._o.backoff_initial_s * 1000)),
                    ("grpc.max_reconnect_backoff_ms", int(self._o.backoff_max_s * 1000)),
+                   # visloc::client::kMaxReceiveMessageBytes, as the C++ library.
                    ("grpc.max_receive_message_length", 64 << 20)]
         if self._o.tls_ca_pem:
             credentials = grpc.ssl_channel_credentials(

@@ -186,6 +186,10 @@ v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, doubl
 // Throws std::invalid_argument naming the file and what is wrong with it.
 v1::CameraModel CameraFromYaml(const std::string& path);
 
+// The largest answer a client accepts (gRPC's default is 4 MiB): a map download chunk or a
+// relocalization's candidate list stay far below it. The Python package uses the same figure.
+constexpr int kMaxReceiveMessageBytes = 64 << 20;
+
 // The frame's image as it would go on the wire: grey, then encoded. Throws
 // std::invalid_argument for an empty image or one the encoder refuses.
 std::string EncodeImage(const cv::Mat& image, Encoding encoding, int jpeg_quality);
