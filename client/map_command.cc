@@ -2,7 +2,6 @@
 // maps folder. (The --server forms arrive with the gRPC service.)
 
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <iostream>
 

@@ -1,15 +1,10 @@
 #include "client/remote_map.h"
 
-#include "client/map_report.h"
-#include "client/outcome.h"
-
 #include <grpcpp/grpcpp.h>
 
-#include <cstdio>
-#include <iostream>
-
+#include "client/map_report.h"
+#include "client/outcome.h"
 #include "core/util/check.h"
-#include "core/util/json.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
 #include "mapstore/checksum.h"
