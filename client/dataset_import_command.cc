@@ -125,7 +125,7 @@ int RunDatasetImport(const Args& args) {
     throw UsageError("--pair-tolerance-ms must be 0 to 1000");
   }
   options.pair_tolerance_ns = static_cast<int64_t>(tolerance_ms * 1e6);
-  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  CheckFlags(options);
   std::unique_ptr<bag::BagReader> reader = OpenBag(bag_path);
   const bool progress = ShowProgress() && !json;
   const bag::ImportStats stats = bag::ImportBag(*reader, options, out, [&](int frames) {

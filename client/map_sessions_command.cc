@@ -1,28 +1,25 @@
 // Maps across sessions (mapping/map_merge.h):
 //   `visloc map merge A.db B.db --out C.db`  two maps of overlapping places into one, in A's frame;
 //   `visloc map extend MAP.db --dataset DIR`  a new stereo session mapped, its images localized
-//                                             in MAP (mapping/session_registration.h), then
-//                                             merged into MAP in MAP's frame;
+//                                             in MAP, then merged into MAP in MAP's frame
+//                                             (mapping/session_merge.h);
 //   `visloc map update MAP.db --dataset DIR`  the same for a place that changed: what is gone
 //                                             removed first (mapping/map_update.h).
 // Maps or sessions with no verified overlap are refused with the evidence; files are written
 // atomically, so the old map stays intact until the new one is complete.
 
 #include <cstdio>
-#include <ctime>
-#include <filesystem>
+#include <functional>
 #include <iostream>
 
 #include "client/commands.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
-#include "core/util/version.h"
 #include "dataset/dataset.h"
 #include "mapping/dataset_mapping.h"
 #include "mapping/map_merge.h"
-#include "mapping/map_update.h"
-#include "mapping/session_registration.h"
+#include "mapping/session_merge.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::cli {
@@ -112,71 +109,37 @@ void PrintHuman(const std::string& out, const Map& merged, const mapping::MergeS
   std::printf("lineage: %s\n", merged.metadata.lineage.c_str());
 }
 
-// A new session mapped on its own, with the existing map's detector, as `map build` would;
-// `frame_trajectory`: where the mapping placed each image.
-Map BuildSessionMap(const Map& existing, const Dataset& dataset, const std::string& dataset_dir,
-                    const std::string& verb, bool progress, Trajectory* frame_trajectory) {
-  mapping::DatasetMappingOptions options;
-  options.builder.features = DefaultFeatureSettings(existing.features.kind);
-  const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)),
-                             std::filesystem::absolute(dataset_dir).string(),
-                             StrCat("visloc ", VislocVersion(), " map ", verb), ""};
-  mapping::MapBuildStats stats;
-  Map session = mapping::BuildMap(dataset, options, metadata, &stats, frame_trajectory,
-                                  [&](int done, int total, const std::string& status) {
-                                    if (progress)
-                                      std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done, total,
-                                                   status.c_str());
-                                  });
-  if (progress) std::fprintf(stderr, "\r\33[K");
-  return session;
+// The progress line on stderr while a session is localized in the map, then mapped.
+std::function<void(const mapping::SessionMergeProgress&)> ProgressLine(bool show) {
+  if (!show) return nullptr;
+  return [](const mapping::SessionMergeProgress& p) {
+    if (p.stage == mapping::SessionMergeProgress::Stage::kLocalizing) {
+      std::fprintf(stderr, "\r\33[Klocalizing in the map: %d / %d", p.done, p.total);
+    } else {
+      std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", p.done, p.total, p.status.c_str());
+    }
+  };
 }
 
-// A new session in an existing map: its images localized in the map (relocalization, then
-// tracking; a session that never sees the mapped place is refused here, before it is mapped),
-// then mapped on its own; the images placed both ways place the session. The refusal names
-// the session.
-struct PlacedSession {
-  Map map;
-  Rigid3d map_from_session;
-  mapping::SessionRegistrationStats stats;
-};
-
-PlacedSession PlaceSession(const Map& existing, const std::string& dataset_dir,
-                           const std::string& format, const std::string& verb, bool progress) {
+// `map extend` and `map update`: the session in DIR merged into the map at `map_path` (by
+// mapping::MergeSession), the file replaced atomically; stats for the report.
+Map MergeDatasetSession(const std::string& map_path, const std::string& dataset_dir,
+                        const std::string& format, mapping::SessionMergeKind kind,
+                        const mapping::SessionMergeOptions& options, bool progress,
+                        mapping::SessionMergeStats* stats) {
+  const Map existing = mapstore::LoadMap(map_path);
   const Dataset dataset = ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format));
-  // Before minutes of mapping: a map grows with sessions of its own camera.
-  if (!mapping::SameCamera(existing.camera, dataset.left.camera)) {
-    throw InputError(StrCat("the session ", dataset_dir, "'s left camera (",
-                            ToString(dataset.left.camera), ") is not the map's (",
-                            ToString(existing.camera),
-                            "): a map grows with sessions of its own camera"));
-  }
-  PlacedSession placed;
-  const mapping::SessionRegistrationOptions options;
-  const auto refused = [&](const InputError& e) {
+  const mapping::DatasetSource session(dataset, dataset_dir);
+  Map merged;
+  try {
+    merged = mapping::MergeSession(existing, session, kind, options, stats, ProgressLine(progress));
+  } catch (...) {
     if (progress) std::fprintf(stderr, "\r\33[K");
-    return InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
-  };
-  Trajectory map_from_cam;
-  try {
-    map_from_cam = mapping::LocalizeSessionImages(
-        existing, dataset, options, &placed.stats, [&](int done, int total) {
-          if (progress) std::fprintf(stderr, "\r\33[Klocalizing in the map: %d / %d", done, total);
-        });
-  } catch (const InputError& e) {
-    throw refused(e);
-  }
-  Trajectory session_from_cam;
-  placed.map = BuildSessionMap(existing, dataset, dataset_dir, verb, progress, &session_from_cam);
-  try {
-    placed.map_from_session =
-        mapping::FitMapFromSession(session_from_cam, map_from_cam, options, &placed.stats);
-  } catch (const InputError& e) {
-    throw refused(e);
+    throw;
   }
   if (progress) std::fprintf(stderr, "\r\33[K");
-  return placed;
+  mapstore::SaveMap(merged, map_path);
+  return merged;
 }
 
 void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
@@ -207,7 +170,7 @@ int RunMapMerge(const Args& args) {
   AddOverlapFlags(parser, &options);
   parser.AddSwitch("json", &json, "print the result as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  CheckFlags(options);
   const Map a = mapstore::LoadMap(a_path);
   const Map b = mapstore::LoadMap(b_path);
   mapping::MergeStats stats;
@@ -225,7 +188,8 @@ int RunMapMerge(const Args& args) {
 int RunMapExtend(const Args& args) {
   std::string map_path, dataset_dir, format;
   bool json = false;
-  mapping::MergeOptions options;
+  mapping::SessionMergeOptions session_options;
+  mapping::MergeOptions& options = session_options.update.merge;
   ArgParser parser(
       "visloc map extend",
       "Adds a new stereo session to a map, in the map's frame: its images are localized in the "
@@ -242,24 +206,15 @@ int RunMapExtend(const Args& args) {
   AddOverlapFlags(parser, &options);
   parser.AddSwitch("json", &json, "print the result as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
-  const Map existing = mapstore::LoadMap(map_path);
-  const PlacedSession session =
-      PlaceSession(existing, dataset_dir, format, "extend", ShowProgress() && !json);
-  mapping::MergeStats stats;
-  Map extended;
-  try {
-    extended = mapping::MergeMaps(existing, session.map, options, &stats, session.map_from_session);
-  } catch (const InputError& e) {
-    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
-  }
-  extended.metadata.lineage =
-      mapping::MergedLineage(existing.metadata, session.map.metadata, "extend");
-  mapstore::SaveMap(extended, map_path);
+  CheckFlags(session_options);
+  mapping::SessionMergeStats stats;
+  const Map extended =
+      MergeDatasetSession(map_path, dataset_dir, format, mapping::SessionMergeKind::kExtend,
+                          session_options, ShowProgress() && !json, &stats);
   if (json) {
-    std::cout << ToJson(map_path, extended, stats, &session.stats) << "\n";
+    std::cout << ToJson(map_path, extended, stats.update.merge, &stats.registration) << "\n";
   } else {
-    PrintHuman(map_path, extended, stats, "the session", &session.stats);
+    PrintHuman(map_path, extended, stats.update.merge, "the session", &stats.registration);
   }
   return 0;
 }
@@ -267,7 +222,8 @@ int RunMapExtend(const Args& args) {
 int RunMapUpdate(const Args& args) {
   std::string map_path, dataset_dir, format;
   bool json = false;
-  mapping::UpdateOptions options;
+  mapping::SessionMergeOptions session_options;
+  mapping::UpdateOptions& options = session_options.update;
   ArgParser parser(
       "visloc map update",
       "Brings a map up to date with a new stereo session through a place that changed: the "
@@ -284,25 +240,19 @@ int RunMapUpdate(const Args& args) {
   AddOverlapFlags(parser, &options.merge);
   parser.AddSwitch("json", &json, "print the result as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
-  const Map existing = mapstore::LoadMap(map_path);
-  const PlacedSession session =
-      PlaceSession(existing, dataset_dir, format, "update", ShowProgress() && !json);
-  mapping::UpdateStats stats;
-  Map updated;
-  try {
-    updated = mapping::UpdateMap(existing, session.map, options, &stats, session.map_from_session);
-  } catch (const InputError& e) {
-    throw InputError(StrCat("the session ", dataset_dir, " does not overlap the map: ", e.what()));
-  }
-  mapstore::SaveMap(updated, map_path);
+  CheckFlags(session_options);
+  mapping::SessionMergeStats stats;
+  const Map updated =
+      MergeDatasetSession(map_path, dataset_dir, format, mapping::SessionMergeKind::kUpdate,
+                          session_options, ShowProgress() && !json, &stats);
   if (json) {
-    std::cout << ToJson(map_path, updated, stats.merge, &session.stats, &stats) << "\n";
+    std::cout << ToJson(map_path, updated, stats.update.merge, &stats.registration, &stats.update)
+              << "\n";
   } else {
-    std::printf("%s: %d of %zu points checked against the session, %d gone and removed\n",
-                map_path.c_str(), stats.checked_points, existing.points.size(),
-                stats.removed_points);
-    PrintHuman(map_path, updated, stats.merge, "the session", &session.stats);
+    std::printf("%s: %d of %d points checked against the session, %d gone and removed\n",
+                map_path.c_str(), stats.update.checked_points, stats.map_points,
+                stats.update.removed_points);
+    PrintHuman(map_path, updated, stats.update.merge, "the session", &stats.registration);
   }
   return 0;
 }

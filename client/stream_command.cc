@@ -479,7 +479,7 @@ int RunStream(const Args& raw_args) {
     std::lock_guard<std::mutex> lock(recorder_mutex);
     recorder.Record(e, expected);
   };
-  if (const std::string problem = options.Problem(); !problem.empty()) throw UsageError(problem);
+  CheckFlags(options);
   std::unique_ptr<client::Session> session = client::Session::Open(options);
 
   size_t count = 0;

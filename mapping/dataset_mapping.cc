@@ -1,6 +1,7 @@
 #include "mapping/dataset_mapping.h"
 
 #include <algorithm>
+#include <filesystem>
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
@@ -10,11 +11,16 @@ namespace visloc::mapping {
 
 void DatasetMappingOptions::Check() const {
   builder.Check();
-  VISLOC_CHECK(check_frames >= 0 && min_points >= 0, "check_frames ", check_frames,
-               ", min_points ", min_points);
+  VISLOC_CHECK(check_frames >= 0 && min_points >= 0, "check_frames ", check_frames, ", min_points ",
+               min_points);
 }
 
 namespace {
+
+void RequireStereo(const Dataset& dataset) {
+  if (!dataset.has_stereo())
+    throw InputError(StrCat(dataset.root, ": map building needs a stereo dataset (no cam1)"));
+}
 
 DatasetCheck CheckRig(const Dataset& dataset, const DatasetMappingOptions& options, int frames) {
   DatasetCheckOptions check;
@@ -27,12 +33,40 @@ DatasetCheck CheckRig(const Dataset& dataset, const DatasetMappingOptions& optio
 
 }  // namespace
 
+DatasetSource::DatasetSource(const Dataset& dataset, std::string name)
+    : dataset_(dataset), name_(name.empty() ? dataset.root : std::move(name)) {
+  RequireStereo(dataset);
+}
+
+std::string DatasetSource::origin() const {
+  return std::filesystem::absolute(dataset_.root).string();
+}
+
+StereoImages DatasetSource::Read(int index) const {
+  const FrameRecord& frame = dataset_.frames[index];
+  const Camera& right = dataset_.right->camera;
+  return {frame.timestamp_ns, ReadLeft(index),
+          LoadGreyImage(frame.right_path, right.width(), right.height())};
+}
+
+cv::Mat DatasetSource::ReadLeft(int index) const {
+  const Camera& left = dataset_.left.camera;
+  return LoadGreyImage(dataset_.frames[index].left_path, left.width(), left.height());
+}
+
+Map DatasetSource::BuildMap(const MapBuilderOptions& options, const MapMetadata& metadata,
+                            MapBuildStats* stats, Trajectory* frame_trajectory,
+                            const MappingProgress& progress) const {
+  DatasetMappingOptions dataset_options;
+  dataset_options.builder = options;
+  return mapping::BuildMap(dataset_, dataset_options, metadata, stats, frame_trajectory, progress);
+}
+
 Map BuildMap(const Dataset& dataset, const DatasetMappingOptions& options,
              const MapMetadata& metadata, MapBuildStats* stats, Trajectory* frame_trajectory,
              const std::function<void(int, int, const std::string&)>& progress) {
   options.Check();
-  if (!dataset.has_stereo())
-    throw InputError(StrCat(dataset.root, ": map building needs a stereo dataset (no cam1)"));
+  RequireStereo(dataset);
   Timer timer;
   if (options.check_frames > 0) {
     const DatasetCheck check = CheckRig(dataset, options, options.check_frames);
@@ -41,32 +75,17 @@ Map BuildMap(const Dataset& dataset, const DatasetMappingOptions& options,
                               " ('visloc dataset check' gives the full report)"));
     }
   }
-  MapBuilder builder(dataset.left.camera, dataset.right->camera, dataset.right_from_left(),
-                     options.builder);
-  const int total = static_cast<int>(dataset.frames.size());
-  for (int i = 0; i < total; ++i) {
-    const FrameRecord& frame = dataset.frames[i];
-    const cv::Mat left =
-        LoadGreyImage(frame.left_path, dataset.left.camera.width(), dataset.left.camera.height());
-    const cv::Mat right = LoadGreyImage(frame.right_path, dataset.right->camera.width(),
-                                        dataset.right->camera.height());
-    builder.AddFrame(frame.timestamp_ns, left, right);
-    if (progress) progress(i + 1, total, builder.Status());
-  }
-  if (progress) progress(total, total, "global bundle adjustment, visibility learning, vocabulary");
-  Map map = builder.Finish(metadata);
+  Map map = MapStereoFrames(DatasetSource(dataset), options.builder, metadata, stats,
+                            frame_trajectory, progress);
   if (static_cast<int>(map.points.size()) < options.min_points) {
     const DatasetCheck check = CheckRig(dataset, options, std::max(3, options.check_frames));
-    throw InputError(StrCat("the map would have ", map.points.size(), " points, fewer than ",
-                            options.min_points, " (--min-points): ",
-                            check.ok() ? StrCat("stereo: ", StereoEvidence(check))
-                                       : check.problems.front()));
+    throw InputError(
+        StrCat("the map would have ", map.points.size(), " points, fewer than ", options.min_points,
+               " (--min-points): ",
+               check.ok() ? StrCat("stereo: ", StereoEvidence(check)) : check.problems.front()));
   }
-  if (stats) {
-    *stats = builder.stats();
-    stats->total_ms = timer.ElapsedMs();
-  }
-  if (frame_trajectory) *frame_trajectory = builder.FrameTrajectory();
+  // The whole build, the rig check included.
+  if (stats) stats->total_ms = timer.ElapsedMs();
   return map;
 }
 

@@ -27,7 +27,8 @@ void RequireSameSensor(const Map& a, const Map& b) {
     throw InputError(StrCat("the maps' cameras differ (", ToString(a.camera), " and ",
                             ToString(b.camera), "): maps of one camera can be merged"));
   }
-  if (a.features.kind != b.features.kind || a.features.descriptor_dim != b.features.descriptor_dim ||
+  if (a.features.kind != b.features.kind ||
+      a.features.descriptor_dim != b.features.descriptor_dim ||
       a.features.descriptor_type != b.features.descriptor_type) {
     throw InputError(StrCat("the maps' features differ (", a.features.kind, " and ",
                             b.features.kind, "): their descriptors cannot be matched"));
@@ -71,7 +72,8 @@ std::vector<int> VerifiedInliers(const std::vector<PointPair>& pairs, const Merg
   std::vector<int> best;
   const int n = static_cast<int>(pairs.size());
   for (int iteration = 0; iteration < options.ransac_iterations && n >= 3; ++iteration) {
-    const int i = rng.UniformInt(0, n - 1), j = rng.UniformInt(0, n - 1), k = rng.UniformInt(0, n - 1);
+    const int i = rng.UniformInt(0, n - 1), j = rng.UniformInt(0, n - 1),
+              k = rng.UniformInt(0, n - 1);
     if (i == j || j == k || i == k) continue;
     // A thin triangle leaves the rotation about its long side undetermined.
     const Eigen::Vector3d ab = pairs[j].in_b - pairs[i].in_b, ac = pairs[k].in_b - pairs[i].in_b;
@@ -130,7 +132,8 @@ void FuseNearby(const Map& a, const Map& b, const Rigid3d& a_from_b, const Merge
                 std::vector<int>* point_of_b, int* fused) {
   if (!(options.fuse_distance_m > 0)) return;
   PointGrid grid(options.fuse_distance_m);
-  for (size_t p = 0; p < a.points.size(); ++p) grid.Add(a.points[p].position_in_map, static_cast<int>(p));
+  for (size_t p = 0; p < a.points.size(); ++p)
+    grid.Add(a.points[p].position_in_map, static_cast<int>(p));
   std::vector<bool> taken(a.points.size(), false);
   for (int target : *point_of_b) {
     if (target >= 0) taken[target] = true;
@@ -144,7 +147,9 @@ void FuseNearby(const Map& a, const Map& b, const Rigid3d& a_from_b, const Merge
     grid.ForEachWithin(in_a, options.fuse_distance_m, [&](int candidate, const Eigen::Vector3d& x) {
       const double d = (x - in_a).norm();
       if (taken[candidate] || d > best_m) return;
-      if (DescriptorDistance(b.descriptors, static_cast<int>(p), a.descriptors, candidate) > max_distance) return;
+      if (DescriptorDistance(b.descriptors, static_cast<int>(p), a.descriptors, candidate) >
+          max_distance)
+        return;
       best = candidate;
       best_m = d;
     });
@@ -158,7 +163,8 @@ void FuseNearby(const Map& a, const Map& b, const Rigid3d& a_from_b, const Merge
 // Every keyframe's descriptors: those of the points it observes.
 std::vector<cv::Mat> KeyframeDescriptors(const Map& map) {
   std::vector<cv::Mat> per_keyframe(map.keyframes.size());
-  for (const Observation& o : map.observations) per_keyframe[o.keyframe].push_back(map.descriptors.row(o.point));
+  for (const Observation& o : map.observations)
+    per_keyframe[o.keyframe].push_back(map.descriptors.row(o.point));
   for (cv::Mat& d : per_keyframe) {
     if (d.empty()) d = cv::Mat(0, map.descriptors.cols, map.descriptors.type());
   }
@@ -177,13 +183,15 @@ bool SameCamera(const Camera& a, const Camera& b) {
   return same;
 }
 
-std::string MergeOptions::Problem() const {
-  if (!(inlier_distance_m > 0 && inlier_distance_m < 10)) return "inlier distance must be 0 to 10 m";
-  if (ransac_iterations < 1) return "RANSAC needs at least one iteration";
-  if (min_inliers < 3) return "at least 3 inliers are needed to fix an alignment";
-  if (!(min_inlier_ratio >= 0 && min_inlier_ratio <= 1)) return "the inlier ratio is 0 to 1";
-  if (!(fuse_distance_m >= 0)) return "the fuse distance must not be negative";
-  return "";
+void MergeOptions::Check() const {
+  match.Check();
+  if (!(inlier_distance_m > 0 && inlier_distance_m < 10))
+    throw CheckError("inlier distance must be 0 to 10 m");
+  if (ransac_iterations < 1) throw CheckError("RANSAC needs at least one iteration");
+  if (min_inliers < 3) throw CheckError("at least 3 inliers are needed to fix an alignment");
+  if (!(min_inlier_ratio >= 0 && min_inlier_ratio <= 1))
+    throw CheckError("the inlier ratio is 0 to 1");
+  if (!(fuse_distance_m >= 0)) throw CheckError("the fuse distance must not be negative");
 }
 
 std::string MergedLineage(const MapMetadata& a, const MapMetadata& b, const std::string& verb) {
@@ -203,8 +211,7 @@ struct Registration {
 
 Registration Register(const Map& a, const Map& b, const MergeOptions& options,
                       const std::optional<Rigid3d>& a_from_b_guess, MergeStats* stats) {
-  const std::string problem = options.Problem();
-  if (!problem.empty()) throw CheckError(problem);
+  options.Check();
   RequireSameSensor(a, b);
   *stats = MergeStats{};
   stats->keyframes_a = static_cast<int>(a.keyframes.size());
@@ -241,12 +248,12 @@ Registration Register(const Map& a, const Map& b, const MergeOptions& options,
   }
   if (!a_from_b_guess &&
       (stats->inliers < options.min_inliers || ratio < options.min_inlier_ratio)) {
-    throw InputError(StrCat("the maps have no verified overlap: ", stats->matches,
-                            " descriptor matches between their points, of which ", stats->inliers,
-                            " (", static_cast<int>(100 * ratio), "%) agree on one rigid alignment; ",
-                            "a merge needs ", options.min_inliers, " and ",
-                            static_cast<int>(100 * options.min_inlier_ratio),
-                            "%. Maps of different places are not merged"));
+    throw InputError(
+        StrCat("the maps have no verified overlap: ", stats->matches,
+               " descriptor matches between their points, of which ", stats->inliers, " (",
+               static_cast<int>(100 * ratio), "%) agree on one rigid alignment; ", "a merge needs ",
+               options.min_inliers, " and ", static_cast<int>(100 * options.min_inlier_ratio),
+               "%. Maps of different places are not merged"));
   }
   double sum_sq = 0.0;
   for (int i : inliers) sum_sq += (a_from_b * pairs[i].in_b - pairs[i].in_a).squaredNorm();
@@ -289,7 +296,8 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;
-  for (const Keyframe& k : b.keyframes) merged.keyframes.push_back({k.timestamp_ns, a_from_b * k.map_from_cam});
+  for (const Keyframe& k : b.keyframes)
+    merged.keyframes.push_back({k.timestamp_ns, a_from_b * k.map_from_cam});
   merged.points = a.points;
   merged.descriptors = a.descriptors.clone();
   // Where each B point goes: a fused A point, or a new point after A's.
@@ -321,8 +329,8 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   merged.observations = a.observations;
   const uint32_t first_b_keyframe = static_cast<uint32_t>(a.keyframes.size());
   for (const Observation& o : b.observations) {
-    merged.observations.push_back({first_b_keyframe + o.keyframe,
-                                   static_cast<uint32_t>(point_of_b[o.point]), o.pixel});
+    merged.observations.push_back(
+        {first_b_keyframe + o.keyframe, static_cast<uint32_t>(point_of_b[o.point]), o.pixel});
   }
   std::sort(merged.observations.begin(), merged.observations.end(),
             [](const Observation& x, const Observation& y) {

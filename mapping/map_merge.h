@@ -54,8 +54,8 @@ struct MergeOptions {
   MapAdjustmentOptions adjustment;
   VisibilityLearningOptions visibility;
   VocabularyOptions vocabulary;
-  // Empty when usable, else what is wrong.
-  std::string Problem() const;
+  // Throws CheckError naming the first bad value (the match options' too).
+  void Check() const;
 };
 
 struct MergeStats {

@@ -14,7 +14,8 @@ class SessionPoints {
   SessionPoints(const Map& session, const Rigid3d& map_from_session, double cell_m)
       : grid_(cell_m) {
     for (const Observation& o : session.observations) {
-      grid_.Add(map_from_session * session.points[o.point].position_in_map, static_cast<int>(o.keyframe));
+      grid_.Add(map_from_session * session.points[o.point].position_in_map,
+                static_cast<int>(o.keyframe));
     }
   }
 
@@ -45,24 +46,25 @@ std::vector<Eigen::Vector3d> ViewDirections(const Map& map) {
 
 }  // namespace
 
-std::string UpdateOptions::Problem() const {
-  if (std::string merge_problem = merge.Problem(); !merge_problem.empty()) return merge_problem;
-  if (min_expected_views < 1) return "a point must be expected in at least one view";
-  if (!(found_distance_m > 0) || !(max_depth_m > 0)) return "distances must be positive";
-  if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 180)) return "the view angle is 0 to 180 deg";
-  return "";
+void UpdateOptions::Check() const {
+  merge.Check();
+  if (min_expected_views < 1) throw CheckError("a point must be expected in at least one view");
+  if (!(found_distance_m > 0) || !(max_depth_m > 0)) throw CheckError("distances must be positive");
+  if (!(max_view_angle_deg > 0 && max_view_angle_deg <= 180))
+    throw CheckError("the view angle is 0 to 180 deg");
 }
 
 Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, UpdateStats* stats,
               const std::optional<Rigid3d>& map_from_session_guess) {
-  if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
+  options.Check();
   *stats = UpdateStats{};
   MergeStats registration;
   const Rigid3d map_from_session =
       RegisterMaps(map, session, options.merge, &registration, map_from_session_guess);
   const SessionPoints seen(session, map_from_session, options.found_distance_m);
   std::vector<Rigid3d> cam_from_map;
-  for (const Keyframe& k : session.keyframes) cam_from_map.push_back((map_from_session * k.map_from_cam).Inverse());
+  for (const Keyframe& k : session.keyframes)
+    cam_from_map.push_back((map_from_session * k.map_from_cam).Inverse());
   const std::vector<Eigen::Vector3d> directions = ViewDirections(map);
   const double min_cos = std::cos(options.max_view_angle_deg * M_PI / 180.0);
   std::vector<bool> remove(map.points.size(), false);
@@ -73,7 +75,9 @@ Map UpdateMap(const Map& map, const Map& session, const UpdateOptions& options, 
       const Eigen::Vector3d in_cam = cam_from_map[k] * x;
       if (in_cam.z() < 0.1 || in_cam.norm() > options.max_depth_m) continue;
       Eigen::Vector2d pixel;
-      if (!map.camera.Project(in_cam, &pixel) || !map.camera.IsInImage(pixel, options.image_margin_px)) continue;
+      if (!map.camera.Project(in_cam, &pixel) ||
+          !map.camera.IsInImage(pixel, options.image_margin_px))
+        continue;
       const Eigen::Vector3d ray = (x - cam_from_map[k].Inverse().translation).normalized();
       if (ray.dot(directions[p]) < min_cos) continue;
       ++expected;

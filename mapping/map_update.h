@@ -28,7 +28,7 @@ struct UpdateOptions {
   double max_depth_m = 6.0;
   double max_view_angle_deg = 30.0;
   double image_margin_px = 8.0;
-  std::string Problem() const;
+  void Check() const;  // The merge options too.
 };
 
 struct UpdateStats {

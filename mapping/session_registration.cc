@@ -60,18 +60,17 @@ bool Strong(const LocalizationResult& result, int min_inliers) {
 
 }  // namespace
 
-std::string SessionRegistrationOptions::Problem() const {
-  if (min_fix_inliers < 3) return "a fix needs at least 3 inliers";
+void SessionRegistrationOptions::Check() const {
+  if (min_fix_inliers < 3) throw CheckError("a fix needs at least 3 inliers");
   if (!(agree_distance_m > 0) || !(agree_angle_deg > 0))
-    return "the agreement bounds must be positive";
-  if (min_agreeing_frames < 1) return "at least one image must localize";
-  return "";
+    throw CheckError("the agreement bounds must be positive");
+  if (min_agreeing_frames < 1) throw CheckError("at least one image must localize");
 }
 
 Rigid3d FitMapFromSession(const Trajectory& session_from_cam, const Trajectory& map_from_cam,
                           const SessionRegistrationOptions& options,
                           SessionRegistrationStats* stats) {
-  if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
+  options.Check();
   std::map<int64_t, Rigid3d> fix_at;
   for (const StampedPose& p : map_from_cam) fix_at[p.timestamp_ns] = p.pose;
   std::vector<PosePair> pairs;
@@ -115,27 +114,27 @@ Rigid3d FitMapFromSession(const Trajectory& session_from_cam, const Trajectory& 
   return map_from_session;
 }
 
-Trajectory LocalizeSessionImages(const Map& map, const Dataset& dataset,
+Trajectory LocalizeSessionImages(const Map& map, const StereoSource& session,
                                  const SessionRegistrationOptions& options,
                                  SessionRegistrationStats* stats,
                                  const std::function<void(int, int)>& progress) {
-  if (const std::string problem = options.Problem(); !problem.empty()) throw CheckError(problem);
+  options.Check();
   *stats = SessionRegistrationStats{};
   Timer timer;
-  Localizer localizer(std::make_shared<const LocalizationMap>(map), dataset.left.camera,
+  Localizer localizer(std::make_shared<const LocalizationMap>(map), session.left_camera(),
                       options.localizer);
-  const Camera& camera = dataset.left.camera;
   Trajectory localized;
-  for (const FrameRecord& frame : dataset.frames) {
+  const int total = session.size();
+  for (int i = 0; i < total; ++i) {
     FrameInput input;
-    input.timestamp_ns = frame.timestamp_ns;
-    input.image = LoadGreyImage(frame.left_path, camera.width(), camera.height());
+    input.timestamp_ns = session.TimestampNs(i);
+    input.image = session.ReadLeft(i);
     const LocalizationResult result = localizer.Process(input);
     ++stats->frames;
     if (Strong(result, options.min_fix_inliers)) {
-      localized.push_back({frame.timestamp_ns, result.map_from_cam});
+      localized.push_back({input.timestamp_ns, result.map_from_cam});
     }
-    if (progress) progress(stats->frames, static_cast<int>(dataset.frames.size()));
+    if (progress) progress(stats->frames, total);
   }
   stats->localized_frames = static_cast<int>(localized.size());
   stats->localize_ms = timer.ElapsedMs();

@@ -22,7 +22,7 @@
 #include "core/geometry/trajectory.h"
 #include "core/localization/localizer_options.h"
 #include "core/map/map.h"
-#include "dataset/dataset.h"
+#include "mapping/stereo_source.h"
 
 namespace visloc::mapping {
 
@@ -32,7 +32,7 @@ struct SessionRegistrationOptions {
   double agree_distance_m = 0.05;  // Camera centres of an agreeing keyframe, after the transform.
   double agree_angle_deg = 2.0;    // Their orientations.
   int min_agreeing_frames = 3;     // Fewer: the session is refused.
-  std::string Problem() const;     // Empty when usable.
+  void Check() const;              // Throws CheckError naming the first bad value.
 };
 
 struct SessionRegistrationStats {
@@ -51,12 +51,12 @@ Rigid3d FitMapFromSession(const Trajectory& session_from_cam, const Trajectory& 
                           const SessionRegistrationOptions& options,
                           SessionRegistrationStats* stats);
 
-// Localizes every left image of `dataset` in `map` (which needs its visibility kernel and
+// Localizes every left image of `session` in `map` (which needs its visibility kernel and
 // appearance index), in order: the map_from_cam of the images with a strong fix, for
 // FitMapFromSession. It needs no map of the session, so a session that never sees the mapped
 // place is refused before it is mapped: InputError when fewer than `min_agreeing_frames` images
 // localize, and for unreadable images. `progress(done, total)` per image.
-Trajectory LocalizeSessionImages(const Map& map, const Dataset& dataset,
+Trajectory LocalizeSessionImages(const Map& map, const StereoSource& session,
                                  const SessionRegistrationOptions& options,
                                  SessionRegistrationStats* stats,
                                  const std::function<void(int, int)>& progress = nullptr);

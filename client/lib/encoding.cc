@@ -47,32 +47,35 @@ v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, doubl
   return camera;
 }
 
-std::string SessionOptions::Problem() const {
-  if (server.empty()) return "no server address";
-  if (map_name.empty()) return "no map name";
-  if (camera.width() == 0 || camera.height() == 0) return "no camera (width and height)";
-  if (jpeg_quality < 1 || jpeg_quality > 100) return "jpeg_quality must be 1..100";
-  if (max_in_flight < 1) return "max_in_flight must be at least 1";
-  if (max_queued < 1) return "max_queued must be at least 1";
+void SessionOptions::Check() const {
+  if (server.empty()) throw std::invalid_argument("no server address");
+  if (map_name.empty()) throw std::invalid_argument("no map name");
+  if (camera.width() == 0 || camera.height() == 0)
+    throw std::invalid_argument("no camera (width and height)");
+  if (jpeg_quality < 1 || jpeg_quality > 100)
+    throw std::invalid_argument("jpeg_quality must be 1..100");
+  if (max_in_flight < 1) throw std::invalid_argument("max_in_flight must be at least 1");
+  if (max_queued < 1) throw std::invalid_argument("max_queued must be at least 1");
   if (frame_deadline.count() <= 0 || stall_timeout.count() <= 0) {
-    return "frame_deadline and stall_timeout must be positive";
+    throw std::invalid_argument("frame_deadline and stall_timeout must be positive");
   }
   if (connect_timeout.count() <= 0 || backoff_initial.count() <= 0 ||
       backoff_max < backoff_initial) {
-    return "connect_timeout and backoff_initial must be positive, backoff_max >= backoff_initial";
+    throw std::invalid_argument(
+        "connect_timeout and backoff_initial must be positive, backoff_max >= backoff_initial");
   }
   if (keepalive_time.count() < 1000 || keepalive_timeout.count() <= 0) {
-    return "keepalive_time must be at least 1 s and keepalive_timeout positive";
+    throw std::invalid_argument(
+        "keepalive_time must be at least 1 s and keepalive_timeout positive");
   }
   if (credentials.tls_cert_pem.empty() != credentials.tls_key_pem.empty()) {
-    return "tls_cert_pem and tls_key_pem go together";
+    throw std::invalid_argument("tls_cert_pem and tls_key_pem go together");
   }
   if (!credentials.tls_cert_pem.empty() && credentials.tls_ca_pem.empty()) {
-    return "a client certificate needs tls_ca_pem for the server's";
+    throw std::invalid_argument("a client certificate needs tls_ca_pem for the server's");
   }
-  if (give_up_after.count() < 0) return "give_up_after must not be negative";
-  if (max_pending_events < 1) return "max_pending_events must be at least 1";
-  return "";
+  if (give_up_after.count() < 0) throw std::invalid_argument("give_up_after must not be negative");
+  if (max_pending_events < 1) throw std::invalid_argument("max_pending_events must be at least 1");
 }
 
 const char* LinkStateName(LinkState state) {

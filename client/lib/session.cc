@@ -558,8 +558,11 @@ void SessionImpl::Work() {
 }  // namespace
 
 std::unique_ptr<Session> Session::Open(const SessionOptions& options) {
-  const std::string problem = options.Problem();
-  if (!problem.empty()) throw std::invalid_argument("visloc::client::SessionOptions: " + problem);
+  try {
+    options.Check();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("visloc::client::SessionOptions: ") + e.what());
+  }
   return std::make_unique<SessionImpl>(options);
 }
 

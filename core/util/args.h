@@ -19,6 +19,18 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Options filled from flags, checked by their own Check(): what it throws (CheckError, or
+// std::invalid_argument from the client library, both logic errors) becomes a UsageError, so a
+// bad flag value exits 2 with the options' own words.
+template <typename Options>
+void CheckFlags(const Options& options) {
+  try {
+    options.Check();
+  } catch (const std::logic_error& e) {
+    throw UsageError(e.what());
+  }
+}
+
 class ArgParser {
  public:
   // `command` is e.g. "visloc eval"; `summary` is the one-line description shown by --help.

@@ -38,8 +38,8 @@ void RequireTopic(const std::vector<TopicInfo>& topics, const std::string& topic
   if (!types.count(NormalizeTypeName(found->type))) {
     std::string wanted;
     for (const std::string& type : types) wanted += (wanted.empty() ? "" : " or ") + type;
-    throw InputError(StrCat(flag, " ", topic, " is a ", found->type, " topic; ", flag,
-                            " takes ", wanted));
+    throw InputError(
+        StrCat(flag, " ", topic, " is a ", found->type, " topic; ", flag, " takes ", wanted));
   }
   if (found->messages == 0) throw InputError(StrCat(flag, " ", topic, " has no messages"));
 }
@@ -49,7 +49,8 @@ std::map<std::string, CameraInfoMessage> FirstCameraInfos(BagReader& reader,
                                                           const std::vector<std::string>& topics) {
   std::map<std::string, CameraInfoMessage> first;
   reader.Read(topics, [&](const BagMessage& m) {
-    if (const auto* info = std::get_if<CameraInfoMessage>(&m.message)) first.emplace(m.topic, *info);
+    if (const auto* info = std::get_if<CameraInfoMessage>(&m.message))
+      first.emplace(m.topic, *info);
   });
   return first;
 }
@@ -104,10 +105,9 @@ const cv::Mat& CheckedImage(const BagMessage& m, const CameraInfo& camera) {
   const auto* image = std::get_if<ImageMessage>(&m.message);
   VISLOC_CHECK(image != nullptr, "image topic without an image");
   if (image->grey.cols != camera.camera.width() || image->grey.rows != camera.camera.height()) {
-    throw InputError(StrCat(m.topic, " image stamped ", StampText(image->header.stamp_ns),
-                            " s is ", image->grey.cols, "x", image->grey.rows,
-                            "; its camera is ", camera.camera.width(), "x",
-                            camera.camera.height()));
+    throw InputError(StrCat(m.topic, " image stamped ", StampText(image->header.stamp_ns), " s is ",
+                            image->grey.cols, "x", image->grey.rows, "; its camera is ",
+                            camera.camera.width(), "x", camera.camera.height()));
   }
   return image->grey;
 }
@@ -133,27 +133,28 @@ std::string CameraInfoTopicFor(const std::string& image_topic) {
   return (slash == std::string::npos ? "" : topic.substr(0, slash + 1)) + "camera_info";
 }
 
-std::string ImportOptions::Problem() const {
-  if (left_topic.empty()) return "the left image topic (--left) is required";
-  if (left_topic == right_topic) return StrCat("--left and --right name the same topic ", left_topic);
+void ImportOptions::Check() const {
+  if (left_topic.empty()) throw CheckError("the left image topic (--left) is required");
+  if (left_topic == right_topic)
+    throw CheckError(StrCat("--left and --right name the same topic ", left_topic));
   if (!(pair_tolerance_ns >= 0 && pair_tolerance_ns <= 1'000'000'000)) {
-    return StrCat("the pairing tolerance must be 0 to 1000 ms, not ", pair_tolerance_ns * 1e-6, " ms");
+    throw CheckError(StrCat("the pairing tolerance must be 0 to 1000 ms, not ",
+                            pair_tolerance_ns * 1e-6, " ms"));
   }
-  if (right_yaml && !left_yaml) return "--right-yaml needs --left-yaml";
+  if (right_yaml && !left_yaml) throw CheckError("--right-yaml needs --left-yaml");
   if (!right_topic.empty() && left_yaml.has_value() != right_yaml.has_value()) {
-    return "--left-yaml and --right-yaml go together for a stereo import";
+    throw CheckError("--left-yaml and --right-yaml go together for a stereo import");
   }
   if (!imu_topic.empty() && !left_yaml) {
-    return "--imu needs --left-yaml/--right-yaml: camera_info carries no camera-to-IMU transform, "
-           "and IMU samples must be given in the body frame of the cameras' T_BS";
+    throw CheckError(
+        "--imu needs --left-yaml/--right-yaml: camera_info carries no camera-to-IMU transform, "
+        "and IMU samples must be given in the body frame of the cameras' T_BS");
   }
-  return "";
 }
 
 ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std::string& out_dir,
                       const ImportProgressFn& progress) {
-  const std::string problem = options.Problem();
-  if (!problem.empty()) throw CheckError(problem);
+  options.Check();
   std::error_code error;
   if (fs::exists(out_dir, error) && !fs::is_empty(out_dir, error)) {
     throw InputError(StrCat(out_dir, ": exists and is not empty; import into a new folder"));
@@ -200,7 +201,8 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
     StereoPairer pairer(options.pair_tolerance_ns, write);
     int64_t last_mono_ns = INT64_MIN;
     std::vector<std::string> wanted = {options.left_topic};
-    for (const std::string* t : {&options.right_topic, &options.imu_topic, &options.odometry_topic}) {
+    for (const std::string* t :
+         {&options.right_topic, &options.imu_topic, &options.odometry_topic}) {
       if (!t->empty()) wanted.push_back(*t);
     }
     reader.Read(wanted, [&](const BagMessage& m) {
@@ -223,7 +225,8 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
       } else if (const auto* sample = std::get_if<ImuMessage>(&m.message)) {
         imu.push_back({sample->header.stamp_ns, sample->gyro_radps, sample->accel_mps2});
       } else if (const auto* odom = std::get_if<OdometryMessage>(&m.message)) {
-        odom_from_cam.push_back({odom->header.stamp_ns, odom->odom_from_child * options.base_from_cam});
+        odom_from_cam.push_back(
+            {odom->header.stamp_ns, odom->odom_from_child * options.base_from_cam});
       }
     });
     if (stereo) {
@@ -266,8 +269,8 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
   fs::remove(out_dir, error);  // An empty folder the user made is replaced.
   fs::rename(partial, out_dir, error);
   if (error) {
-    throw InputError(StrCat(out_dir, ": cannot move the imported sequence into place: ",
-                            error.message()));
+    throw InputError(
+        StrCat(out_dir, ": cannot move the imported sequence into place: ", error.message()));
   }
   return stats;
 }

@@ -37,8 +37,8 @@ struct ImportOptions {
   int64_t pair_tolerance_ns = 3'000'000;  // 3 ms: hardware-synchronized pairs share a stamp.
   double max_dropped_distortion_px = 0.5;  // For k3.. of plumb_bob (CameraFromInfo).
 
-  // Empty when the options are usable, else what is wrong with the first bad one.
-  std::string Problem() const;
+  // Throws CheckError naming the first bad value.
+  void Check() const;
 };
 
 struct ImportStats {

@@ -121,8 +121,8 @@ struct SessionOptions {
   std::function<void(const Event&)> on_event;
   int max_pending_events = 4096;  // Next()'s queue; the oldest events go beyond this.
 
-  // Empty when the options are usable, else what is wrong with them.
-  std::string Problem() const;
+  // Throws std::invalid_argument saying what is wrong with the first bad value.
+  void Check() const;
 };
 
 struct Frame {
@@ -149,7 +149,7 @@ struct SessionStats {
 class Session {
  public:
   // Starts connecting in the background and returns at once. Throws std::invalid_argument for
-  // options with a Problem().
+  // options that fail Check().
   static std::unique_ptr<Session> Open(const SessionOptions& options);
   virtual ~Session() = default;
 
