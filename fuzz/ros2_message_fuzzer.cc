@@ -9,7 +9,7 @@
 
 #include "core/util/check.h"
 #include "fuzz/fuzz_input.h"
-#include "ros/bag/bag_messages.h"
+#include "ros/messages/ros_messages.h"
 #include "ros/bag/ros2_messages.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -20,10 +20,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string type = kTypes[input.Byte() % 5];
   const std::string message = input.Rest();
   try {
-    const visloc::bag::Message decoded = visloc::bag::DecodeRos2Message(type, message);
-    if (const auto* info = std::get_if<visloc::bag::CameraInfoMessage>(&decoded)) {
-      visloc::bag::CameraFromInfo(*info, "/fuzz/camera_info");
-      visloc::bag::LeftFromRight(*info, *info);
+    const visloc::ros_msg::Message decoded = visloc::bag::DecodeRos2Message(type, message);
+    if (const auto* info = std::get_if<visloc::ros_msg::CameraInfoMessage>(&decoded)) {
+      visloc::ros_msg::CameraFromInfo(*info, "/fuzz/camera_info");
+      visloc::ros_msg::LeftFromRight(*info, *info);
     }
   } catch (const visloc::InputError&) {
     // Refused with a message.

@@ -268,8 +268,8 @@ class Session:
                    ("grpc.use_local_subchannel_pool", 1),  # A fresh connection every time.
                    ("grpc.initial_reconnect_backoff_ms", int(self._o.backoff_initial_s * 1000)),
                    ("grpc.max_reconnect_backoff_ms", int(self._o.backoff_max_s * 1000)),
-                   # visloc::client::kMaxReceiveMessageBytes, as the C++ library.
-                   ("grpc.max_receive_message_length", 64 << 20)]
+                   # The wire's limit from the proto, as the C++ library's.
+                   ("grpc.max_receive_message_length", pb.MAX_MESSAGE_BYTES)]
         if self._o.tls_ca_pem:
             credentials = grpc.ssl_channel_credentials(
                 self._o.tls_ca_pem, self._o.tls_key_pem or None, self._o.tls_cert_pem or None)

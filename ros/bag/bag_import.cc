@@ -16,26 +16,26 @@ namespace fs = std::filesystem;
 const std::set<std::string> kImageTypes = {"sensor_msgs/Image", "sensor_msgs/CompressedImage"};
 
 // The bag's topics of the given kinds, for error messages: "/a (sensor_msgs/Image, 95)".
-std::string ListTopics(const std::vector<TopicInfo>& topics, const std::set<std::string>& types) {
+std::string ListTopics(const std::vector<ros_msg::TopicInfo>& topics, const std::set<std::string>& types) {
   std::string list;
-  for (const TopicInfo& t : topics) {
-    if (!types.count(NormalizeTypeName(t.type))) continue;
+  for (const ros_msg::TopicInfo& t : topics) {
+    if (!types.count(ros_msg::NormalizeTypeName(t.type))) continue;
     list += StrCat(list.empty() ? "" : ", ", t.name, " (", t.type, ", ", t.messages, ")");
   }
   return list.empty() ? "none" : list;
 }
 
 // Checks that `topic` is in the bag with one of `types`; `flag` names the option for errors.
-void RequireTopic(const std::vector<TopicInfo>& topics, const std::string& topic,
+void RequireTopic(const std::vector<ros_msg::TopicInfo>& topics, const std::string& topic,
                   const std::set<std::string>& types, const std::string& flag,
                   const std::string& kind) {
   auto found = std::find_if(topics.begin(), topics.end(),
-                            [&](const TopicInfo& t) { return t.name == topic; });
+                            [&](const ros_msg::TopicInfo& t) { return t.name == topic; });
   if (found == topics.end()) {
     throw InputError(StrCat(flag, " ", topic, ": no such topic in the bag; its ", kind,
                             " topics: ", ListTopics(topics, types)));
   }
-  if (!types.count(NormalizeTypeName(found->type))) {
+  if (!types.count(ros_msg::NormalizeTypeName(found->type))) {
     std::string wanted;
     for (const std::string& type : types) wanted += (wanted.empty() ? "" : " or ") + type;
     throw InputError(
@@ -45,11 +45,11 @@ void RequireTopic(const std::vector<TopicInfo>& topics, const std::string& topic
 }
 
 // The first CameraInfo message of each wanted topic.
-std::map<std::string, CameraInfoMessage> FirstCameraInfos(BagReader& reader,
+std::map<std::string, ros_msg::CameraInfoMessage> FirstCameraInfos(BagReader& reader,
                                                           const std::vector<std::string>& topics) {
-  std::map<std::string, CameraInfoMessage> first;
-  reader.Read(topics, [&](const BagMessage& m) {
-    if (const auto* info = std::get_if<CameraInfoMessage>(&m.message))
+  std::map<std::string, ros_msg::CameraInfoMessage> first;
+  reader.Read(topics, [&](const ros_msg::BagMessage& m) {
+    if (const auto* info = std::get_if<ros_msg::CameraInfoMessage>(&m.message))
       first.emplace(m.topic, *info);
   });
   return first;
@@ -61,7 +61,7 @@ struct Cameras {
   std::string source;
 };
 
-Cameras CamerasFromInfo(BagReader& reader, const std::vector<TopicInfo>& topics,
+Cameras CamerasFromInfo(BagReader& reader, const std::vector<ros_msg::TopicInfo>& topics,
                         const ImportOptions& options) {
   const bool stereo = !options.right_topic.empty();
   const std::string left_info = options.left_info_topic.empty()
@@ -87,25 +87,25 @@ Cameras CamerasFromInfo(BagReader& reader, const std::vector<TopicInfo>& topics,
   const auto infos = FirstCameraInfos(reader, wanted);
   Cameras cameras;
   cameras.source = "camera_info";
-  const CameraInfoMessage& l = infos.at(left_info);
-  cameras.left.camera = CameraFromInfo(l, left_info, options.max_dropped_distortion_px);
+  const ros_msg::CameraInfoMessage& l = infos.at(left_info);
+  cameras.left.camera = ros_msg::CameraFromInfo(l, left_info, options.max_dropped_distortion_px);
   cameras.left.body_from_cam = Rigid3d::Identity();  // The left camera is the body frame.
   if (stereo) {
-    const CameraInfoMessage& r = infos.at(right_info);
+    const ros_msg::CameraInfoMessage& r = infos.at(right_info);
     CameraInfo right;
-    right.camera = CameraFromInfo(r, right_info, options.max_dropped_distortion_px);
-    right.body_from_cam = LeftFromRight(l, r);
+    right.camera = ros_msg::CameraFromInfo(r, right_info, options.max_dropped_distortion_px);
+    right.body_from_cam = ros_msg::LeftFromRight(l, r);
     cameras.right = right;
   }
   return cameras;
 }
 
 // The image in a message of an image topic; InputError when its size is not the camera's.
-const cv::Mat& CheckedImage(const BagMessage& m, const CameraInfo& camera) {
-  const auto* image = std::get_if<ImageMessage>(&m.message);
+const cv::Mat& CheckedImage(const ros_msg::BagMessage& m, const CameraInfo& camera) {
+  const auto* image = std::get_if<ros_msg::ImageMessage>(&m.message);
   VISLOC_CHECK(image != nullptr, "image topic without an image");
   if (image->grey.cols != camera.camera.width() || image->grey.rows != camera.camera.height()) {
-    throw InputError(StrCat(m.topic, " image stamped ", StampText(image->header.stamp_ns), " s is ",
+    throw InputError(StrCat(m.topic, " image stamped ", ros_msg::StampText(image->header.stamp_ns), " s is ",
                             image->grey.cols, "x", image->grey.rows, "; its camera is ",
                             camera.camera.width(), "x", camera.camera.height()));
   }
@@ -159,7 +159,7 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
   if (fs::exists(out_dir, error) && !fs::is_empty(out_dir, error)) {
     throw InputError(StrCat(out_dir, ": exists and is not empty; import into a new folder"));
   }
-  const std::vector<TopicInfo> topics = reader.Topics();
+  const std::vector<ros_msg::TopicInfo> topics = reader.Topics();
   const bool stereo = !options.right_topic.empty();
   RequireTopic(topics, options.left_topic, kImageTypes, "--left", "image");
   if (stereo) RequireTopic(topics, options.right_topic, kImageTypes, "--right", "image");
@@ -205,11 +205,11 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
          {&options.right_topic, &options.imu_topic, &options.odometry_topic}) {
       if (!t->empty()) wanted.push_back(*t);
     }
-    reader.Read(wanted, [&](const BagMessage& m) {
+    reader.Read(wanted, [&](const ros_msg::BagMessage& m) {
       if (m.topic == options.left_topic) {
         ++stats.left_images;
         const cv::Mat& grey = CheckedImage(m, cameras.left);
-        const int64_t stamp = std::get<ImageMessage>(m.message).header.stamp_ns;
+        const int64_t stamp = std::get<ros_msg::ImageMessage>(m.message).header.stamp_ns;
         if (stereo) {
           pairer.AddLeft(stamp, grey);
         } else if (stamp > last_mono_ns) {
@@ -220,11 +220,11 @@ ImportStats ImportBag(BagReader& reader, const ImportOptions& options, const std
         }
       } else if (m.topic == options.right_topic) {
         ++stats.right_images;
-        pairer.AddRight(std::get<ImageMessage>(m.message).header.stamp_ns,
+        pairer.AddRight(std::get<ros_msg::ImageMessage>(m.message).header.stamp_ns,
                         CheckedImage(m, *cameras.right));
-      } else if (const auto* sample = std::get_if<ImuMessage>(&m.message)) {
+      } else if (const auto* sample = std::get_if<ros_msg::ImuMessage>(&m.message)) {
         imu.push_back({sample->header.stamp_ns, sample->gyro_radps, sample->accel_mps2});
-      } else if (const auto* odom = std::get_if<OdometryMessage>(&m.message)) {
+      } else if (const auto* odom = std::get_if<ros_msg::OdometryMessage>(&m.message)) {
         odom_from_cam.push_back(
             {odom->header.stamp_ns, odom->odom_from_child * options.base_from_cam});
       }

@@ -35,7 +35,7 @@ struct ImportOptions {
   // camera itself.
   Rigid3d base_from_cam;
   int64_t pair_tolerance_ns = 3'000'000;  // 3 ms: hardware-synchronized pairs share a stamp.
-  double max_dropped_distortion_px = 0.5;  // For k3.. of plumb_bob (CameraFromInfo).
+  double max_dropped_distortion_px = 0.5;  // For k3.. of plumb_bob (ros_msg::CameraFromInfo).
 
   // Throws CheckError naming the first bad value.
   void Check() const;

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "ros/bag/bag_messages.h"
+#include "ros/messages/ros_messages.h"
 
 namespace visloc::bag {
 
@@ -15,11 +15,11 @@ class BagReader {
  public:
   virtual ~BagReader() = default;
   // Every topic with its type and message count.
-  virtual std::vector<TopicInfo> Topics() = 0;
+  virtual std::vector<ros_msg::TopicInfo> Topics() = 0;
   // Calls `visit` for each message of `topics`, decoded, in recording order. A message that
   // cannot be decoded throws InputError naming the topic and its time.
   virtual void Read(const std::vector<std::string>& topics,
-                    const std::function<void(const BagMessage&)>& visit) = 0;
+                    const std::function<void(const ros_msg::BagMessage&)>& visit) = 0;
 };
 
 }  // namespace visloc::bag

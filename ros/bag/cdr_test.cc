@@ -57,17 +57,17 @@ TEST(CdrReaderTest, RefusesForeignEncapsulationsAndHugeSequences) {
 TEST(Ros2MessagesTest, DecodesImageCameraInfoAndOdometry) {
   cv::Mat grey(3, 5, CV_8UC1);
   for (int i = 0; i < 15; ++i) grey.data[i] = static_cast<uint8_t>(i * 10);
-  const Message image =
+  const ros_msg::Message image =
       DecodeRos2Message("sensor_msgs/Image", testing::Ros2Image(1'500'000'123, grey, "cam0"));
-  const auto& decoded = std::get<ImageMessage>(image);
+  const auto& decoded = std::get<ros_msg::ImageMessage>(image);
   EXPECT_EQ(decoded.header.stamp_ns, 1'500'000'123);
   EXPECT_EQ(decoded.header.frame_id, "cam0");
   EXPECT_EQ(cv::norm(decoded.grey, grey, cv::NORM_INF), 0.0);
 
-  const Message info = DecodeRos2Message(
+  const ros_msg::Message info = DecodeRos2Message(
       "sensor_msgs/CameraInfo",
       testing::Ros2CameraInfo(7, 320, 240, 250.0, 160.0, 120.0, {0.1, -0.01, 0, 0, 0}, 0.11));
-  const auto& camera = std::get<CameraInfoMessage>(info);
+  const auto& camera = std::get<ros_msg::CameraInfoMessage>(info);
   EXPECT_EQ(camera.width, 320);
   EXPECT_EQ(camera.distortion_model, "plumb_bob");
   ASSERT_EQ(camera.d.size(), 5u);
@@ -75,8 +75,8 @@ TEST(Ros2MessagesTest, DecodesImageCameraInfoAndOdometry) {
   EXPECT_DOUBLE_EQ(camera.p[3], -250.0 * 0.11);
 
   const double xyz[3] = {1, 2, 3}, q[4] = {0, 0, 0.7071067811865476, 0.7071067811865476};
-  const Message odom = DecodeRos2Message("nav_msgs/Odometry", testing::Ros2Odometry(9, xyz, q));
-  const auto& o = std::get<OdometryMessage>(odom);
+  const ros_msg::Message odom = DecodeRos2Message("nav_msgs/Odometry", testing::Ros2Odometry(9, xyz, q));
+  const auto& o = std::get<ros_msg::OdometryMessage>(odom);
   EXPECT_EQ(o.child_frame_id, "base_link");
   EXPECT_NEAR((o.odom_from_child * Eigen::Vector3d(1, 0, 0) - Eigen::Vector3d(1, 3, 3)).norm(),
               0.0, 1e-12);

@@ -54,7 +54,7 @@ class Ros2Bag : public BagReader {
           throw InputError(StrCat(file, ": topic ", topic.name, " is serialized as '",
                                   topic.serialization_format, "'; only CDR is supported"));
         }
-        TopicInfo& info = topics_[topic.name];
+        ros_msg::TopicInfo& info = topics_[topic.name];
         info.name = topic.name;
         info.type = topic.type;
         info.messages += topic.messages;
@@ -62,31 +62,31 @@ class Ros2Bag : public BagReader {
     }
   }
 
-  std::vector<TopicInfo> Topics() override {
-    std::vector<TopicInfo> topics;
+  std::vector<ros_msg::TopicInfo> Topics() override {
+    std::vector<ros_msg::TopicInfo> topics;
     for (const auto& [name, info] : topics_) topics.push_back(info);
     return topics;
   }
 
   void Read(const std::vector<std::string>& wanted,
-            const std::function<void(const BagMessage&)>& visit) override {
+            const std::function<void(const ros_msg::BagMessage&)>& visit) override {
     for (const std::string& file : files_) {
       mapstore::Rosbag2Db3 db(file);
       std::map<int64_t, std::pair<std::string, std::string>> by_id;  // id -> (name, type)
       std::vector<int64_t> ids;
       for (const mapstore::Rosbag2Topic& topic : db.Topics()) {
         if (std::find(wanted.begin(), wanted.end(), topic.name) == wanted.end()) continue;
-        by_id[topic.id] = {topic.name, NormalizeTypeName(topic.type)};
+        by_id[topic.id] = {topic.name, ros_msg::NormalizeTypeName(topic.type)};
         ids.push_back(topic.id);
       }
       db.ForEachMessage(ids, [&](int64_t topic_id, int64_t timestamp_ns, std::string_view data) {
         const auto& [name, type] = by_id.at(topic_id);
-        BagMessage message{name, timestamp_ns, UnknownMessage{}};
+        ros_msg::BagMessage message{name, timestamp_ns, ros_msg::UnknownMessage{}};
         try {
           message.message = DecodeRos2Message(type, data);
         } catch (const InputError& e) {
           throw InputError(StrCat(file, ": ", name, " message recorded at ",
-                                  StampText(timestamp_ns), " s: ", e.what()));
+                                  ros_msg::StampText(timestamp_ns), " s: ", e.what()));
         }
         visit(message);
       });
@@ -95,7 +95,7 @@ class Ros2Bag : public BagReader {
 
  private:
   std::vector<std::string> files_;
-  std::map<std::string, TopicInfo> topics_;
+  std::map<std::string, ros_msg::TopicInfo> topics_;
 };
 
 }  // namespace

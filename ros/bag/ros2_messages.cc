@@ -8,8 +8,8 @@
 namespace visloc::bag {
 namespace {
 
-RosHeader ReadHeader(CdrReader& in) {
-  RosHeader header;
+ros_msg::RosHeader ReadHeader(CdrReader& in) {
+  ros_msg::RosHeader header;
   const int32_t sec = in.I32("header.stamp.sec");
   const uint32_t nanosec = in.U32("header.stamp.nanosec");
   if (nanosec >= 1000000000u) {
@@ -35,8 +35,8 @@ void SkipCovariance(CdrReader& in, int size, const char* what) {
   for (int i = 0; i < size; ++i) in.F64(what);
 }
 
-ImageMessage ReadImage(CdrReader& in) {
-  ImageMessage msg;
+ros_msg::ImageMessage ReadImage(CdrReader& in) {
+  ros_msg::ImageMessage msg;
   msg.header = ReadHeader(in);
   const uint32_t height = in.U32("height");
   const uint32_t width = in.U32("width");
@@ -44,23 +44,23 @@ ImageMessage ReadImage(CdrReader& in) {
   const bool big_endian = in.U8("is_bigendian") != 0;
   const uint32_t step = in.U32("step");
   const std::string_view data = in.Bytes("data");
-  msg.grey = DecodeRawImage(width, height, encoding, big_endian, step, data);
+  msg.grey = ros_msg::DecodeRawImage(width, height, encoding, big_endian, step, data);
   return msg;
 }
 
-ImageMessage ReadCompressedImage(CdrReader& in) {
-  ImageMessage msg;
+ros_msg::ImageMessage ReadCompressedImage(CdrReader& in) {
+  ros_msg::ImageMessage msg;
   msg.header = ReadHeader(in);
   const std::string format = in.String("format");
-  msg.grey = DecodeCompressedImage(format, in.Bytes("data"));
+  msg.grey = ros_msg::DecodeCompressedImage(format, in.Bytes("data"));
   return msg;
 }
 
-CameraInfoMessage ReadCameraInfo(CdrReader& in) {
-  CameraInfoMessage msg;
+ros_msg::CameraInfoMessage ReadCameraInfo(CdrReader& in) {
+  ros_msg::CameraInfoMessage msg;
   msg.header = ReadHeader(in);
-  msg.height = ImageSide(in.U32("height"));
-  msg.width = ImageSide(in.U32("width"));
+  msg.height = ros_msg::ImageSide(in.U32("height"));
+  msg.width = ros_msg::ImageSide(in.U32("width"));
   msg.distortion_model = in.String("distortion_model");
   msg.d = in.F64Sequence("d");
   ReadArray(in, msg.k, "k");
@@ -70,8 +70,8 @@ CameraInfoMessage ReadCameraInfo(CdrReader& in) {
   return msg;
 }
 
-ImuMessage ReadImu(CdrReader& in) {
-  ImuMessage msg;
+ros_msg::ImuMessage ReadImu(CdrReader& in) {
+  ros_msg::ImuMessage msg;
   msg.header = ReadHeader(in);
   for (int i = 0; i < 4; ++i) in.F64("orientation");
   SkipCovariance(in, 9, "orientation_covariance");
@@ -81,27 +81,27 @@ ImuMessage ReadImu(CdrReader& in) {
   return msg;
 }
 
-OdometryMessage ReadOdometry(CdrReader& in) {
-  OdometryMessage msg;
+ros_msg::OdometryMessage ReadOdometry(CdrReader& in) {
+  ros_msg::OdometryMessage msg;
   msg.header = ReadHeader(in);
   msg.child_frame_id = in.String("child_frame_id");
   const Eigen::Vector3d position = ReadVector3(in, "pose.pose.position");
   double q[4];  // x y z w
   for (double& c : q) c = in.F64("pose.pose.orientation");
-  msg.odom_from_child = OdometryPose(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), position);
+  msg.odom_from_child = ros_msg::OdometryPose(Eigen::Quaterniond(q[3], q[0], q[1], q[2]), position);
   return msg;
 }
 
 }  // namespace
 
-Message DecodeRos2Message(const std::string& type, std::string_view cdr) {
+ros_msg::Message DecodeRos2Message(const std::string& type, std::string_view cdr) {
   CdrReader in(cdr);
   if (type == "sensor_msgs/Image") return ReadImage(in);
   if (type == "sensor_msgs/CompressedImage") return ReadCompressedImage(in);
   if (type == "sensor_msgs/CameraInfo") return ReadCameraInfo(in);
   if (type == "sensor_msgs/Imu") return ReadImu(in);
   if (type == "nav_msgs/Odometry") return ReadOdometry(in);
-  return UnknownMessage{};
+  return ros_msg::UnknownMessage{};
 }
 
 }  // namespace visloc::bag

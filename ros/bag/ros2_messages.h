@@ -6,13 +6,13 @@
 #include <string>
 #include <string_view>
 
-#include "ros/bag/bag_messages.h"
+#include "ros/messages/ros_messages.h"
 
 namespace visloc::bag {
 
 // `type` as NormalizeTypeName returns it. Raw and compressed images are decoded to grey.
 // Throws InputError naming the type and the field for a malformed message; UnknownMessage for
 // types the importer does not read.
-Message DecodeRos2Message(const std::string& type, std::string_view cdr);
+ros_msg::Message DecodeRos2Message(const std::string& type, std::string_view cdr);
 
 }  // namespace visloc::bag

@@ -38,8 +38,8 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
-#include "proto/convert.h"
-#include "ros/bag/bag_messages.h"
+#include "proto/geometry_convert.h"
+#include "ros/messages/ros_messages.h"
 #include "ros/node/pose_output.h"
 #include "visloc/client/session.h"
 
@@ -157,14 +157,14 @@ class LocalizationNode {
   vc::Session* OpenSession(const sensor_msgs::CameraInfo& msg, std::optional<vc::Frame>* early) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (session_ || failed_) return nullptr;
-    bag::CameraInfoMessage info;
-    info.width = bag::ImageSide(msg.width);
-    info.height = bag::ImageSide(msg.height);
+    ros_msg::CameraInfoMessage info;
+    info.width = ros_msg::ImageSide(msg.width);
+    info.height = ros_msg::ImageSide(msg.height);
     info.distortion_model = msg.distortion_model;
     info.d = msg.D;
     std::copy(msg.K.begin(), msg.K.end(), info.k.begin());
     try {
-      ToProto(bag::CameraFromInfo(info, nh_.resolveName("camera_info")), &options_.camera);
+      ToProto(ros_msg::CameraFromInfo(info, nh_.resolveName("camera_info")), &options_.camera);
     } catch (const std::exception& e) {
       failed_ = true;
       ROS_ERROR("visloc: %s", e.what());
@@ -239,7 +239,7 @@ class LocalizationNode {
   void OnImage(const sensor_msgs::ImageConstPtr& msg) {
     vc::Frame frame;
     try {
-      frame.image = bag::DecodeRawImage(
+      frame.image = ros_msg::DecodeRawImage(
           msg->width, msg->height, msg->encoding, msg->is_bigendian != 0, msg->step,
           std::string_view(reinterpret_cast<const char*>(msg->data.data()), msg->data.size()));
     } catch (const std::exception& e) {

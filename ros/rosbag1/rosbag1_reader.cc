@@ -18,7 +18,7 @@
 namespace visloc::bag {
 namespace {
 
-RosHeader HeaderOf(const std_msgs::Header& header) {
+ros_msg::RosHeader HeaderOf(const std_msgs::Header& header) {
   return {static_cast<int64_t>(header.stamp.toNSec()), header.frame_id};
 }
 
@@ -26,23 +26,23 @@ std::string_view BytesOf(const std::vector<uint8_t>& data) {
   return std::string_view(reinterpret_cast<const char*>(data.data()), data.size());
 }
 
-Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
+ros_msg::Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
   if (type == "sensor_msgs/Image") {
     const auto msg = m.instantiate<sensor_msgs::Image>();
-    return ImageMessage{HeaderOf(msg->header),
-                        DecodeRawImage(msg->width, msg->height, msg->encoding,
+    return ros_msg::ImageMessage{HeaderOf(msg->header),
+                        ros_msg::DecodeRawImage(msg->width, msg->height, msg->encoding,
                                        msg->is_bigendian != 0, msg->step, BytesOf(msg->data))};
   }
   if (type == "sensor_msgs/CompressedImage") {
     const auto msg = m.instantiate<sensor_msgs::CompressedImage>();
-    return ImageMessage{HeaderOf(msg->header), DecodeCompressedImage(msg->format, BytesOf(msg->data))};
+    return ros_msg::ImageMessage{HeaderOf(msg->header), ros_msg::DecodeCompressedImage(msg->format, BytesOf(msg->data))};
   }
   if (type == "sensor_msgs/CameraInfo") {
     const auto msg = m.instantiate<sensor_msgs::CameraInfo>();
-    CameraInfoMessage info;
+    ros_msg::CameraInfoMessage info;
     info.header = HeaderOf(msg->header);
-    info.width = ImageSide(msg->width);
-    info.height = ImageSide(msg->height);
+    info.width = ros_msg::ImageSide(msg->width);
+    info.height = ros_msg::ImageSide(msg->height);
     info.distortion_model = msg->distortion_model;
     info.d = msg->D;
     std::copy(msg->K.begin(), msg->K.end(), info.k.begin());
@@ -54,18 +54,18 @@ Message Decode(const rosbag::MessageInstance& m, const std::string& type) {
     const auto msg = m.instantiate<sensor_msgs::Imu>();
     const auto& w = msg->angular_velocity;
     const auto& a = msg->linear_acceleration;
-    return ImuMessage{HeaderOf(msg->header), Eigen::Vector3d(w.x, w.y, w.z),
+    return ros_msg::ImuMessage{HeaderOf(msg->header), Eigen::Vector3d(w.x, w.y, w.z),
                       Eigen::Vector3d(a.x, a.y, a.z)};
   }
   if (type == "nav_msgs/Odometry") {
     const auto msg = m.instantiate<nav_msgs::Odometry>();
     const auto& p = msg->pose.pose.position;
     const auto& q = msg->pose.pose.orientation;
-    return OdometryMessage{HeaderOf(msg->header), msg->child_frame_id,
-                           OdometryPose(Eigen::Quaterniond(q.w, q.x, q.y, q.z),
+    return ros_msg::OdometryMessage{HeaderOf(msg->header), msg->child_frame_id,
+                           ros_msg::OdometryPose(Eigen::Quaterniond(q.w, q.x, q.y, q.z),
                                         Eigen::Vector3d(p.x, p.y, p.z))};
   }
-  return UnknownMessage{};
+  return ros_msg::UnknownMessage{};
 }
 
 class Ros1Bag : public BagReader {
@@ -80,37 +80,37 @@ class Ros1Bag : public BagReader {
     }
   }
 
-  std::vector<TopicInfo> Topics() override {
-    std::map<std::string, TopicInfo> topics;
+  std::vector<ros_msg::TopicInfo> Topics() override {
+    std::map<std::string, ros_msg::TopicInfo> topics;
     rosbag::View view(bag_);
     for (const rosbag::ConnectionInfo* c : view.getConnections()) {
-      TopicInfo& info = topics[c->topic];
+      ros_msg::TopicInfo& info = topics[c->topic];
       info.name = c->topic;
       info.type = c->datatype;
     }
     for (auto& [name, info] : topics) {
       info.messages = rosbag::View(bag_, rosbag::TopicQuery(name)).size();
     }
-    std::vector<TopicInfo> list;
+    std::vector<ros_msg::TopicInfo> list;
     for (const auto& [name, info] : topics) list.push_back(info);
     return list;
   }
 
   void Read(const std::vector<std::string>& topics,
-            const std::function<void(const BagMessage&)>& visit) override {
+            const std::function<void(const ros_msg::BagMessage&)>& visit) override {
     try {
       rosbag::View view(bag_, rosbag::TopicQuery(topics));
       for (const rosbag::MessageInstance& m : view) {
-        BagMessage message{m.getTopic(), static_cast<int64_t>(m.getTime().toNSec()),
-                           UnknownMessage{}};
+        ros_msg::BagMessage message{m.getTopic(), static_cast<int64_t>(m.getTime().toNSec()),
+                           ros_msg::UnknownMessage{}};
         try {
-          message.message = Decode(m, NormalizeTypeName(m.getDataType()));
+          message.message = Decode(m, ros_msg::NormalizeTypeName(m.getDataType()));
         } catch (const ros::Exception& e) {  // Includes rosbag's and serialization errors.
           throw InputError(StrCat(message.topic, " message recorded at ",
-                                  StampText(message.record_time_ns), " s: ", e.what()));
+                                  ros_msg::StampText(message.record_time_ns), " s: ", e.what()));
         } catch (const InputError& e) {
           throw InputError(StrCat(message.topic, " message recorded at ",
-                                  StampText(message.record_time_ns), " s: ", e.what()));
+                                  ros_msg::StampText(message.record_time_ns), " s: ", e.what()));
         }
         visit(message);
       }

@@ -187,8 +187,9 @@ v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, doubl
 v1::CameraModel CameraFromYaml(const std::string& path);
 
 // The largest answer a client accepts (gRPC's default is 4 MiB): a map download chunk or a
-// relocalization's candidate list stay far below it. The Python package uses the same figure.
-constexpr int kMaxReceiveMessageBytes = 64 << 20;
+// relocalization's candidate list stay far below it. The wire's limit, defined once in
+// visloc.proto (WireLimit), which the server and the Python package use too.
+constexpr int kMaxReceiveMessageBytes = v1::MAX_MESSAGE_BYTES;
 
 // The frame's image as it would go on the wire: grey, then encoded. Throws
 // std::invalid_argument for an empty image or one the encoder refuses.

@@ -1,4 +1,4 @@
-#include "ros/bag/bag_messages.h"
+#include "ros/messages/ros_messages.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +12,7 @@
 
 #include "core/util/check.h"
 
-namespace visloc::bag {
+namespace visloc::ros_msg {
 namespace {
 
 // OpenCV names a Bayer pattern by the second row's first two pixels, ROS by the first row's:
@@ -100,7 +100,8 @@ cv::Mat DecodeRawImage(int64_t width, int64_t height, const std::string& encodin
     if (is_bigendian != host_big_endian) {
       for (int y = 0; y < rows; ++y) {
         auto* row = wide.ptr<uint16_t>(y);
-        for (int x = 0; x < cols; ++x) row[x] = static_cast<uint16_t>((row[x] << 8) | (row[x] >> 8));
+        for (int x = 0; x < cols; ++x)
+          row[x] = static_cast<uint16_t>((row[x] << 8) | (row[x] >> 8));
       }
     }
     wide.convertTo(grey, CV_8U, 1.0 / 256.0);
@@ -183,8 +184,8 @@ Eigen::Matrix3d RotationOf(const std::array<double, 9>& r) {
 Camera CameraFromInfo(const CameraInfoMessage& info, const std::string& topic,
                       double max_dropped_term_px) {
   if (info.width <= 0 || info.height <= 0) {
-    throw InputError(StrCat(topic, ": camera_info has no image size (", info.width, "x",
-                            info.height, ")"));
+    throw InputError(
+        StrCat(topic, ": camera_info has no image size (", info.width, "x", info.height, ")"));
   }
   const double fx = info.k[0], fy = info.k[4], cx = info.k[2], cy = info.k[5];
   if (!(fx > 0 && fy > 0 && std::isfinite(cx) && std::isfinite(cy))) {
@@ -195,14 +196,14 @@ Camera CameraFromInfo(const CameraInfoMessage& info, const std::string& topic,
   const std::string& model = info.distortion_model;
   if (model == "equidistant") {
     if (info.d.size() != 4) {
-      throw InputError(StrCat(topic, ": equidistant needs 4 coefficients, the camera_info has ",
-                              info.d.size()));
+      throw InputError(
+          StrCat(topic, ": equidistant needs 4 coefficients, the camera_info has ", info.d.size()));
     }
     lens = Lens::Equidistant(info.d[0], info.d[1], info.d[2], info.d[3]);
   } else if (model == "plumb_bob" || model == "rational_polynomial") {
     lens = RadialTangentialLens(info, topic, max_dropped_term_px);
-  } else if (model.empty() && std::all_of(info.d.begin(), info.d.end(),
-                                          [](double c) { return c == 0.0; })) {
+  } else if (model.empty() &&
+             std::all_of(info.d.begin(), info.d.end(), [](double c) { return c == 0.0; })) {
     lens = Lens();  // No model and no coefficients: a distortion-free (e.g. rectified) camera.
   } else {
     throw InputError(StrCat(topic, ": distortion model '", model,
@@ -231,4 +232,4 @@ Rigid3d LeftFromRight(const CameraInfoMessage& left, const CameraInfoMessage& ri
                  rect_from_left.transpose() * Eigen::Vector3d(baseline_m, 0, 0));
 }
 
-}  // namespace visloc::bag
+}  // namespace visloc::ros_msg

@@ -20,7 +20,7 @@
 #include "core/camera/camera.h"
 #include "core/geometry/rigid3.h"
 
-namespace visloc::bag {
+namespace visloc::ros_msg {
 
 struct RosHeader {
   int64_t stamp_ns = 0;
@@ -113,4 +113,4 @@ Camera CameraFromInfo(const CameraInfoMessage& info, const std::string& topic,
 // right P carries no baseline (not a calibrated stereo pair).
 Rigid3d LeftFromRight(const CameraInfoMessage& left, const CameraInfoMessage& right);
 
-}  // namespace visloc::bag
+}  // namespace visloc::ros_msg

@@ -1,4 +1,4 @@
-#include "ros/bag/bag_messages.h"
+#include "ros/messages/ros_messages.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 
 #include "core/util/check.h"
 
-namespace visloc::bag {
+namespace visloc::ros_msg {
 namespace {
 
 std::string_view View(const cv::Mat& m) {
@@ -53,8 +53,8 @@ TEST(DecodeRawImageTest, ReadsSixteenBitRowsWithAnOddStep) {
 TEST(DecodeRawImageTest, RefusesWhatCannotBeAnImage) {
   cv::Mat grey(4, 4, CV_8UC1, cv::Scalar(1));
   EXPECT_THROW(DecodeRawImage(4, 4, "yuv422", false, 8, View(grey)), InputError);
-  EXPECT_THROW(DecodeRawImage(4, 4, "mono8", false, 3, View(grey)), InputError);   // step < row
-  EXPECT_THROW(DecodeRawImage(4, 5, "mono8", false, 4, View(grey)), InputError);   // too short
+  EXPECT_THROW(DecodeRawImage(4, 4, "mono8", false, 3, View(grey)), InputError);  // step < row
+  EXPECT_THROW(DecodeRawImage(4, 5, "mono8", false, 4, View(grey)), InputError);  // too short
   EXPECT_THROW(DecodeRawImage(0, 4, "mono8", false, 4, View(grey)), InputError);
   try {
     DecodeRawImage(4, 4, "bgr8", false, 12, View(grey));
@@ -68,8 +68,8 @@ TEST(DecodeCompressedImageTest, DecodesJpegAndPngAndRefusesGarbage) {
   cv::Mat grey(16, 16, CV_8UC1, cv::Scalar(90));
   std::vector<uint8_t> png;
   cv::imencode(".png", grey, png);
-  const cv::Mat decoded =
-      DecodeCompressedImage("png", std::string_view(reinterpret_cast<char*>(png.data()), png.size()));
+  const cv::Mat decoded = DecodeCompressedImage(
+      "png", std::string_view(reinterpret_cast<char*>(png.data()), png.size()));
   EXPECT_EQ(cv::norm(decoded, grey, cv::NORM_INF), 0.0);
   EXPECT_THROW(DecodeCompressedImage("jpeg", "not a jpeg"), InputError);
   EXPECT_THROW(DecodeCompressedImage("jpeg", ""), InputError);
@@ -137,4 +137,4 @@ TEST(LeftFromRightTest, RecoversTheRigFromRectifiedProjections) {
 }
 
 }  // namespace
-}  // namespace visloc::bag
+}  // namespace visloc::ros_msg
