@@ -21,25 +21,30 @@ TokenAuth TokenAuth::FromFile(const std::string& path) {
   return auth;
 }
 
-grpc::Status TokenAuth::Check(const grpc::ServerContext& context, Role needed) const {
-  if (!enabled()) return grpc::Status::OK;
-  const auto& metadata = context.client_metadata();
-  const auto it = metadata.find("authorization");
-  const std::string prefix = "Bearer ";
-  if (it == metadata.end()) {
-    return grpc::Status(grpc::StatusCode::UNAUTHENTICATED,
-                        "missing bearer token: give visloc --token TOKEN or $VISLOC_TOKEN (the "
-                        "metadata 'authorization: Bearer TOKEN')");
+std::optional<Role> TokenAuth::RoleOf(std::string_view token) const {
+  const auto it = roles_.find(token);
+  if (it == roles_.end()) return std::nullopt;
+  return it->second;
+}
+
+AuthDecision TokenAuth::Authorize(const std::optional<std::string_view>& authorization,
+                                  Role needed) const {
+  using Outcome = AuthDecision::Outcome;
+  if (!enabled()) return {};
+  if (!authorization) {
+    return {Outcome::kUnauthenticated,
+            "missing bearer token: give visloc --token TOKEN or $VISLOC_TOKEN (the "
+            "metadata 'authorization: Bearer TOKEN')"};
   }
-  const std::string value(it->second.data(), it->second.size());
-  const auto role =
-      value.rfind(prefix, 0) == 0 ? roles_.find(value.substr(prefix.size())) : roles_.end();
-  if (role == roles_.end()) return grpc::Status(grpc::StatusCode::UNAUTHENTICATED, "unknown token");
-  if (static_cast<int>(role->second) < static_cast<int>(needed)) {
-    return grpc::Status(grpc::StatusCode::PERMISSION_DENIED,
-                        "this token may localize but not manage maps");
+  constexpr std::string_view kPrefix = "Bearer ";
+  const std::optional<Role> role = authorization->substr(0, kPrefix.size()) == kPrefix
+                                       ? RoleOf(authorization->substr(kPrefix.size()))
+                                       : std::nullopt;
+  if (!role) return {Outcome::kUnauthenticated, "unknown token"};
+  if (static_cast<int>(*role) < static_cast<int>(needed)) {
+    return {Outcome::kPermissionDenied, "this token may localize but not manage maps"};
   }
-  return grpc::Status::OK;
+  return {};
 }
 
 }  // namespace visloc::server

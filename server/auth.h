@@ -1,17 +1,27 @@
 #pragma once
 // Bearer-token authorization with two roles (product.md): robots may localize; admins may also
 // manage maps. Tokens come from a file, one "TOKEN ROLE" pair a line ('#' comments), and reach
-// the server as the "authorization: Bearer TOKEN" metadata of each call. Without a tokens file
-// every call is allowed (the server then listens on loopback only unless told otherwise).
+// the server in each call's "authorization: Bearer TOKEN" header (gRPC metadata, or an HTTP
+// header: nothing here knows the transport; server/rpc.h maps a decision to a gRPC status).
+// Without a tokens file every call is allowed (the server then listens on loopback only unless
+// told otherwise).
 
 #include <map>
+#include <optional>
 #include <string>
-
-#include <grpcpp/grpcpp.h>
+#include <string_view>
 
 namespace visloc::server {
 
 enum class Role { kLocalize = 1, kAdmin = 2 };
+
+// What a caller may do, and if not, why (a message for the caller).
+struct AuthDecision {
+  enum class Outcome { kAllowed, kUnauthenticated, kPermissionDenied };
+  Outcome outcome = Outcome::kAllowed;
+  std::string message;
+  bool allowed() const { return outcome == Outcome::kAllowed; }
+};
 
 class TokenAuth {
  public:
@@ -20,11 +30,13 @@ class TokenAuth {
   static TokenAuth FromFile(const std::string& path);
 
   bool enabled() const { return !roles_.empty(); }
-  // OK, UNAUTHENTICATED (no or unknown token) or PERMISSION_DENIED (role too weak).
-  grpc::Status Check(const grpc::ServerContext& context, Role needed) const;
+  // The token's role; none for an unknown token.
+  std::optional<Role> RoleOf(std::string_view token) const;
+  // `authorization`: the header's value ("Bearer TOKEN"), none when the call carried none.
+  AuthDecision Authorize(const std::optional<std::string_view>& authorization, Role needed) const;
 
  private:
-  std::map<std::string, Role> roles_;
+  std::map<std::string, Role, std::less<>> roles_;
 };
 
 }  // namespace visloc::server

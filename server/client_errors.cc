@@ -58,9 +58,9 @@ grpc::Status StatusFromException(const std::exception& e, const char* where) {
   if (dynamic_cast<const InputError*>(&e)) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, RedactForClient(e.what()));
   }
-  return grpc::Status(grpc::StatusCode::INTERNAL,
-                      "internal server error (reference " + LogInternalError(e, where) +
-                          " in the server log)");
+  return grpc::Status(
+      grpc::StatusCode::INTERNAL,
+      "internal server error (reference " + LogInternalError(e, where) + " in the server log)");
 }
 
 }  // namespace visloc::server

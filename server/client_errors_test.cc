@@ -14,12 +14,13 @@ using ::testing::Not;
 
 TEST(ClientErrorsTest, ServerPathsBecomeWhatTheyMeanToAClient) {
   TempDir maps("visloc-client-errors");
-  EXPECT_EQ(RedactForClient(maps.File(".lab.db.tmp-4242-7") +
-                            ": not a visloc map (no 'meta' table)"),
-            "map 'lab' (staged upload): not a visloc map (no 'meta' table)");
+  EXPECT_EQ(
+      RedactForClient(maps.File(".lab.db.tmp-4242-7") + ": not a visloc map (no 'meta' table)"),
+      "map 'lab' (staged upload): not a visloc map (no 'meta' table)");
   EXPECT_EQ(RedactForClient("no map named 'x' in " + maps.path()),
             "no map named 'x' in the maps folder");
-  EXPECT_EQ(RedactForClient("cannot open '" + maps.File("lab.db") + "'"), "cannot open 'map 'lab''");
+  EXPECT_EQ(RedactForClient("cannot open '" + maps.File("lab.db") + "'"),
+            "cannot open 'map 'lab''");
   EXPECT_EQ(RedactForClient("/etc/passwd, twice: /etc/passwd"),
             "a server file, twice: a server file");
   EXPECT_EQ(RedactForClient("image is 320x240 but the session camera is 640x480"),

@@ -1,18 +1,20 @@
 #pragma once
-// The Localization service: one Localize stream is one robot session with its own Localizer;
-// Relocalize answers one image without a session. Maps come from the shared MapCache.
+// The Localization service: one Localize stream is one robot session (session.h) with its own
+// Localizer; Relocalize answers one image without a session. Maps come from the shared
+// MapCache; the engine's work runs under the shared WorkPermits.
 
-#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <functional>
-#include <condition_variable>
-#include <mutex>
 #include <string>
+#include <vector>
 
 #include "proto/convert.h"
 #include "server/auth.h"
 #include "server/map_cache.h"
+#include "server/server_status.h"
+#include "server/session.h"
+#include "server/work_permits.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc::server {
@@ -28,48 +30,6 @@ struct ServiceLimits {
   proto::WireLimits wire;
 };
 
-// A counting semaphore: the worker pool's size as permits. Sessions wait here for their turn to
-// run the engine, so N sessions share the machine's cores instead of oversubscribing them.
-class WorkPermits {
- public:
-  explicit WorkPermits(int permits) : permits_(permits), free_(permits) {}
-  void Acquire() {
-    std::unique_lock<std::mutex> lock(mutex_);
-    available_.wait(lock, [this] { return free_ > 0; });
-    --free_;
-    peak_in_use_ = std::max(peak_in_use_, permits_ - free_);
-  }
-  void Release() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++free_;
-    available_.notify_one();
-  }
-  // The most permits ever held at once (for tests and the session-end log).
-  int peak_in_use() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return peak_in_use_;
-  }
-
- private:
-  mutable std::mutex mutex_;
-  std::condition_variable available_;
-  const int permits_;
-  int free_;
-  int peak_in_use_ = 0;
-};
-
-// Holds one permit for its scope.
-class WorkPermit {
- public:
-  explicit WorkPermit(WorkPermits* permits) : permits_(permits) { permits_->Acquire(); }
-  ~WorkPermit() { permits_->Release(); }
-  WorkPermit(const WorkPermit&) = delete;
-  WorkPermit& operator=(const WorkPermit&) = delete;
-
- private:
-  WorkPermits* permits_;
-};
-
 class LocalizationService final : public v1::Localization::Service {
  public:
   // `auth` must outlive the service.
@@ -82,6 +42,9 @@ class LocalizationService final : public v1::Localization::Service {
                           v1::RelocalizeResponse* response) override;
 
   int active_sessions() const { return active_sessions_.load(); }
+  // The live sessions, as their last frames left them.
+  std::vector<SessionStatus> sessions() const { return registry_.Snapshot(); }
+  const WorkPermits& workers() const { return workers_; }
   // Sessions closed for idleness since the start.
   int idle_sessions_closed() const { return idle_closed_.load(); }
 
@@ -97,7 +60,7 @@ class LocalizationService final : public v1::Localization::Service {
   const TokenAuth* auth_;
   WorkPermits workers_;
   std::atomic<int> active_sessions_{0};
-  std::atomic<uint64_t> next_session_id_{1};
+  SessionRegistry registry_;
   std::function<void()> before_frame_;
 
   std::atomic<int> idle_closed_{0};

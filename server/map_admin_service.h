@@ -1,7 +1,8 @@
 #pragma once
 // The MapAdmin service: list, inspect, upload (checksummed chunks, published only when complete
 // and verified), download, delete and rename maps in the server's maps folder. All file work
-// goes through mapstore::MapDirectory; sessions holding a map keep it across delete or replace.
+// goes through mapstore (MapDirectory, MapUpload); sessions holding a map keep it across delete
+// or replace.
 
 #include "server/auth.h"
 #include "server/map_cache.h"
@@ -36,8 +37,12 @@ class MapAdminService final : public v1::MapAdmin::Service {
                          v1::MapInfo* response) override;
 
  private:
-  // The admin role check, and for changes the read-only refusal.
-  grpc::Status MayChange(const grpc::ServerContext& context) const;
+  // FAILED_PRECONDITION on a read-only replica, for the methods that change the folder.
+  grpc::Status RefuseIfReadOnly() const;
+  // NOT_FOUND for a valid name with no map (InputError for an invalid one).
+  grpc::Status RefuseIfMissing(const std::string& name) const;
+  // ALREADY_EXISTS without replace; a map in use without force.
+  grpc::Status RefuseUpload(const v1::UploadHeader& header) const;
 
   MapCache* maps_;
   MapAdminOptions options_;

@@ -141,4 +141,17 @@ int MapCache::loaded() const {
   return static_cast<int>(entries_.size());
 }
 
+std::vector<LoadedMapStatus> MapCache::LoadedMaps() const {
+  std::vector<std::pair<std::string, std::shared_ptr<const LocalizationMap>>> maps;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [name, entry] : entries_) maps.emplace_back(name, entry.map);
+  }
+  std::vector<LoadedMapStatus> loaded;
+  for (const auto& [name, map] : maps) {
+    loaded.push_back({name, UsersOf(name), map->paged(), map->MemoryBytes()});
+  }
+  return loaded;
+}
+
 }  // namespace visloc::server

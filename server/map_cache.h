@@ -16,9 +16,11 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include "core/map/localization_map.h"
 #include "mapstore/map_directory.h"
+#include "server/server_status.h"
 
 namespace visloc::server {
 
@@ -48,6 +50,8 @@ class MapCache {
   const mapstore::MapDirectory& directory() const { return directory_; }
   MapCacheStats stats() const;
   int loaded() const;
+  // The maps loaded now, by name, with their users and memory.
+  std::vector<LoadedMapStatus> LoadedMaps() const;
 
  private:
   struct FileIdentity {

@@ -4,7 +4,7 @@
 #include <thread>
 #include <vector>
 
-#include "server/localization_service.h"
+#include "server/work_permits.h"
 
 namespace visloc::server {
 namespace {

@@ -1,0 +1,228 @@
+#include "server/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/resource_quota.h>
+
+#include <chrono>
+
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/strings.h"
+#include "core/util/text_file.h"
+#include "proto/geometry_convert.h"
+#include "server/log.h"
+
+namespace visloc::server {
+namespace {
+
+bool IsLoopback(const std::string& address) {
+  return address.rfind("127.", 0) == 0 || address.rfind("localhost:", 0) == 0 ||
+         address.rfind("[::1]:", 0) == 0;
+}
+
+void CheckLinkConfig(const ServerConfig& config) {
+  const auto positive = [](double v, const char* flag) {
+    if (!(v > 0 && v < 86400)) throw UsageError(StrCat(flag, " must be in (0, 86400) seconds"));
+  };
+  if (!(config.session_idle_timeout_s >= 0 && config.session_idle_timeout_s < 86400)) {
+    throw UsageError("--session-idle-timeout must be in [0, 86400) seconds (0: off)");
+  }
+  positive(config.keepalive_min_ping_interval_s, "--keepalive-min-ping-interval");
+  positive(config.keepalive_time_s, "--keepalive-time");
+  positive(config.keepalive_timeout_s, "--keepalive-timeout");
+  if (config.keepalive_ping_strikes < 0) {
+    throw UsageError("--keepalive-ping-strikes must be >= 0");
+  }
+  if (!(config.max_connection_idle_s >= 0) || !(config.max_connection_age_s >= 0)) {
+    throw UsageError("--max-connection-idle and --max-connection-age must be >= 0 (0: off)");
+  }
+}
+
+// The transport's keepalive and connection-lifetime arguments.
+void SetLinkArguments(const ServerConfig& config, grpc::ServerBuilder* builder) {
+  const auto ms = [](double s) { return static_cast<int>(s * 1000); };
+  builder->AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS,
+                              ms(config.keepalive_min_ping_interval_s));
+  builder->AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, config.keepalive_ping_strikes);
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, ms(config.keepalive_time_s));
+  builder->AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, ms(config.keepalive_timeout_s));
+  if (config.max_connection_idle_s > 0) {
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS, ms(config.max_connection_idle_s));
+  }
+  if (config.max_connection_age_s > 0) {
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_MS, ms(config.max_connection_age_s));
+    // Streams open at the age limit get this long to finish before the connection closes.
+    builder->AddChannelArgument(GRPC_ARG_MAX_CONNECTION_AGE_GRACE_MS, ms(config.drain_s));
+  }
+}
+
+std::shared_ptr<grpc::ServerCredentials> Credentials(const ServerConfig& config) {
+  if (config.tls_cert.empty()) return grpc::InsecureServerCredentials();
+  // Mutual TLS when a client CA is given: a client without a certificate signed by it is
+  // refused during the handshake, before any RPC (and before tokens are looked at).
+  grpc::SslServerCredentialsOptions options(
+      config.tls_client_ca.empty() ? GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE
+                                   : GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY);
+  if (!config.tls_client_ca.empty()) options.pem_root_certs = ReadFileBytes(config.tls_client_ca);
+  options.pem_key_cert_pairs.push_back(
+      {ReadFileBytes(config.tls_key), ReadFileBytes(config.tls_cert)});
+  return grpc::SslServerCredentials(options);
+}
+
+ServiceLimits LimitsOf(const ServerConfig& config) {
+  ServiceLimits limits;
+  limits.max_sessions = config.max_sessions;
+  limits.max_frame_rate_hz = config.max_frame_rate_hz;
+  limits.session_idle_timeout =
+      std::chrono::milliseconds(static_cast<int64_t>(config.session_idle_timeout_s * 1000));
+  limits.workers = config.Workers();
+  return limits;
+}
+
+MapAdminOptions AdminOptionsOf(const ServerConfig& config) {
+  MapAdminOptions options;
+  options.max_upload_bytes = static_cast<uint64_t>(config.max_upload_mib) << 20;
+  options.read_only = config.maps_read_only;
+  return options;
+}
+
+// The config checked before anything is built from it.
+const ServerConfig& Checked(const ServerConfig& config) {
+  config.Check();
+  return config;
+}
+
+}  // namespace
+
+void ServerConfig::Check() const {
+  CheckLinkConfig(*this);
+  if (map_memory_mib < 0 || map_memory_mib > (int64_t{1} << 24)) {
+    throw UsageError("--map-memory-mib must be 0 (no bound) to 16777216");
+  }
+  if (max_sessions < 1) throw UsageError("--max-sessions must be at least 1");
+  if (!IsLoopback(listen) && tokens.empty() && !allow_remote) {
+    throw UsageError("without --tokens the server listens on loopback only (got " + listen +
+                     "; --allow-remote overrides)");
+  }
+  if (threads < 0) throw UsageError("--threads must not be negative");
+  if (!(max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate must not be negative");
+  if (max_upload_mib < 1) throw UsageError("--max-upload-mib must be at least 1");
+  if (tls_cert.empty() != tls_key.empty()) throw UsageError("--tls-cert and --tls-key go together");
+  if (!tls_client_ca.empty() && tls_cert.empty()) {
+    throw UsageError("--tls-client-ca needs --tls-cert and --tls-key");
+  }
+}
+
+int ServerConfig::Workers() const {
+  // The per-frame engine work runs on at most this many threads at once: the machine's cores.
+  return threads > 0 ? threads
+                     : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+Server::Server(const ServerConfig& config)
+    : config_(Checked(config)),
+      auth_(config.tokens.empty() ? TokenAuth() : TokenAuth::FromFile(config.tokens)),
+      maps_(config.maps_dir, std::chrono::seconds(config.idle_unload_s),
+            static_cast<size_t>(config.map_memory_mib) << 20),
+      localization_(&maps_, LimitsOf(config), &auth_),
+      admin_(&maps_, AdminOptionsOf(config), &auth_) {
+  const auto credentials = Credentials(config_);
+  // A read-only replica must not touch the folder: the temporaries in it may be another
+  // server's uploads in progress (whose process ids mean nothing in this one's namespace).
+  const int stale = config_.maps_read_only
+                        ? 0
+                        : mapstore::MapDirectory(config_.maps_dir).RemoveStaleTemporaries();
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(config_.listen, credentials, &port);
+  // gRPC sets SO_REUSEPORT by default: a second server on a port in use would start, and the
+  // kernel would share new connections out between the two at random. The address is ours alone.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  // The sync server gives each call a thread, and a Localize stream keeps its thread for its
+  // life (mostly waiting on the network); room for every session plus admin calls.
+  grpc::ResourceQuota quota("visloc-server");
+  quota.SetMaxThreads(config_.max_sessions + 16);
+  builder.SetResourceQuota(quota);
+  builder.RegisterService(&localization_);
+  builder.RegisterService(&admin_);
+  builder.SetMaxReceiveMessageSize(proto::WireLimits{}.max_message_bytes);
+  SetLinkArguments(config_, &builder);
+  grpc_server_ = builder.BuildAndStart();
+  if (!grpc_server_ || port == 0) {
+    throw InputError("cannot listen on " + config_.listen +
+                     ": the address is in use (another visloc-server?) or not this machine's");
+  }
+  grpc::HealthCheckServiceInterface* health = grpc_server_->GetHealthCheckService();
+  for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin"}) {
+    health->SetServingStatus(service, true);
+  }
+  address_ = config_.listen.substr(0, config_.listen.rfind(':')) + ":" + std::to_string(port);
+  LogStart(stale);
+  janitor_ = std::thread([this] {
+    while (!stopping_) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+      maps_.UnloadIdle();
+    }
+  });
+}
+
+Server::~Server() {
+  if (!stopping_) {
+    grpc_server_->Shutdown(std::chrono::system_clock::now());
+    grpc_server_->Wait();
+    stopping_ = true;
+  }
+  if (janitor_.joinable()) janitor_.join();
+}
+
+void Server::LogStart(int stale_temporaries_removed) const {
+  Log("server_start",
+      {{"listen", address_},
+       {"maps", config_.maps_dir},
+       {"maps_read_only", config_.maps_read_only ? "yes" : "no"},
+       {"max_sessions", std::to_string(config_.max_sessions)},
+       {"map_memory_mib",
+        config_.map_memory_mib ? std::to_string(config_.map_memory_mib) : "unbounded"},
+       {"workers", std::to_string(config_.Workers())},
+       {"tls", config_.tls_cert.empty()        ? "off"
+               : config_.tls_client_ca.empty() ? "on"
+                                               : "mutual"},
+       {"max_frame_rate_hz", FormatFixed(config_.max_frame_rate_hz, 1)},
+       {"session_idle_timeout_s", FormatFixed(config_.session_idle_timeout_s, 1)},
+       {"keepalive_min_ping_interval_s", FormatFixed(config_.keepalive_min_ping_interval_s, 1)},
+       {"tokens", auth_.enabled() ? "on" : "off"},
+       {"stale_temporaries_removed", std::to_string(stale_temporaries_removed)}});
+}
+
+ServerStatus Server::Status() const {
+  ServerStatus status;
+  status.sessions = localization_.sessions();
+  status.max_sessions = config_.max_sessions;
+  status.idle_sessions_closed = localization_.idle_sessions_closed();
+  status.maps = maps_.LoadedMaps();
+  const MapCacheStats cache = maps_.stats();
+  status.map_loads = cache.loads;
+  status.map_paged_loads = cache.paged_loads;
+  status.map_cache_hits = cache.hits;
+  status.map_unloads = cache.unloads;
+  status.workers = localization_.workers().permits();
+  status.workers_busy = localization_.workers().in_use();
+  status.workers_peak = localization_.workers().peak_in_use();
+  return status;
+}
+
+void Server::Drain() {
+  grpc_server_->GetHealthCheckService()->SetServingStatus(false);
+  grpc_server_->Shutdown(std::chrono::system_clock::now() +
+                         std::chrono::milliseconds(static_cast<int64_t>(config_.drain_s * 1000)));
+  grpc_server_->Wait();
+  stopping_ = true;
+  if (janitor_.joinable()) janitor_.join();
+  Log("server_stop", {{"maps_loaded", std::to_string(maps_.stats().loads)}});
+}
+
+}  // namespace visloc::server

@@ -1,0 +1,82 @@
+#pragma once
+// visloc-server's composition root: one ServerConfig in, the running server out. It owns the map
+// cache, the services (Localization, MapAdmin, grpc.health.v1, reflection), the transport
+// (listening address, TLS, keepalive, message limits) and the janitor that unloads idle maps,
+// and answers Status() with a snapshot of what it is doing. Flags and signals are main.cc's.
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "server/auth.h"
+#include "server/localization_service.h"
+#include "server/map_admin_service.h"
+#include "server/map_cache.h"
+#include "server/server_status.h"
+
+namespace visloc::server {
+
+struct ServerConfig {
+  std::string maps_dir;
+  std::string listen = "127.0.0.1:50051";  // Port 0 picks a free port.
+  int max_sessions = 64;
+  int idle_unload_s = 300;
+  int64_t map_memory_mib = 0;  // Per map; 0: no bound.
+  double drain_s = 5.0;
+  int64_t max_upload_mib = 2048;
+  std::string tls_cert, tls_key, tls_client_ca;  // PEM files.
+  std::string tokens;                            // Tokens file; empty: no tokens.
+  double max_frame_rate_hz = 0.0;                // Per session; 0: no limit.
+  bool allow_remote = false;                     // Listen beyond loopback without tokens.
+  bool maps_read_only = false;
+  int threads = 0;  // Frames processed at once; 0: one per core.
+  double session_idle_timeout_s = 30.0;
+  // Link keepalive (gRPC's keepalive guidance): clients may ping this often without being
+  // struck off; the server pings quiet connections to find dead ones.
+  double keepalive_min_ping_interval_s = 5.0;
+  int keepalive_ping_strikes = 2;
+  double keepalive_time_s = 20.0, keepalive_timeout_s = 10.0;
+  double max_connection_idle_s = 0.0, max_connection_age_s = 0.0;  // 0: unlimited.
+
+  // Throws UsageError naming the flag of the first bad value.
+  void Check() const;
+  // The worker count `threads` means on this machine.
+  int Workers() const;
+};
+
+class Server {
+ public:
+  // Checks the config, reads the tokens and certificates, and starts serving. Throws UsageError
+  // for a bad config, InputError for unreadable files or an address that cannot be listened on.
+  explicit Server(const ServerConfig& config);
+  // Stops at once if Drain() was not called.
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // The address listened on, with the port chosen for port 0.
+  const std::string& address() const { return address_; }
+  ServerStatus Status() const;
+  // Health turns NOT_SERVING (load balancers stop sending robots here), no new calls are
+  // accepted, open streams get the config's drain period, then everything stops.
+  void Drain();
+
+ private:
+  void LogStart(int stale_temporaries_removed) const;
+
+  ServerConfig config_;
+  TokenAuth auth_;
+  MapCache maps_;
+  LocalizationService localization_;
+  MapAdminService admin_;
+  std::unique_ptr<grpc::Server> grpc_server_;
+  std::string address_;
+  std::atomic<bool> stopping_{false};
+  std::thread janitor_;
+};
+
+}  // namespace visloc::server

@@ -1,0 +1,221 @@
+#include "server/session.h"
+
+#include <condition_variable>
+#include <deque>
+#include <thread>
+
+#include "core/util/check.h"
+#include "core/util/strings.h"
+#include "core/util/timer.h"
+#include "server/client_errors.h"
+
+namespace visloc::server {
+
+uint64_t SessionRegistry::Open(SessionStatus entry) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  entry.id = next_id_++;
+  sessions_[entry.id] = entry;
+  return entry.id;
+}
+
+void SessionRegistry::Update(uint64_t id, const std::function<void(SessionStatus*)>& update) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = sessions_.find(id);
+  if (it != sessions_.end()) update(&it->second);
+}
+
+void SessionRegistry::Close(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  sessions_.erase(id);
+}
+
+std::vector<SessionStatus> SessionRegistry::Snapshot() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<SessionStatus> sessions;
+  sessions.reserve(sessions_.size());
+  for (const auto& [id, entry] : sessions_) sessions.push_back(entry);
+  return sessions;
+}
+
+LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> map,
+                                         const v1::SessionStart& start,
+                                         const proto::WireLimits& limits, WorkPermits* workers,
+                                         SessionRegistry* registry,
+                                         const std::function<void()>& before_frame)
+    : workers_(workers),
+      registry_(registry),
+      before_frame_(before_frame),
+      camera_(proto::FromProto(start.camera(), limits)),
+      localizer_(
+          std::move(map), camera_, proto::FromProto(start.options()),
+          start.options().has_body_from_cam()
+              ? std::optional(proto::FromProto(start.options().body_from_cam(), "body_from_cam"))
+              : std::nullopt) {
+  tally_.map = start.map_name();
+  tally_.robot_id = start.robot_id();
+  tally_.started = std::chrono::system_clock::now();
+  tally_.id = registry_->Open(tally_);
+}
+
+LocalizationSession::~LocalizationSession() { registry_->Close(tally_.id); }
+
+v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& request) {
+  Timer timer;
+  v1::LocalizeResponse response;
+  const uint64_t index = tally_.frames;
+  std::optional<LocalizationResult> answered;
+  try {
+    if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
+    // Decoding and the engine are the CPU work: one permit per core across all sessions.
+    const WorkPermit permit(workers_);
+    if (before_frame_) before_frame_();
+    answered = localizer_.Process(proto::FromProto(request.frame(), camera_));
+    proto::ToProto(*answered, index, &response);
+  } catch (const InputError& e) {
+    Refuse(request, index, RedactForClient(e.what()), &response);
+  } catch (const std::exception& e) {
+    // Not the frame's fault: a bug or a resource failure. The session and the server go on;
+    // the client learns only a reference into the log.
+    Refuse(request, index,
+           "internal server error (reference " + LogInternalError(e, "Localize: frame") +
+               " in the server log)",
+           &response);
+  } catch (...) {
+    const std::runtime_error unknown("an exception of unknown type");
+    Refuse(request, index,
+           "internal server error (reference " + LogInternalError(unknown, "Localize: frame") +
+               " in the server log)",
+           &response);
+  }
+  const double ms = timer.ElapsedMs();
+  response.mutable_timings()->set_server_ms(ms);
+  server_ms_sum_ += ms;
+  Record([&](SessionStatus* s) {
+    ++s->frames;
+    s->server_ms = ms;
+    s->last_frame = std::chrono::system_clock::now();
+    if (!answered) {
+      ++s->errors;
+      return;
+    }
+    if (answered->has_pose && answered->source != PoseSource::kMotion) ++s->localized;
+    s->status = answered->status;
+    s->has_pose = answered->has_pose;
+    s->map_from_cam = answered->map_from_cam;
+    s->inliers = answered->stats.inliers;
+  });
+  return response;
+}
+
+v1::LocalizeResponse LocalizationSession::Skipped(const v1::LocalizeRequest& request,
+                                                  const std::string& reason) {
+  v1::LocalizeResponse response;
+  response.set_frame_index(tally_.frames);
+  response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
+  response.set_status(v1::STATUS_SKIPPED);
+  if (!reason.empty()) response.set_error(reason);
+  Record([](SessionStatus* s) {
+    ++s->frames;
+    ++s->skipped;
+  });
+  return response;
+}
+
+double LocalizationSession::mean_server_ms() const {
+  const uint64_t answered = tally_.frames - tally_.skipped;
+  return answered ? server_ms_sum_ / answered : 0.0;
+}
+
+void LocalizationSession::Refuse(const v1::LocalizeRequest& request, uint64_t index,
+                                 const std::string& why, v1::LocalizeResponse* response) {
+  response->Clear();
+  response->set_frame_index(index);
+  response->set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
+  response->set_status(v1::STATUS_ERROR);
+  response->set_error(why);
+}
+
+// The session's own copy first (read by this thread alone), then the registry's.
+void LocalizationSession::Record(const std::function<void(SessionStatus*)>& update) {
+  update(&tally_);
+  registry_->Update(tally_.id, update);
+}
+
+namespace {
+
+std::string RateLimitReason(double rate_hz) {
+  return StrCat("over the session frame-rate limit of ", FormatFixed(rate_hz, 1),
+                " Hz: frame not processed");
+}
+
+}  // namespace
+
+SessionEnd ServeSession(
+    LocalizationSession* session, FrameRateLimiter* limiter, bool newest_only,
+    std::chrono::milliseconds idle_timeout, grpc::ServerContext* context,
+    grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream) {
+  struct Arrival {
+    v1::LocalizeRequest request;
+    bool admitted = true;
+  };
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::deque<Arrival> queue;
+  bool done = false;
+  std::thread reader([&] {
+    Arrival arrival;
+    while (stream->Read(&arrival.request)) {
+      arrival.admitted = limiter->Admit(FrameRateLimiter::Clock::now());
+      std::lock_guard<std::mutex> lock(mutex);
+      queue.push_back(std::move(arrival));
+      changed.notify_one();
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    done = true;
+    changed.notify_one();
+  });
+  const auto has_work = [&] { return done || !queue.empty(); };
+  SessionEnd end = SessionEnd::kClientDone;
+  while (true) {
+    std::deque<Arrival> batch;
+    {
+      std::unique_lock<std::mutex> lock(mutex);
+      if (idle_timeout.count() > 0) {
+        if (!changed.wait_for(lock, idle_timeout, has_work)) {
+          end = SessionEnd::kIdle;
+          break;
+        }
+      } else {
+        changed.wait(lock, has_work);
+      }
+      if (queue.empty() && done) break;
+      batch.swap(queue);
+    }
+    bool writing = true;
+    for (size_t i = 0; i < batch.size() && writing; ++i) {
+      const Arrival& arrival = batch[i];
+      const bool answer = !newest_only || i + 1 == batch.size();
+      if (!arrival.admitted) {
+        writing =
+            stream->Write(session->Skipped(arrival.request, RateLimitReason(limiter->rate_hz())));
+      } else {
+        writing = stream->Write(answer ? session->Answer(arrival.request)
+                                       : session->Skipped(arrival.request));
+      }
+    }
+    if (!writing) break;
+  }
+  if (end == SessionEnd::kIdle) {
+    v1::LocalizeResponse closed;
+    closed.set_status(v1::STATUS_CLOSED);
+    closed.set_error(StrCat("session closed: no frame for ",
+                            FormatFixed(idle_timeout.count() / 1000.0, 1),
+                            " s (the server's session idle timeout)"));
+    stream->Write(closed);
+    context->TryCancel();  // Ends the reader's Read.
+  }
+  reader.join();
+  return end;
+}
+
+}  // namespace visloc::server

@@ -1,0 +1,89 @@
+#pragma once
+// One robot's Localize stream on the server: its Localizer, the frames it answers, and the
+// loop that serves them (a reader thread queuing arrivals, the rate limit, the drop policy, the
+// idle timeout). Every live session is listed in the SessionRegistry, which it keeps current
+// frame by frame (ServerStatus reads it).
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "core/localization/localizer.h"
+#include "proto/convert.h"
+#include "server/rate_limiter.h"
+#include "server/server_status.h"
+#include "server/work_permits.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc::server {
+
+// The live sessions, by id; each session's entry is its own to update.
+class SessionRegistry {
+ public:
+  // Lists a new session under the next id (1, 2, ... in order of arrival), which it returns.
+  uint64_t Open(SessionStatus entry);
+  // Calls `update` on the session's entry under the registry's lock: keep it short.
+  void Update(uint64_t id, const std::function<void(SessionStatus*)>& update);
+  void Close(uint64_t id);
+  std::vector<SessionStatus> Snapshot() const;
+
+ private:
+  mutable std::mutex mutex_;
+  uint64_t next_id_ = 1;
+  std::map<uint64_t, SessionStatus> sessions_;
+};
+
+class LocalizationSession {
+ public:
+  // Throws InputError for a camera or options the wire cannot carry (named). Once
+  // constructed, the session is listed in `registry` until it is destroyed.
+  LocalizationSession(std::shared_ptr<const LocalizationMap> map, const v1::SessionStart& start,
+                      const proto::WireLimits& limits, WorkPermits* workers,
+                      SessionRegistry* registry, const std::function<void()>& before_frame);
+  ~LocalizationSession();
+  LocalizationSession(const LocalizationSession&) = delete;
+  LocalizationSession& operator=(const LocalizationSession&) = delete;
+
+  // One response per frame, never an exception: a bad frame gets STATUS_ERROR.
+  v1::LocalizeResponse Answer(const v1::LocalizeRequest& request);
+  // `reason` is empty for a frame dropped by NEWEST_ONLY (the client asked for that).
+  v1::LocalizeResponse Skipped(const v1::LocalizeRequest& request, const std::string& reason = "");
+
+  uint64_t id() const { return tally_.id; }
+  // This session's entry, as the registry holds it.
+  const SessionStatus& status() const { return tally_; }
+  // Mean server time of the frames answered (ms).
+  double mean_server_ms() const;
+
+ private:
+  void Refuse(const v1::LocalizeRequest& request, uint64_t index, const std::string& why,
+              v1::LocalizeResponse* response);
+  void Record(const std::function<void(SessionStatus*)>& update);
+
+  WorkPermits* workers_;
+  SessionRegistry* registry_;
+  const std::function<void()>& before_frame_;
+  Camera camera_;
+  Localizer localizer_;
+  SessionStatus tally_;  // This thread's copy of the registry entry.
+  double server_ms_sum_ = 0.0;
+};
+
+// How a session's stream ended.
+enum class SessionEnd { kClientDone, kIdle };
+
+// Serves one session's frames until the client ends the stream, the stream breaks, or no frame
+// arrives for `idle_timeout` (then a final STATUS_CLOSED answer and the call cancelled;
+// kIdle). PROCESS_ALL answers every admitted frame in turn; NEWEST_ONLY answers the newest of
+// those queued and the others SKIPPED; frames over the rate limit are answered SKIPPED.
+SessionEnd ServeSession(
+    LocalizationSession* session, FrameRateLimiter* limiter, bool newest_only,
+    std::chrono::milliseconds idle_timeout, grpc::ServerContext* context,
+    grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>* stream);
+
+}  // namespace visloc::server
