@@ -11,22 +11,6 @@
 
 namespace visloc {
 
-const char* TrackingStatusName(TrackingStatus status) {
-  switch (status) {
-    case TrackingStatus::kInitializing:
-      return "initializing";
-    case TrackingStatus::kTracking:
-      return "tracking";
-    case TrackingStatus::kLimited:
-      return "limited";
-    case TrackingStatus::kRelocalized:
-      return "relocalized";
-    case TrackingStatus::kLost:
-      return "lost";
-  }
-  return "?";
-}
-
 const char* PoseSourceName(PoseSource source) {
   switch (source) {
     case PoseSource::kNone:
@@ -72,9 +56,10 @@ void LocalizerOptions::Check() const {
                max_relocalization_features);
 }
 
-std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map) {
+std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map,
+                                                                   const MotionOptions& options) {
   const auto& centers = map.keyframe_centers();
-  if (centers.size() < 6) return std::nullopt;
+  if (static_cast<int>(centers.size()) < options.plane_min_keyframes) return std::nullopt;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const auto& c : centers) mean += c;
   mean /= static_cast<double>(centers.size());
@@ -83,8 +68,9 @@ std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const Localiz
   scatter /= static_cast<double>(centers.size());
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(scatter);
   const Eigen::Vector3d sigmas = solver.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // Ascending.
-  // Spread in two directions (at least 0.3 m) and flat compared with that.
-  if (sigmas(1) < 0.3 || sigmas(0) > 0.1 * sigmas(1)) return std::nullopt;
+  // Spread in two directions and flat compared with that.
+  if (sigmas(1) < options.plane_min_spread_m || sigmas(0) > options.plane_max_flatness * sigmas(1))
+    return std::nullopt;
   Eigen::Vector3d normal = solver.eigenvectors().col(0);
   // Point the normal up: against the first keyframe camera's y axis (down in OpenCV).
   const Eigen::Vector3d down =
@@ -103,7 +89,7 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& c
     cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
   }
   if (options_.motion.plane_sigma_m > 0) {
-    plane_ = FitKeyframePlane(*map_);
+    plane_ = FitKeyframePlane(*map_, options_.motion);
     if (!plane_) {
       throw InputError("planar motion needs a map whose keyframes span a plane");
     }
@@ -125,7 +111,7 @@ Localizer::Motion Localizer::PredictMotion(const FrameInput& input, double dt_s)
     motion.from_sensors = true;
   } else {
     if (velocity_valid_) motion.cam_prev_from_cam_cur = ExpSe3(velocity_ * dt_s);
-    const double inflate = velocity_valid_ ? 1.0 : 2.0;
+    const double inflate = velocity_valid_ ? 1.0 : o.unknown_velocity_noise_scale;
     sigma_t = inflate * o.velocity_sigma_mps * dt_s;
     sigma_r = inflate * o.velocity_sigma_degps * M_PI / 180.0 * dt_s;
   }
@@ -153,13 +139,6 @@ Localizer::Motion Localizer::PredictMotion(const FrameInput& input, double dt_s)
   return motion;
 }
 
-bool Localizer::Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected,
-                           double sigma_m) const {
-  const double moved = (map_from_cam.translation - expected.translation).norm();
-  const double turned = RotationAngleDeg(expected.rotation.inverse() * map_from_cam.rotation);
-  return moved <= options_.max_jump_m + 3.0 * sigma_m && turned <= options_.max_jump_deg;
-}
-
 void Localizer::CopyFixStats(const PoseFix& fix, FrameStats* stats) {
   stats->predicted = fix.predicted;
   stats->putatives = fix.putatives;
@@ -175,8 +154,35 @@ void Localizer::ApplyPlane() {
                        options_.motion.plane_sigma_m);
 }
 
-void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource source,
-                       int64_t timestamp_ns, LocalizationResult* result, FilterUpdate update) {
+void Localizer::AddFixTimes(const PoseFix& fix, FrameStats* stats) {
+  stats->times.predict_ms += fix.times.predict_ms;
+  stats->times.project_ms += fix.times.project_ms;
+  stats->times.match_ms += fix.times.match_ms;
+  stats->times.pose_ms += fix.times.pose_ms;
+}
+
+bool Localizer::Strong(const PoseFix& fix) const {
+  return fix.inliers >= options_.min_tracking_inliers &&
+         fix.inlier_ratio >= options_.min_tracking_inlier_ratio;
+}
+
+FixEvidence Localizer::EvidenceOf(const PoseFix& fix, const Motion& motion) const {
+  FixEvidence evidence;
+  evidence.has_pose = filter_.initialized();
+  evidence.within_gate =
+      evidence.has_pose && WithinJumpGate(fix.cam_from_map.Inverse(), filter_.map_from_cam(),
+                                          filter_.PositionSigmaM(), options_);
+  evidence.limited_support = fix.success && fix.inliers >= options_.min_limited_inliers;
+  evidence.strong = Strong(fix);
+  evidence.strongly_supported = fix.inliers >= options_.relocalization.strong_inliers;
+  evidence.motion_known = velocity_valid_ || motion.from_sensors;
+  return evidence;
+}
+
+void Localizer::Accept(const PoseFix& fix, const FixDecision& decision, PoseSource source,
+                       int64_t timestamp_ns, LocalizationResult* result) {
+  const TrackingStatus status = decision.status;
+  FilterUpdate update = decision.update;
   const Rigid3d measured = fix.cam_from_map.Inverse();
   const Matrix6d& noise = fix.covariance;
   systematic_ = fix.systematic_covariance;
@@ -193,7 +199,7 @@ void Localizer::Accept(const PoseFix& fix, TrackingStatus status, PoseSource sou
   }
   if (update == FilterUpdate::kRestart) {
     velocity_valid_ = false;
-  } else if (ever_localized_ && since_fix_s > 0 && since_fix_s <= 0.5) {
+  } else if (ever_localized_ && since_fix_s > 0 && since_fix_s <= options_.velocity_window_s) {
     velocity_ = LogSe3(last_fix_map_from_cam_.Inverse() * measured) / since_fix_s;
     velocity_valid_ = true;
   }
@@ -243,6 +249,21 @@ PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
 
 LocalizationResult Localizer::Process(const FrameInput& input) {
   Timer total;
+  CheckInput(input);
+  LocalizationResult result;
+  result.timestamp_ns = input.timestamp_ns;
+  const QueryFrame frame = Extract(input.image, &result.stats);
+  const bool had_held_fix = pending_.has_value();
+  const Motion motion = Predict(input);
+  const bool taken = TrackFromPrior(frame, input, motion, &result) ||
+                     (had_held_fix && ConfirmHeldFix(frame, input.timestamp_ns, &result)) ||
+                     Relocalize(input, motion, &result);
+  if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
+  result.stats.times.total_ms = total.ElapsedMs();
+  return result;
+}
+
+void Localizer::CheckInput(const FrameInput& input) const {
   if (input.image.empty() || input.image.type() != CV_8UC1) {
     throw InputError("the image must be 8-bit grey (got type " +
                      std::to_string(input.image.type()) + (input.image.empty() ? ", empty)" : ")"));
@@ -255,15 +276,18 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
     throw InputError(StrCat("frame timestamp ", input.timestamp_ns,
                             " ns does not increase (previous ", *last_timestamp_ns_, " ns)"));
   }
-  LocalizationResult result;
-  result.timestamp_ns = input.timestamp_ns;
-  FrameStats& stats = result.stats;
-  ExtractStats extract;
-  const QueryFrame frame = pipeline_.Extract(input.image, &extract, &stats.times.undistort_ms);
-  stats.times.detect_ms = extract.detect_ms;
-  stats.times.describe_ms = extract.describe_ms;
-  stats.features = static_cast<int>(frame.size());
+}
 
+QueryFrame Localizer::Extract(const cv::Mat& image, FrameStats* stats) const {
+  ExtractStats extract;
+  QueryFrame frame = pipeline_.Extract(image, &extract, &stats->times.undistort_ms);
+  stats->times.detect_ms = extract.detect_ms;
+  stats->times.describe_ms = extract.describe_ms;
+  stats->features = static_cast<int>(frame.size());
+  return frame;
+}
+
+Localizer::Motion Localizer::Predict(const FrameInput& input) {
   const double dt_s =
       last_timestamp_ns_ ? NsToSeconds(input.timestamp_ns - *last_timestamp_ns_) : 0.0;
   const Motion motion = PredictMotion(input, dt_s);
@@ -273,119 +297,81 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
     filter_.Predict(motion.cam_prev_from_cam_cur, motion.noise);
     ApplyPlane();
   }
-  const bool had_pending = pending_.has_value();
   if (pending_) pending_->map_from_cam = pending_->map_from_cam * motion.cam_prev_from_cam_cur;
+  return motion;
+}
 
-  const auto add_times = [&stats](const PoseFix& fix) {
-    stats.times.predict_ms += fix.times.predict_ms;
-    stats.times.project_ms += fix.times.project_ms;
-    stats.times.match_ms += fix.times.match_ms;
-    stats.times.pose_ms += fix.times.pose_ms;
-  };
-  const auto strong = [this](const PoseFix& fix) {
-    return fix.inliers >= options_.min_tracking_inliers &&
-           fix.inlier_ratio >= options_.min_tracking_inlier_ratio;
-  };
-  bool accepted = false;
-  // 3. Guided tracking from the prior (or from an external hint when there is none).
+bool Localizer::TrackFromPrior(const QueryFrame& frame, const FrameInput& input,
+                               const Motion& motion, LocalizationResult* result) {
   const std::optional<Rigid3d> prior = filter_.initialized()
                                            ? std::optional<Rigid3d>(filter_.map_from_cam())
                                            : input.map_from_cam_hint;
-  if (prior) {
-    const PoseFix fix = pipeline_.tracker().Track(frame, prior->Inverse());
-    add_times(fix);
-    CopyFixStats(fix, &stats);
-    if (fix.success && fix.inliers >= options_.min_limited_inliers) {
-      const double sigma = filter_.initialized() ? filter_.PositionSigmaM() : 0.0;
-      if (!filter_.initialized()) {
-        if (strong(fix)) {
-          Accept(fix, TrackingStatus::kRelocalized, PoseSource::kTracking, input.timestamp_ns,
-                 &result);
-          accepted = true;
-        }
-      } else if (Consistent(fix.cam_from_map.Inverse(), *prior, sigma)) {
-        Accept(fix, strong(fix) ? TrackingStatus::kTracking : TrackingStatus::kLimited,
-               PoseSource::kTracking, input.timestamp_ns, &result);
-        accepted = true;
-      } else if (!velocity_valid_ && !motion.from_sensors && strong(fix) &&
-                 fix.inliers >= options_.relocalization.strong_inliers) {
-        // The prior knew no velocity (the first frames after a fix) and the camera moved
-        // further than a walking robot would: a car's 0.8 m a frame. A fix this well supported,
-        // found by tracking from the last pose, is taken at once, as a strongly supported
-        // relocalization is: reported relocalized (the pose jumped from the prediction), and its
-        // motion from the last fix is the velocity, so the next frames track.
-        Accept(fix, TrackingStatus::kRelocalized, PoseSource::kTracking, input.timestamp_ns,
-               &result, FilterUpdate::kRestartKeepingMotion);
-        accepted = true;
-      } else {
-        pending_ =
-            Pending{fix.cam_from_map.Inverse(), fix.cam_from_map.Inverse(), input.timestamp_ns};
-      }
-    }
+  if (!prior) return false;
+  const PoseFix fix = pipeline_.tracker().Track(frame, prior->Inverse());
+  AddFixTimes(fix, &result->stats);
+  CopyFixStats(fix, &result->stats);
+  const FixDecision decision = DecideTrackedFix(EvidenceOf(fix, motion));
+  if (decision.held()) {
+    const Rigid3d found = fix.cam_from_map.Inverse();
+    pending_ = Pending{found, found, input.timestamp_ns};
   }
-  // A jump or a weakly supported relocalization from the previous frame, confirmed by tracking
-  // from it now.
-  if (!accepted && had_pending && pending_) {
-    const Pending pending_found = *pending_;
-    const Rigid3d expected = pending_found.map_from_cam;
-    pending_.reset();
-    const PoseFix fix = pipeline_.tracker().Track(frame, expected.Inverse());
-    add_times(fix);
-    if (fix.success && strong(fix) && Consistent(fix.cam_from_map.Inverse(), expected, 0.0)) {
-      CopyFixStats(fix, &stats);
-      // The confirmed fix counts as the last one: the motion from it to this frame is the
-      // velocity, so a camera that moves faster than the prior allows (a car's 2 m between
-      // frames) tracks the next frame instead of being lost and relocalized again.
-      last_fix_map_from_cam_ = pending_found.found_map_from_cam;
-      last_fix_ns_ = pending_found.found_ns;
-      Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
-             &result, FilterUpdate::kRestartKeepingMotion);
-      accepted = true;
-    }
+  if (!decision.taken()) return false;
+  Accept(fix, decision, PoseSource::kTracking, input.timestamp_ns, result);
+  return true;
+}
+
+bool Localizer::ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns,
+                               LocalizationResult* result) {
+  if (!pending_) return false;
+  const Pending held = *pending_;
+  pending_.reset();
+  const PoseFix fix = pipeline_.tracker().Track(frame, held.map_from_cam.Inverse());
+  AddFixTimes(fix, &result->stats);
+  const FixDecision decision = DecideConfirmation(
+      fix.success && Strong(fix),
+      WithinJumpGate(fix.cam_from_map.Inverse(), held.map_from_cam, 0.0, options_));
+  if (!decision.taken()) return false;
+  CopyFixStats(fix, &result->stats);
+  // The motion from the held fix to this frame becomes the velocity.
+  last_fix_map_from_cam_ = held.found_map_from_cam;
+  last_fix_ns_ = held.found_ns;
+  Accept(fix, decision, PoseSource::kRelocalization, timestamp_ns, result);
+  return true;
+}
+
+bool Localizer::Relocalize(const FrameInput& input, const Motion& motion,
+                           LocalizationResult* result) {
+  const PoseFix fix = TryRelocalize(input.image, input.timestamp_ns, result);
+  if (!fix.success) return false;
+  const FixDecision decision = DecideRelocalizedFix(EvidenceOf(fix, motion));
+  if (decision.held()) {
+    const Rigid3d found = fix.cam_from_map.Inverse();
+    pending_ = Pending{found, found, input.timestamp_ns};
+    result->relocalization.awaiting_confirmation = true;
   }
-  // 4. Relocalization: local around the last pose, then global.
-  if (!accepted) {
-    const PoseFix fix = TryRelocalize(input.image, input.timestamp_ns, &result);
-    if (fix.success) {
-      const Rigid3d found = fix.cam_from_map.Inverse();
-      const bool strongly_supported = fix.inliers >= options_.relocalization.strong_inliers;
-      // Without a velocity (the frame after a relocalization) the prior cannot tell where a
-      // fast camera went, so a strongly supported fix is taken as it would be with no prior at
-      // all, with its motion from the last fix as the velocity.
-      const bool no_velocity = !velocity_valid_ && !motion.from_sensors;
-      const bool consistent = filter_.initialized() &&
-                              Consistent(found, filter_.map_from_cam(), filter_.PositionSigmaM());
-      if (consistent || (strongly_supported && (!filter_.initialized() || no_velocity))) {
-        Accept(fix, TrackingStatus::kRelocalized, PoseSource::kRelocalization, input.timestamp_ns,
-               &result, consistent ? FilterUpdate::kRestart : FilterUpdate::kRestartKeepingMotion);
-        accepted = true;
-      } else {
-        pending_ = Pending{found, found, input.timestamp_ns};
-        result.relocalization.awaiting_confirmation = true;
-      }
-    }
+  if (!decision.taken()) return false;
+  Accept(fix, decision, PoseSource::kRelocalization, input.timestamp_ns, result);
+  return true;
+}
+
+void Localizer::BridgeOrLose(int64_t timestamp_ns, const Motion& motion,
+                             LocalizationResult* result) {
+  BridgeEvidence evidence;
+  evidence.has_pose = filter_.initialized();
+  evidence.motion_from_sensors = motion.from_sensors;
+  evidence.since_fix_s = NsToSeconds(timestamp_ns - last_fix_ns_);
+  evidence.position_sigma_m = evidence.has_pose ? filter_.PositionSigmaM() : 0.0;
+  if (ShouldBridge(evidence, options_.motion)) {
+    result->status = TrackingStatus::kLimited;
+    result->source = PoseSource::kMotion;
+    result->has_pose = true;
+    result->map_from_cam = filter_.map_from_cam();
+    result->covariance = filter_.covariance() + systematic_;
+    return;
   }
-  // 5. No visual fix: bridge with the motion prediction, or report no pose.
-  if (!accepted) {
-    const MotionOptions& o = options_.motion;
-    const bool bridge = filter_.initialized() &&
-                        (motion.from_sensors || o.bridge_with_constant_velocity) &&
-                        NsToSeconds(input.timestamp_ns - last_fix_ns_) <= o.max_bridge_s &&
-                        filter_.PositionSigmaM() <= o.max_bridge_sigma_m;
-    if (bridge) {
-      result.status = TrackingStatus::kLimited;
-      result.source = PoseSource::kMotion;
-      result.has_pose = true;
-      result.map_from_cam = filter_.map_from_cam();
-      result.covariance = filter_.covariance() + systematic_;
-    } else {
-      filter_ = MotionFilter();
-      velocity_valid_ = false;
-      result.status = ever_localized_ ? TrackingStatus::kLost : TrackingStatus::kInitializing;
-    }
-  }
-  stats.times.total_ms = total.ElapsedMs();
-  return result;
+  filter_ = MotionFilter();
+  velocity_valid_ = false;
+  result->status = ever_localized_ ? TrackingStatus::kLost : TrackingStatus::kInitializing;
 }
 
 }  // namespace visloc

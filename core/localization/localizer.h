@@ -30,14 +30,12 @@
 
 #include "core/camera/camera.h"
 #include "core/features/features.h"
+#include "core/localization/fix_policy.h"
 #include "core/localization/localizer_options.h"
 #include "core/localization/motion_filter.h"
 #include "core/localization/query_pipeline.h"
 
 namespace visloc {
-
-enum class TrackingStatus { kInitializing, kTracking, kLimited, kRelocalized, kLost };
-const char* TrackingStatusName(TrackingStatus status);
 
 // Where a reported pose came from.
 enum class PoseSource { kNone, kTracking, kRelocalization, kMotion };
@@ -135,20 +133,35 @@ class Localizer {
     int64_t found_ns = 0;
   };
 
+  // The steps of Process, in order; each step that returns bool says whether it took a fix.
+  // Throws InputError for an image or timestamp the session cannot take.
+  void CheckInput(const FrameInput& input) const;
+  QueryFrame Extract(const cv::Mat& image, FrameStats* stats) const;
+  // The motion since the last frame, applied to the filter and to a held fix.
+  Motion Predict(const FrameInput& input);
+  // 3. Guided tracking from the filter's pose (or from an external hint when there is none).
+  bool TrackFromPrior(const QueryFrame& frame, const FrameInput& input, const Motion& motion,
+                      LocalizationResult* result);
+  // A fix held since the last frame (a jump, or a weakly supported relocalization), confirmed
+  // by tracking from where the motion moved it.
+  bool ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
+  // 4. Relocalization: local around the last pose, then global.
+  bool Relocalize(const FrameInput& input, const Motion& motion, LocalizationResult* result);
+  // 5. No visual fix: bridged with the motion prediction, or no pose.
+  void BridgeOrLose(int64_t timestamp_ns, const Motion& motion, LocalizationResult* result);
+
   Motion PredictMotion(const FrameInput& input, double dt_s) const;
-  bool Consistent(const Rigid3d& map_from_cam, const Rigid3d& expected, double sigma_m) const;
+  // What is known of `fix` (found at `map_from_cam`) against the filter's pose.
+  FixEvidence EvidenceOf(const PoseFix& fix, const Motion& motion) const;
+  bool Strong(const PoseFix& fix) const;
   // Local then global relocalization of `image`, with the relocalization features.
   PoseFix TryRelocalize(const cv::Mat& image, int64_t timestamp_ns, LocalizationResult* result);
-  // How a fix enters the filter: fused with the prediction (the velocity follows from the
-  // previous fix), restarting it with no velocity (a relocalization: the pose may have jumped
-  // anywhere), or restarting it with the velocity from the previous fix (a motion the
-  // prediction could not foresee, tracked from the previous pose).
-  enum class FilterUpdate { kFuse, kRestart, kRestartKeepingMotion };
   // Takes a fix. Relocalized fixes, and any fix while the filter holds nothing, restart it.
-  void Accept(const PoseFix& fix, TrackingStatus status, PoseSource source, int64_t timestamp_ns,
-              LocalizationResult* result, FilterUpdate update = FilterUpdate::kFuse);
+  void Accept(const PoseFix& fix, const FixDecision& decision, PoseSource source,
+              int64_t timestamp_ns, LocalizationResult* result);
   void ApplyPlane();
   static void CopyFixStats(const PoseFix& fix, FrameStats* stats);
+  static void AddFixTimes(const PoseFix& fix, FrameStats* stats);
 
   std::shared_ptr<const LocalizationMap> map_;
   Camera camera_;
@@ -173,7 +186,9 @@ class Localizer {
 };
 
 // The plane through the keyframe centres of a map made by a ground robot (unit normal and
-// offset, normal . x = offset), when they are spread in two directions and close to a plane.
-std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map);
+// offset, normal . x = offset), when they are spread in two directions and close to a plane
+// (MotionOptions' plane_* thresholds).
+std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(
+    const LocalizationMap& map, const MotionOptions& options = MotionOptions{});
 
 }  // namespace visloc

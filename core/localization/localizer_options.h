@@ -24,10 +24,17 @@ struct MotionOptions {
   double max_bridge_s = 3.0;
   double max_bridge_sigma_m = 0.5;
   bool bridge_with_constant_velocity = false;  // Only for comparison with vision alone.
+  // Without a velocity (no recent fixes) the constant-velocity noise is this many times larger.
+  double unknown_velocity_noise_scale = 2.0;
   // Planar motion: the camera stays `height_m` above the plane of the map's keyframes (a
   // walking robot's head), with this standard deviation. 0 disables it.
   double plane_sigma_m = 0.0;
   double height_m = 0.0;
+  // The keyframes span a plane when there are this many, spread at least plane_min_spread_m in
+  // two directions (standard deviation) and at most plane_max_flatness of that in the third.
+  int plane_min_keyframes = 6;
+  double plane_min_spread_m = 0.3;
+  double plane_max_flatness = 0.1;
 };
 
 struct LocalizerOptions {
@@ -38,10 +45,13 @@ struct LocalizerOptions {
   int min_tracking_inliers = 30;
   double min_tracking_inlier_ratio = 0.4;
   int min_limited_inliers = 12;
-  // Jump gate: a fix further than this (plus 3 sigma of the prior) from the prior needs
-  // confirmation.
+  // Jump gate: a fix further than this (plus jump_gate_sigmas of the prior's position sigma)
+  // from the prior needs confirmation (fix_policy.h).
   double max_jump_m = 0.2;
   double max_jump_deg = 10.0;
+  double jump_gate_sigmas = 3.0;
+  // The velocity is the motion between two fixes at most this far apart (s).
+  double velocity_window_s = 0.5;
   // Local relocalization searches keyframes within this of the last pose, while lost for less
   // than local_relocalization_s.
   double local_radius_m = 1.0;
