@@ -11,10 +11,12 @@
 #include "core/util/check.h"
 #include "core/util/random.h"
 #include "core/util/temp_dir.h"
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 
 namespace visloc::mapstore {
 namespace {
+
+using sqlite::Database;
 
 namespace fs = std::filesystem;
 using ::testing::HasSubstr;

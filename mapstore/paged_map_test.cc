@@ -7,10 +7,12 @@
 #include "core/util/check.h"
 #include "core/util/temp_dir.h"
 #include "mapstore/map_store.h"
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 
 namespace visloc::mapstore {
 namespace {
+
+using sqlite::Database;
 
 using ::testing::HasSubstr;
 

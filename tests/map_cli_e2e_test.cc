@@ -9,7 +9,7 @@
 #include "core/util/temp_dir.h"
 #include "dataset/ply.h"
 #include "dataset/tum.h"
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 #include "tests/support/e2e.h"
 #include "tests/support/process.h"
 
@@ -54,7 +54,7 @@ TEST_F(MapCliTest, VerifyPassesSoundMapsAndNamesTheProblemOtherwise) {
   EXPECT_EQ(ok.exit_code, 0);
   EXPECT_EQ(ok.out, dir_.File("lab.db") + ": ok\n");
   {
-    mapstore::Database db = mapstore::Database::OpenForWriting(dir_.File("hall.db"));
+    sqlite::Database db = sqlite::Database::OpenForWriting(dir_.File("hall.db"));
     db.Exec("UPDATE keyframes SET qw = 3 WHERE id = 2");
   }
   const ProcessResult bad = Visloc({"map", "verify", dir_.File("hall.db")});
@@ -67,7 +67,7 @@ TEST_F(MapCliTest, BadFilesGetOneLineErrors) {
   std::ofstream(dir_.File("empty.db"));
   std::ofstream(dir_.File("text.db")) << std::string(3000, 'z');
   {
-    mapstore::Database db = mapstore::Database::OpenForWriting(dir_.File("foreign.db"));
+    sqlite::Database db = sqlite::Database::OpenForWriting(dir_.File("foreign.db"));
     db.Exec("CREATE TABLE t (x INTEGER)");
   }
   const std::string lab = dir_.File("lab.db");

@@ -5,7 +5,7 @@
 #include <map>
 
 #include "core/util/check.h"
-#include "mapstore/rosbag2_db3.h"
+#include "ros/bag/rosbag2_db3.h"
 #include "ros/bag/ros2_messages.h"
 
 namespace visloc::bag {
@@ -48,8 +48,8 @@ class Ros2Bag : public BagReader {
  public:
   explicit Ros2Bag(std::vector<std::string> files) : files_(std::move(files)) {
     for (const std::string& file : files_) {
-      mapstore::Rosbag2Db3 db(file);  // Refuses a file that is not a bag before any reading.
-      for (const mapstore::Rosbag2Topic& topic : db.Topics()) {
+      Rosbag2Db3 db(file);  // Refuses a file that is not a bag before any reading.
+      for (const Rosbag2Topic& topic : db.Topics()) {
         if (topic.serialization_format != "cdr") {
           throw InputError(StrCat(file, ": topic ", topic.name, " is serialized as '",
                                   topic.serialization_format, "'; only CDR is supported"));
@@ -71,10 +71,10 @@ class Ros2Bag : public BagReader {
   void Read(const std::vector<std::string>& wanted,
             const std::function<void(const ros_msg::BagMessage&)>& visit) override {
     for (const std::string& file : files_) {
-      mapstore::Rosbag2Db3 db(file);
+      Rosbag2Db3 db(file);
       std::map<int64_t, std::pair<std::string, std::string>> by_id;  // id -> (name, type)
       std::vector<int64_t> ids;
-      for (const mapstore::Rosbag2Topic& topic : db.Topics()) {
+      for (const Rosbag2Topic& topic : db.Topics()) {
         if (std::find(wanted.begin(), wanted.end(), topic.name) == wanted.end()) continue;
         by_id[topic.id] = {topic.name, ros_msg::NormalizeTypeName(topic.type)};
         ids.push_back(topic.id);

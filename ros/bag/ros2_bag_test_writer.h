@@ -5,14 +5,14 @@
 #include <map>
 #include <string>
 
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 
 namespace visloc::bag::testing {
 
 class Ros2BagWriter {
  public:
   explicit Ros2BagWriter(const std::string& db3_path)
-      : db_(mapstore::Database::OpenForWriting(db3_path)) {
+      : db_(sqlite::Database::OpenForWriting(db3_path)) {
     db_.Exec(
         "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
         "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);"
@@ -31,7 +31,7 @@ class Ros2BagWriter {
   }
 
  private:
-  mapstore::Database db_;
+  sqlite::Database db_;
   std::map<std::string, int64_t> ids_;
 };
 

@@ -12,7 +12,7 @@
 struct sqlite3;
 struct sqlite3_stmt;
 
-namespace visloc::mapstore {
+namespace visloc::sqlite {
 
 class Statement;
 
@@ -89,4 +89,4 @@ class Transaction {
   bool committed_ = false;
 };
 
-}  // namespace visloc::mapstore
+}  // namespace visloc::sqlite

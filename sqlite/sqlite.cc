@@ -1,10 +1,10 @@
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 
 #include <sqlite3.h>
 
 #include "core/util/check.h"
 
-namespace visloc::mapstore {
+namespace visloc::sqlite {
 namespace {
 
 std::string Describe(int rc, sqlite3* db) {
@@ -164,4 +164,4 @@ void Transaction::Commit() {
   committed_ = true;
 }
 
-}  // namespace visloc::mapstore
+}  // namespace visloc::sqlite

@@ -10,9 +10,9 @@
 #include <string_view>
 #include <vector>
 
-#include "mapstore/sqlite.h"
+#include "sqlite/sqlite.h"
 
-namespace visloc::mapstore {
+namespace visloc::bag {
 
 struct Rosbag2Topic {
   int64_t id = 0;
@@ -31,12 +31,11 @@ class Rosbag2Db3 {
   std::vector<Rosbag2Topic> Topics();
   // Calls `visit(topic_id, timestamp_ns, data)` for every message of `topic_ids`, in timestamp
   // order. `data` is valid during the call only.
-  void ForEachMessage(
-      const std::vector<int64_t>& topic_ids,
-      const std::function<void(int64_t, int64_t, std::string_view)>& visit);
+  void ForEachMessage(const std::vector<int64_t>& topic_ids,
+                      const std::function<void(int64_t, int64_t, std::string_view)>& visit);
 
  private:
-  Database db_;
+  sqlite::Database db_;
 };
 
-}  // namespace visloc::mapstore
+}  // namespace visloc::bag

@@ -1,17 +1,17 @@
-#include "mapstore/rosbag2_db3.h"
+#include "ros/bag/rosbag2_db3.h"
 
 #include "core/util/check.h"
 
-namespace visloc::mapstore {
+namespace visloc::bag {
 
-Rosbag2Db3::Rosbag2Db3(const std::string& path) : db_(Database::OpenReadOnly(path)) {
+Rosbag2Db3::Rosbag2Db3(const std::string& path) : db_(sqlite::Database::OpenReadOnly(path)) {
   if (!db_.HasTable("topics") || !db_.HasTable("messages")) {
     throw InputError(StrCat(path, ": not a ROS 2 bag (no 'topics' and 'messages' tables)"));
   }
 }
 
 std::vector<Rosbag2Topic> Rosbag2Db3::Topics() {
-  Statement select = db_.Prepare(
+  sqlite::Statement select = db_.Prepare(
       "SELECT t.id, t.name, t.type, t.serialization_format, "
       "(SELECT COUNT(*) FROM messages m WHERE m.topic_id = t.id) FROM topics t ORDER BY t.id");
   std::vector<Rosbag2Topic> topics;
@@ -28,13 +28,13 @@ void Rosbag2Db3::ForEachMessage(
   if (topic_ids.empty()) return;
   std::string placeholders;
   for (size_t i = 0; i < topic_ids.size(); ++i) placeholders += i ? ",?" : "?";
-  Statement select = db_.Prepare(
-      "SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN (" + placeholders +
-      ") ORDER BY timestamp, id");
+  sqlite::Statement select =
+      db_.Prepare("SELECT topic_id, timestamp, data FROM messages WHERE topic_id IN (" +
+                  placeholders + ") ORDER BY timestamp, id");
   for (size_t i = 0; i < topic_ids.size(); ++i) select.Bind(static_cast<int>(i + 1), topic_ids[i]);
   while (select.Step()) {
     visit(select.ColumnInt64(0), select.ColumnInt64(1), select.ColumnBlob(2));
   }
 }
 
-}  // namespace visloc::mapstore
+}  // namespace visloc::bag
