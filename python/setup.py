@@ -8,6 +8,7 @@ build/python) is packaged as it is.
 """
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -27,6 +28,24 @@ def proto_dir() -> str:
             return os.path.abspath(candidate)
     sys.exit(f"visloc: cannot find {PROTO} beside python/ (a checkout's proto/ folder), "
              "nor in $VISLOC_PROTO_DIR")
+
+
+def project_version() -> str:
+    """visloc's one version: project(visloc VERSION x.y.z) in the checkout's CMakeLists.txt, or
+    the VERSION file CMake writes beside this file in build/python."""
+    path = os.path.join(HERE, "..", "CMakeLists.txt")
+    if os.path.isfile(os.path.join(HERE, "VERSION")):
+        with open(os.path.join(HERE, "VERSION"), encoding="utf-8") as f:
+            return f.read().strip()
+    try:
+        with open(path, encoding="utf-8") as f:
+            found = re.search(r"project\(visloc VERSION ([0-9.]+)", f.read())
+    except OSError:
+        found = None
+    if not found:
+        sys.exit(f"visloc: cannot read the version from {os.path.abspath(path)} "
+                 "(install from a checkout: python/ beside CMakeLists.txt and proto/)")
+    return found.group(1)
 
 
 def protoc_command(proto_path: str, out: str) -> list:
@@ -57,4 +76,4 @@ class BuildWithStubs(build_py):
 packages = ["visloc"]
 if os.path.isfile(os.path.join(HERE, "visloc", "v1", "visloc_pb2.py")):
     packages.append("visloc.v1")
-setup(packages=packages, cmdclass={"build_py": BuildWithStubs})
+setup(version=project_version(), packages=packages, cmdclass={"build_py": BuildWithStubs})

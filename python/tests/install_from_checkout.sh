@@ -8,7 +8,8 @@ source=$2
 work=$(mktemp -d /tmp/visloc_pip.XXXXXX)
 trap 'rm -rf "$work"' EXIT
 mkdir "$work/checkout"
-cp -r "$source/python" "$source/proto" "$work/checkout/"
+cp -r "$source/python" "$source/proto" "$source/CMakeLists.txt" "$work/checkout/"
+version=$(sed -n 's/^project(visloc VERSION \([0-9.]*\).*/\1/p' "$source/CMakeLists.txt")
 # Whatever a developer's build left in the source tree is not a clean checkout.
 rm -rf "$work/checkout/python/build" "$work/checkout/python/"*.egg-info \
        "$work/checkout/python/visloc/v1"
@@ -19,10 +20,15 @@ PIP_NO_INDEX=1 "$work/venv/bin/pip" install -q --no-build-isolation ./python
 cd "$work"
 printf 'camera_model: pinhole\nresolution: [640, 480]\nintrinsics: [525, 525, 319.5, 239.5]\n' \
   > sensor.yaml
-"$work/venv/bin/python" - <<'PY'
+VISLOC_VERSION=$version "$work/venv/bin/python" - <<'PY'
+import importlib.metadata
+import os
 import visloc
 from visloc.v1 import visloc_pb2 as pb, visloc_pb2_grpc as pb_grpc
 assert "/venv/" in visloc.__file__, visloc.__file__
+# One version: the C++ project's.
+assert importlib.metadata.version("visloc") == os.environ["VISLOC_VERSION"], \
+    (importlib.metadata.version("visloc"), os.environ["VISLOC_VERSION"])
 assert pb.STATUS_CLOSED == 8 and hasattr(pb_grpc, "LocalizationStub")
 camera = visloc.camera_from_yaml("sensor.yaml")
 assert (camera.width, camera.fx) == (640, 525.0), camera
