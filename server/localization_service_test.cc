@@ -11,10 +11,8 @@
 
 #include <opencv2/core.hpp>
 
-#include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
-#include "mapstore/map_store.h"
-#include "proto/convert.h"
+#include "server/test_session.h"
 
 namespace visloc::server {
 namespace {
@@ -24,12 +22,7 @@ class ServiceFixture : public ::testing::Test {
  protected:
   // `before_frame` is the fault-injection hook, installed before the server starts serving.
   void Start(const ServiceLimits& limits, std::function<void()> before_frame = nullptr) {
-    SyntheticMapOptions options;
-    options.keyframes = 6;
-    options.points = 300;
-    Map map = MakeSyntheticMap(options);
-    map.metadata.name = "lab";
-    mapstore::SaveMap(map, maps_dir_.File("lab.db"), mapstore::SaveMapOptions{4096});
+    testing::WriteLabMap(maps_dir_.path());
     maps_ = std::make_unique<MapCache>(maps_dir_.path(), std::chrono::seconds(60));
     service_ = std::make_unique<LocalizationService>(maps_.get(), limits, &auth_);
     if (before_frame) service_->SetBeforeFrameHookForTesting(std::move(before_frame));
@@ -41,34 +34,16 @@ class ServiceFixture : public ::testing::Test {
   void TearDown() override {
     if (server_) server_->Shutdown();
   }
-  v1::LocalizeRequest StartRequest(v1::FrameDropPolicy policy) const {
-    v1::LocalizeRequest start;
-    start.mutable_start()->set_map_name("lab");
-    start.mutable_start()->mutable_options()->set_drop_policy(policy);
-    proto::ToProto(camera_, start.mutable_start()->mutable_camera());
-    return start;
-  }
-  v1::LocalizeRequest FrameRequest(int i) const {
-    v1::LocalizeRequest frame;
-    frame.mutable_frame()->set_timestamp_ns((i + 1) * 66'666'667LL);
-    v1::RawImage* raw = frame.mutable_frame()->mutable_raw();
-    raw->set_width(camera_.width());
-    raw->set_height(camera_.height());
-    raw->set_pixels(std::string(camera_.width() * camera_.height(), '\x60'));
-    return frame;
-  }
-
   // A Localize call on "lab" whose SessionStart is sent (the call keeps the channel, not the stub).
   std::unique_ptr<grpc::ClientReaderWriter<v1::LocalizeRequest, v1::LocalizeResponse>> OpenSession(
       grpc::ClientContext* context, v1::FrameDropPolicy policy = v1::PROCESS_ALL) const {
     auto stream = v1::Localization::NewStub(channel_)->Localize(context);
-    EXPECT_TRUE(stream->Write(StartRequest(policy)));
+    EXPECT_TRUE(stream->Write(testing::StartRequest(policy)));
     return stream;
   }
 
   TempDir maps_dir_{"visloc-service-test"};
   const TokenAuth auth_;
-  const Camera camera_{160, 120, 80.0, 80.0, 79.5, 59.5};
   std::unique_ptr<MapCache> maps_;
   std::unique_ptr<LocalizationService> service_;
   std::unique_ptr<grpc::Server> server_;
@@ -91,7 +66,7 @@ TEST_F(ServiceFixture, ConcurrentSessionsShareTheWorkerPermits) {
       auto stream = OpenSession(&context);
       for (int i = 0; i < kFrames; ++i) {
         v1::LocalizeResponse response;
-        if (!stream->Write(FrameRequest(i)) || !stream->Read(&response)) return;
+        if (!stream->Write(testing::FrameRequest(i)) || !stream->Read(&response)) return;
         answered[r] += response.status() != v1::STATUS_ERROR;
       }
       stream->WritesDone();
@@ -122,7 +97,7 @@ TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
     int errors = 0, answered = 0;
     for (int i = 0; i < 6; ++i) {
       v1::LocalizeResponse response;
-      ASSERT_TRUE(stream->Write(FrameRequest(i)));
+      ASSERT_TRUE(stream->Write(testing::FrameRequest(i)));
       ASSERT_TRUE(stream->Read(&response));  // One frame in flight: never dropped as stale.
       if (response.status() == v1::STATUS_ERROR) {
         ++errors;
@@ -156,7 +131,7 @@ TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed)
   grpc::ClientContext frozen_context;
   auto frozen = OpenSession(&frozen_context);
   v1::LocalizeResponse response;
-  ASSERT_TRUE(frozen->Write(FrameRequest(0)));
+  ASSERT_TRUE(frozen->Write(testing::FrameRequest(0)));
   ASSERT_TRUE(frozen->Read(&response));
   ASSERT_NE(response.status(), v1::STATUS_CLOSED) << response.error();
   // Then nothing: the next answer is the server closing the session.
@@ -178,7 +153,7 @@ TEST_F(ServiceFixture, AFrozenSessionIsClosedAfterTheIdleTimeoutAndItsSlotFreed)
   // The slot is free: a new robot is served.
   grpc::ClientContext next_context;
   auto next = OpenSession(&next_context);
-  ASSERT_TRUE(next->Write(FrameRequest(0)));
+  ASSERT_TRUE(next->Write(testing::FrameRequest(0)));
   ASSERT_TRUE(next->Read(&response));
   EXPECT_NE(response.status(), v1::STATUS_ERROR) << response.error();
   next->WritesDone();

@@ -4,12 +4,10 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
-#include "core/map/synthetic_map.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/temp_dir.h"
-#include "mapstore/map_store.h"
-#include "proto/geometry_convert.h"
+#include "server/test_session.h"
 
 namespace visloc::server {
 namespace {
@@ -20,12 +18,7 @@ using ::testing::HasSubstr;
 class ServerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    SyntheticMapOptions options;
-    options.keyframes = 6;
-    options.points = 300;
-    Map map = MakeSyntheticMap(options);
-    map.metadata.name = "lab";
-    mapstore::SaveMap(map, maps_dir_.File("lab.db"));
+    testing::WriteLabMap(maps_dir_.path());
     config_.maps_dir = maps_dir_.path();
     config_.listen = "127.0.0.1:0";
     config_.threads = 1;
@@ -33,7 +26,6 @@ class ServerTest : public ::testing::Test {
 
   TempDir maps_dir_{"visloc_server_test"};
   ServerConfig config_;
-  const Camera camera_{160, 120, 80.0, 80.0, 79.5, 59.5};
 };
 
 // What a session does is in the status while it runs, and gone when it ends: the snapshot the
@@ -47,19 +39,9 @@ TEST_F(ServerTest, TheStatusListsALiveSessionAndItsMap) {
   auto channel = grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials());
   grpc::ClientContext context;
   auto stream = v1::Localization::NewStub(channel)->Localize(&context);
-  v1::LocalizeRequest start;
-  start.mutable_start()->set_map_name("lab");
-  start.mutable_start()->set_robot_id("rover-7");
-  proto::ToProto(camera_, start.mutable_start()->mutable_camera());
-  ASSERT_TRUE(stream->Write(start));
+  ASSERT_TRUE(stream->Write(testing::StartRequest(v1::PROCESS_ALL, "rover-7")));
   for (int i = 0; i < 3; ++i) {
-    v1::LocalizeRequest frame;
-    frame.mutable_frame()->set_timestamp_ns((i + 1) * 50'000'000LL);
-    v1::RawImage* raw = frame.mutable_frame()->mutable_raw();
-    raw->set_width(camera_.width());
-    raw->set_height(camera_.height());
-    raw->set_pixels(std::string(camera_.width() * camera_.height(), '\x60'));
-    ASSERT_TRUE(stream->Write(frame));
+    ASSERT_TRUE(stream->Write(testing::FrameRequest(i)));
     v1::LocalizeResponse response;
     ASSERT_TRUE(stream->Read(&response));
   }

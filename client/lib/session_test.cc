@@ -4,17 +4,16 @@
 
 #include "visloc/client/session.h"
 
-#include <grpcpp/grpcpp.h>
 #include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <thread>
 
-#include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
-#include "mapstore/map_store.h"
 #include "server/localization_service.h"
+#include "server/test_session.h"
 
 namespace visloc::client {
 namespace {
@@ -24,15 +23,10 @@ using ::testing::HasSubstr;
 class ClientSessionTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    SyntheticMapOptions map_options;
-    map_options.keyframes = 6;
-    map_options.points = 300;
-    Map map = MakeSyntheticMap(map_options);
-    map.metadata.name = "lab";
-    mapstore::SaveMap(map, maps_dir_.File("lab.db"), mapstore::SaveMapOptions{4096});
+    server::testing::WriteLabMap(maps_dir_.path());
     maps_ = std::make_unique<server::MapCache>(maps_dir_.path(), std::chrono::seconds(60));
-    service_ = std::make_unique<server::LocalizationService>(maps_.get(), server::ServiceLimits{},
-                                                             &auth_);
+    service_ =
+        std::make_unique<server::LocalizationService>(maps_.get(), server::ServiceLimits{}, &auth_);
     // A slow engine on demand (set before serving; tests change only the atomic delay).
     service_->SetBeforeFrameHookForTesting([this] {
       std::this_thread::sleep_for(std::chrono::milliseconds(engine_delay_ms_.load()));
@@ -91,9 +85,8 @@ TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
     options.wait_for_room = true;
     auto session = Session::Open(options);
     for (int i = 0; i < 8; ++i) ASSERT_TRUE(session->Submit(MakeFrame(i)));
-    const std::vector<Event> events = Collect(session.get(), 20, [](const auto& e) {
-      return Count(e, Event::Kind::kResult) == 8;
-    });
+    const std::vector<Event> events = Collect(
+        session.get(), 20, [](const auto& e) { return Count(e, Event::Kind::kResult) == 8; });
     session->Close();
     std::vector<int64_t> answered;
     for (const Event& e : events) {

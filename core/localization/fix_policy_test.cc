@@ -34,24 +34,31 @@ TEST(JumpGateTest, AFixWithinTheGateOfThePriorPassesAndTheGateWidensWithItsSigma
   EXPECT_FALSE(WithinJumpGate(Turned(0, {0, 0.34, 0}), prior, 0.05, options));
 }
 
-FixEvidence Tracked(bool within_gate, bool strong) {
+// A fix with enough support for a limited status, while the motion is known.
+FixEvidence Fix(bool has_pose, bool within_gate, bool strong, bool strongly_supported = false) {
   FixEvidence e;
-  e.has_pose = true;
+  e.has_pose = has_pose;
   e.within_gate = within_gate;
   e.limited_support = true;
   e.strong = strong;
+  e.strongly_supported = strongly_supported;
   e.motion_known = true;
   return e;
 }
 
-TEST(FixPolicyTest, ATrackedFixWithinTheGateIsFusedAsTrackingOrLimited) {
-  FixDecision d = DecideTrackedFix(Tracked(true, true));
+FixEvidence Tracked(bool within_gate, bool strong) { return Fix(true, within_gate, strong); }
+
+void ExpectTaken(const FixDecision& d, TrackingStatus status, FilterUpdate update) {
   EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.status, TrackingStatus::kTracking);
-  EXPECT_EQ(d.update, FilterUpdate::kFuse);
-  d = DecideTrackedFix(Tracked(true, false));
-  EXPECT_EQ(d.status, TrackingStatus::kLimited);
-  EXPECT_EQ(d.update, FilterUpdate::kFuse);
+  EXPECT_EQ(d.status, status);
+  EXPECT_EQ(d.update, update);
+}
+
+TEST(FixPolicyTest, ATrackedFixWithinTheGateIsFusedAsTrackingOrLimited) {
+  ExpectTaken(DecideTrackedFix(Tracked(true, true)), TrackingStatus::kTracking,
+              FilterUpdate::kFuse);
+  ExpectTaken(DecideTrackedFix(Tracked(true, false)), TrackingStatus::kLimited,
+              FilterUpdate::kFuse);
   FixEvidence weak = Tracked(true, false);
   weak.limited_support = false;
   EXPECT_EQ(DecideTrackedFix(weak).action, Action::kReject);
@@ -71,10 +78,8 @@ TEST(FixPolicyTest, WithoutKnownMotionAStronglySupportedJumpRestartsKeepingTheMo
   FixEvidence jump = Tracked(false, true);
   jump.strongly_supported = true;
   jump.motion_known = false;
-  const FixDecision d = DecideTrackedFix(jump);
-  EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.status, TrackingStatus::kRelocalized);
-  EXPECT_EQ(d.update, FilterUpdate::kRestartKeepingMotion);
+  ExpectTaken(DecideTrackedFix(jump), TrackingStatus::kRelocalized,
+              FilterUpdate::kRestartKeepingMotion);
   jump.strongly_supported = false;
   EXPECT_EQ(DecideTrackedFix(jump).action, Action::kHold);
 }
@@ -82,36 +87,23 @@ TEST(FixPolicyTest, WithoutKnownMotionAStronglySupportedJumpRestartsKeepingTheMo
 TEST(FixPolicyTest, FromAHintWithNoPoseOnlyAStrongFixPlacesTheCamera) {
   FixEvidence hinted = Tracked(false, true);
   hinted.has_pose = false;
-  const FixDecision d = DecideTrackedFix(hinted);
-  EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.status, TrackingStatus::kRelocalized);
-  EXPECT_EQ(d.update, FilterUpdate::kRestart);
+  ExpectTaken(DecideTrackedFix(hinted), TrackingStatus::kRelocalized, FilterUpdate::kRestart);
   hinted.strong = false;
   EXPECT_EQ(DecideTrackedFix(hinted).action, Action::kReject);  // Nothing to hold it against.
 }
 
 FixEvidence Relocalized(bool has_pose, bool within_gate, bool strongly_supported) {
-  FixEvidence e;
-  e.has_pose = has_pose;
-  e.within_gate = within_gate;
-  e.limited_support = true;
-  e.strong = true;
-  e.strongly_supported = strongly_supported;
-  e.motion_known = true;
-  return e;
+  return Fix(has_pose, within_gate, /*strong=*/true, strongly_supported);
 }
 
 TEST(FixPolicyTest, ARelocalizationRestartsTheFilter) {
   // Where the prior expected it: taken, the filter restarted without velocity.
-  FixDecision d = DecideRelocalizedFix(Relocalized(true, true, false));
-  EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.status, TrackingStatus::kRelocalized);
-  EXPECT_EQ(d.update, FilterUpdate::kRestart);
+  ExpectTaken(DecideRelocalizedFix(Relocalized(true, true, false)), TrackingStatus::kRelocalized,
+              FilterUpdate::kRestart);
   // Lost (no pose): a strongly supported fix is taken at once; a weak one waits for the next
   // frame (a look-alike place must not teleport the robot).
-  d = DecideRelocalizedFix(Relocalized(false, false, true));
-  EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.update, FilterUpdate::kRestartKeepingMotion);
+  ExpectTaken(DecideRelocalizedFix(Relocalized(false, false, true)), TrackingStatus::kRelocalized,
+              FilterUpdate::kRestartKeepingMotion);
   EXPECT_EQ(DecideRelocalizedFix(Relocalized(false, false, false)).action, Action::kHold);
 }
 
@@ -125,10 +117,8 @@ TEST(FixPolicyTest, AKidnappingIsHeldUntilConfirmedWhileThePriorKnowsTheMotion) 
 }
 
 TEST(FixPolicyTest, AHeldFixIsConfirmedOnlyByAStrongFixWhereTheMotionMovedIt) {
-  const FixDecision d = DecideConfirmation(true, true);
-  EXPECT_EQ(d.action, Action::kTake);
-  EXPECT_EQ(d.status, TrackingStatus::kRelocalized);
-  EXPECT_EQ(d.update, FilterUpdate::kRestartKeepingMotion);
+  ExpectTaken(DecideConfirmation(true, true), TrackingStatus::kRelocalized,
+              FilterUpdate::kRestartKeepingMotion);
   EXPECT_EQ(DecideConfirmation(false, true).action, Action::kReject);
   EXPECT_EQ(DecideConfirmation(true, false).action, Action::kReject);
 }

@@ -40,7 +40,7 @@ Map MakeSyntheticMap(const SyntheticMapOptions& options) {
                "more observations per point than keyframes");
   Rng rng(options.seed);
   Map map;
-  map.metadata = {"synthetic", 1'700'000'000, "synthetic", "visloc synthetic map", ""};
+  map.metadata = {options.name, 1'700'000'000, "synthetic", "visloc synthetic map", ""};
   map.camera = Camera(320, 240, 160.0, 160.0, 159.5, 119.5, {-0.1, 0.01, 1e-4, -2e-4});
   map.features.kind = options.descriptor_type == DescriptorType::kFloat32 ? "harris_surf16" : "orb";
   map.features.descriptor_type = options.descriptor_type;

@@ -4,6 +4,7 @@
 // tests and benchmarks of storage and scaling. They are not built from images.
 
 #include <cstdint>
+#include <string>
 
 #include "core/map/map.h"
 
@@ -21,6 +22,7 @@ struct SyntheticMapOptions {
   // makes them), so relocalization can work on the map; otherwise random vectors.
   bool appearance_from_descriptors = false;
   uint64_t seed = 1;
+  std::string name = "synthetic";  // metadata.name
 };
 
 Map MakeSyntheticMap(const SyntheticMapOptions& options);

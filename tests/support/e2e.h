@@ -91,9 +91,8 @@ inline void SaveLabMap(const std::string& path) {
   SyntheticMapOptions options;
   options.keyframes = 20;
   options.points = 2000;
-  Map map = MakeSyntheticMap(options);
-  map.metadata.name = "lab";
-  mapstore::SaveMap(map, path);
+  options.name = "lab";
+  mapstore::SaveMap(MakeSyntheticMap(options), path);
 }
 
 }  // namespace visloc::testing
