@@ -65,9 +65,10 @@ def protoc_command(proto_path: str, out: str) -> list:
 class BuildWithStubs(build_py):
     def run(self):
         super().run()
+        if os.path.isfile(os.path.join(HERE, "visloc", "v1", "visloc_pb2.py")):
+            return  # Packaged from a tree that has them (CMake's build/python).
+        # Always generated afresh: stubs a previous build left in build/ may be of an older proto.
         stubs = os.path.join(self.build_lib, "visloc", "v1")
-        if os.path.isfile(os.path.join(stubs, "visloc_pb2.py")):
-            return  # Packaged from a tree that has them.
         os.makedirs(stubs, exist_ok=True)
         subprocess.run(protoc_command(proto_dir(), self.build_lib), check=True)
         open(os.path.join(stubs, "__init__.py"), "a").close()

@@ -10,9 +10,13 @@ trap 'rm -rf "$work"' EXIT
 mkdir "$work/checkout"
 cp -r "$source/python" "$source/proto" "$source/CMakeLists.txt" "$work/checkout/"
 version=$(sed -n 's/^project(visloc VERSION \([0-9.]*\).*/\1/p' "$source/CMakeLists.txt")
-# Whatever a developer's build left in the source tree is not a clean checkout.
+# Whatever a developer's build left in the source tree is not a clean checkout...
 rm -rf "$work/checkout/python/build" "$work/checkout/python/"*.egg-info \
        "$work/checkout/python/visloc/v1"
+# ...except stubs an earlier `pip install` left in python/build from an older proto: they must
+# not be packaged in place of the proto's.
+mkdir -p "$work/checkout/python/build/lib/visloc/v1"
+echo "STALE = True  # an older proto's stubs" > "$work/checkout/python/build/lib/visloc/v1/visloc_pb2.py"
 cd "$work/checkout"
 "$python" -m venv --system-site-packages "$work/venv"
 # The README's command; PIP_NO_INDEX makes sure nothing is fetched.
@@ -30,6 +34,7 @@ assert "/venv/" in visloc.__file__, visloc.__file__
 assert importlib.metadata.version("visloc") == os.environ["VISLOC_VERSION"], \
     (importlib.metadata.version("visloc"), os.environ["VISLOC_VERSION"])
 assert pb.STATUS_CLOSED == 8 and hasattr(pb_grpc, "LocalizationStub")
+assert not hasattr(pb, "STALE") and pb.MAX_MESSAGE_BYTES == 64 << 20
 camera = visloc.camera_from_yaml("sensor.yaml")
 assert (camera.width, camera.fx) == (640, 525.0), camera
 print("installed from a checkout:", visloc.__file__)
