@@ -2,7 +2,7 @@
 //
 //   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--tls-cert F --tls-key F]
 //                 [--tls-client-ca F] [--tokens F] [--threads N] [--max-sessions N]
-//                 [--max-frame-rate HZ] [--session-idle-timeout S] [--keepalive-* ...]
+//                 [--max-frame-rate-hz HZ] [--session-idle-timeout-s S] [--keepalive-*-s ...]
 //
 // Serves Localization, MapAdmin, grpc.health.v1 and server reflection. Prints
 // "listening on ADDRESS" once ready (with port 0, the port chosen). SIGTERM or SIGINT drains:
@@ -38,7 +38,7 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
   parser.AddFlag("tls-key", &c->tls_key, "the certificate's private key (PEM)");
   parser.AddFlag("tls-client-ca", &c->tls_client_ca,
                  "mutual TLS: require client certificates signed by this CA (PEM)");
-  parser.AddFlag("max-frame-rate", &c->max_frame_rate_hz,
+  parser.AddFlag("max-frame-rate-hz", &c->max_frame_rate_hz,
                  "frames per second one session may send; more are answered SKIPPED (0: no limit)");
   parser.AddFlag("tokens", &c->tokens,
                  "bearer tokens file: 'TOKEN localize|admin' per line, each token at least 16 "
@@ -50,21 +50,33 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
                    "writes): map upload, delete and rename are refused");
   parser.AddFlag("threads", &c->threads, "frames processed at once across sessions");
   parser.SetDefaultText("threads", "0: one per core");
-  parser.AddFlag("session-idle-timeout", &c->session_idle_timeout_s,
+  parser.AddFlag("session-idle-timeout-s", &c->session_idle_timeout_s,
                  "close a session with no frame for this many seconds and free its slot (0: off)");
-  parser.AddFlag("keepalive-min-ping-interval", &c->keepalive_min_ping_interval_s,
+  parser.AddFlag("keepalive-min-ping-interval-s", &c->keepalive_min_ping_interval_s,
                  "seconds: clients pinging more often than this are struck (see ping strikes)");
   parser.AddFlag("keepalive-ping-strikes", &c->keepalive_ping_strikes,
                  "too-frequent pings tolerated before the connection is closed");
-  parser.AddFlag("keepalive-time", &c->keepalive_time_s,
+  parser.AddFlag("keepalive-time-s", &c->keepalive_time_s,
                  "seconds of silence before the server pings a client's connection");
-  parser.AddFlag("keepalive-timeout", &c->keepalive_timeout_s,
+  parser.AddFlag("keepalive-timeout-s", &c->keepalive_timeout_s,
                  "seconds to wait for a ping's answer before closing the connection as dead");
-  parser.AddFlag("max-connection-idle", &c->max_connection_idle_s,
+  parser.AddFlag("max-connection-idle-s", &c->max_connection_idle_s,
                  "close connections without calls for this many seconds (0: never)");
-  parser.AddFlag("max-connection-age", &c->max_connection_age_s,
+  parser.AddFlag("max-connection-age-s", &c->max_connection_age_s,
                  "close connections older than this many seconds, after a grace of --drain-s "
                  "(0: never)");
+  // The names before they said their units (0.1.0 and earlier).
+  for (const auto& [former, name] :
+       {std::pair{"max-upload-mb", "max-upload-mib"},
+        {"max-frame-rate", "max-frame-rate-hz"},
+        {"session-idle-timeout", "session-idle-timeout-s"},
+        {"keepalive-min-ping-interval", "keepalive-min-ping-interval-s"},
+        {"keepalive-time", "keepalive-time-s"},
+        {"keepalive-timeout", "keepalive-timeout-s"},
+        {"max-connection-idle", "max-connection-idle-s"},
+        {"max-connection-age", "max-connection-age-s"}}) {
+    parser.AddFormerName(former, name);
+  }
 }
 
 int Run(int argc, char** argv) {

@@ -26,16 +26,16 @@ void CheckLinkConfig(const ServerConfig& config) {
     if (!(v > 0 && v < 86400)) throw UsageError(StrCat(flag, " must be in (0, 86400) seconds"));
   };
   if (!(config.session_idle_timeout_s >= 0 && config.session_idle_timeout_s < 86400)) {
-    throw UsageError("--session-idle-timeout must be in [0, 86400) seconds (0: off)");
+    throw UsageError("--session-idle-timeout-s must be in [0, 86400) seconds (0: off)");
   }
-  positive(config.keepalive_min_ping_interval_s, "--keepalive-min-ping-interval");
-  positive(config.keepalive_time_s, "--keepalive-time");
-  positive(config.keepalive_timeout_s, "--keepalive-timeout");
+  positive(config.keepalive_min_ping_interval_s, "--keepalive-min-ping-interval-s");
+  positive(config.keepalive_time_s, "--keepalive-time-s");
+  positive(config.keepalive_timeout_s, "--keepalive-timeout-s");
   if (config.keepalive_ping_strikes < 0) {
     throw UsageError("--keepalive-ping-strikes must be >= 0");
   }
   if (!(config.max_connection_idle_s >= 0) || !(config.max_connection_age_s >= 0)) {
-    throw UsageError("--max-connection-idle and --max-connection-age must be >= 0 (0: off)");
+    throw UsageError("--max-connection-idle-s and --max-connection-age-s must be >= 0 (0: off)");
   }
 }
 
@@ -107,7 +107,7 @@ void ServerConfig::Check() const {
                      "; --allow-remote overrides)");
   }
   if (threads < 0) throw UsageError("--threads must not be negative");
-  if (!(max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate must not be negative");
+  if (!(max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate-hz must not be negative");
   if (max_upload_mib < 1) throw UsageError("--max-upload-mib must be at least 1");
   if (tls_cert.empty() != tls_key.empty()) throw UsageError("--tls-cert and --tls-key go together");
   if (!tls_client_ca.empty() && tls_cert.empty()) {

@@ -102,7 +102,7 @@ TEST_F(ServerTest, ABadConfigIsRefusedNamingTheFlag) {
   EXPECT_THAT(refusal(config), HasSubstr("--max-upload-mib"));
   config = config_;
   config.keepalive_time_s = -1;
-  EXPECT_THAT(refusal(config), HasSubstr("--keepalive-time"));
+  EXPECT_THAT(refusal(config), HasSubstr("--keepalive-time-s"));
   EXPECT_EQ(refusal(config_), "accepted");
 }
 

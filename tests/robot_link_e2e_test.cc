@@ -204,6 +204,7 @@ TEST_F(RobotLinkE2eTest, ASlowLinkDropsFramesOnTheRobotAndKeepsLatencyBounded) {
 // A robot whose program froze keeps its stream open and sends nothing; with one session slot,
 // the next robot is served once the server's idle timeout has freed the slot.
 TEST_F(RobotLinkE2eTest, AFrozenRobotsSlotIsFreedByTheIdleTimeout) {
+  // The flag by its former name (now --session-idle-timeout-s): deployments written for it work.
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
                        {"--max-sessions", "1", "--session-idle-timeout", "1"});
   auto stub = v1::Localization::NewStub(

@@ -106,7 +106,7 @@ TEST_F(ServerE2eTest, NewestOnlyPolicyAnswersSkippedFramesToo) {
 }
 
 TEST_F(ServerE2eTest, FramesOverTheSessionRateLimitAreSkippedWithAReason) {
-  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--max-frame-rate", "5"});
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--max-frame-rate-hz", "5"});
   // 40 frames as fast as the client can send: one second of burst (5 frames) plus what 5 Hz
   // refills while they are processed gets through; the rest is answered SKIPPED.
   const ProcessResult flood =

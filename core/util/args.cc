@@ -81,7 +81,16 @@ ArgParser::Option* ArgParser::Find(const std::string& name) {
   for (Option& option : options_) {
     if (option.name == name) return &option;
   }
+  for (const auto& [former, current] : former_names_) {
+    if (former == name) return Find(current);
+  }
   return nullptr;
+}
+
+void ArgParser::AddFormerName(const std::string& former, const std::string& name) {
+  VISLOC_CHECK(Find(former) == nullptr, "duplicate option ", former);
+  VISLOC_CHECK(Find(name) != nullptr, "no option ", name, " for its former name ", former);
+  former_names_.emplace_back(former, name);
 }
 
 void ArgParser::Assign(Option& option, const std::string& value) {

@@ -59,6 +59,10 @@ class ArgParser {
   void AddPositional(const std::string& name, std::string* target, const std::string& help,
                      bool required = true);
 
+  // `former` is accepted for the flag `name` (declared before), which it was called once, so
+  // scripts written for it keep working; --help shows only the current name.
+  void AddFormerName(const std::string& former, const std::string& name);
+
   // Parses `args` (without the program and subcommand names). Returns false when --help was
   // given, after writing the help text to `help_out`. Throws UsageError on bad input.
   bool Parse(const std::vector<std::string>& args, std::ostream& help_out);
@@ -84,6 +88,7 @@ class ArgParser {
   std::string command_;
   std::string summary_;
   std::vector<Option> options_;
+  std::vector<std::pair<std::string, std::string>> former_names_;  // (former, current)
 };
 
 }  // namespace visloc

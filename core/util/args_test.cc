@@ -4,6 +4,8 @@
 
 #include <sstream>
 
+#include "core/util/check.h"
+
 namespace visloc {
 namespace {
 
@@ -25,6 +27,22 @@ TEST(ArgParserTest, ParsesFlagsSwitchesAndPositionals) {
   EXPECT_EQ(frames, 42);
   EXPECT_DOUBLE_EQ(rate, 15.0);
   EXPECT_TRUE(json);
+}
+
+// A flag renamed to say its unit still answers to its former name; --help shows the new one.
+TEST(ArgParserTest, AFormerNameStillSetsTheRenamedFlag) {
+  double timeout_s = 30.0;
+  ArgParser parser("visloc test", "A test.");
+  parser.AddFlag("idle-timeout-s", &timeout_s, "seconds");
+  parser.AddFormerName("idle-timeout", "idle-timeout-s");
+  std::ostringstream help;
+  ASSERT_TRUE(parser.Parse({"--idle-timeout", "5"}, help));
+  EXPECT_DOUBLE_EQ(timeout_s, 5.0);
+  ASSERT_TRUE(parser.Parse({"--idle-timeout-s=7"}, help));
+  EXPECT_DOUBLE_EQ(timeout_s, 7.0);
+  EXPECT_EQ(parser.Help().find("--idle-timeout "), std::string::npos);
+  EXPECT_NE(parser.Help().find("--idle-timeout-s"), std::string::npos);
+  EXPECT_THROW(parser.AddFormerName("gone", "never-declared"), CheckError);
 }
 
 TEST(ArgParserTest, ReportsBadInputByName) {

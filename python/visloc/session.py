@@ -63,7 +63,7 @@ class SessionOptions:
     backoff_initial_s: float = 0.05
     backoff_max_s: float = 0.5
     give_up_after_s: float = 0.0  # 0: never (a robot keeps trying).
-    keepalive_time_ms: int = 10000  # Not below the server's --keepalive-min-ping-interval.
+    keepalive_time_ms: int = 10000  # Not below the server's --keepalive-min-ping-interval-s.
     on_event: Optional[Callable[[Event], None]] = None
 
     def problem(self) -> str:

@@ -111,7 +111,7 @@ struct SessionOptions {
   // up (a robot keeps trying; a one-off command should not).
   std::chrono::milliseconds give_up_after{0};
 
-  // gRPC keepalive. Not below the server's --keepalive-min-ping-interval (default 5 s), which
+  // gRPC keepalive. Not below the server's --keepalive-min-ping-interval-s (default 5), which
   // would strike this client off (gRPC's keepalive guidance).
   std::chrono::milliseconds keepalive_time{10000};
   std::chrono::milliseconds keepalive_timeout{5000};
