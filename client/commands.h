@@ -25,6 +25,7 @@ int RunRelocalize(const Args& args);
 int RunPlot(const Args& args);
 int RunBench(const Args& args);
 int RunHealth(const Args& args);
+int RunSessions(const Args& args);  // `visloc sessions`
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.
 bool ShowProgress();

@@ -37,6 +37,8 @@ const std::vector<Subcommand> kCommands = {
     {"plot", "top view of a map and a trajectory (PNG or SVG)", RunPlot},
     {"bench", "time the engine, its baselines and a reference on a dataset", RunBench},
     {"health", "ask visloc-server whether it is serving (grpc.health.v1)", RunHealth},
+    {"sessions", "the live robots of a visloc-server: map, status, pose, inliers, latency",
+     RunSessions},
 };
 
 // A failed command says why on stderr ("visloc VERB: reason"). Asked for --json, it also prints

@@ -42,6 +42,7 @@ struct StreamArgs {
   Connection server;
   std::string map_name, dataset_dir, format, trajectory_path, stats_path, events_path, gt_path;
   std::string camera_source, sensor_path;  // A live source instead of a dataset.
+  std::string robot_id = "visloc-stream";
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
   std::string encoding;  // Empty: DefaultEncoding().
@@ -79,7 +80,7 @@ client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& 
   client::SessionOptions o;
   args.server.ToLibrary(&o);
   o.map_name = args.map_name;
-  o.robot_id = "visloc-stream";
+  o.robot_id = args.robot_id;
   proto::ToProto(camera.camera, &o.camera);
   o.session.set_drop_policy(args.policy == "newest" ? v1::NEWEST_ONLY : v1::PROCESS_ALL);
   if (args.odometry) proto::ToProto(camera.body_from_cam, o.session.mutable_body_from_cam());
@@ -243,6 +244,8 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
                    "on a terminal, and a summary with the client-side latency.");
   args->server.AddFlags(parser);
   parser.AddFlag("map", &args->map_name, "map name on the server", true);
+  parser.AddFlag("robot-id", &args->robot_id,
+                 "the robot's name in the server's log and in visloc sessions");
   parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)");
   parser.AddFlag("camera", &args->camera_source,
                  "instead of --dataset, a live source through OpenCV: a V4L2 device (/dev/video0 "

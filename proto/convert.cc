@@ -25,22 +25,6 @@ TrackingStatus StatusFromProto(v1::Status status) {
   }
 }
 
-v1::Status StatusToProto(TrackingStatus status) {
-  switch (status) {
-    case TrackingStatus::kInitializing:
-      return v1::STATUS_INITIALIZING;
-    case TrackingStatus::kTracking:
-      return v1::STATUS_TRACKING;
-    case TrackingStatus::kLimited:
-      return v1::STATUS_LIMITED;
-    case TrackingStatus::kRelocalized:
-      return v1::STATUS_RELOCALIZED;
-    case TrackingStatus::kLost:
-      return v1::STATUS_LOST;
-  }
-  return v1::STATUS_UNSPECIFIED;
-}
-
 RelocalizationReport::Kind KindFromName(const std::string& name) {
   if (name == "local") return RelocalizationReport::Kind::kLocal;
   if (name == "global") return RelocalizationReport::Kind::kGlobal;
@@ -61,6 +45,22 @@ constexpr uint32_t kMaxVisibilityK = 1000, kMaxRansacIterations = 100000;
 constexpr double kMaxRansacErrorPx = 100.0, kMaxCameraHeightM = 10.0;
 
 }  // namespace
+
+v1::Status ToProto(TrackingStatus status) {
+  switch (status) {
+    case TrackingStatus::kInitializing:
+      return v1::STATUS_INITIALIZING;
+    case TrackingStatus::kTracking:
+      return v1::STATUS_TRACKING;
+    case TrackingStatus::kLimited:
+      return v1::STATUS_LIMITED;
+    case TrackingStatus::kRelocalized:
+      return v1::STATUS_RELOCALIZED;
+    case TrackingStatus::kLost:
+      return v1::STATUS_LOST;
+  }
+  return v1::STATUS_UNSPECIFIED;
+}
 
 cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const Camera& camera) {
   cv::Mat grey;
@@ -182,7 +182,7 @@ LocalizerOptions FromProto(const v1::SessionOptions& o) {
 void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResponse* out) {
   out->set_timestamp_ns(r.timestamp_ns);
   out->set_frame_index(frame_index);
-  out->set_status(StatusToProto(r.status));
+  out->set_status(ToProto(r.status));
   out->set_source(static_cast<v1::PoseSource>(static_cast<int>(r.source)));
   out->set_has_pose(r.has_pose);
   if (r.has_pose) {

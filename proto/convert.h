@@ -19,6 +19,8 @@ void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Fram
 
 LocalizerOptions FromProto(const v1::SessionOptions& options);
 
+v1::Status ToProto(TrackingStatus status);
+
 void ToProto(const LocalizationResult& result, uint64_t frame_index, v1::LocalizeResponse* out);
 // The Relocalize RPC's answer (all but `ms`, the server's whole time).
 void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out);

@@ -44,6 +44,7 @@ class LocalizationService final : public v1::Localization::Service {
   int active_sessions() const { return active_sessions_.load(); }
   // The live sessions, as their last frames left them.
   std::vector<SessionStatus> sessions() const { return registry_.Snapshot(); }
+  const SessionRegistry& registry() const { return registry_; }
   const WorkPermits& workers() const { return workers_; }
   // Sessions closed for idleness since the start.
   int idle_sessions_closed() const { return idle_closed_.load(); }

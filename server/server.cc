@@ -127,7 +127,8 @@ Server::Server(const ServerConfig& config)
       maps_(config.maps_dir, std::chrono::seconds(config.idle_unload_s),
             static_cast<size_t>(config.map_memory_mib) << 20),
       localization_(&maps_, LimitsOf(config), &auth_),
-      admin_(&maps_, AdminOptionsOf(config), &auth_) {
+      admin_(&maps_, AdminOptionsOf(config), &auth_),
+      fleet_(&localization_.registry(), &auth_, config.max_sessions) {
   const auto credentials = Credentials(config_);
   // A read-only replica must not touch the folder: the temporaries in it may be another
   // server's uploads in progress (whose process ids mean nothing in this one's namespace).
@@ -149,6 +150,7 @@ Server::Server(const ServerConfig& config)
   builder.SetResourceQuota(quota);
   builder.RegisterService(&localization_);
   builder.RegisterService(&admin_);
+  builder.RegisterService(&fleet_);
   builder.SetMaxReceiveMessageSize(proto::WireLimits{}.max_message_bytes);
   SetLinkArguments(config_, &builder);
   grpc_server_ = builder.BuildAndStart();
@@ -157,7 +159,7 @@ Server::Server(const ServerConfig& config)
                      ": the address is in use (another visloc-server?) or not this machine's");
   }
   grpc::HealthCheckServiceInterface* health = grpc_server_->GetHealthCheckService();
-  for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin"}) {
+  for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin", "visloc.v1.Fleet"}) {
     health->SetServingStatus(service, true);
   }
   address_ = config_.listen.substr(0, config_.listen.rfind(':')) + ":" + std::to_string(port);
@@ -171,6 +173,7 @@ Server::Server(const ServerConfig& config)
 }
 
 Server::~Server() {
+  fleet_.Stop();
   if (!stopping_) {
     grpc_server_->Shutdown(std::chrono::system_clock::now());
     grpc_server_->Wait();
@@ -217,6 +220,7 @@ ServerStatus Server::Status() const {
 
 void Server::Drain() {
   grpc_server_->GetHealthCheckService()->SetServingStatus(false);
+  fleet_.Stop();  // Watches end now; robots' streams get the drain period.
   grpc_server_->Shutdown(std::chrono::system_clock::now() +
                          std::chrono::milliseconds(static_cast<int64_t>(config_.drain_s * 1000)));
   grpc_server_->Wait();

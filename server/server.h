@@ -1,6 +1,6 @@
 #pragma once
 // visloc-server's composition root: one ServerConfig in, the running server out. It owns the map
-// cache, the services (Localization, MapAdmin, grpc.health.v1, reflection), the transport
+// cache, the services (Localization, MapAdmin, Fleet, grpc.health.v1, reflection), the transport
 // (listening address, TLS, keepalive, message limits) and the janitor that unloads idle maps,
 // and answers Status() with a snapshot of what it is doing. Flags and signals are main.cc's.
 
@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "server/auth.h"
+#include "server/fleet_service.h"
 #include "server/localization_service.h"
 #include "server/map_admin_service.h"
 #include "server/map_cache.h"
@@ -73,6 +74,7 @@ class Server {
   MapCache maps_;
   LocalizationService localization_;
   MapAdminService admin_;
+  FleetService fleet_;
   std::unique_ptr<grpc::Server> grpc_server_;
   std::string address_;
   std::atomic<bool> stopping_{false};

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,9 +28,14 @@ struct SessionStatus {
   TrackingStatus status = TrackingStatus::kInitializing;
   bool has_pose = false;
   Rigid3d map_from_cam;
+  double position_sigma_m = 0.0;  // Per axis.
   int inliers = 0;
+  double inlier_ratio = 0.0;
   double server_ms = 0.0;
-  std::chrono::system_clock::time_point last_frame;
+  double frame_rate_hz = 0.0;  // Arrivals per second over the last few seconds.
+  std::chrono::system_clock::time_point last_frame;  // Epoch before the first frame.
+  // Since when the robot has had no pose (from the start until its first); none while it has.
+  std::optional<std::chrono::system_clock::time_point> without_pose_since;
 };
 
 // A map the server holds loaded.

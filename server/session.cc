@@ -54,6 +54,7 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
   tally_.map = start.map_name();
   tally_.robot_id = start.robot_id();
   tally_.started = std::chrono::system_clock::now();
+  tally_.without_pose_since = tally_.started;
   tally_.id = registry_->Open(tally_);
 }
 
@@ -90,10 +91,13 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
   const double ms = timer.ElapsedMs();
   response.mutable_timings()->set_server_ms(ms);
   server_ms_sum_ += ms;
+  const double rate_hz = ArrivalRateHz(std::chrono::steady_clock::now());
+  const auto now = std::chrono::system_clock::now();
   Record([&](SessionStatus* s) {
     ++s->frames;
     s->server_ms = ms;
-    s->last_frame = std::chrono::system_clock::now();
+    s->frame_rate_hz = rate_hz;
+    s->last_frame = now;
     if (!answered) {
       ++s->errors;
       return;
@@ -102,7 +106,14 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     s->status = answered->status;
     s->has_pose = answered->has_pose;
     s->map_from_cam = answered->map_from_cam;
+    s->position_sigma_m = answered->PositionSigmaPerAxisM();
     s->inliers = answered->stats.inliers;
+    s->inlier_ratio = answered->stats.inlier_ratio;
+    if (s->has_pose) {
+      s->without_pose_since.reset();
+    } else if (!s->without_pose_since) {
+      s->without_pose_since = now;
+    }
   });
   return response;
 }
@@ -114,11 +125,23 @@ v1::LocalizeResponse LocalizationSession::Skipped(const v1::LocalizeRequest& req
   response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
   response.set_status(v1::STATUS_SKIPPED);
   if (!reason.empty()) response.set_error(reason);
-  Record([](SessionStatus* s) {
+  const double rate_hz = ArrivalRateHz(std::chrono::steady_clock::now());
+  Record([rate_hz](SessionStatus* s) {
     ++s->frames;
     ++s->skipped;
+    s->frame_rate_hz = rate_hz;
   });
   return response;
+}
+
+double LocalizationSession::ArrivalRateHz(std::chrono::steady_clock::time_point now) {
+  // A frame rate a robot keeps for seconds: what arrived in the last 2 s (at most 256 frames).
+  constexpr auto kWindow = std::chrono::seconds(2);
+  arrivals_.push_back(now);
+  while (arrivals_.size() > 256 || now - arrivals_.front() > kWindow) arrivals_.pop_front();
+  if (arrivals_.size() < 2) return 0.0;
+  const double span_s = std::chrono::duration<double>(now - arrivals_.front()).count();
+  return span_s > 0 ? (arrivals_.size() - 1) / span_s : 0.0;
 }
 
 double LocalizationSession::mean_server_ms() const {

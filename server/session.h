@@ -7,6 +7,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
+#include <deque>
 #include <functional>
 #include <map>
 #include <memory>
@@ -70,8 +71,12 @@ class LocalizationSession {
   const std::function<void()>& before_frame_;
   Camera camera_;
   Localizer localizer_;
+  // A frame arrived now: the arrival rate over the last 2 s.
+  double ArrivalRateHz(std::chrono::steady_clock::time_point now);
+
   SessionStatus tally_;  // This thread's copy of the registry entry.
   double server_ms_sum_ = 0.0;
+  std::deque<std::chrono::steady_clock::time_point> arrivals_;
 };
 
 // How a session's stream ended.

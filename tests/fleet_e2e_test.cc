@@ -1,0 +1,129 @@
+// The live sessions end to end: real `visloc stream` robots on a real visloc-server, read back
+// through the Fleet service by `visloc sessions` and by a watching client. The server's one
+// registry must show each robot as it streams (map, name, frames, frame rate, status, pose), the
+// kidnapped robot without a pose while its camera is covered and with one again after, and
+// nothing once the robots are done. Tokens guard the list as they guard localization.
+
+#include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/util/temp_dir.h"
+#include "tests/support/e2e.h"
+#include "tests/support/process.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::ProcessResult;
+using testing::ServerProcess;
+using testing::Visloc;
+
+const std::string kData = VISLOC_LOCALIZATION_DATA;
+
+std::vector<std::string> Robot(const std::string& address, const std::string& robot_id,
+                               const std::string& sequence) {
+  return {VISLOC_CLI_PATH, "stream",     "--server", address,     "--map",
+          "square",        "--robot-id", robot_id,   "--dataset", kData + "/" + sequence,
+          "--rate",        "15",         "--json"};
+}
+
+const v1::SessionSummary* Find(const v1::ListSessionsResponse& fleet, const std::string& robot) {
+  for (const v1::SessionSummary& s : fleet.sessions()) {
+    if (s.robot_id() == robot) return &s;
+  }
+  return nullptr;
+}
+
+class FleetE2eTest : public ::testing::Test {
+ protected:
+  void SetUp() override { std::filesystem::copy_file(kData + "/map.db", maps_.File("square.db")); }
+  TempDir maps_{"visloc_fleet_maps"};
+};
+
+TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBack) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const int kidnapped = testing::SpawnProcess(Robot(server.address(), "rover-kidnap", "kidnap"));
+  const int walker = testing::SpawnProcess(Robot(server.address(), "rover-walk", "query_square"));
+
+  // A client watching every 100 ms while the robots stream: the kidnapped robot must be seen
+  // without a pose (its camera covered) and with one again.
+  auto stub =
+      v1::Fleet::NewStub(grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  grpc::ClientContext watch;
+  v1::WatchSessionsRequest request;
+  request.set_interval_ms(100);
+  auto reader = stub->WatchSessions(&watch, request);
+  bool both_seen = false, lost_seen = false, back_seen = false;
+  double walker_rate_hz = 0;
+  v1::ListSessionsResponse fleet;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!back_seen && std::chrono::steady_clock::now() < give_up && reader->Read(&fleet)) {
+    const v1::SessionSummary* k = Find(fleet, "rover-kidnap");
+    const v1::SessionSummary* w = Find(fleet, "rover-walk");
+    if (k && w && k->frames() > 20 && w->frames() > 20) {
+      both_seen = true;
+      EXPECT_EQ(k->map_name(), "square");
+      walker_rate_hz = w->frame_rate_hz();
+    }
+    if (k && k->localized() > 10 && !k->has_pose() && k->status() == v1::STATUS_LOST) {
+      lost_seen = true;
+      EXPECT_GT(k->without_pose_since_unix_ns(), 0);
+    }
+    if (lost_seen && k && k->has_pose()) {
+      back_seen = true;
+      EXPECT_EQ(k->without_pose_since_unix_ns(), 0);
+      EXPECT_GT(k->inliers(), 30u);
+      EXPECT_GT(k->inlier_ratio(), 0.3);
+    }
+  }
+  watch.TryCancel();
+  reader->Finish();
+  EXPECT_TRUE(both_seen);
+  EXPECT_TRUE(lost_seen) << "the kidnapped robot never showed lost";
+  EXPECT_TRUE(back_seen) << "the kidnapped robot never showed a pose again";
+  EXPECT_GT(walker_rate_hz, 8.0);  // Paced at 15 Hz.
+  EXPECT_LT(walker_rate_hz, 25.0);
+
+  // The CLI reads the same registry.
+  const ProcessResult listed = Visloc({"sessions", "--server", server.address(), "--json"});
+  ASSERT_EQ(listed.exit_code, 0) << listed.err;
+  EXPECT_THAT(listed.out, HasSubstr("\"robot\":\"rover-walk\""));
+  const ProcessResult table = Visloc({"sessions", "--server", server.address()});
+  EXPECT_THAT(table.out, HasSubstr("rover-walk"));
+  EXPECT_THAT(table.out, HasSubstr("square"));
+  const ProcessResult watched = Visloc({"sessions", "--server", server.address(), "--watch",
+                                        "--count", "3", "--interval-ms", "100", "--json"});
+  ASSERT_EQ(watched.exit_code, 0) << watched.err;
+  EXPECT_EQ(testing::CountOccurrences(watched.out, "\"max_sessions\":64"), 3u) << watched.out;
+
+  EXPECT_EQ(testing::WaitProcess(kidnapped), 0);
+  EXPECT_EQ(testing::WaitProcess(walker), 0);
+  ASSERT_TRUE(testing::WaitUntil([&] {
+    return Visloc({"sessions", "--server", server.address(), "--json"}).out.find("\"robot\"") ==
+           std::string::npos;
+  }));
+}
+
+TEST_F(FleetE2eTest, TheListNeedsAToken) {
+  TempDir files("visloc_fleet_files");
+  std::ofstream(files.File("tokens")) << "robot-token-0123456789 localize\n";
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--tokens", files.File("tokens")});
+  const ProcessResult anonymous = Visloc({"sessions", "--server", server.address()});
+  EXPECT_EQ(anonymous.exit_code, 1);
+  EXPECT_THAT(anonymous.err, HasSubstr("--token"));
+  const ProcessResult robot = Visloc(
+      {"sessions", "--server", server.address(), "--token", "robot-token-0123456789", "--json"});
+  EXPECT_EQ(robot.exit_code, 0) << robot.err;
+  EXPECT_THAT(robot.out, HasSubstr("\"sessions\":[]"));
+}
+
+}  // namespace
+}  // namespace visloc
