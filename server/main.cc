@@ -27,6 +27,8 @@ namespace {
 void AddFlags(ArgParser& parser, ServerConfig* c) {
   parser.AddFlag("maps", &c->maps_dir, "folder of map files NAME.db", /*required=*/true);
   parser.AddFlag("listen", &c->listen, "address:port (port 0 picks a free port)");
+  parser.AddFlag("http", &c->http,
+                 "HOST:PORT for /healthz, /readyz and /metrics (Prometheus); off unless given");
   parser.AddFlag("max-sessions", &c->max_sessions, "concurrent Localize streams");
   parser.AddFlag("idle-unload-s", &c->idle_unload_s, "unload maps idle this long");
   parser.AddFlag("map-memory-mib", &c->map_memory_mib,
@@ -99,6 +101,7 @@ int Run(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   Server server(config);
   std::printf("listening on %s\n", server.address().c_str());
+  if (!server.http_address().empty()) std::printf("http on %s\n", server.http_address().c_str());
   std::fflush(stdout);
   int signal_number = 0;
   sigwait(&signals, &signal_number);

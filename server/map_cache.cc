@@ -77,7 +77,14 @@ std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name
   }
   // Loaded under this name's lock only: other maps stay available meanwhile.
   bool paged = false;
-  auto map = Load(path, &paged);
+  std::shared_ptr<const LocalizationMap> map;
+  try {
+    map = Load(path, &paged);
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++stats_.load_failures;
+    throw;
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   entries_[name] = {map, identity, std::chrono::steady_clock::now()};
   ++stats_.loads;

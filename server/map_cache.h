@@ -29,6 +29,7 @@ struct MapCacheStats {
   int paged_loads = 0;  // Of the loads, maps opened paged.
   int hits = 0;
   int unloads = 0;
+  int load_failures = 0;  // Map files that did not load (a session or relocalization refused).
 };
 
 class MapCache {

@@ -5,11 +5,13 @@
 #include <grpcpp/resource_quota.h>
 
 #include <chrono>
+#include <filesystem>
 
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
+#include "core/util/version.h"
 #include "proto/geometry_convert.h"
 #include "server/log.h"
 
@@ -163,6 +165,11 @@ Server::Server(const ServerConfig& config)
     health->SetServingStatus(service, true);
   }
   address_ = config_.listen.substr(0, config_.listen.rfind(':')) + ":" + std::to_string(port);
+  if (!config_.http.empty()) {
+    http_ = std::make_unique<HttpEndpoint>(
+        HttpOptions{config_.http, config_.tls_cert, config_.tls_key, VislocVersion()},
+        [this] { return Status(); }, [this] { return Readiness(); }, &auth_);
+  }
   LogStart(stale);
   janitor_ = std::thread([this] {
     while (!stopping_) {
@@ -173,6 +180,7 @@ Server::Server(const ServerConfig& config)
 }
 
 Server::~Server() {
+  http_.reset();
   fleet_.Stop();
   if (!stopping_) {
     grpc_server_->Shutdown(std::chrono::system_clock::now());
@@ -198,12 +206,14 @@ void Server::LogStart(int stale_temporaries_removed) const {
        {"session_idle_timeout_s", FormatFixed(config_.session_idle_timeout_s, 1)},
        {"keepalive_min_ping_interval_s", FormatFixed(config_.keepalive_min_ping_interval_s, 1)},
        {"tokens", auth_.enabled() ? "on" : "off"},
+       {"http", http_ ? http_->address() : "off"},
        {"stale_temporaries_removed", std::to_string(stale_temporaries_removed)}});
 }
 
 ServerStatus Server::Status() const {
   ServerStatus status;
   status.sessions = localization_.sessions();
+  status.counters = localization_.registry().Counters();
   status.max_sessions = config_.max_sessions;
   status.idle_sessions_closed = localization_.idle_sessions_closed();
   status.maps = maps_.LoadedMaps();
@@ -212,13 +222,23 @@ ServerStatus Server::Status() const {
   status.map_paged_loads = cache.paged_loads;
   status.map_cache_hits = cache.hits;
   status.map_unloads = cache.unloads;
+  status.map_load_failures = cache.load_failures;
   status.workers = localization_.workers().permits();
   status.workers_busy = localization_.workers().in_use();
   status.workers_peak = localization_.workers().peak_in_use();
   return status;
 }
 
+std::string Server::Readiness() const {
+  if (draining_) return "draining: the server is shutting down";
+  std::error_code error;
+  std::filesystem::directory_iterator maps(config_.maps_dir, error);
+  if (error) return "the maps folder cannot be read";
+  return "";
+}
+
 void Server::Drain() {
+  draining_ = true;  // /readyz answers 503 from now.
   grpc_server_->GetHealthCheckService()->SetServingStatus(false);
   fleet_.Stop();  // Watches end now; robots' streams get the drain period.
   grpc_server_->Shutdown(std::chrono::system_clock::now() +
@@ -226,6 +246,7 @@ void Server::Drain() {
   grpc_server_->Wait();
   stopping_ = true;
   if (janitor_.joinable()) janitor_.join();
+  http_.reset();
   Log("server_stop", {{"maps_loaded", std::to_string(maps_.stats().loads)}});
 }
 

@@ -14,6 +14,7 @@
 
 #include "server/auth.h"
 #include "server/fleet_service.h"
+#include "server/http/http_endpoint.h"
 #include "server/localization_service.h"
 #include "server/map_admin_service.h"
 #include "server/map_cache.h"
@@ -42,6 +43,7 @@ struct ServerConfig {
   int keepalive_ping_strikes = 2;
   double keepalive_time_s = 20.0, keepalive_timeout_s = 10.0;
   double max_connection_idle_s = 0.0, max_connection_age_s = 0.0;  // 0: unlimited.
+  std::string http;  // HOST:PORT of the probes and metrics (http/http_endpoint.h); empty: none.
 
   // Throws UsageError naming the flag of the first bad value.
   void Check() const;
@@ -61,6 +63,8 @@ class Server {
 
   // The address listened on, with the port chosen for port 0.
   const std::string& address() const { return address_; }
+  // The HTTP endpoint's address (port chosen for port 0); empty without --http.
+  std::string http_address() const { return http_ ? http_->address() : ""; }
   ServerStatus Status() const;
   // Health turns NOT_SERVING (load balancers stop sending robots here), no new calls are
   // accepted, open streams get the config's drain period, then everything stops.
@@ -68,6 +72,8 @@ class Server {
 
  private:
   void LogStart(int stale_temporaries_removed) const;
+  // Empty when ready to take robots; else why not (for /readyz).
+  std::string Readiness() const;
 
   ServerConfig config_;
   TokenAuth auth_;
@@ -78,7 +84,9 @@ class Server {
   std::unique_ptr<grpc::Server> grpc_server_;
   std::string address_;
   std::atomic<bool> stopping_{false};
+  std::atomic<bool> draining_{false};
   std::thread janitor_;
+  std::unique_ptr<HttpEndpoint> http_;  // Last: it reads everything above.
 };
 
 }  // namespace visloc::server

@@ -5,6 +5,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <iterator>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -46,12 +48,34 @@ struct LoadedMapStatus {
   size_t memory_bytes = 0;
 };
 
+// What every session has done since the server started, for the metrics (counters only grow).
+// Labels stay bounded: map names and outcomes, never robots.
+struct FrameCounters {
+  // Upper bounds (s) of the server-time histogram's buckets; +Inf is implicit.
+  static constexpr double kSecondsBuckets[] = {0.001, 0.002, 0.005, 0.01, 0.02,
+                                               0.05,  0.1,   0.2,   0.5,  1.0};
+  struct PerMap {
+    std::map<std::string, uint64_t>
+        frames;                    // By outcome: a TrackingStatusName, "skipped", "error".
+    uint64_t relocalizations = 0;  // Frames that searched the map by appearance.
+    uint64_t relocalizations_found = 0;
+    uint64_t sessions = 0;  // Started.
+  };
+  std::map<std::string, PerMap> maps;
+  // Server time of answered frames (skipped ones take none): cumulative bucket counts.
+  uint64_t seconds_buckets[std::size(kSecondsBuckets)] = {};
+  uint64_t seconds_count = 0;
+  double seconds_sum = 0.0;
+};
+
 struct ServerStatus {
   std::vector<SessionStatus> sessions;  // By id.
+  FrameCounters counters;
   int max_sessions = 0;
   int idle_sessions_closed = 0;
   std::vector<LoadedMapStatus> maps;  // By name.
-  int map_loads = 0, map_paged_loads = 0, map_cache_hits = 0, map_unloads = 0;
+  int map_loads = 0, map_paged_loads = 0, map_cache_hits = 0, map_unloads = 0,
+      map_load_failures = 0;
   int workers = 0;       // Frames processed at once at most.
   int workers_busy = 0;  // Now.
   int workers_peak = 0;  // Since the start.

@@ -13,6 +13,7 @@ namespace visloc::server {
 
 uint64_t SessionRegistry::Open(SessionStatus entry) {
   std::lock_guard<std::mutex> lock(mutex_);
+  ++counters_.maps[entry.map].sessions;
   entry.id = next_id_++;
   sessions_[entry.id] = entry;
   return entry.id;
@@ -27,6 +28,25 @@ void SessionRegistry::Update(uint64_t id, const std::function<void(SessionStatus
 void SessionRegistry::Close(uint64_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
   sessions_.erase(id);
+}
+
+void SessionRegistry::Count(const std::string& map, const FrameOutcome& frame) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  FrameCounters::PerMap& counts = counters_.maps[map];
+  ++counts.frames[frame.outcome];
+  counts.relocalizations += frame.relocalized;
+  counts.relocalizations_found += frame.relocalized && frame.found;
+  if (!frame.server_s) return;
+  for (size_t b = 0; b < std::size(FrameCounters::kSecondsBuckets); ++b) {
+    counters_.seconds_buckets[b] += *frame.server_s <= FrameCounters::kSecondsBuckets[b];
+  }
+  ++counters_.seconds_count;
+  counters_.seconds_sum += *frame.server_s;
+}
+
+FrameCounters SessionRegistry::Counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return counters_;
 }
 
 std::vector<SessionStatus> SessionRegistry::Snapshot() const {
@@ -115,6 +135,13 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
       s->without_pose_since = now;
     }
   });
+  SessionRegistry::FrameOutcome outcome{answered ? TrackingStatusName(answered->status) : "error",
+                                        ms / 1e3};
+  if (answered) {
+    outcome.relocalized = answered->relocalization.kind != RelocalizationReport::Kind::kNone;
+    outcome.found = answered->relocalization.found;
+  }
+  registry_->Count(tally_.map, outcome);
   return response;
 }
 
@@ -131,6 +158,7 @@ v1::LocalizeResponse LocalizationSession::Skipped(const v1::LocalizeRequest& req
     ++s->skipped;
     s->frame_rate_hz = rate_hz;
   });
+  registry_->Count(tally_.map, {"skipped", std::nullopt});
   return response;
 }
 

@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "core/localization/localizer.h"
@@ -33,10 +34,22 @@ class SessionRegistry {
   void Close(uint64_t id);
   std::vector<SessionStatus> Snapshot() const;
 
+  // One frame of a session on `map`: its outcome (a TrackingStatusName, "skipped" or "error"),
+  // its server time (answered frames) and what relocalization did.
+  struct FrameOutcome {
+    std::string outcome;
+    std::optional<double> server_s;
+    bool relocalized = false;  // Searched by appearance.
+    bool found = false;
+  };
+  void Count(const std::string& map, const FrameOutcome& frame);
+  FrameCounters Counters() const;
+
  private:
   mutable std::mutex mutex_;
   uint64_t next_id_ = 1;
   std::map<uint64_t, SessionStatus> sessions_;
+  FrameCounters counters_;
 };
 
 class LocalizationSession {

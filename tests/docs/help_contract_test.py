@@ -19,7 +19,6 @@ VISLOC, SERVER, PRODUCT = sys.argv[1:4]
 # Verbs product.md announces for issues still open: not there yet, on purpose.
 NOT_YET = {
     ("visloc", "jobs"): "issue 36 (mapping over the link)",
-    ("visloc-server", "--http"): "issue 34 (the operator's view)",
     ("visloc map build", "--server"): "issue 36 (mapping over the link)",
 }
 BINARIES = {"visloc": VISLOC, "visloc-server": SERVER}

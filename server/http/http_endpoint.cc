@@ -1,0 +1,87 @@
+#include "server/http/http_endpoint.h"
+
+#include <httplib.h>
+
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/strings.h"
+#include "server/http/metrics.h"
+
+namespace visloc::server {
+namespace {
+
+std::unique_ptr<httplib::Server> MakeServer(const HttpOptions& options) {
+  if (options.tls_cert.empty()) return std::make_unique<httplib::Server>();
+  auto server =
+      std::make_unique<httplib::SSLServer>(options.tls_cert.c_str(), options.tls_key.c_str());
+  if (!server->is_valid()) throw InputError("the HTTP endpoint cannot use the TLS certificate");
+  return server;
+}
+
+// The caller's "Authorization" header, checked for any role (reading is what every token may).
+AuthDecision Authorize(const TokenAuth& auth, const httplib::Request& request) {
+  if (!request.has_header("Authorization")) return auth.Authorize(std::nullopt, Role::kLocalize);
+  const std::string value = request.get_header_value("Authorization");
+  return auth.Authorize(std::string_view(value), Role::kLocalize);
+}
+
+}  // namespace
+
+HttpEndpoint::HttpEndpoint(const HttpOptions& options, std::function<ServerStatus()> status,
+                           std::function<std::string()> readiness, const TokenAuth* auth)
+    : status_(std::move(status)),
+      readiness_(std::move(readiness)),
+      auth_(auth),
+      http_(MakeServer(options)) {
+  const size_t colon = options.listen.rfind(':');
+  const auto port =
+      colon == std::string::npos ? std::nullopt : ParseInt64(options.listen.substr(colon + 1));
+  if (!port || *port < 0 || *port > 65535) {
+    throw UsageError("--http needs HOST:PORT, got '" + options.listen + "'");
+  }
+  std::string host = options.listen.substr(0, colon);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  Route(options);
+  const int bound =
+      *port == 0
+          ? http_->bind_to_any_port(host)
+          : (http_->bind_to_port(host, static_cast<int>(*port)) ? static_cast<int>(*port) : -1);
+  if (bound <= 0) {
+    throw InputError("cannot listen on " + options.listen +
+                     " for HTTP: the address is in use or not this machine's");
+  }
+  address_ = options.listen.substr(0, colon) + ":" + std::to_string(bound);
+  thread_ = std::thread([this] { http_->listen_after_bind(); });
+}
+
+HttpEndpoint::~HttpEndpoint() {
+  http_->stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+void HttpEndpoint::Route(const HttpOptions& options) {
+  http_->Get("/healthz", [](const httplib::Request&, httplib::Response& response) {
+    response.set_content("ok\n", "text/plain");
+  });
+  http_->Get("/readyz", [this](const httplib::Request&, httplib::Response& response) {
+    const std::string why_not = readiness_();
+    response.status = why_not.empty() ? 200 : 503;
+    response.set_content(why_not.empty() ? "ready\n" : why_not + "\n", "text/plain");
+  });
+  const std::string version = options.version;
+  http_->Get(
+      "/metrics", [this, version](const httplib::Request& request, httplib::Response& response) {
+        const AuthDecision decision = Authorize(*auth_, request);
+        if (!decision.allowed()) {
+          response.status = decision.outcome == AuthDecision::Outcome::kUnauthenticated ? 401 : 403;
+          if (response.status == 401) response.set_header("WWW-Authenticate", "Bearer");
+          response.set_content(decision.message + "\n", "text/plain");
+          return;
+        }
+        response.set_content(PrometheusText(status_(), version),
+                             "text/plain; version=0.0.4; charset=utf-8");
+      });
+}
+
+}  // namespace visloc::server

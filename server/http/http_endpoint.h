@@ -1,0 +1,57 @@
+#pragma once
+// visloc-server's HTTP side (`--http HOST:PORT`), through cpp-httplib (Debian's
+// libcpp-httplib-dev): the probes and the metrics, read from the same ServerStatus snapshot as
+// the Fleet service, so they never disagree.
+//
+//   GET /healthz   200 while the process serves (for liveness probes; no token needed)
+//   GET /readyz    200 when the maps folder is readable and gRPC is listening and not draining,
+//                  503 with the reason otherwise (readiness probes; no token needed)
+//   GET /metrics   the Prometheus text format (metrics.h); with tokens, a bearer token of any
+//                  role ("Authorization: Bearer TOKEN"), as the gRPC API asks
+// With the server's TLS certificate and key, it serves HTTPS. Answers carry no server paths.
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "server/auth.h"
+#include "server/server_status.h"
+
+namespace httplib {
+class Server;
+}
+
+namespace visloc::server {
+
+struct HttpOptions {
+  std::string listen;             // HOST:PORT; port 0 picks a free port.
+  std::string tls_cert, tls_key;  // PEM files; both empty: plain HTTP.
+  std::string version;            // For visloc_build_info.
+};
+
+class HttpEndpoint {
+ public:
+  // `status` and `readiness` (empty when ready, else why not) are called per request from the
+  // endpoint's threads. `auth` must outlive the endpoint. Throws InputError when it cannot listen.
+  HttpEndpoint(const HttpOptions& options, std::function<ServerStatus()> status,
+               std::function<std::string()> readiness, const TokenAuth* auth);
+  ~HttpEndpoint();
+  HttpEndpoint(const HttpEndpoint&) = delete;
+  HttpEndpoint& operator=(const HttpEndpoint&) = delete;
+
+  // HOST:PORT listened on (the port chosen for port 0).
+  const std::string& address() const { return address_; }
+
+ private:
+  void Route(const HttpOptions& options);
+
+  std::function<ServerStatus()> status_;
+  std::function<std::string()> readiness_;
+  const TokenAuth* auth_;
+  std::unique_ptr<httplib::Server> http_;
+  std::string address_;
+  std::thread thread_;
+};
+
+}  // namespace visloc::server

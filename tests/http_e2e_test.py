@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""visloc-server --http end to end: real robots (`visloc stream`) on a real server, its /metrics
+parsed by the Prometheus client library's own parser (Debian's python3-prometheus-client).
+
+- /healthz and /readyz answer 200 on a serving server;
+- the frame counters equal the frames the robots sent, per map, summed over statuses; the
+  server-time histogram counts every answered frame; both sessions are counted; the kidnapped
+  robot's relocalizations are found; no label carries a robot id;
+- with tokens, /metrics refuses a call without one (401) and answers a robot's token; the probes
+  stay open for the orchestrator.
+
+  http_e2e_test.py VISLOC_SERVER VISLOC LOCALIZATION_DATA
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import urllib.error
+import urllib.request
+
+from prometheus_client.parser import text_string_to_metric_families
+
+server_bin, visloc_bin, data = sys.argv[1:4]
+
+
+def start_server(maps, extra=()):
+    process = subprocess.Popen(
+        [server_bin, "--maps", maps, "--listen", "127.0.0.1:0", "--http", "127.0.0.1:0", *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    grpc_address = process.stdout.readline().split()[-1]
+    http_line = process.stdout.readline()
+    assert http_line.startswith("http on "), http_line
+    return process, grpc_address, http_line.split()[-1]
+
+
+def get(url, token=None):
+    request = urllib.request.Request(url)
+    if token:
+        request.add_header("Authorization", "Bearer " + token)
+    try:
+        with urllib.request.urlopen(request, timeout=10) as response:
+            return response.status, response.read().decode()
+    except urllib.error.HTTPError as e:
+        return e.code, e.read().decode()
+
+
+def samples(text):
+    """(name, labels, value) of every sample, through Prometheus' own parser."""
+    return [(s.name, s.labels, s.value) for family in text_string_to_metric_families(text)
+            for s in family.samples]
+
+
+def stream(address, robot, sequence, frames):
+    result = subprocess.run(
+        [visloc_bin, "stream", "--server", address, "--map", "square", "--robot-id", robot,
+         "--dataset", os.path.join(data, sequence), "--frames", str(frames), "--rate", "0",
+         "--json"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def main():
+    failures = []
+
+    def check(condition, what):
+        if not condition:
+            failures.append(what)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        maps = os.path.join(tmp, "maps")
+        os.makedirs(maps)
+        shutil.copy(os.path.join(data, "map.db"), os.path.join(maps, "square.db"))
+        server, grpc_address, http_address = start_server(maps)
+        try:
+            base = "http://" + http_address
+            check(get(base + "/healthz") == (200, "ok\n"), "/healthz")
+            check(get(base + "/readyz")[0] == 200, "/readyz on a serving server")
+            kidnap = stream(grpc_address, "rover-kidnap", "kidnap", 120)
+            walk = stream(grpc_address, "rover-walk", "query_square", 60)
+            sent = kidnap["frames"] + walk["frames"]
+            status, text = get(base + "/metrics")
+            check(status == 200, f"/metrics answered {status}")
+            found = samples(text)
+            frames = sum(v for n, l, v in found if n == "visloc_frames_total" and l["map"] == "square")
+            check(frames == sent, f"visloc_frames_total {frames}, the robots sent {sent}")
+            by_status = {l["status"]: v for n, l, v in found if n == "visloc_frames_total"}
+            check(by_status.get("tracking", 0) > 100, f"tracked frames {by_status}")
+            check(by_status.get("lost", 0) > 0, f"the kidnapped robot's lost frames {by_status}")
+            answered = sum(v for k, v in by_status.items() if k != "skipped")
+            count = [v for n, l, v in found if n == "visloc_frame_server_seconds_count"]
+            check(count == [answered], f"histogram count {count}, answered {answered}")
+            started = [v for n, l, v in found if n == "visloc_sessions_started_total"]
+            check(started == [2], f"sessions started {started}")
+            relocalized = {l["result"]: v for n, l, v in found
+                           if n == "visloc_relocalizations_total"}
+            check(relocalized.get("found", 0) >= 1, f"relocalizations {relocalized}")
+            check(("visloc_maps_loaded", {}, 1.0) in found, "one map loaded")
+            check(not any("rover" in value for _, l, _ in found for value in l.values()),
+                  "a label carries a robot id")
+            check("/tmp" not in text and tmp not in text, "a server path in /metrics")
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+
+        tokens = os.path.join(tmp, "tokens")
+        with open(tokens, "w") as f:
+            f.write("robot-token-0123456789 localize\n")
+        server, _, http_address = start_server(maps, ["--tokens", tokens])
+        try:
+            base = "http://" + http_address
+            status, body = get(base + "/metrics")
+            check(status == 401 and "bearer token" in body, f"/metrics without a token: {status}")
+            check(get(base + "/metrics", "robot-token-0123456789")[0] == 200, "/metrics, token")
+            check(get(base + "/metrics", "wrong-token-000000000")[0] == 401, "/metrics, bad token")
+            check(get(base + "/healthz")[0] == 200 and get(base + "/readyz")[0] == 200,
+                  "the probes need no token")
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+
+    for failure in failures:
+        print("FAILED:", failure)
+    if not failures:
+        print("http endpoint: probes, metrics equal to the frames sent, tokens")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
