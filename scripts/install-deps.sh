@@ -11,6 +11,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   sqlite3 libyaml-cpp-dev zlib1g-dev openssl
   libcpp-httplib-dev python3-prometheus-client  # the server's HTTP probes and metrics; its test
+  chromium chromium-driver python3-selenium  # the operator page's test in a real browser
   opencv-doc  # OpenCV's stereo chessboard images and stereo_calib sample: calibration's reference
   python3 python3-grpcio python3-protobuf python3-opencv python3-numpy  # the Python client
   python3-pip python3-setuptools python3-venv  # ...installed from the checkout by its test

@@ -13,6 +13,7 @@
 #include "core/util/text_file.h"
 #include "core/util/version.h"
 #include "proto/geometry_convert.h"
+#include "server/client_errors.h"
 #include "server/log.h"
 
 namespace visloc::server {
@@ -166,9 +167,14 @@ Server::Server(const ServerConfig& config)
   }
   address_ = config_.listen.substr(0, config_.listen.rfind(':')) + ":" + std::to_string(port);
   if (!config_.http.empty()) {
+    HttpSources sources;
+    sources.status = [this] { return Status(); };
+    sources.readiness = [this] { return Readiness(); };
+    sources.maps = [this] { return Maps(); };
+    sources.top_view = [this](const std::string& name) { return TopView(name); };
     http_ = std::make_unique<HttpEndpoint>(
         HttpOptions{config_.http, config_.tls_cert, config_.tls_key, VislocVersion()},
-        [this] { return Status(); }, [this] { return Readiness(); }, &auth_);
+        std::move(sources), &auth_);
   }
   LogStart(stale);
   janitor_ = std::thread([this] {
@@ -227,6 +233,53 @@ ServerStatus Server::Status() const {
   status.workers_busy = localization_.workers().in_use();
   status.workers_peak = localization_.workers().peak_in_use();
   return status;
+}
+
+std::vector<MapSummary> Server::Maps() const {
+  namespace fs = std::filesystem;
+  std::vector<MapSummary> maps;
+  std::error_code error;
+  std::lock_guard<std::mutex> lock(described_mutex_);
+  for (const fs::directory_entry& file : fs::directory_iterator(config_.maps_dir, error)) {
+    const std::string name = file.path().stem().string();
+    if (file.path().extension() != ".db" || !mapstore::IsValidMapName(name)) continue;
+    const uint64_t bytes = file.file_size(error);
+    const auto modified = file.last_write_time(error);
+    DescribedMap& described = described_[name];
+    if (described.summary.name.empty() || described.bytes != bytes ||
+        described.modified != modified) {
+      const mapstore::MapDirectory::Entry entry = maps_.directory().Describe(name);
+      described = {bytes, modified, {name, bytes, 0, 0, RedactForClient(entry.error)}};
+      if (entry.info) {
+        described.summary.keyframes = static_cast<int64_t>(entry.info->keyframes);
+        described.summary.points = static_cast<int64_t>(entry.info->points);
+      }
+    }
+    maps.push_back(described.summary);
+  }
+  std::sort(maps.begin(), maps.end(),
+            [](const MapSummary& a, const MapSummary& b) { return a.name < b.name; });
+  return maps;
+}
+
+MapTopView Server::TopView(const std::string& name, size_t max_points, size_t max_keyframes) {
+  const std::shared_ptr<const LocalizationMap> loaded = maps_.Acquire(name);
+  const Map& map = loaded->map();
+  MapTopView view;
+  view.name = name;
+  view.total_keyframes = static_cast<int64_t>(map.keyframes.size());
+  view.total_points = static_cast<int64_t>(map.points.size());
+  const size_t keyframe_step = map.keyframes.size() / std::max<size_t>(1, max_keyframes) + 1;
+  for (size_t k = 0; k < map.keyframes.size(); k += keyframe_step) {
+    const Eigen::Vector3d& c = map.keyframes[k].map_from_cam.translation;
+    view.keyframes.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.z()));
+  }
+  const size_t point_step = map.points.size() / std::max<size_t>(1, max_points) + 1;
+  for (size_t p = 0; p < map.points.size(); p += point_step) {
+    const Eigen::Vector3d& x = map.points[p].position_in_map;
+    view.points.emplace_back(static_cast<float>(x.x()), static_cast<float>(x.z()));
+  }
+  return view;
 }
 
 std::string Server::Readiness() const {

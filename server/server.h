@@ -8,9 +8,13 @@
 
 #include <atomic>
 #include <cstdint>
+#include <filesystem>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "server/auth.h"
 #include "server/fleet_service.h"
@@ -66,6 +70,11 @@ class Server {
   // The HTTP endpoint's address (port chosen for port 0); empty without --http.
   std::string http_address() const { return http_ ? http_->address() : ""; }
   ServerStatus Status() const;
+  // The maps of the folder with their sizes (each file described once per version of it).
+  std::vector<MapSummary> Maps() const;
+  // A map from above, at most `max_points` points and `max_keyframes` keyframe centres.
+  MapTopView TopView(const std::string& name, size_t max_points = 20000,
+                     size_t max_keyframes = 4000);
   // Health turns NOT_SERVING (load balancers stop sending robots here), no new calls are
   // accepted, open streams get the config's drain period, then everything stops.
   void Drain();
@@ -83,6 +92,14 @@ class Server {
   FleetService fleet_;
   std::unique_ptr<grpc::Server> grpc_server_;
   std::string address_;
+  // Maps() remembers each file's description by its size and modification time.
+  struct DescribedMap {
+    uint64_t bytes = 0;
+    std::filesystem::file_time_type modified;
+    MapSummary summary;
+  };
+  mutable std::mutex described_mutex_;
+  mutable std::map<std::string, DescribedMap> described_;
   std::atomic<bool> stopping_{false};
   std::atomic<bool> draining_{false};
   std::thread janitor_;

@@ -68,6 +68,25 @@ struct FrameCounters {
   double seconds_sum = 0.0;
 };
 
+// A map of the maps folder, as the operator's page lists it.
+struct MapSummary {
+  std::string name;
+  uint64_t file_bytes = 0;
+  int64_t keyframes = 0;
+  int64_t points = 0;
+  std::string problem;  // Why it does not load (for clients: no server paths); empty when sound.
+};
+
+// A map seen from above (the map frame's x and z: its first camera looked along z with y down),
+// decimated for drawing: at most the asked numbers of keyframe centres and points.
+struct MapTopView {
+  std::string name;
+  std::vector<std::pair<float, float>> keyframes;  // (x, z) in metres.
+  std::vector<std::pair<float, float>> points;     // (x, z); none for a map served paged.
+  int64_t total_keyframes = 0;
+  int64_t total_points = 0;
+};
+
 struct ServerStatus {
   std::vector<SessionStatus> sessions;  // By id.
   FrameCounters counters;

@@ -5,7 +5,10 @@
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "server/client_errors.h"
 #include "server/http/metrics.h"
+#include "server/http/operator_api.h"
+#include "server/http/operator_page.h"
 
 namespace visloc::server {
 namespace {
@@ -25,14 +28,20 @@ AuthDecision Authorize(const TokenAuth& auth, const httplib::Request& request) {
   return auth.Authorize(std::string_view(value), Role::kLocalize);
 }
 
+// Whether the call may read; if not, the refusal is written into `response` (401 or 403).
+bool Allowed(const TokenAuth& auth, const httplib::Request& request, httplib::Response* response) {
+  const AuthDecision decision = Authorize(auth, request);
+  if (decision.allowed()) return true;
+  response->status = decision.outcome == AuthDecision::Outcome::kUnauthenticated ? 401 : 403;
+  if (response->status == 401) response->set_header("WWW-Authenticate", "Bearer");
+  response->set_content(decision.message + "\n", "text/plain");
+  return false;
+}
+
 }  // namespace
 
-HttpEndpoint::HttpEndpoint(const HttpOptions& options, std::function<ServerStatus()> status,
-                           std::function<std::string()> readiness, const TokenAuth* auth)
-    : status_(std::move(status)),
-      readiness_(std::move(readiness)),
-      auth_(auth),
-      http_(MakeServer(options)) {
+HttpEndpoint::HttpEndpoint(const HttpOptions& options, HttpSources sources, const TokenAuth* auth)
+    : sources_(std::move(sources)), auth_(auth), http_(MakeServer(options)) {
   const size_t colon = options.listen.rfind(':');
   const auto port =
       colon == std::string::npos ? std::nullopt : ParseInt64(options.listen.substr(colon + 1));
@@ -43,6 +52,7 @@ HttpEndpoint::HttpEndpoint(const HttpOptions& options, std::function<ServerStatu
   if (host.size() > 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
   Route(options);
+  RouteOperatorPage();
   const int bound =
       *port == 0
           ? http_->bind_to_any_port(host)
@@ -56,6 +66,7 @@ HttpEndpoint::HttpEndpoint(const HttpOptions& options, std::function<ServerStatu
 }
 
 HttpEndpoint::~HttpEndpoint() {
+  stopping_ = true;  // Event streams end at their next event.
   http_->stop();
   if (thread_.joinable()) thread_.join();
 }
@@ -65,23 +76,71 @@ void HttpEndpoint::Route(const HttpOptions& options) {
     response.set_content("ok\n", "text/plain");
   });
   http_->Get("/readyz", [this](const httplib::Request&, httplib::Response& response) {
-    const std::string why_not = readiness_();
+    const std::string why_not = sources_.readiness();
     response.status = why_not.empty() ? 200 : 503;
     response.set_content(why_not.empty() ? "ready\n" : why_not + "\n", "text/plain");
   });
   const std::string version = options.version;
-  http_->Get(
-      "/metrics", [this, version](const httplib::Request& request, httplib::Response& response) {
-        const AuthDecision decision = Authorize(*auth_, request);
-        if (!decision.allowed()) {
-          response.status = decision.outcome == AuthDecision::Outcome::kUnauthenticated ? 401 : 403;
-          if (response.status == 401) response.set_header("WWW-Authenticate", "Bearer");
-          response.set_content(decision.message + "\n", "text/plain");
-          return;
-        }
-        response.set_content(PrometheusText(status_(), version),
-                             "text/plain; version=0.0.4; charset=utf-8");
-      });
+  http_->Get("/metrics",
+             [this, version](const httplib::Request& request, httplib::Response& response) {
+               if (!Allowed(*auth_, request, &response)) return;
+               response.set_content(PrometheusText(sources_.status(), version),
+                                    "text/plain; version=0.0.4; charset=utf-8");
+             });
+}
+
+void HttpEndpoint::RouteOperatorPage() {
+  http_->Get("/", [](const httplib::Request&, httplib::Response& response) {
+    response.set_content(OperatorPageHtml(), "text/html; charset=utf-8");
+  });
+  http_->Get("/api/sessions", [this](const httplib::Request& request, httplib::Response& response) {
+    if (!Allowed(*auth_, request, &response)) return;
+    const ServerStatus status = sources_.status();
+    response.set_content(
+        SessionsJson(status.sessions, status.max_sessions, std::chrono::system_clock::now()),
+        "application/json");
+  });
+  http_->Get("/api/maps", [this](const httplib::Request& request, httplib::Response& response) {
+    if (!Allowed(*auth_, request, &response)) return;
+    response.set_content(MapsJson(sources_.maps()), "application/json");
+  });
+  http_->Get(R"(/api/maps/([A-Za-z0-9_.-]+)/view)", [this](const httplib::Request& request,
+                                                           httplib::Response& response) {
+    if (!Allowed(*auth_, request, &response)) return;
+    try {
+      response.set_content(TopViewJson(sources_.top_view(request.matches[1])), "application/json");
+    } catch (const NotFoundError& e) {
+      response.status = 404;
+      response.set_content(RedactForClient(e.what()) + "\n", "text/plain");
+    } catch (const InputError& e) {
+      response.status = 422;
+      response.set_content(RedactForClient(e.what()) + "\n", "text/plain");
+    }
+  });
+  http_->Get("/api/events", [this](const httplib::Request& request, httplib::Response& response) {
+    if (!Allowed(*auth_, request, &response)) return;
+    if (++event_streams_ > kMaxEventStreams) {
+      --event_streams_;
+      response.status = 503;
+      response.set_content("too many pages open on this server\n", "text/plain");
+      return;
+    }
+    response.set_header("Cache-Control", "no-cache");
+    response.set_chunked_content_provider(
+        "text/event-stream",
+        [this](size_t, httplib::DataSink& sink) {
+          if (stopping_) return false;
+          const ServerStatus status = sources_.status();
+          const std::string event =
+              "data: " +
+              SessionsJson(status.sessions, status.max_sessions, std::chrono::system_clock::now()) +
+              "\n\n";
+          if (!sink.write(event.data(), event.size())) return false;
+          std::this_thread::sleep_for(std::chrono::milliseconds(kEventIntervalMs));
+          return !stopping_.load();
+        },
+        [this](bool) { --event_streams_; });
+  });
 }
 
 }  // namespace visloc::server

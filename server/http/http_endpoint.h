@@ -8,12 +8,19 @@
 //                  503 with the reason otherwise (readiness probes; no token needed)
 //   GET /metrics   the Prometheus text format (metrics.h); with tokens, a bearer token of any
 //                  role ("Authorization: Bearer TOKEN"), as the gRPC API asks
+//   GET /          the operator's page (page/index.html, built into the server): the maps, a
+//                  map's top view with each live robot, and per robot its recent figures
+//   GET /api/sessions, /api/maps, /api/maps/NAME/view   its data (operator_api.h; token as
+//                  for /metrics), and /api/events: the sessions pushed as Server-Sent Events
+//                  5 times a second (at most kMaxEventStreams watchers at once)
 // With the server's TLS certificate and key, it serves HTTPS. Answers carry no server paths.
 
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "server/auth.h"
 #include "server/server_status.h"
@@ -30,12 +37,22 @@ struct HttpOptions {
   std::string version;            // For visloc_build_info.
 };
 
+// Where the answers come from; each is called per request, from the endpoint's threads.
+struct HttpSources {
+  std::function<ServerStatus()> status;
+  std::function<std::string()> readiness;  // Empty when ready, else why not.
+  std::function<std::vector<MapSummary>()> maps;
+  // Throws NotFoundError for an unknown map, InputError for one that does not load.
+  std::function<MapTopView(const std::string& name)> top_view;
+};
+
 class HttpEndpoint {
  public:
-  // `status` and `readiness` (empty when ready, else why not) are called per request from the
-  // endpoint's threads. `auth` must outlive the endpoint. Throws InputError when it cannot listen.
-  HttpEndpoint(const HttpOptions& options, std::function<ServerStatus()> status,
-               std::function<std::string()> readiness, const TokenAuth* auth);
+  static constexpr int kMaxEventStreams = 4;
+  static constexpr int kEventIntervalMs = 200;
+
+  // `auth` must outlive the endpoint. Throws InputError when it cannot listen.
+  HttpEndpoint(const HttpOptions& options, HttpSources sources, const TokenAuth* auth);
   ~HttpEndpoint();
   HttpEndpoint(const HttpEndpoint&) = delete;
   HttpEndpoint& operator=(const HttpEndpoint&) = delete;
@@ -45,10 +62,12 @@ class HttpEndpoint {
 
  private:
   void Route(const HttpOptions& options);
+  void RouteOperatorPage();
 
-  std::function<ServerStatus()> status_;
-  std::function<std::string()> readiness_;
+  HttpSources sources_;
   const TokenAuth* auth_;
+  std::atomic<int> event_streams_{0};
+  std::atomic<bool> stopping_{false};
   std::unique_ptr<httplib::Server> http_;
   std::string address_;
   std::thread thread_;

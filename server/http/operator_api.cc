@@ -1,0 +1,101 @@
+#include "server/http/operator_api.h"
+
+#include <cmath>
+
+#include "core/localization/localizer.h"
+#include "core/util/json.h"
+
+namespace visloc::server {
+namespace {
+
+double SecondsBetween(std::chrono::system_clock::time_point from,
+                      std::chrono::system_clock::time_point to) {
+  return std::chrono::duration<double>(to - from).count();
+}
+
+// The camera's heading seen from above: the angle of its viewing direction (z) in the x-z plane,
+// degrees, 0 along the map's z.
+double YawDeg(const Rigid3d& map_from_cam) {
+  const Eigen::Vector3d forward = map_from_cam.rotation * Eigen::Vector3d::UnitZ();
+  return std::atan2(forward.x(), forward.z()) * 180.0 / M_PI;
+}
+
+void Pairs(JsonWriter& json, const std::vector<std::pair<float, float>>& xz) {
+  json.BeginArray();
+  for (const auto& [x, z] : xz) {
+    // Millimetres are plenty for drawing, and keep the answer small.
+    json.Value(std::round(x * 1000.0) / 1000.0).Value(std::round(z * 1000.0) / 1000.0);
+  }
+  json.EndArray();
+}
+
+}  // namespace
+
+std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_sessions,
+                         std::chrono::system_clock::time_point now) {
+  JsonWriter json;
+  json.BeginObject().Field("max_sessions", max_sessions).Key("sessions").BeginArray();
+  for (const SessionStatus& s : sessions) {
+    json.BeginObject()
+        .Field("session", s.id)
+        .Field("robot", s.robot_id)
+        .Field("map", s.map)
+        .Field("status", std::string(TrackingStatusName(s.status)))
+        .Field("has_pose", s.has_pose);
+    if (s.has_pose) {
+      const Eigen::Vector3d& t = s.map_from_cam.translation;
+      json.Field("x", t.x())
+          .Field("y", t.y())
+          .Field("z", t.z())
+          .Field("yaw_deg", YawDeg(s.map_from_cam))
+          .Field("position_sigma_m", s.position_sigma_m);
+    }
+    json.Field("inliers", s.inliers)
+        .Field("inlier_ratio", s.inlier_ratio)
+        .Field("server_ms", s.server_ms)
+        .Field("frame_rate_hz", s.frame_rate_hz)
+        .Field("frames", s.frames)
+        .Field("localized", s.localized)
+        .Field("skipped", s.skipped)
+        .Field("errors", s.errors)
+        .Field("seconds_since_start", SecondsBetween(s.started, now))
+        .Field("seconds_since_frame", s.frames ? SecondsBetween(s.last_frame, now) : -1.0)
+        .Field("seconds_without_pose",
+               s.without_pose_since ? SecondsBetween(*s.without_pose_since, now) : 0.0)
+        .EndObject();
+  }
+  json.EndArray().EndObject();
+  return json.str();
+}
+
+std::string MapsJson(const std::vector<MapSummary>& maps) {
+  JsonWriter json;
+  json.BeginObject().Key("maps").BeginArray();
+  for (const MapSummary& m : maps) {
+    json.BeginObject()
+        .Field("name", m.name)
+        .Field("file_bytes", m.file_bytes)
+        .Field("keyframes", m.keyframes)
+        .Field("points", m.points)
+        .Field("problem", m.problem)
+        .EndObject();
+  }
+  json.EndArray().EndObject();
+  return json.str();
+}
+
+std::string TopViewJson(const MapTopView& view) {
+  JsonWriter json;
+  json.BeginObject()
+      .Field("name", view.name)
+      .Field("total_keyframes", view.total_keyframes)
+      .Field("total_points", view.total_points)
+      .Key("keyframes");
+  Pairs(json, view.keyframes);
+  json.Key("points");
+  Pairs(json, view.points);
+  json.EndObject();
+  return json.str();
+}
+
+}  // namespace visloc::server

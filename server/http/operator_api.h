@@ -1,0 +1,23 @@
+#pragma once
+// The JSON the operator's page reads (server/http/page/index.html), built from the server's
+// plain status types: the live sessions (the same registry as the Fleet service and /metrics),
+// the maps of the folder, and a map's top view. Times are seconds relative to the server's now,
+// so the page needs no clock of its own; nothing names a server path.
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+#include "server/server_status.h"
+
+namespace visloc::server {
+
+// {"sessions":[{"session","robot","map","status","has_pose","x","y","z","yaw_deg",...}]}
+std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_sessions,
+                         std::chrono::system_clock::time_point now);
+// {"maps":[{"name","file_bytes","keyframes","points","problem"}]}
+std::string MapsJson(const std::vector<MapSummary>& maps);
+// {"name","total_keyframes","total_points","keyframes":[x,z,x,z,...],"points":[...]}
+std::string TopViewJson(const MapTopView& view);
+
+}  // namespace visloc::server

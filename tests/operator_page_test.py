@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+"""The operator's page in a real browser: Debian's Chromium (headless, through chromium-driver
+and python3-selenium) loads it from a real visloc-server while two real `visloc stream` robots
+run the kidnap and the square sequences at 15 Hz.
+
+- the page is usable (the map drawn, both robots listed) within 2 s of loading;
+- it shows both robots; the kidnapped one turns lost while its camera is covered and has a pose
+  again after, without a reload (the page is pushed the sessions 5 times a second);
+- the screenshot shows the map drawn (the keyframes' blue and the points' grey in the canvas's
+  pixels) and a robot's arrow;
+- the browser console has no errors.
+
+  operator_page_test.py VISLOC_SERVER VISLOC LOCALIZATION_DATA [SCREENSHOT.png]
+Exit 77 (skipped) when Chromium or its driver is not installed.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+server_bin, visloc_bin, data = sys.argv[1:4]
+screenshot_out = sys.argv[4] if len(sys.argv) > 4 else ""
+
+try:
+    import cv2
+    import numpy as np
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+except ImportError as e:
+    print("skipped:", e)
+    sys.exit(77)
+if not shutil.which("chromium") or not os.path.exists("/usr/bin/chromedriver"):
+    print("skipped: chromium and chromium-driver are not installed")
+    sys.exit(77)
+
+
+def browser():
+    options = webdriver.ChromeOptions()
+    options.binary_location = shutil.which("chromium")
+    for argument in ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,900",
+                     "--disable-dev-shm-usage"]:
+        options.add_argument(argument)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+
+
+def robot_statuses(driver):
+    # Read in one script: the page replaces the cards five times a second.
+    return dict(driver.execute_script(
+        "return [...document.querySelectorAll('.robot')]"
+        ".map(c => [c.dataset.robot, c.dataset.status]);"))
+
+
+def main():
+    failures = []
+
+    def check(condition, what):
+        if not condition:
+            failures.append(what)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        maps = os.path.join(tmp, "maps")
+        os.makedirs(maps)
+        shutil.copy(os.path.join(data, "map.db"), os.path.join(maps, "square.db"))
+        server = subprocess.Popen(
+            [server_bin, "--maps", maps, "--listen", "127.0.0.1:0", "--http", "127.0.0.1:0"],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        robots = []
+        driver = None
+        try:
+            grpc_address = server.stdout.readline().split()[-1]
+            http_address = server.stdout.readline().split()[-1]
+            for robot, sequence in [("rover-kidnap", "kidnap"), ("rover-walk", "query_square")]:
+                robots.append(subprocess.Popen(
+                    [visloc_bin, "stream", "--server", grpc_address, "--map", "square",
+                     "--robot-id", robot, "--dataset", os.path.join(data, sequence),
+                     "--rate", "15"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            driver = browser()
+            loaded = time.monotonic()
+            driver.get("http://" + http_address + "/")
+            usable_s = None
+            seen = []
+            deadline = time.monotonic() + 40
+            while time.monotonic() < deadline:
+                statuses = robot_statuses(driver)
+                drawn = "keyframes" in driver.execute_script(
+                    "return document.getElementById('viewinfo').textContent;")
+                if usable_s is None and drawn and len(statuses) == 2:
+                    usable_s = time.monotonic() - loaded
+                kidnapped = statuses.get("rover-kidnap")
+                if kidnapped and (not seen or seen[-1] != kidnapped):
+                    seen.append(kidnapped)
+                if "lost" in seen and seen[-1] in ("tracking", "relocalized"):
+                    break
+                time.sleep(0.1)
+            check(usable_s is not None and usable_s < 2.0,
+                  f"the page was usable after {usable_s} s (map drawn, both robots listed)")
+            check("lost" in seen, f"the kidnapped robot never showed lost: {seen}")
+            check(seen and "lost" in seen and seen[-1] in ("tracking", "relocalized"),
+                  f"the kidnapped robot did not come back: {seen}")
+            png = driver.get_screenshot_as_png()
+            if screenshot_out:
+                with open(screenshot_out, "wb") as f:
+                    f.write(png)
+            image = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+            canvas = driver.find_element(By.ID, "canvas")
+            x, y = canvas.location["x"], canvas.location["y"]
+            w, h = canvas.size["width"], canvas.size["height"]
+            region = image[y:y + h, x:x + w].astype(int)
+
+            def near(bgr, tolerance=40):
+                return int((np.abs(region - np.array(bgr)).sum(axis=2) < tolerance).sum())
+
+            keyframe_pixels = near((0xc2, 0x78, 0x4a))  # #4a78c2 in BGR.
+            robot_pixels = near((0x6e, 0xcf, 0x3e)) + near((0xff, 0xa3, 0x4a))
+            grey_pixels = int(((region.min(axis=2) > 60) & (region.max(axis=2) - region.min(axis=2) < 25)).sum())
+            check(keyframe_pixels > 200, f"keyframes drawn: {keyframe_pixels} blue pixels")
+            check(grey_pixels > 500, f"points drawn: {grey_pixels} grey pixels")
+            check(robot_pixels > 50, f"a robot's arrow drawn: {robot_pixels} pixels")
+            errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
+            check(not errors, f"browser console errors: {errors}")
+            print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
+                  f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
+                  "robot pixels")
+        finally:
+            if driver:
+                driver.quit()
+            for robot in robots:
+                robot.kill()
+                robot.wait()
+            server.terminate()
+            server.wait(timeout=30)
+
+    for failure in failures:
+        print("FAILED:", failure)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
