@@ -154,6 +154,9 @@ Server::Server(const ServerConfig& config)
   builder.RegisterService(&localization_);
   builder.RegisterService(&admin_);
   builder.RegisterService(&fleet_);
+  std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> counting;
+  counting.push_back(rpcs_.InterceptorFactory());
+  builder.experimental().SetInterceptorCreators(std::move(counting));
   builder.SetMaxReceiveMessageSize(proto::WireLimits{}.max_message_bytes);
   SetLinkArguments(config_, &builder);
   grpc_server_ = builder.BuildAndStart();
@@ -220,6 +223,7 @@ ServerStatus Server::Status() const {
   ServerStatus status;
   status.sessions = localization_.sessions();
   status.counters = localization_.registry().Counters();
+  status.rpcs = rpcs_.Snapshot();
   status.max_sessions = config_.max_sessions;
   status.idle_sessions_closed = localization_.idle_sessions_closed();
   status.maps = maps_.LoadedMaps();

@@ -22,6 +22,7 @@
 #include "server/localization_service.h"
 #include "server/map_admin_service.h"
 #include "server/map_cache.h"
+#include "server/rpc_counters.h"
 #include "server/server_status.h"
 
 namespace visloc::server {
@@ -90,6 +91,7 @@ class Server {
   LocalizationService localization_;
   MapAdminService admin_;
   FleetService fleet_;
+  RpcCounters rpcs_;
   std::unique_ptr<grpc::Server> grpc_server_;
   std::string address_;
   // Maps() remembers each file's description by its size and modification time.

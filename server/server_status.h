@@ -90,6 +90,8 @@ struct MapTopView {
 struct ServerStatus {
   std::vector<SessionStatus> sessions;  // By id.
   FrameCounters counters;
+  // Finished RPCs by (full method name, status code name).
+  std::map<std::pair<std::string, std::string>, uint64_t> rpcs;
   int max_sessions = 0;
   int idle_sessions_closed = 0;
   std::vector<LoadedMapStatus> maps;  // By name.

@@ -98,6 +98,9 @@ def main():
                            if n == "visloc_relocalizations_total"}
             check(relocalized.get("found", 0) >= 1, f"relocalizations {relocalized}")
             check(("visloc_maps_loaded", {}, 1.0) in found, "one map loaded")
+            localize_rpcs = [v for n, l, v in found if n == "visloc_rpcs_total" and
+                             l == {"method": "/visloc.v1.Localization/Localize", "code": "OK"}]
+            check(localize_rpcs == [2], f"Localize RPCs that ended OK: {localize_rpcs}")
             check(not any("rover" in value for _, l, _ in found for value in l.values()),
                   "a label carries a robot id")
             check("/tmp" not in text and tmp not in text, "a server path in /metrics")

@@ -118,6 +118,11 @@ void MapAndWorkerMetrics(const ServerStatus& status, Exposition& e) {
       .Sample("visloc_map_load_failures_total", status.map_load_failures);
   e.Family("visloc_map_cache_hits_total", "counter", "Map requests served from memory.")
       .Sample("visloc_map_cache_hits_total", status.map_cache_hits);
+  e.Family("visloc_rpcs_total", "counter", "Finished RPCs by full method name and status code.");
+  for (const auto& [key, calls] : status.rpcs) {
+    e.Sample("visloc_rpcs_total", static_cast<double>(calls),
+             {{"method", key.first}, {"code", key.second}});
+  }
   e.Family("visloc_workers", "gauge", "Frames the engine processes at once at most.")
       .Sample("visloc_workers", status.workers);
   e.Family("visloc_workers_busy", "gauge", "Frames in the engine now.")
