@@ -105,9 +105,11 @@ void ServerConfig::Check() const {
     throw UsageError("--map-memory-mib must be 0 (no bound) to 16777216");
   }
   if (max_sessions < 1) throw UsageError("--max-sessions must be at least 1");
-  if (!IsLoopback(listen) && tokens.empty() && !allow_remote) {
-    throw UsageError("without --tokens the server listens on loopback only (got " + listen +
-                     "; --allow-remote overrides)");
+  for (const std::string& address : {listen, http}) {
+    if (!address.empty() && !IsLoopback(address) && tokens.empty() && !allow_remote) {
+      throw UsageError("without --tokens the server listens on loopback only (got " + address +
+                       "; --allow-remote overrides)");
+    }
   }
   if (threads < 0) throw UsageError("--threads must not be negative");
   if (!(max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate-hz must not be negative");

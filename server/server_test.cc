@@ -95,6 +95,9 @@ TEST_F(ServerTest, ABadConfigIsRefusedNamingTheFlag) {
   config.listen = "0.0.0.0:0";
   EXPECT_THAT(refusal(config), HasSubstr("--allow-remote"));
   config = config_;
+  config.http = "0.0.0.0:8080";  // The page and metrics would be open to the network.
+  EXPECT_THAT(refusal(config), HasSubstr("--allow-remote"));
+  config = config_;
   config.tls_cert = "cert.pem";
   EXPECT_THAT(refusal(config), HasSubstr("--tls-cert and --tls-key go together"));
   config = config_;

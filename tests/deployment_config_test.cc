@@ -298,11 +298,18 @@ TEST(DeploymentConfigTest, KubernetesFleetHasOneWriterAndConsistentPortsMountsAn
                   deployment["spec"]["strategy"]["type"].as<std::string>() == "Recreate")
           << name << " writes the maps: strategy Recreate, never two writers during a rollout";
     }
-    for (const std::string probe : {"readinessProbe", "livenessProbe"}) {
-      ASSERT_TRUE(container[probe]) << name << " has no " << probe;
-      EXPECT_EQ(
-          CheckVislocCommand(Strings(container[probe]["exec"]["command"]), name + " " + probe),
-          port);
+    // The probes ask the server's HTTP side (--http): readiness /readyz, liveness /healthz, on
+    // the container port named http, which is the --http port.
+    ASSERT_TRUE(args.count("http")) << name << ": no --http for the probes";
+    ASSERT_EQ(container["ports"][1]["name"].as<std::string>(), "http") << name;
+    EXPECT_EQ(container["ports"][1]["containerPort"].as<std::string>(), PortOf(args.at("http")))
+        << name;
+    for (const auto& [probe, path] :
+         {std::pair<std::string, std::string>{"readinessProbe", "/readyz"},
+          {"livenessProbe", "/healthz"}}) {
+      ASSERT_TRUE(container[probe] && container[probe]["httpGet"]) << name << " has no " << probe;
+      EXPECT_EQ(container[probe]["httpGet"]["path"].as<std::string>(), path) << name;
+      EXPECT_EQ(container[probe]["httpGet"]["port"].as<std::string>(), "http") << name;
     }
   }
   EXPECT_EQ(writers, 1) << "uploads must go through exactly one server";
