@@ -1,5 +1,7 @@
 #include "server/http/metrics.h"
 
+#include <algorithm>
+#include <chrono>
 #include <map>
 #include <sstream>
 
@@ -60,6 +62,19 @@ void SessionMetrics(const ServerStatus& status, Exposition& e) {
   int lost = 0;
   for (const SessionStatus& s : status.sessions) lost += !s.has_pose && s.frames > 0;
   e.Sample("visloc_sessions_lost", lost);
+  // For alerts on a robot lost for long (its id stays out of the labels): the longest time any
+  // open session has been without a pose.
+  double longest_s = 0;
+  const auto now = std::chrono::system_clock::now();
+  for (const SessionStatus& s : status.sessions) {
+    if (s.frames > 0 && s.without_pose_since) {
+      longest_s = std::max(longest_s,
+                           std::chrono::duration<double>(now - *s.without_pose_since).count());
+    }
+  }
+  e.Family("visloc_session_without_pose_seconds_max", "gauge",
+           "The longest time an open session has gone without a pose (0: all have one).")
+      .Sample("visloc_session_without_pose_seconds_max", longest_s);
   e.Family("visloc_sessions_started_total", "counter", "Sessions started, by map.");
   for (const auto& [map, counts] : status.counters.maps) {
     e.Sample("visloc_sessions_started_total", static_cast<double>(counts.sessions), {{"map", map}});
