@@ -6,15 +6,18 @@ parsed by the Prometheus client library's own parser (Debian's python3-prometheu
 - the frame counters equal the frames the robots sent, per map, summed over statuses; the
   server-time histogram counts every answered frame; both sessions are counted; the kidnapped
   robot's relocalizations are found; no label carries a robot id;
+- with the server's TLS certificate it serves HTTPS (and no plain HTTP);
 - with tokens, /metrics refuses a call without one (401) and answers a robot's token; the probes
   stay open for the orchestrator.
 
   http_e2e_test.py VISLOC_SERVER VISLOC LOCALIZATION_DATA
 """
 
+import http.client
 import json
 import os
 import shutil
+import ssl
 import subprocess
 import sys
 import tempfile
@@ -104,6 +107,27 @@ def main():
             check(not any("rover" in value for _, l, _ in found for value in l.values()),
                   "a label carries a robot id")
             check("/tmp" not in text and tmp not in text, "a server path in /metrics")
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
+
+        # TLS: the server's certificate serves HTTPS too; plain HTTP is not answered.
+        key, cert = os.path.join(tmp, "key.pem"), os.path.join(tmp, "cert.pem")
+        subprocess.run(["/usr/bin/openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes",
+                        "-keyout", key, "-out", cert, "-days", "1", "-subj", "/CN=localhost",
+                        "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"],
+                       check=True, capture_output=True)
+        server, _, http_address = start_server(maps, ["--tls-cert", cert, "--tls-key", key])
+        try:
+            context = ssl.create_default_context(cafile=cert)
+            with urllib.request.urlopen("https://" + http_address + "/healthz", timeout=10,
+                                        context=context) as response:
+                check(response.status == 200, "/healthz over HTTPS")
+            try:
+                get("http://" + http_address + "/healthz")
+                failures.append("plain HTTP answered on a TLS server")
+            except (urllib.error.URLError, ConnectionError, http.client.HTTPException):
+                pass
         finally:
             server.terminate()
             server.wait(timeout=30)
