@@ -16,7 +16,6 @@ parsed by the Prometheus client library's own parser (Debian's python3-prometheu
 import http.client
 import json
 import os
-import shutil
 import ssl
 import subprocess
 import sys
@@ -26,17 +25,10 @@ import urllib.request
 
 from prometheus_client.parser import text_string_to_metric_families
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
+from http_harness import Checks, square_maps, start_server  # noqa: E402
+
 server_bin, visloc_bin, data = sys.argv[1:4]
-
-
-def start_server(maps, extra=()):
-    process = subprocess.Popen(
-        [server_bin, "--maps", maps, "--listen", "127.0.0.1:0", "--http", "127.0.0.1:0", *extra],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    grpc_address = process.stdout.readline().split()[-1]
-    http_line = process.stdout.readline()
-    assert http_line.startswith("http on "), http_line
-    return process, grpc_address, http_line.split()[-1]
 
 
 def get(url, token=None):
@@ -66,17 +58,10 @@ def stream(address, robot, sequence, frames):
 
 
 def main():
-    failures = []
-
-    def check(condition, what):
-        if not condition:
-            failures.append(what)
-
+    check = Checks()
     with tempfile.TemporaryDirectory() as tmp:
-        maps = os.path.join(tmp, "maps")
-        os.makedirs(maps)
-        shutil.copy(os.path.join(data, "map.db"), os.path.join(maps, "square.db"))
-        server, grpc_address, http_address = start_server(maps)
+        maps = square_maps(tmp, data)
+        server, grpc_address, http_address = start_server(server_bin, maps)
         try:
             base = "http://" + http_address
             check(get(base + "/healthz") == (200, "ok\n"), "/healthz")
@@ -117,7 +102,7 @@ def main():
                         "-keyout", key, "-out", cert, "-days", "1", "-subj", "/CN=localhost",
                         "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"],
                        check=True, capture_output=True)
-        server, _, http_address = start_server(maps, ["--tls-cert", cert, "--tls-key", key])
+        server, _, http_address = start_server(server_bin, maps, ["--tls-cert", cert, "--tls-key", key])
         try:
             context = ssl.create_default_context(cafile=cert)
             with urllib.request.urlopen("https://" + http_address + "/healthz", timeout=10,
@@ -125,7 +110,7 @@ def main():
                 check(response.status == 200, "/healthz over HTTPS")
             try:
                 get("http://" + http_address + "/healthz")
-                failures.append("plain HTTP answered on a TLS server")
+                check(False, "plain HTTP answered on a TLS server")
             except (urllib.error.URLError, ConnectionError, http.client.HTTPException):
                 pass
         finally:
@@ -135,7 +120,7 @@ def main():
         tokens = os.path.join(tmp, "tokens")
         with open(tokens, "w") as f:
             f.write("robot-token-0123456789 localize\n")
-        server, _, http_address = start_server(maps, ["--tokens", tokens])
+        server, _, http_address = start_server(server_bin, maps, ["--tokens", tokens])
         try:
             base = "http://" + http_address
             status, body = get(base + "/metrics")
@@ -148,11 +133,9 @@ def main():
             server.terminate()
             server.wait(timeout=30)
 
-    for failure in failures:
-        print("FAILED:", failure)
-    if not failures:
-        print("http endpoint: probes, metrics equal to the frames sent, tokens")
-    return 1 if failures else 0
+    if not check.failures:
+        print("http endpoint: probes, HTTPS, metrics equal to the frames sent, tokens")
+    return check.report()
 
 
 if __name__ == "__main__":

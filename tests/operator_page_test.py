@@ -27,6 +27,9 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
+from http_harness import Checks, square_maps, start_server  # noqa: E402
+
 server_bin, visloc_bin, map_writer, data, sanitize = sys.argv[1:6]
 screenshot_out = sys.argv[6] if len(sys.argv) > 6 else ""
 USABLE_S = 8.0 if sanitize else 2.0
@@ -63,27 +66,16 @@ def robot_statuses(driver):
 
 
 def main():
-    failures = []
-
-    def check(condition, what):
-        if not condition:
-            failures.append(what)
-
+    check = Checks()
     with tempfile.TemporaryDirectory() as tmp:
-        maps = os.path.join(tmp, "maps")
-        os.makedirs(maps)
-        shutil.copy(os.path.join(data, "map.db"), os.path.join(maps, "square.db"))
+        maps = square_maps(tmp, data)
         subprocess.run([map_writer, os.path.join(maps, "big.db"), "200000", "7", "10000", "big"],
                        check=True)
         os.remove(os.path.join(maps, "big.db.ready"))
-        server = subprocess.Popen(
-            [server_bin, "--maps", maps, "--listen", "127.0.0.1:0", "--http", "127.0.0.1:0"],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        server, grpc_address, http_address = start_server(server_bin, maps)
         robots = []
         driver = None
         try:
-            grpc_address = server.stdout.readline().split()[-1]
-            http_address = server.stdout.readline().split()[-1]
             for robot, sequence in [("rover-kidnap", "kidnap"), ("rover-walk", "query_square")]:
                 robots.append(subprocess.Popen(
                     [visloc_bin, "stream", "--server", grpc_address, "--map", "square",
@@ -157,9 +149,7 @@ def main():
             server.terminate()
             server.wait(timeout=30)
 
-    for failure in failures:
-        print("FAILED:", failure)
-    return 1 if failures else 0
+    return check.report()
 
 
 if __name__ == "__main__":
