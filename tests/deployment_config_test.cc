@@ -69,15 +69,17 @@ std::string PortOf(const std::string& address) { return address.substr(address.r
 
 // A `visloc VERB --flags` command (health checks, probes): a real verb with real flags.
 // Returns the port its --server names.
-std::string CheckVislocCommand(const Command& command, const std::string& where) {
+// Returns the port of its `address_flag` (--server, or --http for the HTTP readiness check).
+std::string CheckVislocCommand(const Command& command, const std::string& where,
+                               const std::string& address_flag = "server") {
   EXPECT_GE(command.size(), 2u) << where;
   if (command.size() < 2) return "";
   EXPECT_EQ(command[0], "visloc") << where;
   const auto flags = FlagsInHelp({VISLOC_CLI_PATH, command[1], "--help"});
   EXPECT_FALSE(flags.empty()) << where << ": 'visloc " << command[1] << "' is not a verb";
   const auto values = CheckFlags(command, 2, flags, where);
-  EXPECT_TRUE(values.count("server")) << where;
-  return values.count("server") ? PortOf(values.at("server")) : "";
+  EXPECT_TRUE(values.count(address_flag)) << where;
+  return values.count(address_flag) ? PortOf(values.at(address_flag)) : "";
 }
 
 Command Strings(const YAML::Node& list) {
@@ -191,13 +193,19 @@ TEST(DeploymentConfigTest, ComposeRunsTheImageItBuildsWithRealFlagsPortsAndVolum
                     compose["volumes"][parts[0]].IsDefined();
   }
   EXPECT_TRUE(maps_mounted) << "--maps " << args.at("maps") << " is not a named volume";
+  // The healthcheck asks the HTTP side's /readyz (visloc health --http) on the --http port.
+  ASSERT_TRUE(args.count("http")) << "the compose server has no --http";
+  const std::string http_port = PortOf(args.at("http"));
   for (const auto& published : server["ports"]) {
-    EXPECT_EQ(PortOf(published.as<std::string>()), port);
+    const std::string published_port = PortOf(published.as<std::string>());
+    EXPECT_TRUE(published_port == port || published_port == http_port) << published_port;
   }
   const Command test = Strings(server["healthcheck"]["test"]);
   ASSERT_GE(test.size(), 2u);
   EXPECT_EQ(test[0], "CMD");
-  EXPECT_EQ(CheckVislocCommand(Command(test.begin() + 1, test.end()), "compose healthcheck"), port);
+  EXPECT_EQ(
+      CheckVislocCommand(Command(test.begin() + 1, test.end()), "compose healthcheck", "http"),
+      http_port);
 
   // The demo client: the image's script, pointed at the server service and its port.
   const YAML::Node demo = compose["services"]["demo"];

@@ -66,6 +66,11 @@ def main():
             base = "http://" + http_address
             check(get(base + "/healthz") == (200, "ok\n"), "/healthz")
             check(get(base + "/readyz")[0] == 200, "/readyz on a serving server")
+            # The container healthcheck's way: visloc health --http asks /readyz.
+            health = subprocess.run([visloc_bin, "health", "--http", http_address, "--json"],
+                                    capture_output=True, text=True, timeout=30)
+            check(health.returncode == 0 and '"ready":true' in health.stdout,
+                  f"visloc health --http: {health.returncode} {health.stdout} {health.stderr}")
             kidnap = stream(grpc_address, "rover-kidnap", "kidnap", 120)
             walk = stream(grpc_address, "rover-walk", "query_square", 60)
             sent = kidnap["frames"] + walk["frames"]
@@ -133,6 +138,10 @@ def main():
             server.terminate()
             server.wait(timeout=30)
 
+    gone = subprocess.run([visloc_bin, "health", "--http", http_address], capture_output=True,
+                          text=True, timeout=30)
+    check(gone.returncode == 1 and "no answer" in gone.stderr,
+          f"visloc health --http on a stopped server: {gone.returncode} {gone.stderr}")
     if not check.failures:
         print("http endpoint: probes, HTTPS, metrics equal to the frames sent, tokens")
     return check.report()
