@@ -41,14 +41,6 @@ std::string LoadError(const std::string& path) {
   return "(loaded)";
 }
 
-std::vector<std::string> FilesIn(const std::string& dir) {
-  std::vector<std::string> names;
-  for (const auto& entry : fs::directory_iterator(dir))
-    names.push_back(entry.path().filename().string());
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
 std::string ReadBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
@@ -72,7 +64,7 @@ TEST(MapStoreTest, RoundTripIsExactAtRealisticSize) {
     SaveMap(map, path);
     EXPECT_TRUE(MapsEqual(LoadMap(path), map)) << ToString(type);
   }
-  EXPECT_THAT(FilesIn(dir.path()), ::testing::ElementsAre("lab.db"));  // no temporary left
+  EXPECT_THAT(dir.FileNames(), ::testing::ElementsAre("lab.db"));  // no temporary left
 }
 
 TEST(MapStoreTest, SavingReplacesTheFileAndRefusesInconsistentMaps) {
@@ -85,7 +77,7 @@ TEST(MapStoreTest, SavingReplacesTheFileAndRefusesInconsistentMaps) {
   broken.points[4].observation_count = 77;
   EXPECT_THROW(SaveMap(broken, path), CheckError);
   EXPECT_TRUE(MapsEqual(LoadMap(path), SmallMap(2)));  // the old map is untouched
-  EXPECT_THAT(FilesIn(dir.path()), ::testing::ElementsAre("m.db"));
+  EXPECT_THAT(dir.FileNames(), ::testing::ElementsAre("m.db"));
   EXPECT_THAT([&] { SaveMap(SmallMap(), dir.File("no/such/folder/m.db")); },
               ::testing::ThrowsMessage<InputError>(
                   HasSubstr("folder " + dir.File("no/such/folder") + " does not exist")));

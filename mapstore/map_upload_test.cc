@@ -31,14 +31,6 @@ std::string MapFileBytes(const TempDir& scratch, const std::string& name, int po
   return ReadFileBytes(path);
 }
 
-// Files in the folder: an upload must leave only published maps behind.
-std::vector<std::string> FilesIn(const std::string& dir) {
-  std::vector<std::string> names;
-  for (const auto& entry : fs::directory_iterator(dir)) names.push_back(entry.path().filename());
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
 class MapUploadTest : public ::testing::Test {
  protected:
   TempDir scratch_{"visloc_map_upload_scratch"};
@@ -54,7 +46,7 @@ TEST_F(MapUploadTest, AWholeUploadInPiecesIsPublishedUnderItsName) {
   EXPECT_EQ(entry.name, "lab");
   ASSERT_TRUE(entry.info.has_value()) << entry.error;
   EXPECT_EQ(entry.info->points, 200u);
-  EXPECT_EQ(FilesIn(maps_dir_.path()), std::vector<std::string>{"lab.db"});
+  EXPECT_EQ(maps_dir_.FileNames(), std::vector<std::string>{"lab.db"});
 }
 
 TEST_F(MapUploadTest, CutOffWrongOrOversizedUploadsLeaveNothingAndTheOldMapStands) {
@@ -95,7 +87,7 @@ TEST_F(MapUploadTest, CutOffWrongOrOversizedUploadsLeaveNothingAndTheOldMapStand
   }
   EXPECT_THROW(MapUpload(maps_, "lab", bytes.size(), 0, bytes.size() - 1), InputError);
   EXPECT_THROW(MapUpload(maps_, "../lab", bytes.size(), 0, kMaxBytes), InputError);
-  EXPECT_EQ(FilesIn(maps_dir_.path()), std::vector<std::string>{"lab.db"});
+  EXPECT_EQ(maps_dir_.FileNames(), std::vector<std::string>{"lab.db"});
   EXPECT_EQ(maps_.Describe("lab").info->points, 150u);
 }
 
@@ -104,7 +96,7 @@ TEST_F(MapUploadTest, AFileThatIsNotAMapIsRefusedAtPublish) {
   MapUpload upload(maps_, "junk", bytes.size(), Crc32(bytes), kMaxBytes);
   upload.Append(bytes);
   EXPECT_THROW(upload.Publish(false), InputError);
-  EXPECT_TRUE(FilesIn(maps_dir_.path()).empty());
+  EXPECT_TRUE(maps_dir_.FileNames().empty());
 }
 
 }  // namespace

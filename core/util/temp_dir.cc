@@ -2,6 +2,7 @@
 
 #include <stdlib.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <vector>
 
@@ -15,6 +16,15 @@ TempDir::TempDir(const std::string& prefix) {
   buffer.push_back('\0');
   VISLOC_CHECK(mkdtemp(buffer.data()) != nullptr, "cannot create a temporary folder ", pattern);
   path_ = buffer.data();
+}
+
+std::vector<std::string> TempDir::FileNames() const {
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(path_)) {
+    names.push_back(entry.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
 }
 
 TempDir::~TempDir() {

@@ -3,6 +3,7 @@
 // when the object goes out of scope. For tests and for tools that stage files.
 
 #include <string>
+#include <vector>
 
 namespace visloc {
 
@@ -16,6 +17,8 @@ class TempDir {
   const std::string& path() const { return path_; }
   // path() + "/" + name
   std::string File(const std::string& name) const { return path_ + "/" + name; }
+  // The names of what the folder holds now, sorted (a test's "nothing left behind").
+  std::vector<std::string> FileNames() const;
 
  private:
   std::string path_;
