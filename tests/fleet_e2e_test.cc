@@ -68,10 +68,18 @@ TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBa
   while (!back_seen && std::chrono::steady_clock::now() < give_up && reader->Read(&fleet)) {
     const v1::SessionSummary* k = Find(fleet, "rover-kidnap");
     const v1::SessionSummary* w = Find(fleet, "rover-walk");
-    if (k && w && k->frames() > 20 && w->frames() > 20) {
+    if (!both_seen && k && w && k->frames() > 20 && w->frames() > 20) {
       both_seen = true;
       EXPECT_EQ(k->map_name(), "square");
       walker_rate_hz = w->frame_rate_hz();
+      // The CLI reads the same registry, while both robots still stream.
+      const ProcessResult listed = Visloc({"sessions", "--server", server.address(), "--json"});
+      ASSERT_EQ(listed.exit_code, 0) << listed.err;
+      EXPECT_THAT(listed.out, HasSubstr("\"robot\":\"rover-walk\""));
+      EXPECT_THAT(listed.out, HasSubstr("\"robot\":\"rover-kidnap\""));
+      const ProcessResult table = Visloc({"sessions", "--server", server.address()});
+      EXPECT_THAT(table.out, HasSubstr("rover-walk"));
+      EXPECT_THAT(table.out, HasSubstr("square"));
     }
     if (k && k->localized() > 10 && !k->has_pose() && k->status() == v1::STATUS_LOST) {
       lost_seen = true;
@@ -89,16 +97,10 @@ TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBa
   EXPECT_TRUE(both_seen);
   EXPECT_TRUE(lost_seen) << "the kidnapped robot never showed lost";
   EXPECT_TRUE(back_seen) << "the kidnapped robot never showed a pose again";
-  EXPECT_GT(walker_rate_hz, 8.0);  // Paced at 15 Hz.
+  // Paced at 15 Hz; a sanitizer build answers slower and the robots drop frames on their side.
+  EXPECT_GT(walker_rate_hz, 4.0);
   EXPECT_LT(walker_rate_hz, 25.0);
 
-  // The CLI reads the same registry.
-  const ProcessResult listed = Visloc({"sessions", "--server", server.address(), "--json"});
-  ASSERT_EQ(listed.exit_code, 0) << listed.err;
-  EXPECT_THAT(listed.out, HasSubstr("\"robot\":\"rover-walk\""));
-  const ProcessResult table = Visloc({"sessions", "--server", server.address()});
-  EXPECT_THAT(table.out, HasSubstr("rover-walk"));
-  EXPECT_THAT(table.out, HasSubstr("square"));
   const ProcessResult watched = Visloc({"sessions", "--server", server.address(), "--watch",
                                         "--count", "3", "--interval-ms", "100", "--json"});
   ASSERT_EQ(watched.exit_code, 0) << watched.err;
