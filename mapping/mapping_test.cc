@@ -112,8 +112,10 @@ TEST(ReprojectionCostTest, ACorrectionChangeTakesABiasOffTheDisparity) {
 }
 
 // Stereo matches' disparity errors (px) against the rendered depth, with the patch refinement
-// of `refine_radius_px` (0: the correlation peak alone).
-std::vector<double> DisparityErrorsPx(int refine_radius_px, int* matches, size_t* features) {
+// of `refine_radius_px` (0: the correlation peak alone). `frame_out`, when given, receives the
+// frame, built with `threads`.
+std::vector<double> DisparityErrorsPx(int refine_radius_px, int* matches, size_t* features,
+                                      int threads = 1, StereoFrame* frame_out = nullptr) {
   const sim::StereoRig rig = sim::MakeRig(sim::RigOptions{});
   sim::RoomOptions room;
   room.texel_m = 0.006;
@@ -132,7 +134,9 @@ std::vector<double> DisparityErrorsPx(int refine_radius_px, int* matches, size_t
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
   StereoMatchOptions options;
   options.refine_patch_radius_px = refine_radius_px;
+  options.threads = threads;
   const StereoFrame frame = BuildStereoFrame(left, right, *extractor, rectifier, options);
+  if (frame_out) *frame_out = frame;
   // A corner on a depth edge belongs to either surface, so the truth is the closest of the 3x3
   // neighbourhood's disparities.
   const double fb = rectifier.rectified_camera().fx() * rectifier.baseline_m();
@@ -169,6 +173,33 @@ TEST(StereoFrameTest, TriangulatedDepthMatchesTheRenderedDepth) {
   EXPECT_GT(matches, 500);
   EXPECT_LT(errors_px[errors_px.size() / 2], 0.15);
   EXPECT_LT(static_cast<double>(wrong) / errors_px.size(), 0.03);
+}
+
+// Threads split the keypoints' searches (and extract beside rectifying): the frame is the same,
+// match for match, as on one thread.
+TEST(StereoFrameTest, ThreadsBuildTheSameFrame) {
+  int matches = 0;
+  size_t features = 0;
+  StereoFrame one, three;
+  DisparityErrorsPx(7, &matches, &features, 1, &one);
+  DisparityErrorsPx(7, &matches, &features, 3, &three);
+  ASSERT_EQ(one.left.size(), three.left.size());
+  EXPECT_GT(one.stereo_matches(), 500);
+  EXPECT_EQ(one.stereo_matches(), three.stereo_matches());
+  for (const auto& [a, b] : {std::pair{one.stats.searched, three.stats.searched},
+                             {one.stats.weak, three.stats.weak},
+                             {one.stats.ambiguous, three.stats.ambiguous},
+                             {one.stats.refine_rejected, three.stats.refine_rejected},
+                             {one.stats.out_of_range, three.stats.out_of_range}}) {
+    EXPECT_EQ(a, b);
+  }
+  for (size_t i = 0; i < one.left.size(); ++i) {
+    EXPECT_EQ(std::isfinite(one.right_x_rect[i]), std::isfinite(three.right_x_rect[i]));
+    if (std::isfinite(one.right_x_rect[i])) {
+      EXPECT_EQ(one.right_x_rect[i], three.right_x_rect[i]) << "keypoint " << i;
+      EXPECT_EQ(one.point_in_rect[i], three.point_in_rect[i]) << "keypoint " << i;
+    }
+  }
 }
 
 TEST(StereoFrameTest, TheCorrelationPeakAloneIsGoodToAFewTenthsOfAPixel) {

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <mutex>
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
 #include "core/util/check.h"
+#include "core/util/cpu_dispatch.h"
+#include "core/util/parallel.h"
 
 namespace visloc::mapping {
 
@@ -20,6 +23,7 @@ void StereoMatchOptions::Check() const {
       uniqueness);
   VISLOC_CHECK(refine_patch_radius_px >= 0 && refine_max_shift_px > 0, "disparity refinement ",
                refine_patch_radius_px, " px, ", refine_max_shift_px, " px");
+  VISLOC_CHECK(threads >= 0, "stereo matching threads: ", threads, " (0: every core)");
 }
 
 namespace {
@@ -36,14 +40,41 @@ inline float Bilinear(const cv::Mat& image, double x, double y) {
          fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
 }
 
+// Bilinear interpolation of two images of the same size at the same point (the right image and its
+// gradient): the weights and the rows are found once. Each value is computed as Bilinear does.
+inline void Bilinear2(const cv::Mat& a, const cv::Mat& b, double x, double y, float* value_a,
+                      float* value_b) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const float* a0 = a.ptr<float>(y0) + x0;
+  const float* a1 = a.ptr<float>(y0 + 1) + x0;
+  const float* b0 = b.ptr<float>(y0) + x0;
+  const float* b1 = b.ptr<float>(y0 + 1) + x0;
+  *value_a = (1 - fy) * ((1 - fx) * a0[0] + fx * a0[1]) + fy * ((1 - fx) * a1[0] + fx * a1[1]);
+  *value_b = (1 - fy) * ((1 - fx) * b0[0] + fx * b0[1]) + fy * ((1 - fx) * b1[0] + fx * b1[1]);
+}
+
+// Per-thread scratch of RefineDisparity: a map build refines hundreds of patches a frame.
+struct RefinementScratch {
+  std::vector<float> template_values, values, gradients;
+};
+
 }  // namespace
 
-bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& right_gradient_x,
-                     double x, double y, int radius, double* d) {
+// Built for AVX2 too: there std::floor is one instruction, not a call (the same values).
+VISLOC_AVX2_CLONE bool RefineDisparity(const cv::Mat& left, const cv::Mat& right,
+                                       const cv::Mat& right_gradient_x, double x, double y,
+                                       int radius, double* d) {
   const int margin = radius + 2;
   if (x < margin || y < margin || x >= left.cols - margin || y >= left.rows - margin) return false;
   const int n = (2 * radius + 1) * (2 * radius + 1);
-  std::vector<float> template_values(n);
+  thread_local RefinementScratch scratch;
+  std::vector<float>& template_values = scratch.template_values;
+  std::vector<float>& values = scratch.values;
+  std::vector<float>& gradients = scratch.gradients;
+  template_values.resize(n);
+  values.resize(n);
+  gradients.resize(n);
   double template_mean = 0;
   int k = 0;
   for (int v = -radius; v <= radius; ++v) {
@@ -57,7 +88,6 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& r
   // modelled as d(u, v) = d0 + gu u + gv v over patch offsets (u, v); d0 is the disparity at the
   // patch centre. A pure shift would absorb the gradient as a bias.
   Eigen::Vector3d params(*d, 0.0, 0.0);
-  std::vector<float> values(n), gradients(n);
   for (int iteration = 0; iteration < 10; ++iteration) {
     double mean = 0;
     k = 0;
@@ -65,8 +95,7 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& r
       for (int u = -radius; u <= radius; ++u, ++k) {
         const double xr = x + u - (params[0] + params[1] * u + params[2] * v);
         if (xr < 1 || xr >= right.cols - 2) return false;
-        values[k] = Bilinear(right, xr, y + v);
-        gradients[k] = Bilinear(right_gradient_x, xr, y + v);
+        Bilinear2(right, right_gradient_x, xr, y + v, &values[k], &gradients[k]);
         mean += values[k];
       }
     }
@@ -137,6 +166,12 @@ RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
   return pair;
 }
 
+// sums[k] += value * right[k] for k in [0, count): one left pixel against a run of the right row.
+VISLOC_AVX2_CLONE void AccumulateProducts(int value, const uchar* __restrict right, int count,
+                                          int* __restrict sums) {
+  for (int k = 0; k < count; ++k) sums[k] += value * right[k];
+}
+
 // The best integer disparity of the left patch centred at canvas pixel (x, y), by ZNCC along the
 // right image's row over [d_min, d_max], with its sub-pixel offset from a parabola through the
 // neighbouring correlations. Returns false (and counts why) when none is strong and unique.
@@ -157,7 +192,21 @@ bool SearchRow(const RectifiedPair& pair, int x, int y, int d_min, int d_max,
     ++stats->weak;
     return false;
   }
-  scores->assign(d_max - d_min + 1, -1.0);
+  // The cross products of every disparity first, pixel by pixel of the left patch: for one left
+  // pixel they run along the right row, contiguous in reversed disparity (cross[k] is disparity
+  // d_max - k), which vectorizes. Exact integers: the same sums as disparity by disparity.
+  const int count = d_max - d_min + 1;
+  thread_local std::vector<int> cross;
+  cross.assign(count, 0);
+  int* sums = cross.data();
+  for (int v = -r; v <= r; ++v) {
+    const uchar* a = pair.left.ptr<uchar>(y + v) + x;
+    const uchar* row = pair.right.ptr<uchar>(y + v) + x - d_max;
+    for (int u = -r; u <= r; ++u) {
+      AccumulateProducts(a[u], row + u, count, sums);
+    }
+  }
+  scores->assign(count, -1.0);
   int best = -1;
   for (int d = d_min; d <= d_max; ++d) {
     const int xr = x - d;
@@ -171,13 +220,8 @@ bool SearchRow(const RectifiedPair& pair, int x, int y, int d_min, int d_max,
                                 pair.right_sum_sq.at<double>(y0, x0);
     const double right_var = right_sum_sq - right_sum * right_sum / n;
     if (right_var < n) continue;
-    int cross = 0;
-    for (int v = -r; v <= r; ++v) {
-      const uchar* a = pair.left.ptr<uchar>(y + v) + x;
-      const uchar* b = pair.right.ptr<uchar>(y + v) + xr;
-      for (int u = -r; u <= r; ++u) cross += a[u] * b[u];
-    }
-    const double score = (cross - left_sum * right_sum / n) / std::sqrt(left_var * right_var);
+    const int product = cross[d_max - d];
+    const double score = (product - left_sum * right_sum / n) / std::sqrt(left_var * right_var);
     (*scores)[d - d_min] = score;
     if (best < 0 || score > (*scores)[best - d_min]) best = d;
   }
@@ -261,55 +305,90 @@ void CorrectStereoFrame(const DisparityCorrection& change, const StereoRectifier
   }
 }
 
+namespace {
+
+// The disparity (rectified px, uncorrected) of the left keypoint at rectified `l`, or NaN with the
+// reason counted in `stats`. `scores` is the caller's scratch.
+double MatchKeypoint(const RectifiedPair& pair, const StereoRectifier& rectifier,
+                     const StereoMatchOptions& options, const Eigen::Vector2d& l,
+                     std::vector<double>* scores, StereoMatchStats* stats) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double max_disparity =
+      rectifier.rectified_camera().fx() * rectifier.baseline_m() / options.min_depth_m;
+  // Patches must lie inside the canvas, and refinement needs a margin of its own.
+  const int margin = std::max(options.patch_radius_px, options.refine_patch_radius_px + 2) + 1;
+  const Eigen::Vector2d c = l + rectifier.canvas_offset_px();  // On the canvas.
+  const int x = static_cast<int>(std::lround(c.x())), y = static_cast<int>(std::lround(c.y()));
+  if (y < margin || y >= pair.left.rows - margin || x >= pair.left.cols - margin) return nan;
+  const int d_min = static_cast<int>(std::floor(options.min_disparity_px));
+  const int d_max = std::min(static_cast<int>(std::ceil(max_disparity)), x - margin);
+  if (d_max < d_min + 2) return nan;
+  ++stats->searched;
+  double disparity = 0;
+  if (!SearchRow(pair, x, y, d_min, d_max, options, scores, &disparity, stats)) return nan;
+  // The correlation ran at the nearest whole pixel; the keypoint a fraction of a pixel beside
+  // it shares its disparity (the refinement below measures it at the keypoint itself).
+  if (options.refine_patch_radius_px > 0) {
+    double refined = disparity;
+    if (!RefineDisparity(pair.left_f, pair.right_f, pair.right_gradient, c.x(), c.y(),
+                         options.refine_patch_radius_px, &refined) ||
+        std::abs(refined - disparity) > options.refine_max_shift_px) {
+      ++stats->refine_rejected;
+      return nan;
+    }
+    disparity = refined;
+  }
+  return disparity;
+}
+
+void AddSearchCounts(const StereoMatchStats& part, StereoMatchStats* total) {
+  total->searched += part.searched;
+  total->weak += part.weak;
+  total->ambiguous += part.ambiguous;
+  total->refine_rejected += part.refine_rejected;
+}
+
+}  // namespace
+
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options,
                              const DisparityCorrection& correction) {
   options.Check();
+  const int threads = ResolveThreads(options.threads);
   StereoFrame frame;
-  frame.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame.left_rect);
+  RectifiedPair pair;
+  RunBoth(
+      threads,
+      [&] {
+        frame.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame.left_rect);
+      },
+      [&] { pair = Rectify(left_raw, right_raw, rectifier, options.refine_patch_radius_px > 0); });
   const Camera& rect = rectifier.rectified_camera();
-  const double f = rect.fx(), baseline = rectifier.baseline_m();
-  const double max_disparity = f * baseline / options.min_depth_m;
-  const bool refine = options.refine_patch_radius_px > 0;
-  const RectifiedPair pair = Rectify(left_raw, right_raw, rectifier, refine);
-  const Eigen::Vector2d offset = rectifier.canvas_offset_px();
-  // Patches must lie inside the canvas, and refinement needs a margin of its own.
-  const int margin = std::max(options.patch_radius_px, options.refine_patch_radius_px + 2) + 1;
-
   const size_t n = frame.left.size();
   const double nan = std::numeric_limits<double>::quiet_NaN();
   frame.right_x_rect.assign(n, nan);
   frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
   frame.stats.keypoints = static_cast<int>(n);
+  std::vector<double> disparities(n, nan);
+  std::mutex stats_mutex;
+  ParallelRanges(static_cast<int>(n), threads, [&](int begin, int end) {
+    std::vector<double> scores;
+    StereoMatchStats stats;
+    for (int i = begin; i < end; ++i) {
+      disparities[i] = MatchKeypoint(pair, rectifier, options, frame.left_rect[i], &scores, &stats);
+    }
+    const std::lock_guard<std::mutex> lock(stats_mutex);
+    AddSearchCounts(stats, &frame.stats);
+  });
   std::vector<Eigen::Vector2f> grid_pixels(n);
-  std::vector<double> scores;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector2d& l = frame.left_rect[i];
     grid_pixels[i] = l.cast<float>();
-    const Eigen::Vector2d c = l + offset;  // On the canvas.
-    const int x = static_cast<int>(std::lround(c.x())), y = static_cast<int>(std::lround(c.y()));
-    if (y < margin || y >= pair.left.rows - margin || x >= pair.left.cols - margin) continue;
-    const int d_min = static_cast<int>(std::floor(options.min_disparity_px));
-    const int d_max = std::min(static_cast<int>(std::ceil(max_disparity)), x - margin);
-    if (d_max < d_min + 2) continue;
-    ++frame.stats.searched;
-    double disparity = 0;
-    if (!SearchRow(pair, x, y, d_min, d_max, options, &scores, &disparity, &frame.stats)) continue;
-    // The correlation ran at the nearest whole pixel; the keypoint a fraction of a pixel beside
-    // it shares its disparity (the refinement below measures it at the keypoint itself).
-    if (refine) {
-      double refined = disparity;
-      if (!RefineDisparity(pair.left_f, pair.right_f, pair.right_gradient, c.x(), c.y(),
-                           options.refine_patch_radius_px, &refined) ||
-          std::abs(refined - disparity) > options.refine_max_shift_px) {
-        ++frame.stats.refine_rejected;
-        continue;
-      }
-      disparity = refined;
-    }
+    if (!std::isfinite(disparities[i])) continue;
     SetDisparity(rectifier, options, i,
-                 disparity - correction.BiasPx(l.x() - disparity, f, rect.cx()), &frame);
+                 disparities[i] - correction.BiasPx(l.x() - disparities[i], rect.fx(), rect.cx()),
+                 &frame);
   }
   frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
   return frame;

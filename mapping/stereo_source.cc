@@ -1,5 +1,8 @@
 #include "mapping/stereo_source.h"
 
+#include <future>
+
+#include "core/util/parallel.h"
 #include "core/util/timer.h"
 
 namespace visloc::mapping {
@@ -17,8 +20,14 @@ Map MapStereoFrames(const StereoSource& source, const MapBuilderOptions& options
   MapBuilder builder(source.left_camera(), source.right_camera(), source.right_from_left(),
                      options);
   const int total = source.size();
+  const bool prefetch = ResolveThreads(options.stereo.threads) > 1;
+  std::future<StereoImages> next;
+  if (prefetch && total > 0) next = std::async(std::launch::async, [&] { return source.Read(0); });
   for (int i = 0; i < total; ++i) {
-    const StereoImages frame = source.Read(i);
+    const StereoImages frame = prefetch ? next.get() : source.Read(i);
+    if (prefetch && i + 1 < total) {
+      next = std::async(std::launch::async, [&source, i] { return source.Read(i + 1); });
+    }
     builder.AddFrame(frame.timestamp_ns, frame.left_raw, frame.right_raw);
     if (progress) progress(i + 1, total, builder.Status());
   }

@@ -40,7 +40,9 @@ class StereoSource {
   virtual Rigid3d right_from_left() const = 0;
   virtual int size() const = 0;
   virtual int64_t TimestampNs(int index) const = 0;
-  // Throws InputError naming the frame when an image cannot be read.
+  // Throws InputError naming the frame when an image cannot be read. Mapping with more than one
+  // thread reads the next frame while it maps this one: one Read at a time, not always on the
+  // caller's thread.
   virtual StereoImages Read(int index) const = 0;
   // The left image alone (localization needs no right image); by default Read(index).left_raw.
   virtual cv::Mat ReadLeft(int index) const { return Read(index).left_raw; }
@@ -55,7 +57,8 @@ class StereoSource {
 };
 
 // Every frame of `source` through one MapBuilder: the map, and optionally the builder's stats
-// (total_ms set) and the raw left camera's pose per frame. `progress` as for StereoSource.
+// (total_ms set) and the raw left camera's pose per frame. `progress` as for StereoSource. With
+// options.stereo.threads other than 1, frame i + 1 is read (decoded) while frame i is mapped.
 Map MapStereoFrames(const StereoSource& source, const MapBuilderOptions& options,
                     const MapMetadata& metadata, MapBuildStats* stats = nullptr,
                     Trajectory* frame_trajectory = nullptr,

@@ -6,6 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/estimators/p3p.h"
@@ -23,6 +24,19 @@
 
 namespace visloc {
 namespace {
+
+// The first left image of a real recording in VISLOC_REAL_DATA (../shared/real), or an empty
+// image when it is not there: real frames have far fewer corner candidates than the textured
+// image, in clusters, so the detector's selection costs differently on them.
+cv::Mat RealImage(const std::string& recording) {
+  const std::string dir = std::string(VISLOC_REAL_DATA) + "/" + recording;
+  for (const std::string& path : {dir + "/mav0/cam0/data/1403636584763555584.png",
+                                 dir + "/image_0/000000.png"}) {
+    cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (!image.empty()) return image;
+  }
+  return cv::Mat();
+}
 
 // Blurred noise with a little structure at several scales: corners everywhere, like a
 // textured indoor scene, deterministic in the seed.
@@ -64,6 +78,22 @@ void BM_DetectHarrisSurf16(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(extractor.Detect(image));
 }
 BENCHMARK(BM_DetectHarrisSurf16)->ArgsProduct({{320, 640}, {0, 1}})->Unit(benchmark::kMillisecond);
+
+// Detection as a session runs it (finest scale) on real frames: EuRoC MH_01 at 752x480, KITTI 01
+// at 1241x376.
+void BM_DetectRealFrame(benchmark::State& state) {
+  const cv::Mat image = RealImage(state.range(0) == 0 ? "euroc_mh01_moving" : "kitti01_first51");
+  if (image.empty()) {
+    state.SkipWithError("no real recordings (VISLOC_REAL_DATA)");
+    return;
+  }
+  const HarrisSurf16Extractor extractor(ExtractorOptions(true));
+  int detected = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(extractor.Detect(image, &detected));
+  state.counters["candidates"] = detected;
+  state.SetLabel(std::to_string(image.cols) + "x" + std::to_string(image.rows));
+}
+BENCHMARK(BM_DetectRealFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void BM_DescribeHarrisSurf16(benchmark::State& state) {
   const cv::Mat image =
