@@ -169,14 +169,14 @@ int RunBuild(const Args& args) {
                  "refuse to write a map with fewer points, saying why");
   parser.AddFlag("check-frames", &options.check_frames,
                  "frames on which the rig is checked before the build (0: no check)");
-  options.builder.stereo.threads = 0;
-  parser.AddFlag("threads", &options.builder.stereo.threads,
-                 "threads for each frame's features and stereo matching (the same map for any "
-                 "count)");
+  options.builder.threads = 0;
+  parser.AddFlag("threads", &options.builder.threads,
+                 "threads for features, stereo matching, decoding and bundle adjustment (the "
+                 "same map for any count)");
   parser.SetDefaultText("threads", "0: every core");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  CheckFlags(options.builder.stereo);
+  CheckFlags(options.builder);
   if (!(options.builder.keyframes.translation_m > 0) ||
       !(options.builder.keyframes.rotation_deg > 0)) {
     throw UsageError("keyframe thresholds must be positive");

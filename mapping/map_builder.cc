@@ -6,6 +6,7 @@
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "core/util/parallel.h"
 #include "core/util/timer.h"
 
 namespace visloc::mapping {
@@ -27,6 +28,7 @@ void MapBuilderOptions::Check() const {
   keyframes.Check();
   loop_closure.Check();
   assembly.Check();
+  VISLOC_CHECK(threads >= 0, "map building threads: ", threads, " (0: every core)");
   VISLOC_CHECK(local_ba.max_iterations >= 1 && global_ba_iterations >= 1, "BA iterations ",
                local_ba.max_iterations, ", ", global_ba_iterations);
 }
@@ -42,9 +44,12 @@ RectifiedIntrinsics IntrinsicsOf(const StereoRectifier& rectifier) {
   return {rect.fx(), rect.cx(), rect.cy(), rectifier.baseline_m()};
 }
 
-const MapBuilderOptions& Checked(const MapBuilderOptions& options) {
+// The options checked, with `threads` handed to the stages that use it.
+MapBuilderOptions Prepared(const MapBuilderOptions& options) {
   options.Check();
-  return options;
+  MapBuilderOptions prepared = options;
+  prepared.stereo.threads = prepared.local_ba.threads = ResolveThreads(options.threads);
+  return prepared;
 }
 
 FeatureSettings FeaturesFor(const MapBuilderOptions& options, const Camera& camera) {
@@ -57,14 +62,14 @@ FeatureSettings FeaturesFor(const MapBuilderOptions& options, const Camera& came
 MapBuilder::MapBuilder(const Camera& left, const Camera& right, const Rigid3d& right_from_left,
                        const MapBuilderOptions& options)
     : left_(left),
-      options_(Checked(options)),
+      options_(Prepared(options)),
       rectifier_(left, right, right_from_left),
       intrinsics_(IntrinsicsOf(rectifier_)),
       extractor_(CreateFeatureExtractor(FeaturesFor(options, left))),
       tracker_(options.tracking, ViewOf(rectifier_), intrinsics_,
                options.local_ba.disparity_weight),
       loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_,
-                   options.local_ba),
+                   options_.local_ba),
       calibrating_(options.disparity_calibration.enabled) {}
 
 Rigid3d MapBuilder::MapFromWorld() const {

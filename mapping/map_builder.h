@@ -66,6 +66,11 @@ struct MapBuilderOptions {
   int global_ba_iterations = 40;
   DisparityCalibrationOptions disparity_calibration;
   AssemblyOptions assembly;
+  // Threads a build uses (core/util/parallel.h; 0: every core): each frame's features beside its
+  // rectification and its keypoints' row searches split among them, the next frame decoded while
+  // one is mapped, and bundle adjustment's Jacobians and Schur elimination (Ceres). The builder
+  // sets stereo.threads and local_ba.threads from it. The same map comes out for any count.
+  int threads = 1;
   void Check() const;  // Checks every nested options struct too.
 };
 

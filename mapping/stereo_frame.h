@@ -46,6 +46,7 @@ struct StereoMatchOptions {
   double refine_max_shift_px = 1.0;  // Larger corrections mean a wrong match: rejected.
   // Threads a frame uses (core/util/parallel.h; 0: every core): the left image's features beside
   // the rectification, then the keypoints' searches split among them. Same frame for any count.
+  // A MapBuilder sets it from MapBuilderOptions::threads.
   int threads = 1;
   void Check() const;
 };

@@ -20,7 +20,7 @@ Map MapStereoFrames(const StereoSource& source, const MapBuilderOptions& options
   MapBuilder builder(source.left_camera(), source.right_camera(), source.right_from_left(),
                      options);
   const int total = source.size();
-  const bool prefetch = ResolveThreads(options.stereo.threads) > 1;
+  const bool prefetch = ResolveThreads(options.threads) > 1;
   std::future<StereoImages> next;
   if (prefetch && total > 0) next = std::async(std::launch::async, [&] { return source.Read(0); });
   for (int i = 0; i < total; ++i) {

@@ -5,6 +5,8 @@
 # Prints one line per session and a summary (median of the sessions' p50 and the worst p99).
 # VISLOC_LOAD_THREADS=N gives the server N engine workers (--threads; default one per core), so
 # a saturating run measures frames/s per core for capacity planning (docs/deployment.md).
+# VISLOC_LOAD_ENCODING=file sends the image files' bytes as they are (a dataset of JPEG files, as
+# scripts/capacity.sh prepares: the clients then cost little); the default is the stream's.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 map=$1 dataset=$2 sessions=$3 rate=${4:-15} frames=${5:-150} policy=${6:-all}
@@ -21,7 +23,7 @@ address=$(sed -n 's/^listening on //p' "$work/server.out")
 start=$(date +%s.%N)
 for i in $(seq "$sessions"); do
   build/client/visloc stream --server "$address" --map load --dataset "$dataset" \
-    --rate "$rate" --frames "$frames" --policy "$policy" --json > "$work/s$i.json" 2> "$work/s$i.err" &
+    --rate "$rate" --frames "$frames" --policy "$policy" ${VISLOC_LOAD_ENCODING:+--encoding "$VISLOC_LOAD_ENCODING"} --json > "$work/s$i.json" 2> "$work/s$i.err" &
 done
 wait $(jobs -p | grep -v "^$server_pid$") 2>/dev/null || true
 end=$(date +%s.%N)

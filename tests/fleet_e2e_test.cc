@@ -114,6 +114,37 @@ TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBa
   }));
 }
 
+// `visloc load`: many robots from one process, each frame accounted for (answered, skipped by the
+// server, dropped by the link's policy, late or undelivered), and a map the server does not
+// have named in the error. Its speed is a benchmark's to measure (scripts/capacity.sh).
+TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const std::vector<std::string> load = {"load",          "--server",   server.address(),
+                                         "--map",         "square",     "--dataset",
+                                         kData + "/query_square", "--robots", "4",
+                                         "--rate",        "10",         "--duration-s",
+                                         "3",             "--json"};
+  const ProcessResult run = Visloc(load);
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const double frames = testing::JsonNumber(run.out, "frames");
+  const double answered = testing::JsonNumber(run.out, "answered");
+  EXPECT_GE(frames, 4 * 10 * 3 - 4);
+  EXPECT_LE(frames, 4 * 10 * 3 + 4);
+  double accounted = answered;
+  for (const char* fate : {"skipped", "late", "dropped", "undelivered"}) {
+    accounted += testing::JsonNumber(run.out, fate);
+  }
+  EXPECT_EQ(accounted, frames) << run.out;
+  EXPECT_GE(answered, 0.9 * frames) << run.out;
+  EXPECT_GE(testing::JsonNumber(run.out, "localized"), 0.9 * answered) << run.out;
+
+  std::vector<std::string> unknown = load;
+  unknown[4] = "nowhere";
+  const ProcessResult refused = Visloc(unknown);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_THAT(refused.err, HasSubstr("nowhere"));
+}
+
 TEST_F(FleetE2eTest, TheListNeedsAToken) {
   TempDir files("visloc_fleet_files");
   std::ofstream(files.File("tokens")) << "robot-token-0123456789 localize\n";

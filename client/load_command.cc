@@ -1,0 +1,298 @@
+// `visloc load`: many robots against one visloc-server, from one process that costs little, to
+// find how many real-resolution robots a server holds. Every left image of a dataset is encoded
+// once (JPEG, as the client library sends it), then N sessions of the client library stream
+// those bytes at a robot's rate, each on its own thread and staggered over one frame period (as
+// robots started at random would be). The dataset is played forwards then backwards, so each
+// robot moves continuously however long the run. Each frame's latency (submit to answer) and
+// fate (answered, skipped by the server, dropped by the link's policy, late) is recorded; the
+// summary gives the latency percentiles over every answer and per robot, and the client's own
+// CPU time, which says how much of the machine the generator took from the server.
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "client/commands.h"
+#include "client/connection.h"
+#include "client/dataset_frames.h"
+#include "core/util/args.h"
+#include "core/util/check.h"
+#include "core/util/json.h"
+#include "core/util/strings.h"
+#include "dataset/dataset.h"
+#include "proto/convert.h"
+#include "visloc/client/session.h"
+
+namespace visloc::cli {
+namespace {
+
+namespace v1 = ::visloc::v1;
+using Clock = std::chrono::steady_clock;
+
+struct LoadArgs {
+  Connection server;
+  std::string map_name, dataset_dir, format;
+  int robots = 8;
+  double rate_hz = 20.0;
+  double duration_s = 10.0;
+  int jpeg_quality = 90;
+  std::string policy = "newest";
+  double max_p99_ms = 50.0;  // The capacity criterion the summary checks.
+  bool json = false;
+};
+
+// What happened to one robot's frames.
+struct RobotRecord {
+  std::vector<double> latency_ms;  // Answered in time.
+  std::vector<double> engine_ms;   // Their time inside the engine (the server's timings).
+  std::vector<double> server_ms;   // From the server's receipt to its reply: decoding, waiting
+                                   // for a worker and the engine.
+  int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
+  std::string failure;  // The server refused the session.
+};
+
+double Percentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const size_t i = std::min(values.size() - 1, static_cast<size_t>(fraction * values.size()));
+  return values[i];
+}
+
+// Frame k of a forwards-then-backwards play of `count` frames.
+size_t PingPong(size_t k, size_t count) {
+  if (count < 2) return 0;
+  const size_t period = 2 * (count - 1), phase = k % period;
+  return phase < count ? phase : period - phase;
+}
+
+double CpuSeconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_utime.tv_sec + usage.ru_stime.tv_sec +
+         1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+void Record(const client::Event& e, RobotRecord* robot) {
+  switch (e.kind) {
+    case client::Event::Kind::kResult:
+      if (e.response.status() == v1::STATUS_SKIPPED) {
+        ++robot->skipped;
+        break;
+      }
+      if (e.response.status() == v1::STATUS_ERROR) {
+        if (robot->failure.empty()) robot->failure = e.response.error();
+        break;
+      }
+      ++robot->answered;
+      robot->localized += e.response.has_map_from_cam();
+      robot->latency_ms.push_back(e.latency_ms);
+      robot->engine_ms.push_back(e.response.timings().total_ms());
+      robot->server_ms.push_back(e.response.timings().server_ms());
+      break;
+    case client::Event::Kind::kLate:
+      ++robot->late;
+      break;
+    case client::Event::Kind::kDropped:
+      ++robot->dropped;
+      break;
+    case client::Event::Kind::kUndelivered:
+      ++robot->undelivered;
+      break;
+    case client::Event::Kind::kLinkState:
+      if (e.link_state == client::LinkState::kFailed && robot->failure.empty()) {
+        robot->failure = e.detail;
+      }
+      break;
+  }
+}
+
+client::SessionOptions RobotOptions(const LoadArgs& args, const Dataset& dataset, int robot) {
+  client::SessionOptions o;
+  args.server.ToLibrary(&o);
+  o.map_name = args.map_name;
+  o.robot_id = StrCat("load-", robot);
+  proto::ToProto(dataset.left.camera, &o.camera);
+  o.session.set_drop_policy(args.policy == "all" ? v1::PROCESS_ALL : v1::NEWEST_ONLY);
+  o.give_up_after = std::chrono::seconds(10);
+  return o;
+}
+
+// One robot: frames at the rate from `start`, until `end`.
+void DriveRobot(client::Session* session, const std::vector<std::string>& encoded,
+                const Dataset& dataset, double rate_hz, Clock::time_point start,
+                Clock::time_point end) {
+  const auto period = std::chrono::nanoseconds(static_cast<int64_t>(1e9 / rate_hz));
+  for (size_t k = 0;; ++k) {
+    const Clock::time_point due = start + k * period;
+    if (due >= end || session->link_state() == client::LinkState::kFailed) return;
+    std::this_thread::sleep_until(due);
+    client::Frame frame;
+    // Timestamps move on with the robot's clock while the images play back and forth.
+    frame.timestamp_ns = dataset.frames.front().timestamp_ns + static_cast<int64_t>(k) *
+                                                                   period.count();
+    frame.encoded = encoded[PingPong(k, encoded.size())];
+    session->Submit(frame);
+  }
+}
+
+void ParseLoadArgs(const Args& raw_args, LoadArgs* args, bool* run) {
+  ArgParser parser("visloc load",
+                   "Finds how many robots a visloc-server answers in time: N robots at a "
+                   "robot's rate stream a dataset's left images (encoded once, as JPEG) from "
+                   "this one process, and the latency of every answer is reported, with frames "
+                   "skipped by the server or dropped by the link's policy.");
+  args->server.AddFlags(parser);
+  parser.AddFlag("map", &args->map_name, "map name on the server", true);
+  parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
+  parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
+  parser.AddFlag("robots", &args->robots, "robots streaming at once");
+  parser.AddFlag("rate", &args->rate_hz, "frames per second each robot sends");
+  parser.AddFlag("duration-s", &args->duration_s, "how long the robots stream");
+  parser.AddFlag("jpeg-quality", &args->jpeg_quality, "1..100, the frames' JPEG quality");
+  parser.AddFlag("policy", &args->policy,
+                 "newest (a live robot: the server drops stale frames) or all");
+  parser.AddFlag("max-p99-ms", &args->max_p99_ms,
+                 "the latency the summary holds the server to: p99 over every answer");
+  parser.AddSwitch("json", &args->json, "print the summary as one JSON object");
+  *run = parser.Parse(raw_args, std::cout);
+  if (!*run) return;
+  args->server.ApplyEnvironment();
+  if (args->robots < 1 || args->robots > 256) throw UsageError("--robots is 1..256");
+  if (!(args->rate_hz > 0 && args->rate_hz <= 1000)) throw UsageError("--rate is (0, 1000] Hz");
+  if (!(args->duration_s > 0 && args->duration_s <= 3600)) {
+    throw UsageError("--duration-s is (0, 3600] s");
+  }
+  if (args->jpeg_quality < 1 || args->jpeg_quality > 100) {
+    throw UsageError("--jpeg-quality is 1..100");
+  }
+  if (args->policy != "newest" && args->policy != "all") {
+    throw UsageError("--policy is newest or all");
+  }
+}
+
+}  // namespace
+
+int RunLoad(const Args& raw_args) {
+  LoadArgs args;
+  bool run = false;
+  ParseLoadArgs(raw_args, &args, &run);
+  if (!run) return 0;
+  const Dataset dataset = ReadQueryDataset(args.dataset_dir, args.format, false);
+  if (dataset.frames.empty()) throw InputError(args.dataset_dir + ": no frames");
+  std::vector<std::string> encoded;
+  for (const FrameRecord& f : dataset.frames) {
+    encoded.push_back(client::EncodeImage(
+        LoadGreyImage(f.left_path, dataset.left.camera.width(), dataset.left.camera.height()),
+        client::Encoding::kJpeg, args.jpeg_quality));
+  }
+  double encoded_bytes = 0;
+  for (const std::string& e : encoded) encoded_bytes += static_cast<double>(e.size());
+
+  std::vector<RobotRecord> records(args.robots);
+  std::mutex records_mutex;
+  std::vector<std::unique_ptr<client::Session>> sessions;
+  for (int r = 0; r < args.robots; ++r) {
+    client::SessionOptions options = RobotOptions(args, dataset, r);
+    options.on_event = [&records, &records_mutex, r](const client::Event& e) {
+      const std::lock_guard<std::mutex> lock(records_mutex);
+      Record(e, &records[r]);
+    };
+    sessions.push_back(client::Session::Open(options));
+  }
+  const double cpu_before_s = CpuSeconds();
+  const Clock::time_point start = Clock::now() + std::chrono::milliseconds(200);
+  const Clock::time_point end =
+      start + std::chrono::nanoseconds(static_cast<int64_t>(args.duration_s * 1e9));
+  std::vector<std::thread> drivers;
+  for (int r = 0; r < args.robots; ++r) {
+    // Staggered over one period, as robots started at random would be.
+    const auto offset =
+        std::chrono::nanoseconds(static_cast<int64_t>(1e9 / args.rate_hz * r / args.robots));
+    drivers.emplace_back(DriveRobot, sessions[r].get(), std::cref(encoded), std::cref(dataset),
+                         args.rate_hz, start + offset, end);
+  }
+  for (std::thread& d : drivers) d.join();
+  for (auto& s : sessions) s->Close(std::chrono::milliseconds(2000));
+  const double streamed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  const double cpu_s = CpuSeconds() - cpu_before_s;
+  int submitted = 0;
+  for (auto& s : sessions) submitted += static_cast<int>(s->stats().submitted);
+  sessions.clear();
+
+  const std::lock_guard<std::mutex> lock(records_mutex);
+  std::vector<double> all_ms, robot_p99_ms, engine_ms, server_ms;
+  int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
+  for (const RobotRecord& r : records) {
+    if (!r.failure.empty()) throw InputError("server " + args.server.server + ": " + r.failure);
+    all_ms.insert(all_ms.end(), r.latency_ms.begin(), r.latency_ms.end());
+    engine_ms.insert(engine_ms.end(), r.engine_ms.begin(), r.engine_ms.end());
+    server_ms.insert(server_ms.end(), r.server_ms.begin(), r.server_ms.end());
+    robot_p99_ms.push_back(Percentile(r.latency_ms, 0.99));
+    answered += r.answered;
+    localized += r.localized;
+    skipped += r.skipped;
+    late += r.late;
+    dropped += r.dropped;
+    undelivered += r.undelivered;
+  }
+  const int frames = submitted;
+  const double p50 = Percentile(all_ms, 0.5), p95 = Percentile(all_ms, 0.95),
+               p99 = Percentile(all_ms, 0.99);
+  const double worst_robot_p99 = *std::max_element(robot_p99_ms.begin(), robot_p99_ms.end());
+  const int not_answered = skipped + late + dropped + undelivered;
+  const bool held = p99 <= args.max_p99_ms && not_answered <= 0.01 * frames;
+  if (args.json) {
+    JsonWriter json;
+    json.BeginObject()
+        .Field("robots", static_cast<int64_t>(args.robots))
+        .Field("rate_hz", args.rate_hz)
+        .Field("duration_s", args.duration_s)
+        .Field("frames", static_cast<int64_t>(frames))
+        .Field("answered", static_cast<int64_t>(answered))
+        .Field("localized", static_cast<int64_t>(localized))
+        .Field("skipped", static_cast<int64_t>(skipped))
+        .Field("late", static_cast<int64_t>(late))
+        .Field("dropped", static_cast<int64_t>(dropped))
+        .Field("undelivered", static_cast<int64_t>(undelivered))
+        .Field("answers_per_s", answered / streamed_s)
+        .Field("latency_ms_p50", p50)
+        .Field("latency_ms_p95", p95)
+        .Field("latency_ms_p99", p99)
+        .Field("worst_robot_p99_ms", worst_robot_p99)
+        .Field("engine_ms_p50", Percentile(engine_ms, 0.5))
+        .Field("server_ms_p50", Percentile(server_ms, 0.5))
+        .Field("jpeg_bytes_mean", encoded_bytes / encoded.size())
+        .Field("client_cpu_fraction", cpu_s / streamed_s)
+        .Field("held", held)
+        .EndObject();
+    std::cout << json.str() << "\n";
+  } else {
+    std::printf("%d robots at %.0f Hz for %.1f s (%dx%d JPEG q%d, %.0f KiB a frame), map %s\n",
+                args.robots, args.rate_hz, args.duration_s, dataset.left.camera.width(),
+                dataset.left.camera.height(), args.jpeg_quality,
+                encoded_bytes / encoded.size() / 1024.0, args.map_name.c_str());
+    std::printf("answered %d of %d frames (%d localized), %.1f answers/s; skipped %d, late %d, "
+                "dropped %d, undelivered %d\n",
+                answered, frames, localized, answered / streamed_s, skipped, late, dropped,
+                undelivered);
+    std::printf("latency (submit to answer): p50 %.1f ms, p95 %.1f ms, p99 %.1f ms; worst robot's "
+                "p99 %.1f ms\n",
+                p50, p95, p99, worst_robot_p99);
+    std::printf("in the server (p50): %.2f ms from receipt to reply, %.2f ms of it in the engine\n",
+                Percentile(server_ms, 0.5), Percentile(engine_ms, 0.5));
+    std::printf("this generator used %.0f%% of one core\n", 100.0 * cpu_s / streamed_s);
+    std::printf("%s: p99 %s %.0f ms and %d of %d frames not answered in time\n",
+                held ? "held" : "not held", p99 <= args.max_p99_ms ? "<=" : ">", args.max_p99_ms,
+                not_answered, frames);
+  }
+  return 0;
+}
+
+}  // namespace visloc::cli
