@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <optional>
 
@@ -203,6 +204,14 @@ VISLOC_AVX2_CLONE void NeighbourMax(const float* up, const float* mid, const flo
   }
 }
 
+// out[x] = 1 where mid[x] is positive and no neighbour exceeds it, for x in [x0, x1).
+VISLOC_AVX2_CLONE void MaximaMask(const float* __restrict mid, const float* __restrict neighbour_max,
+                                  int x0, int x1, uint8_t* __restrict out) {
+  for (int x = x0; x < x1; ++x) {
+    out[x] = static_cast<uint8_t>((mid[x] > 0.0f) & (mid[x] >= neighbour_max[x]));
+  }
+}
+
 // Bit i set when pixel i of four is a corner candidate: at least `threshold`, and no smaller than
 // any neighbour.
 inline int CandidateMask4(const float* response, const float* neighbour_max, float threshold) {
@@ -269,38 +278,43 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* 
   // Keypoint scales are floats: compared with the double, the finest scale's own keypoints
   // (1.2f > 1.2) would all be searched again, for nothing.
   const float finest = static_cast<float>(finest_scale);
+  if (rows < 3 || cols < 3 ||
+      std::none_of(keypoints->begin(), keypoints->end(),
+                   [&](const Keypoint& k) { return k.scale_px > finest; })) {
+    return;
+  }
+  // The fine maxima once for the image (a positive response no neighbour exceeds), rather than
+  // a 3x3 test at every pixel of every coarse corner's window: coarse corners are a thousand or
+  // more, their windows overlap.
+  cv::Mat is_max(rows, cols, CV_8UC1, cv::Scalar(0));
+  std::vector<float> neighbour_max(cols);
+  for (int y = 1; y < rows - 1; ++y) {
+    const float* mid = fine_response.ptr<float>(y);
+    NeighbourMax(fine_response.ptr<float>(y - 1), mid, fine_response.ptr<float>(y + 1), 1,
+                 cols - 1, neighbour_max.data());
+    MaximaMask(mid, neighbour_max.data(), 1, cols - 1, is_max.ptr<uint8_t>(y));
+  }
   for (Keypoint& k : *keypoints) {
     if (k.scale_px <= finest) continue;
     const int radius = std::max(1, static_cast<int>(std::lround(k.scale_px)));
     const int cx = static_cast<int>(std::lround(k.pixel.x())),
               cy = static_cast<int>(std::lround(k.pixel.y()));
     int best_x = -1, best_y = -1;
-    float best = 0.0f;
     double best_distance = 1e9;
     for (int y = std::max(1, cy - radius); y <= std::min(rows - 2, cy + radius); ++y) {
+      const uint8_t* maxima = is_max.ptr<uint8_t>(y);
       for (int x = std::max(1, cx - radius); x <= std::min(cols - 2, cx + radius); ++x) {
-        const float r = fine_response.at<float>(y, x);
-        if (r <= 0) continue;
-        bool is_max = true;
-        for (int dy = -1; dy <= 1 && is_max; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            if ((dx || dy) && fine_response.at<float>(y + dy, x + dx) > r) {
-              is_max = false;
-              break;
-            }
-          }
-        }
+        if (!maxima[x]) continue;
         const float ex = x - k.pixel.x(), ey = y - k.pixel.y();
         const double distance = ex * ex + ey * ey;  // Squared: only compared.
-        if (is_max && distance < best_distance) {
+        if (distance < best_distance) {
           best_distance = distance;
-          best = r;
           best_x = x;
           best_y = y;
         }
       }
     }
-    if (best_x < 0 || best <= 0) continue;
+    if (best_x < 0) continue;
     const float* up = fine_response.ptr<float>(best_y - 1);
     const float* mid = fine_response.ptr<float>(best_y);
     const float* down = fine_response.ptr<float>(best_y + 1);
@@ -314,9 +328,26 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* 
 }
 
 // Removes corners that a stronger corner (at another scale) already covers.
+// Strongest first; equal responses in the order found (a stable order, so the result never
+// depends on the sort's implementation). Sorted as 64-bit keys, response bits then index: the
+// responses are positive, so their IEEE bits order as they do, and eight-byte keys sort several
+// times faster than the keypoints would.
+std::vector<Keypoint> SortedByResponse(const std::vector<Keypoint>& keypoints) {
+  std::vector<uint64_t> keys(keypoints.size());
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, &keypoints[i].response, sizeof bits);
+    keys[i] = (static_cast<uint64_t>(~bits) << 32) | static_cast<uint32_t>(i);
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<Keypoint> sorted;
+  sorted.reserve(keypoints.size());
+  for (uint64_t key : keys) sorted.push_back(keypoints[static_cast<uint32_t>(key)]);
+  return sorted;
+}
+
 std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
-  std::sort(keypoints.begin(), keypoints.end(),
-            [](const Keypoint& a, const Keypoint& b) { return a.response > b.response; });
+  keypoints = SortedByResponse(keypoints);
   cv::Mat taken(size, CV_8UC1, cv::Scalar(0));
   std::vector<Keypoint> kept;
   for (const Keypoint& k : keypoints) {

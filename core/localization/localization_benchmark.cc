@@ -95,6 +95,23 @@ void BM_DetectRealFrame(benchmark::State& state) {
 }
 BENCHMARK(BM_DetectRealFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+// Extraction at every scale with the corner count for the image size, as a map build and a
+// relocalization run it, on the real MH_01 frame (752x480: 1301 corners).
+void BM_ExtractRealFrameAllScales(benchmark::State& state) {
+  const cv::Mat image = RealImage("euroc_mh01_moving");
+  if (image.empty()) {
+    state.SkipWithError("no real recordings (VISLOC_REAL_DATA)");
+    return;
+  }
+  HarrisSurf16Options options;
+  options.max_features = FeatureCountForImage(options.max_features, image.cols, image.rows);
+  const HarrisSurf16Extractor extractor(options);
+  size_t features = 0;
+  for (auto _ : state) features = extractor.Extract(image).size();
+  state.counters["features"] = static_cast<double>(features);
+}
+BENCHMARK(BM_ExtractRealFrameAllScales)->Unit(benchmark::kMillisecond);
+
 void BM_DescribeHarrisSurf16(benchmark::State& state) {
   const cv::Mat image =
       TexturedImage(static_cast<int>(state.range(0)), static_cast<int>(state.range(0)) * 3 / 4);
