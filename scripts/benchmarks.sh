@@ -47,8 +47,12 @@ echo "== data (640x480)"
 [[ -f $WORK/map640.db ]] || $V map build --dataset "$WORK/seq640/map_square" --out "$WORK/map640.db" --json > "$WORK/map640.json"
 
 # Google Benchmark families of build/core/localization/localization_benchmark in the report.
-families=(ExtractHarrisSurf16 DetectHarrisSurf16 DescribeHarrisSurf16 OrbReference DescriptorDistance PredictVisibility ProjectAndMatch
-          SolveP3P PnpRansac RefinePose RelocalizeScaling)
+families=(ExtractHarrisSurf16 DetectHarrisSurf16 DescribeHarrisSurf16 DetectRealFrame ExtractRealFrameAllScales
+          OrbReference DescriptorDistance PredictVisibility ProjectAndMatch SolveP3P PnpRansac RefinePose
+          RelocalizeScaling)
+# Real frames (../shared/real): the real-resolution section, when the recordings are there.
+REAL=$(realpath -m "${VISLOC_REAL_DATA:-../shared/real}")
+real_recordings=(euroc_mh01_moving kitti01_first51)
 
 # VISLOC_BENCH_REPORT_ONLY=1 rewrites the report from the runs already in WORK_DIR.
 if [[ ${VISLOC_BENCH_REPORT_ONLY:-0} != 1 ]]; then
@@ -103,6 +107,20 @@ for family in "${families[@]}"; do
 done
 build/mapstore/map_store_benchmark --benchmark_format=csv --benchmark_filter='^BM_LoadMap/' \
   > "$WORK/mapstore.csv" 2> /dev/null
+
+if [[ -d $REAL/euroc_mh01_moving && -d $REAL/kitti01_first51 ]]; then
+  echo "== real resolution"
+  for rec in "${real_recordings[@]}"; do
+    # Map building on every core (the default) and on one; the maps are the same.
+    $V map build --dataset "$REAL/$rec" --out "$WORK/real_$rec.db" --json > "$WORK/real_build_$rec.json"
+    $V map build --dataset "$REAL/$rec" --out "$WORK/real_${rec}_t1.db" --threads 1 --json \
+      > "$WORK/real_build_${rec}_t1.json"
+    # Three runs; the report quotes the one with the median tracking ratio to ORB.
+    for run in 1 2 3; do
+      $V bench --dataset "$REAL/$rec" --map "$WORK/real_$rec.db" --json > "$WORK/real_bench_${rec}_$run.json"
+    done
+  done
+fi
 
 echo "== server throughput"
 for n in 1 4 16 32; do
@@ -296,6 +314,53 @@ echo "== writing $REPORT"
   echo "Initialization (the first frame, features included): $(awk -F, 'NR == 2 {print $19}' "$WORK/query_square.csv") ms on the square;"
   echo "the paper: 1,636.86 ms (Table 5) and 2,540.93 ms (Table 6)."
   echo
+  if [[ -f $WORK/real_bench_euroc_mh01_moving_1.json ]]; then
+    echo "## At real resolution"
+    echo
+    echo "Real recordings (\`../shared/real\`): EuRoC MH_01 (752x480, the VI-Sensor) and KITTI 01 (1241x376),"
+    echo "each localized in a map of itself. \`visloc bench\`, three runs, the run with the median ratio"
+    echo "to ORB(500) quoted (ORB measured in the same run)."
+    echo
+    echo "| | MH_01 752x480 | KITTI 01 1241x376 | target |"
+    echo "|---|---|---|---|"
+    declare -A rb
+    for rec in "${real_recordings[@]}"; do
+      rb[$rec]=$(for f in "$WORK"/real_bench_${rec}_[0-9].json; do
+        awk -v a="$(field "$f" ms_per_frame_median)" -v o="$(field "$f" orb_reference_ms_per_frame_median)" \
+          -v f="$f" 'BEGIN{printf "%.4f %s\n", a/o, f}'
+      done | sort -n | sed -n 2p | cut -d' ' -f2)
+    done
+    m=${rb[euroc_mh01_moving]} k=${rb[kitti01_first51]}
+    row() {  # LABEL KEY SCALE DIGITS TARGET
+      echo "| $1 | $(fmt "$(field "$m" "$2")" "$3" "$4") | $(fmt "$(field "$k" "$2")" "$3" "$4") | $5 |"
+    }
+    row "tracking, ms a frame (median)" ms_per_frame_median 1 2 ""
+    echo "| of which detection, ms | $(fmt "$(field_in "$m" detect median)" 1 2) | $(fmt "$(field_in "$k" detect median)" 1 2) | |"
+    row "ORB(500) reference, ms" orb_reference_ms_per_frame_median 1 2 ""
+    ratio() { awk -v a="$(field "$1" "$2")" -v b="$(field "$1" "$3")" 'BEGIN{printf "%.2f", a/b}'; }
+    echo "| tracking / ORB(500) | $(ratio "$m" ms_per_frame_median orb_reference_ms_per_frame_median)x | $(ratio "$k" ms_per_frame_median orb_reference_ms_per_frame_median)x | <= 0.3x |"
+    row "global relocalization, ms a query" relocalization_ms_median 1 2 ""
+    echo "| relocalization / tracking frame | $(ratio "$m" relocalization_ms_median ms_per_frame_median)x | $(ratio "$k" relocalization_ms_median ms_per_frame_median)x | <= 2x |"
+    echo "| relocalization found | $(fmt "$(field "$m" relocalization_found_fraction)" 100 0)% | $(fmt "$(field "$k" relocalization_found_fraction)" 100 0)% | |"
+    b=$WORK/real_build_euroc_mh01_moving.json c=$WORK/real_build_kitti01_first51.json
+    b1=$WORK/real_build_euroc_mh01_moving_t1.json c1=$WORK/real_build_kitti01_first51_t1.json
+    echo "| map building, stereo frames a second (every core) | $(fmt "$(field "$b" fps)" 1 1) | $(fmt "$(field "$c" fps)" 1 1) | >= 40, >= 20 |"
+    echo "| map building, one thread | $(fmt "$(field "$b1" fps)" 1 1) | $(fmt "$(field "$c1" fps)" 1 1) | |"
+    echo "| map: keyframes, points | $(field "$b" keyframes), $(field "$b" points) | $(field "$c" keyframes), $(field "$c" points) | the same for any thread count |"
+    echo
+    echo "Where a map build's time goes (every core; shares of the total):"
+    echo
+    echo "| stage | MH_01 | KITTI 01 |"
+    echo "|---|---|---|"
+    for stage in features_ms tracking_ms local_ba_ms global_ba_ms loop_closure_ms learning_ms; do
+      echo "| ${stage%_ms} | $(awk -v a="$(field "$b" $stage)" -v t="$(field "$b" total_s)" 'BEGIN{printf "%.0f%%", a/10/t}') | $(awk -v a="$(field "$c" $stage)" -v t="$(field "$c" total_s)" 'BEGIN{printf "%.0f%%", a/10/t}') |"
+    done
+    echo
+    echo "KITTI 01 maps its first frames up to four times while it estimates the rig's disparity bias"
+    echo "(docs/real-world.md), which is most of its bundle adjustment. Server capacity at 752x480:"
+    echo "[capacity.md](capacity.md) (\`scripts/capacity.sh\`)."
+    echo
+  fi
   echo "## Scaling"
   echo
   echo "Global relocalization against map size (\`build/core/localization/localization_benchmark\`,"
