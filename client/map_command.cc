@@ -171,12 +171,11 @@ int RunBuild(const Args& args) {
                  "frames on which the rig is checked before the build (0: no check)");
   options.builder.threads = 0;
   parser.AddFlag("threads", &options.builder.threads,
-                 "threads for features, stereo matching, decoding and bundle adjustment (the "
-                 "same map for any count)");
+                 "threads for features, stereo matching and decoding (the same map for any "
+                 "count)");
   parser.SetDefaultText("threads", "0: every core");
   parser.AddSwitch("json", &json, "print the summary as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
-  CheckFlags(options.builder);
   if (!(options.builder.keyframes.translation_m > 0) ||
       !(options.builder.keyframes.rotation_deg > 0)) {
     throw UsageError("keyframe thresholds must be positive");
@@ -184,6 +183,7 @@ int RunBuild(const Args& args) {
   if (max_features < 0 || options.min_points < 0 || options.check_frames < 0) {
     throw UsageError("--max-features, --min-points and --check-frames must not be negative");
   }
+  CheckFlags(options.builder);  // --threads, and what the checks above leave.
   options.builder.loop_closure.enabled = loop_closure != 0;
   options.builder.disparity_calibration.enabled = disparity_calibration != 0;
   if (name.empty()) name = fs::path(out).stem().string();

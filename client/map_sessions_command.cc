@@ -142,6 +142,14 @@ Map MergeDatasetSession(const std::string& map_path, const std::string& dataset_
   return merged;
 }
 
+// --threads for the session's mapping, every core unless given (as map build).
+void AddThreadsFlag(ArgParser& parser, mapping::SessionMergeOptions* options) {
+  options->threads = 0;
+  parser.AddFlag("threads", &options->threads,
+                 "threads for mapping the session (the same map for any count)");
+  parser.SetDefaultText("threads", "0: every core");
+}
+
 void AddOverlapFlags(ArgParser& parser, mapping::MergeOptions* options) {
   parser.AddFlag("inlier-distance", &options->inlier_distance_m,
                  "metres within which matched points agree on the alignment (0.05)");
@@ -204,6 +212,7 @@ int RunMapExtend(const Args& args) {
   parser.AddFlag("dataset", &dataset_dir, "the new session: a stereo dataset folder", true);
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
   AddOverlapFlags(parser, &options);
+  AddThreadsFlag(parser, &session_options);
   parser.AddSwitch("json", &json, "print the result as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
   CheckFlags(session_options);
@@ -238,6 +247,7 @@ int RunMapUpdate(const Args& args) {
   parser.AddFlag("min-expected-views", &options.min_expected_views,
                  "session keyframes that must have expected a point before it can go (3)");
   AddOverlapFlags(parser, &options.merge);
+  AddThreadsFlag(parser, &session_options);
   parser.AddSwitch("json", &json, "print the result as JSON");
   if (!parser.Parse(args, std::cout)) return 0;
   CheckFlags(session_options);

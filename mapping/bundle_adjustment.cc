@@ -108,8 +108,7 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       problem.SetParameterBlockConstant(correction_change);
     }
   }
-  summary.iterations = SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations,
-                                    options.threads);
+  summary.iterations = SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations);
   for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(pose);
   summary.correction_change = {correction_change[0], correction_change[1]};
   if (options.estimate_disparity_correction) {

@@ -23,7 +23,6 @@ struct BundleAdjustmentOptions {
   bool estimate_disparity_correction = false;
   double correction_offset_sigma_px = 2.0;
   double correction_yaw_sigma_deg = 0.3;
-  int threads = 1;  // Ceres's threads (the same solution for any count).
 };
 
 struct BundleAdjustmentSummary {

@@ -48,7 +48,7 @@ RectifiedIntrinsics IntrinsicsOf(const StereoRectifier& rectifier) {
 MapBuilderOptions Prepared(const MapBuilderOptions& options) {
   options.Check();
   MapBuilderOptions prepared = options;
-  prepared.stereo.threads = prepared.local_ba.threads = ResolveThreads(options.threads);
+  prepared.stereo.threads = ResolveThreads(options.threads);
   return prepared;
 }
 

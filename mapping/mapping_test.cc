@@ -372,6 +372,32 @@ Dataset RenderShort(const std::string& sequence, int frames, const TempDir& dir)
   return ReadDataset(sim::SequenceGenerator(options).Generate(sequence, dir.path()).dir);
 }
 
+// MapBuilderOptions::threads splits a frame's work, decodes ahead and runs Ceres on several
+// threads: the map is the same, keyframe for keyframe and point for point.
+TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
+  TempDir dir;
+  const Dataset dataset = RenderShort("map_square", 40, dir);
+  std::vector<Map> maps;
+  std::vector<MapBuildStats> stats(2);
+  for (int threads : {1, 2}) {
+    DatasetMappingOptions options;
+    options.builder.threads = threads;
+    maps.push_back(BuildMap(dataset, options, {"t", 0, "test", "test", ""}, &stats[threads - 1]));
+  }
+  ASSERT_GE(maps[0].keyframes.size(), 3u);
+  ASSERT_EQ(maps[0].keyframes.size(), maps[1].keyframes.size());
+  ASSERT_EQ(maps[0].points.size(), maps[1].points.size());
+  for (size_t k = 0; k < maps[0].keyframes.size(); ++k) {
+    EXPECT_EQ(maps[0].keyframes[k].map_from_cam.translation,
+              maps[1].keyframes[k].map_from_cam.translation)
+        << "keyframe " << k;
+  }
+  for (size_t i = 0; i < maps[0].points.size(); ++i) {
+    ASSERT_EQ(maps[0].points[i].position_in_map, maps[1].points[i].position_in_map) << "point " << i;
+  }
+  EXPECT_EQ(stats[0].observations, stats[1].observations);
+}
+
 TEST(MapBuilderInputTest, MonocularDatasetsAreRefused) {
   TempDir dir;
   Dataset dataset = RenderShort("straight", 2, dir);

@@ -53,13 +53,13 @@ inline void SetUpPoseBlock(ceres::Problem* problem, PoseBlock* pose, bool fixed)
   }
 }
 
-// Solves on `threads` threads without logging; returns the iterations taken.
+// Solves on one thread without logging; returns the iterations taken.
 inline int SolveQuietly(ceres::Problem* problem, ceres::LinearSolverType linear_solver,
-                        int max_iterations, int threads = 1) {
+                        int max_iterations) {
   ceres::Solver::Options options;
   options.linear_solver_type = linear_solver;
   options.max_num_iterations = max_iterations;
-  options.num_threads = threads;
+  options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(options, problem, &summary);

@@ -11,6 +11,7 @@ namespace visloc::mapping {
 void SessionMergeOptions::Check() const {
   registration.Check();
   update.Check();
+  VISLOC_CHECK(threads >= 0, "session mapping threads: ", threads, " (0: every core)");
 }
 
 namespace {
@@ -43,10 +44,11 @@ auto NamingTheSession(const StereoSource& session, Step&& step) -> decltype(step
 // The session mapped on its own, with the existing map's detector, as `map build` would;
 // `frame_trajectory`: where its mapping placed each image.
 Map MapSession(const Map& existing, const StereoSource& session, SessionMergeKind kind,
-               MapBuildStats* stats, Trajectory* frame_trajectory,
+               int threads, MapBuildStats* stats, Trajectory* frame_trajectory,
                const std::function<void(const SessionMergeProgress&)>& progress) {
   MapBuilderOptions builder;
   builder.features = DefaultFeatureSettings(existing.features.kind);
+  builder.threads = threads;
   const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)), session.origin(),
                              StrCat("visloc ", VislocVersion(), " map ", VerbOf(kind)), ""};
   return session.BuildMap(
@@ -73,7 +75,8 @@ Map MergeSession(const Map& existing, const StereoSource& session, SessionMergeK
   });
   Trajectory session_from_cam;
   const Map session_map =
-      MapSession(existing, session, kind, &stats->session_build, &session_from_cam, progress);
+      MapSession(existing, session, kind, options.threads, &stats->session_build,
+                 &session_from_cam, progress);
   stats->map_from_session = NamingTheSession(session, [&] {
     return FitMapFromSession(session_from_cam, map_from_cam, options.registration,
                              &stats->registration);

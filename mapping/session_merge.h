@@ -28,6 +28,7 @@ struct SessionMergeOptions {
   SessionRegistrationOptions registration;
   // For an update; an extension uses `update.merge` alone.
   UpdateOptions update;
+  int threads = 1;  // The session's mapping (MapBuilderOptions::threads; 0: every core).
   void Check() const;  // Checks the nested options too.
 };
 
