@@ -22,6 +22,7 @@
 #include "client/commands.h"
 #include "client/connection.h"
 #include "client/dataset_frames.h"
+#include "client/localization_report.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
@@ -57,13 +58,6 @@ struct RobotRecord {
   int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
   std::string failure;  // The server refused the session.
 };
-
-double Percentile(std::vector<double> values, double fraction) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const size_t i = std::min(values.size() - 1, static_cast<size_t>(fraction * values.size()));
-  return values[i];
-}
 
 // Frame k of a forwards-then-backwards play of `count` frames.
 size_t PingPong(size_t k, size_t count) {
@@ -234,7 +228,7 @@ int RunLoad(const Args& raw_args) {
     all_ms.insert(all_ms.end(), r.latency_ms.begin(), r.latency_ms.end());
     engine_ms.insert(engine_ms.end(), r.engine_ms.begin(), r.engine_ms.end());
     server_ms.insert(server_ms.end(), r.server_ms.begin(), r.server_ms.end());
-    robot_p99_ms.push_back(Percentile(r.latency_ms, 0.99));
+    robot_p99_ms.push_back(LatencyPercentile(r.latency_ms, 0.99));
     answered += r.answered;
     localized += r.localized;
     skipped += r.skipped;
@@ -243,8 +237,8 @@ int RunLoad(const Args& raw_args) {
     undelivered += r.undelivered;
   }
   const int frames = submitted;
-  const double p50 = Percentile(all_ms, 0.5), p95 = Percentile(all_ms, 0.95),
-               p99 = Percentile(all_ms, 0.99);
+  const double p50 = LatencyPercentile(all_ms, 0.5), p95 = LatencyPercentile(all_ms, 0.95),
+               p99 = LatencyPercentile(all_ms, 0.99);
   const double worst_robot_p99 = *std::max_element(robot_p99_ms.begin(), robot_p99_ms.end());
   const int not_answered = skipped + late + dropped + undelivered;
   const bool held = p99 <= args.max_p99_ms && not_answered <= 0.01 * frames;
@@ -266,8 +260,8 @@ int RunLoad(const Args& raw_args) {
         .Field("latency_ms_p95", p95)
         .Field("latency_ms_p99", p99)
         .Field("worst_robot_p99_ms", worst_robot_p99)
-        .Field("engine_ms_p50", Percentile(engine_ms, 0.5))
-        .Field("server_ms_p50", Percentile(server_ms, 0.5))
+        .Field("engine_ms_p50", LatencyPercentile(engine_ms, 0.5))
+        .Field("server_ms_p50", LatencyPercentile(server_ms, 0.5))
         .Field("jpeg_bytes_mean", encoded_bytes / encoded.size())
         .Field("client_cpu_fraction", cpu_s / streamed_s)
         .Field("held", held)
@@ -286,7 +280,7 @@ int RunLoad(const Args& raw_args) {
                 "p99 %.1f ms\n",
                 p50, p95, p99, worst_robot_p99);
     std::printf("in the server (p50): %.2f ms from receipt to reply, %.2f ms of it in the engine\n",
-                Percentile(server_ms, 0.5), Percentile(engine_ms, 0.5));
+                LatencyPercentile(server_ms, 0.5), LatencyPercentile(engine_ms, 0.5));
     std::printf("this generator used %.0f%% of one core\n", 100.0 * cpu_s / streamed_s);
     std::printf("%s: p99 %s %.0f ms and %d of %d frames not answered in time\n",
                 held ? "held" : "not held", p99 <= args.max_p99_ms ? "<=" : ">", args.max_p99_ms,

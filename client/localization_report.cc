@@ -51,6 +51,14 @@ GroundTruthErrors CompareWithGroundTruth(const std::vector<LocalizationResult>& 
 
 }  // namespace
 
+double LatencyPercentile(std::vector<double> values, double fraction) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  // The epsilon keeps 0.99 * 100 at rank 99 (0.99 is a little below itself in binary).
+  const size_t rank = static_cast<size_t>(fraction * static_cast<double>(values.size()) + 1e-9);
+  return values[std::min(values.size() - 1, rank)];
+}
+
 std::string StatsCsvHeader() {
   std::string header =
       "timestamp_ns,status,source,features,predicted,putatives,inliers,inlier_ratio,"

@@ -23,6 +23,10 @@ struct StepSummary {
 };
 std::vector<StepSummary> SummarizeSteps(const std::vector<LocalizationResult>& results);
 
+// The value of `values` at rank floor(fraction n) of their ascending order (the last for
+// fraction 1; 0 for none): the latency percentiles `visloc stream` and `visloc load` report.
+double LatencyPercentile(std::vector<double> values, double fraction);
+
 // The CSV header line (no newline) and one row per frame.
 std::string StatsCsvHeader();
 std::string StatsCsvRow(const LocalizationResult& result);

@@ -312,10 +312,7 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
 void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
                         const client::SessionStats& stats, size_t count, const Trajectory* gt) {
   const ErrorStats latency = ComputeErrorStats(rec.latency_ms);
-  std::vector<double> sorted = rec.latency_ms;
-  std::sort(sorted.begin(), sorted.end());
-  const double p99 =
-      sorted.empty() ? 0.0 : sorted[std::min(sorted.size() - 1, sorted.size() * 99 / 100)];
+  const double p99 = LatencyPercentile(rec.latency_ms, 0.99);
   const double kb_per_frame = stats.sent ? stats.bytes_sent / 1024.0 / stats.sent : 0.0;
   if (args.json) {
     JsonWriter json;

@@ -14,8 +14,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh > /dev/null
+source scripts/report-lib.sh
 V=$PWD/build/client/visloc
-S=$PWD/build/server/visloc-server
 REAL=${VISLOC_REAL_DATA:-$PWD/../shared/real}
 REC=$REAL/euroc_mh01_moving
 WORK=${1:-out/capacity}
@@ -27,7 +27,6 @@ mkdir -p "$WORK/maps"
 [[ -f $WORK/maps/mh01.db ]] || $V map build --dataset "$REC" --out "$WORK/maps/mh01.db" > /dev/null
 $V bench --dataset "$REC" --map "$WORK/maps/mh01.db" --relocalization-queries 1 --json \
   > "$WORK/bench.json"
-field() { sed -n "s/.*\"$2\":\([-0-9.e]*\).*/\1/p" "$1" | head -1; }
 engine_ms=$(field "$WORK/bench.json" ms_per_frame_median)
 decode_ms=$(/usr/bin/python3 - "$REC" << 'EOF'
 import glob, sys, time
@@ -50,11 +49,8 @@ EOF
 declare -A capacity
 for threads in 1 2; do
   rm -f "$WORK/server.out"
-  $S --maps "$WORK/maps" --listen 127.0.0.1:0 --max-sessions 256 --threads "$threads" \
-    > "$WORK/server.out" 2> "$WORK/server.log" &
-  server=$!
-  for _ in $(seq 100); do grep -q "listening on" "$WORK/server.out" 2> /dev/null && break; sleep 0.1; done
-  address=$(sed -n 's/^listening on //p' "$WORK/server.out")
+  start_server "$WORK/maps" "$WORK" --max-sessions 256 --threads "$threads"
+  address=$SERVER_ADDRESS
   capacity[$threads]=0
   misses=0
   for robots in 4 8 12 16 20 24 28 32 36 40; do
@@ -75,8 +71,7 @@ for threads in 1 2; do
       [[ $misses -ge 2 ]] && break
     fi
   done
-  kill -TERM "$server"
-  wait "$server" 2> /dev/null || true
+  stop_server
 done
 
 commit=$(git rev-parse --short HEAD)

@@ -143,6 +143,12 @@ TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
   const ProcessResult refused = Visloc(unknown);
   EXPECT_EQ(refused.exit_code, 1);
   EXPECT_THAT(refused.err, HasSubstr("nowhere"));
+
+  std::vector<std::string> no_robots = load;
+  no_robots[8] = "0";
+  const ProcessResult usage = Visloc(no_robots);
+  EXPECT_EQ(usage.exit_code, 2);
+  EXPECT_THAT(usage.err, HasSubstr("--robots is 1..256"));
 }
 
 TEST_F(FleetE2eTest, TheListNeedsAToken) {
