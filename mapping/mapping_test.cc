@@ -27,7 +27,7 @@ const RectifiedIntrinsics kIntrinsics{160.0, 159.5, 119.5, 0.144};
 template <typename Functor, int kResiduals, int... kBlocks>
 void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor,
                                  std::vector<std::vector<double>> parameters) {
-  std::unique_ptr<ceres::CostFunction> autodiff(analytic);
+  std::unique_ptr<ceres::CostFunction> cost(analytic);
   ceres::NumericDiffCostFunction<Functor, ceres::CENTRAL, kResiduals, kBlocks...> numeric(functor);
   const std::vector<int> sizes = {kBlocks...};
   std::vector<const double*> blocks;
@@ -43,7 +43,7 @@ void ExpectJacobiansMatchNumeric(ceres::CostFunction* analytic, Functor* functor
     jacobians_n.push_back(jn[b].data());
   }
   double residual_a[kResiduals], residual_n[kResiduals];
-  ASSERT_TRUE(autodiff->Evaluate(blocks.data(), residual_a, jacobians_a.data()));
+  ASSERT_TRUE(cost->Evaluate(blocks.data(), residual_a, jacobians_a.data()));
   ASSERT_TRUE(numeric.Evaluate(blocks.data(), residual_n, jacobians_n.data()));
   for (size_t block = 0; block < sizes.size(); ++block) {
     for (int i = 0; i < kResiduals * sizes[block]; ++i) {
@@ -63,10 +63,31 @@ std::vector<std::vector<double>> PoseAndPoint() {
 TEST(ReprojectionCostTest, StereoJacobiansMatchNumericDerivatives) {
   const Eigen::Vector2d left(170.0, 100.0);
   std::vector<std::vector<double>> parameters = PoseAndPoint();
-  parameters.push_back({0.4, 0.002});  // A disparity correction change: 0.4 px, 0.11 deg.
-  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3, 4, 3, 3, 2>(
+  parameters.push_back({0.4, 0.002, 0.0});  // A disparity correction change: 0.4 px, 0.11 deg.
+  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3, 4, 3, 3, kCorrectionBlockSize>(
       StereoReprojectionCost::Create(left, 160.0, kIntrinsics, 8.0),
       new StereoReprojectionCost(left, 160.0, kIntrinsics, 8.0), parameters);
+}
+
+// A left-only observation in the stereo layout: the left residual as MonoReprojectionCost has
+// it, and a disparity row that is zero with zero derivatives whatever the parameters.
+TEST(ReprojectionCostTest, LeftOnlyHasTheMonoResidualAndNoDisparityRow) {
+  const Eigen::Vector2d left(170.0, 100.0);
+  std::vector<std::vector<double>> parameters = PoseAndPoint();
+  parameters.push_back({0.4, 0.002, 0.0});
+  std::unique_ptr<StereoReprojectionCost> left_only(
+      StereoReprojectionCost::LeftOnly(left, kIntrinsics));
+  ExpectJacobiansMatchNumeric<StereoReprojectionCost, 3, 4, 3, 3, kCorrectionBlockSize>(
+      StereoReprojectionCost::LeftOnly(left, kIntrinsics),
+      StereoReprojectionCost::LeftOnly(left, kIntrinsics), parameters);
+  double stereo_layout[3], mono[2];
+  (*left_only)(parameters[0].data(), parameters[1].data(), parameters[2].data(),
+               parameters[3].data(), stereo_layout);
+  MonoReprojectionCost(left, kIntrinsics)(parameters[0].data(), parameters[1].data(),
+                                          parameters[2].data(), mono);
+  EXPECT_DOUBLE_EQ(stereo_layout[0], mono[0]);
+  EXPECT_DOUBLE_EQ(stereo_layout[1], mono[1]);
+  EXPECT_EQ(stereo_layout[2], 0.0);
 }
 
 TEST(ReprojectionCostTest, MonoJacobiansMatchNumericDerivatives) {
@@ -82,7 +103,7 @@ TEST(ReprojectionCostTest, ZeroAtTheTruePose) {
                              kIntrinsics.f * -0.2 / 2.5 + kIntrinsics.cy);
   const double right_x = kIntrinsics.f * (0.3 - 0.144) / 2.5 + kIntrinsics.cx;
   StereoReprojectionCost cost(left, right_x, kIntrinsics, 8.0);
-  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0}, unchanged[2] = {0, 0};
+  const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0}, unchanged[3] = {0, 0, 0};
   double residuals[3];
   cost(rotation, translation, point.data(), unchanged, residuals);
   for (double r : residuals) EXPECT_NEAR(r, 0.0, 1e-12);
@@ -101,12 +122,12 @@ TEST(ReprojectionCostTest, ACorrectionChangeTakesABiasOffTheDisparity) {
       true_right_x - bias.BiasPx(true_right_x, kIntrinsics.f, kIntrinsics.cx);
   StereoReprojectionCost cost(left, measured_right_x, kIntrinsics, 8.0);
   const double rotation[4] = {0, 0, 0, 1}, translation[3] = {0, 0, 0};
-  const double change[2] = {bias.offset_px, bias.yaw_rad};
+  const double change[3] = {bias.offset_px, bias.yaw_rad, 0.0};
   double residuals[3];
   cost(rotation, translation, point.data(), change, residuals);
   // First order in the yaw: the gain is taken at the measured column, not the true one.
   EXPECT_NEAR(residuals[2], 0.0, 8.0 * 1e-3);
-  const double none[2] = {0, 0};
+  const double none[3] = {0, 0, 0};
   cost(rotation, translation, point.data(), none, residuals);
   EXPECT_GT(std::abs(residuals[2]), 8.0 * 0.9);
 }

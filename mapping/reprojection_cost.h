@@ -1,9 +1,11 @@
 #pragma once
-// Ceres cost functors for bundle adjustment in the rectified stereo camera (pixels).
+// Ceres cost functions for bundle adjustment in the rectified stereo camera (pixels).
 //
 // Parameter blocks, in order: [0] rotation cam_from_world as an Eigen quaternion (x, y, z, w;
 // EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3); stereo
-// only: [3] a change of the rig's disparity correction (offset px, yaw rad;
+// only: [3] a change of the rig's disparity correction (offset px, yaw rad, and a third entry
+// that nothing depends on and a prior holds at zero: three wide, like the pose's blocks, the
+// correction leaves Ceres's fixed-size Schur code in use while it is estimated;
 // disparity_correction.h), held constant unless bundle adjustment estimates it.
 // With p = R X + t in the rectified left camera:
 //   mono:   r = (f p.x / p.z + cx - u, f p.y / p.z + cy - v)
@@ -17,9 +19,9 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
 
 #include <ceres/ceres.h>
-#include <ceres/rotation.h>
 
 #include <Eigen/Core>
 
@@ -53,11 +55,14 @@ inline void SetUpPoseBlock(ceres::Problem* problem, PoseBlock* pose, bool fixed)
   }
 }
 
-// Solves on one thread without logging; returns the iterations taken.
+// Solves on one thread without logging, in `ordering` when given (else Ceres finds one);
+// returns the iterations taken.
 inline int SolveQuietly(ceres::Problem* problem, ceres::LinearSolverType linear_solver,
-                        int max_iterations) {
+                        int max_iterations,
+                        std::shared_ptr<ceres::ParameterBlockOrdering> ordering = nullptr) {
   ceres::Solver::Options options;
   options.linear_solver_type = linear_solver;
+  options.linear_solver_ordering = std::move(ordering);
   options.max_num_iterations = max_iterations;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
@@ -73,45 +78,45 @@ struct RectifiedIntrinsics {
   double baseline_m = 0.0;
 };
 
-// p = R X + t for the parameter layout above.
-template <typename T>
-void TransformToCamera(const T* rotation, const T* translation, const T* point, T* p) {
-  // ceres::QuaternionRotatePoint expects (w, x, y, z); Eigen stores (x, y, z, w).
-  const T q[4] = {rotation[3], rotation[0], rotation[1], rotation[2]};
-  ceres::QuaternionRotatePoint(q, point, p);
-  p[0] += translation[0];
-  p[1] += translation[1];
-  p[2] += translation[2];
-}
+// p = R X + t for the parameter layout above, and when `jacobians` is set its derivatives: by
+// the rotation block (3x4, its four entries x y z w) and by the point (R). The rotation is the
+// unit quaternion's, X + 2 w (v x X) + 2 v x (v x X) with q = (v, w): Ceres keeps the block on
+// the unit sphere (EigenQuaternionManifold), and there this formula and its derivatives are
+// exact; along the sphere's tangent, the only directions the solver takes, any other extension
+// off the sphere has the same derivatives.
+struct CameraPoint {
+  Eigen::Vector3d p;
+  Eigen::Matrix<double, 3, 4> dp_drotation;
+  Eigen::Matrix3d dp_dpoint;
+};
+void TransformToCamera(const double* rotation, const double* translation, const double* point,
+                       bool jacobians, CameraPoint* out);
 
-class StereoReprojectionCost {
+// Analytic Jacobians: autodiff's dual numbers cost several times the arithmetic, and bundle
+// adjustment evaluates these costs most of its time. Both reprojection costs share one row
+// layout, three residuals, so that Ceres's Schur eliminator runs its fixed-size code: a mono
+// observation (no right match) has a disparity row that is always zero.
+// The correction block's size (above).
+constexpr int kCorrectionBlockSize = 3;
+
+class StereoReprojectionCost final
+    : public ceres::SizedCostFunction<3, 4, 3, 3, kCorrectionBlockSize> {
  public:
   StereoReprojectionCost(const Eigen::Vector2d& left_px, double right_x_px,
-                         const RectifiedIntrinsics& k, double disparity_weight)
-      : left_px_(left_px),
-        disparity_px_(left_px.x() - right_x_px),
-        yaw_gain_px_(k.f * (1.0 + std::pow((right_x_px - k.cx) / k.f, 2))),
-        k_(k),
-        disparity_weight_(disparity_weight) {}
+                         const RectifiedIntrinsics& k, double disparity_weight);
+  // An observation in the left image only: the disparity residual is zero.
+  static StereoReprojectionCost* LeftOnly(const Eigen::Vector2d& left_px,
+                                          const RectifiedIntrinsics& k);
 
-  template <typename T>
-  bool operator()(const T* rotation, const T* translation, const T* point, const T* correction,
-                  T* residuals) const {
-    T p[3];
-    TransformToCamera(rotation, translation, point, p);
-    const T inverse_z = T(1.0) / p[2];
-    residuals[0] = T(k_.f) * p[0] * inverse_z + T(k_.cx) - T(left_px_.x());
-    residuals[1] = T(k_.f) * p[1] * inverse_z + T(k_.cy) - T(left_px_.y());
-    const T bias = correction[0] + T(yaw_gain_px_) * correction[1];
-    residuals[2] =
-        T(disparity_weight_) * (T(k_.f * k_.baseline_m) * inverse_z - T(disparity_px_) + bias);
-    return true;
-  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+  // The residuals alone, block by block (the numeric-derivative tests' functor form).
+  bool operator()(const double* rotation, const double* translation, const double* point,
+                  const double* correction, double* residuals) const;
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& left_px, double right_x_px,
                                      const RectifiedIntrinsics& k, double disparity_weight) {
-    return new ceres::AutoDiffCostFunction<StereoReprojectionCost, 3, 4, 3, 3, 2>(
-        new StereoReprojectionCost(left_px, right_x_px, k, disparity_weight));
+    return new StereoReprojectionCost(left_px, right_x_px, k, disparity_weight);
   }
 
  private:
@@ -119,7 +124,7 @@ class StereoReprojectionCost {
   double disparity_px_;
   double yaw_gain_px_;  // d bias / d yaw at this column: f (1 + x_right^2).
   RectifiedIntrinsics k_;
-  double disparity_weight_;
+  double disparity_weight_;  // 0 for a left-only observation.
 };
 
 // A zero-mean Gaussian prior on a change of the disparity correction, in the units of the
@@ -133,11 +138,12 @@ class DisparityCorrectionPrior {
   bool operator()(const T* correction, T* residuals) const {
     residuals[0] = correction[0] / T(offset_sigma_px_);
     residuals[1] = correction[1] / T(yaw_sigma_rad_);
+    residuals[2] = correction[2];  // The unused entry (above), held at zero.
     return true;
   }
 
   static ceres::CostFunction* Create(double offset_sigma_px, double yaw_sigma_rad) {
-    return new ceres::AutoDiffCostFunction<DisparityCorrectionPrior, 2, 2>(
+    return new ceres::AutoDiffCostFunction<DisparityCorrectionPrior, 3, kCorrectionBlockSize>(
         new DisparityCorrectionPrior(offset_sigma_px, yaw_sigma_rad));
   }
 
@@ -145,23 +151,19 @@ class DisparityCorrectionPrior {
   double offset_sigma_px_, yaw_sigma_rad_;
 };
 
-class MonoReprojectionCost {
+// The left image's residual alone, for maps without stereo (map_adjustment.h).
+class MonoReprojectionCost final : public ceres::SizedCostFunction<2, 4, 3, 3> {
  public:
   MonoReprojectionCost(const Eigen::Vector2d& left_px, const RectifiedIntrinsics& k)
       : left_px_(left_px), k_(k) {}
 
-  template <typename T>
-  bool operator()(const T* rotation, const T* translation, const T* point, T* residuals) const {
-    T p[3];
-    TransformToCamera(rotation, translation, point, p);
-    residuals[0] = T(k_.f) * p[0] / p[2] + T(k_.cx) - T(left_px_.x());
-    residuals[1] = T(k_.f) * p[1] / p[2] + T(k_.cy) - T(left_px_.y());
-    return true;
-  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+  bool operator()(const double* rotation, const double* translation, const double* point,
+                  double* residuals) const;
 
   static ceres::CostFunction* Create(const Eigen::Vector2d& left_px, const RectifiedIntrinsics& k) {
-    return new ceres::AutoDiffCostFunction<MonoReprojectionCost, 2, 4, 3, 3>(
-        new MonoReprojectionCost(left_px, k));
+    return new MonoReprojectionCost(left_px, k);
   }
 
  private:
