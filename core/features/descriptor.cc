@@ -1,5 +1,8 @@
 #include "core/features/descriptor.h"
 
+#include <algorithm>
+#include <limits>
+
 #include <opencv2/core/hal/hal.hpp>
 
 #include "core/util/check.h"
@@ -24,28 +27,95 @@ Float16Columns::Float16Columns(const cv::Mat& descriptors, const std::vector<uin
 
 namespace {
 
-// Float16Columns::Distances, out of the class so it can be cloned for AVX2. The lanes and their
-// order are DescriptorDistance's: lane l sums dimensions l, l + 4, l + 8, l + 12 from 0, and the
-// result is sqrt((l0 + l1) + (l2 + l3)).
-VISLOC_AVX2_CLONE void ColumnDistances(const float* __restrict query,
-                                       const float* __restrict columns, int count,
-                                       float* __restrict out) {
-  for (int j = 0; j < count; ++j) {
-    float lanes[4] = {0, 0, 0, 0};
-    for (int i = 0; i < 16; i += 4) {
-      for (int l = 0; l < 4; ++l) {
-        const float diff = query[i + l] - columns[(i + l) * count + j];
-        lanes[l] += diff * diff;
-      }
+// GCC's generic vectors of eight: AVX2 registers in the AVX2 clone, pairs of SSE2 ones in the
+// baseline, the same IEEE operations in both.
+typedef float Floats8 __attribute__((vector_size(32)));
+typedef int Ints8 __attribute__((vector_size(32)));
+constexpr int kLanes = 8;
+
+// The squared distance of `query` to descriptors j0 ... j0 + 7 of the columns. The lanes and
+// their order are DescriptorDistance's: lane l sums dimensions l, l + 4, l + 8, l + 12 from 0,
+// and the sum is (l0 + l1) + (l2 + l3), before its square root. (Written to `out`: a vector
+// return value would have an ABI that differs between the clones.)
+inline void SquaredDistances8(const float* query, const float* columns, int count, int j0,
+                              Floats8* out) {
+  Floats8 sums[4] = {};
+  for (int i = 0; i < 16; i += 4) {
+    for (int k = 0; k < 4; ++k) {
+      Floats8 column;
+      __builtin_memcpy(&column, columns + (i + k) * count + j0, sizeof column);
+      const Floats8 diff = query[i + k] - column;
+      sums[k] += diff * diff;
     }
-    out[j] = std::sqrt((lanes[0] + lanes[1]) + (lanes[2] + lanes[3]));
   }
+  *out = (sums[0] + sums[1]) + (sums[2] + sums[3]);
+}
+
+// The same for one descriptor j.
+inline float SquaredDistance(const float* query, const float* columns, int count, int j) {
+  float lanes[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 16; i += 4) {
+    for (int l = 0; l < 4; ++l) {
+      const float diff = query[i + l] - columns[(i + l) * count + j];
+      lanes[l] += diff * diff;
+    }
+  }
+  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
+
+// Float16Columns::Nearest, on squared distances: the square root is monotonic and correctly
+// rounded, so the nearest two's roots are the roots' nearest two, and the first index of the
+// smallest square is that of the smallest root unless two squares round to one root, a tie
+// that no ratio test passes. Lane l keeps NearestTwo's state over descriptors l, l + 8, ...; the
+// lanes are merged as one pass in index order would have left them: the smallest best, at its
+// first index, and as second the smallest of the other lanes' bests and the winner's second. The
+// remainder (count % 8, the last indices) is offered in order after that.
+VISLOC_AVX2_CLONE NearestTwo ColumnNearest(const float* query, const float* columns, int count) {
+  constexpr float kFar = std::numeric_limits<float>::max();
+  Floats8 best, second;
+  Ints8 best_index, index;
+  for (int l = 0; l < kLanes; ++l) {
+    best[l] = second[l] = kFar;
+    best_index[l] = -1;
+    index[l] = l;
+  }
+  int j0 = 0;
+  for (; j0 + kLanes <= count; j0 += kLanes, index += kLanes) {
+    Floats8 squared;
+    SquaredDistances8(query, columns, count, j0, &squared);
+    const Ints8 closer = squared < best;
+    second = closer ? best : (squared < second ? squared : second);
+    best_index = closer ? index : best_index;
+    best = closer ? squared : best;
+  }
+  NearestTwo nearest;  // In squared distances until the end.
+  int winner = -1;
+  for (int l = 0; l < kLanes; ++l) {
+    if (best_index[l] < 0) continue;
+    if (winner < 0 || best[l] < best[winner] ||
+        (best[l] == best[winner] && best_index[l] < best_index[winner])) {
+      winner = l;
+    }
+  }
+  if (winner >= 0) {
+    nearest.best = best[winner];
+    nearest.best_index = best_index[winner];
+    // Another lane's own second is never below its best.
+    for (int l = 0; l < kLanes; ++l) {
+      nearest.second = std::min(nearest.second, l == winner ? second[l] : best[l]);
+    }
+  }
+  for (int j = j0; j < count; ++j) nearest.Offer(SquaredDistance(query, columns, count, j), j);
+  // Roots, except of "none yet".
+  if (nearest.best < kFar) nearest.best = std::sqrt(nearest.best);
+  if (nearest.second < kFar) nearest.second = std::sqrt(nearest.second);
+  return nearest;
 }
 
 }  // namespace
 
-void Float16Columns::Distances(const float* query, float* out) const {
-  ColumnDistances(query, columns_.data(), count_, out);
+NearestTwo Float16Columns::Nearest(const float* query) const {
+  return ColumnNearest(query, columns_.data(), count_);
 }
 
 }  // namespace visloc

@@ -6,13 +6,15 @@
 // Inline, with a fixed-length path for the 16-float rows of harris_surf16: guided matching calls
 // it thousands of times per frame (BM_DescriptorDistance/0: 8.6 ns out of line, 7.6 ns now).
 // Matching one query against a whole candidate set (relocalization, brute force) goes through
-// Float16Columns, which gives the same values eight at a time.
+// Float16Columns, which finds the same nearest two eight at a time.
 
 #include <cmath>
 #include <cstdint>
 #include <vector>
 
 #include <opencv2/core.hpp>
+
+#include "core/features/feature_types.h"
 
 namespace visloc {
 
@@ -44,9 +46,13 @@ class Float16Columns {
   // Rows `rows` of `descriptors` (CV_32F, 16 columns).
   Float16Columns(const cv::Mat& descriptors, const std::vector<uint32_t>& rows);
   int size() const { return count_; }
-  // out[j] = DescriptorDistance(query, descriptor j), bit for bit: the same operations in the
-  // same order, but eight descriptors at a time with AVX2 (no sum runs across a register).
-  void Distances(const float* query, float* out) const;
+  // The nearest two descriptors to `query`, exactly as NearestTwo::Offer of each distance
+  // DescriptorDistance(query, descriptor j) in order j = 0, 1, ... leaves them (the first of
+  // equal bests, a tie's twin as the second), bit for bit: the same operations in the same order
+  // for each distance, but eight descriptors at a time with AVX2 (no sum runs across a
+  // register), and no distance stored. Relocalization and the brute-force baseline match every
+  // keypoint of a query against hundreds of points.
+  NearestTwo Nearest(const float* query) const;
 
  private:
   int count_ = 0;

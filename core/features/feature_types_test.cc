@@ -19,21 +19,30 @@ TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
   EXPECT_FLOAT_EQ(DescriptorDistance(floats, 1, floats, 1), 0.0f);
 }
 
-TEST(DescriptorDistanceTest, ColumnsGiveTheSameDistancesBitForBit) {
-  cv::Mat descriptors(37, 16, CV_32F);  // 37: the vector loop and its remainder.
+TEST(DescriptorDistanceTest, ColumnsFindTheSameNearestTwoBitForBit) {
+  cv::Mat descriptors(37, 16, CV_32F);
   cv::randu(descriptors, -1.0f, 1.0f);
-  const std::vector<uint32_t> rows = {5, 0, 36, 12, 12, 7, 30, 1, 2, 3, 33, 20, 18, 9, 4};
+  // 19 rows: two groups of eight lanes and a remainder. Rows 12 (twice) and 7 (in both groups)
+  // tie: the first index must win and its twin be the second.
+  const std::vector<uint32_t> rows = {5,  0,  36, 12, 12, 7,  30, 1,  2, 3,
+                                      33, 20, 18, 9,  4,  7,  12, 22, 12};
   const Float16Columns columns(descriptors, rows);
   ASSERT_EQ(columns.size(), static_cast<int>(rows.size()));
-  std::vector<float> distances(rows.size());
+  int ties = 0;
   for (int query = 0; query < descriptors.rows; ++query) {
-    columns.Distances(descriptors.ptr<float>(query), distances.data());
+    NearestTwo expected;
     for (size_t j = 0; j < rows.size(); ++j) {
-      const float expected =
-          DescriptorDistance(descriptors, query, descriptors, static_cast<int>(rows[j]));
-      EXPECT_EQ(distances[j], expected) << "query " << query << ", row " << rows[j];
+      expected.Offer(DescriptorDistance(descriptors, query, descriptors, static_cast<int>(rows[j])),
+                     static_cast<int>(j));
     }
+    const NearestTwo nearest = columns.Nearest(descriptors.ptr<float>(query));
+    EXPECT_EQ(nearest.best_index, expected.best_index) << "query " << query;
+    EXPECT_EQ(nearest.best, expected.best) << "query " << query;
+    EXPECT_EQ(nearest.second, expected.second) << "query " << query;
+    ties += expected.best == expected.second;
   }
+  // Every query whose nearest row is listed more than once; at least 7 and 12 themselves.
+  EXPECT_GE(ties, 2);
   EXPECT_THROW(Float16Columns(cv::Mat(3, 32, CV_8U), {0}), std::exception);
   EXPECT_THROW(Float16Columns(descriptors, {37}), std::exception);  // Past the last row.
 }

@@ -86,18 +86,17 @@ std::vector<PointMatch> MatchByDescriptor(const PointView& map_points,
         frame.size() == 0 || (frame_descriptors.type() == CV_32F && frame_descriptors.cols == 16),
         "the frame's descriptors are not the map's (16 floats)");
   }
-  std::vector<float> distances(points.size());
   for (int i = 0; i < static_cast<int>(frame.size()); ++i) {
+    NearestTwo nearest;
     if (columns) {
-      columns->Distances(frame_descriptors.ptr<float>(i), distances.data());
+      nearest = columns->Nearest(frame_descriptors.ptr<float>(i));
     } else {
       for (size_t j = 0; j < points.size(); ++j) {
-        distances[j] =
-            DescriptorDistance(frame_descriptors, i, descriptors, static_cast<int>(rows[j]));
+        nearest.Offer(
+            DescriptorDistance(frame_descriptors, i, descriptors, static_cast<int>(rows[j])),
+            static_cast<int>(j));
       }
     }
-    NearestTwo nearest;
-    for (size_t j = 0; j < points.size(); ++j) nearest.Offer(distances[j], static_cast<int>(j));
     if (!nearest.Distinctive(options.ratio, max_distance)) continue;
     PointMatch& claim = per_point[nearest.best_index];
     if (nearest.best < claim.distance) claim = {points[nearest.best_index], i, nearest.best};
