@@ -48,8 +48,9 @@ echo "== data (640x480)"
 
 # Google Benchmark families of build/core/localization/localization_benchmark in the report.
 families=(ExtractHarrisSurf16 DetectHarrisSurf16 DescribeHarrisSurf16 DetectRealFrame ExtractRealFrameAllScales
-          OrbReference DescriptorDistance PredictVisibility ProjectAndMatch SolveP3P PnpRansac RefinePose
-          RelocalizeScaling)
+          OrbReference DescriptorDistance PredictVisibility ProjectAndMatch MatchByDescriptor SolveP3P
+          PnpRansac RefinePose RelocalizeScaling)
+mapping_families=(LocalBundleAdjust GlobalBundleAdjust)
 # Real frames (../shared/real): the real-resolution section, when the recordings are there.
 REAL=$(realpath -m "${VISLOC_REAL_DATA:-../shared/real}")
 real_recordings=(euroc_mh01_moving kitti01_first51)
@@ -104,6 +105,10 @@ echo "== scaling (microbenchmarks)"
 for family in "${families[@]}"; do
   build/core/localization/localization_benchmark --benchmark_format=csv \
     --benchmark_filter="^BM_$family/?" > "$WORK/micro_$family.csv" 2> /dev/null
+done
+for family in "${mapping_families[@]}"; do
+  build/mapping/mapping_benchmark --benchmark_format=csv --benchmark_filter="^BM_$family/?" \
+    > "$WORK/micro_$family.csv" 2> /dev/null
 done
 build/mapstore/map_store_benchmark --benchmark_format=csv --benchmark_filter='^BM_LoadMap/' \
   > "$WORK/mapstore.csv" 2> /dev/null
@@ -385,7 +390,7 @@ echo "== writing $REPORT"
   echo "Hot kernels (same binary): "
   echo
   echo '```'
-  for family in "${families[@]}"; do
+  for family in "${families[@]}" "${mapping_families[@]}"; do
     [[ $family == RelocalizeScaling ]] && continue
     awk -F, 'NR == 1 { for (i = 1; i <= NF; ++i) { h = $i; gsub(/"/, "", h); col[h] = i }; next }
              { n = $1; gsub(/"/, "", n); printf "%-32s %10.3f %s\n", n, $col["real_time"], $col["time_unit"] }' "$WORK/micro_$family.csv"

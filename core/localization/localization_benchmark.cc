@@ -202,6 +202,23 @@ void BM_ProjectAndMatch(benchmark::State& state) {
 }
 BENCHMARK(BM_ProjectAndMatch);
 
+// Relocalization's candidate matching: every keypoint of the view against every point its
+// keyframe sees, nearest two with the ratio test (MatchByDescriptor).
+void BM_MatchByDescriptor(benchmark::State& state) {
+  const Scene& s = TestScene();
+  const QueryFrame frame(s.features, s.map->map().camera);
+  const std::vector<uint32_t> points(s.map->VisiblePoints(20).begin(),
+                                     s.map->VisiblePoints(20).end());
+  size_t matches = 0;
+  for (auto _ : state) {
+    matches = MatchByDescriptor(s.map->AllPoints(), points, frame, DescriptorMatchOptions{}).size();
+  }
+  state.counters["keypoints"] = static_cast<double>(frame.size());
+  state.counters["points"] = static_cast<double>(points.size());
+  state.counters["matches"] = static_cast<double>(matches);
+}
+BENCHMARK(BM_MatchByDescriptor)->Unit(benchmark::kMicrosecond);
+
 std::vector<PoseObservation> Observations(double outlier_fraction) {
   const Scene& s = TestScene();
   const QueryFrame frame(s.features, s.map->map().camera);
