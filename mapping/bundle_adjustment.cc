@@ -49,19 +49,19 @@ bool WithinThreshold(const ObservationError& e, const BundleAdjustmentOptions& o
 // The elimination order for the Schur solver: points first, then the poses and the correction.
 // Ceres would find the same order itself, as an independent set of its graph, at a third of a
 // small adjustment's time. Ceres orders a group's blocks by address: the points lie in the
-// landmark vector and the camera blocks in one allocation (CameraBlocks), both in index order,
+// landmark vector and the camera blocks in one allocation (BundleAdjust), both in index order,
 // so every solve sums in the same order whatever the allocator did before (the same map for
 // any thread count).
 std::shared_ptr<ceres::ParameterBlockOrdering> PointsFirst(const ceres::Problem& problem,
                                                            const std::set<int>& landmarks,
                                                            SlamState* state,
-                                                           std::map<int, PoseBlock*>* poses,
+                                                           const std::map<int, PoseBlock*>& poses,
                                                            double* correction) {
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (int l : landmarks) {
     ordering->AddElementToGroup(state->landmarks[l].position_in_world.data(), 0);
   }
-  for (auto& [k, pose] : *poses) {
+  for (const auto& [k, pose] : poses) {
     if (!problem.HasParameterBlock(pose->data())) continue;
     ordering->AddElementToGroup(pose->data(), 1);
     ordering->AddElementToGroup(pose->data() + 4, 1);
@@ -87,10 +87,10 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       if (l >= 0 && !state->landmarks[l].culled) landmarks.insert(l);
     }
   }
-  // Pose parameters: contiguous copies, written back afterwards.
-  // The window's poses in keyframe order, then the change of the disparity correction (offset
-  // px, yaw rad, the unused entry; reprojection_cost.h) in the first entries of one more block:
-  // one allocation in index order (PointsFirst).
+  // The parameters besides the points, copied in and written back afterwards: the window's
+  // poses in keyframe order, then the change of the disparity correction (offset px, yaw rad,
+  // the unused entry; reprojection_cost.h) in the first entries of one more block, all in one
+  // allocation in index order (PointsFirst).
   std::vector<PoseBlock> camera_blocks(window.size() + 1);
   std::map<int, PoseBlock*> poses;
   for (int k : window) {
@@ -143,7 +143,7 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
   }
   summary.iterations =
       SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations,
-                   PointsFirst(problem, landmarks, state, &poses, correction_change));
+                   PointsFirst(problem, landmarks, state, poses, correction_change));
   for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(*pose);
   summary.correction_change = {correction_change[0], correction_change[1]};
   if (options.estimate_disparity_correction) {

@@ -2,8 +2,8 @@
 // Ceres cost functions for bundle adjustment in the rectified stereo camera (pixels).
 //
 // Parameter blocks, in order: [0] rotation cam_from_world as an Eigen quaternion (x, y, z, w;
-// EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3); stereo
-// only: [3] a change of the rig's disparity correction (offset px, yaw rad, and a third entry
+// EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3);
+// StereoReprojectionCost only: [3] a change of the rig's disparity correction (offset px, yaw rad, and a third entry
 // that nothing depends on and a prior holds at zero: three wide, like the pose's blocks, the
 // correction leaves Ceres's fixed-size Schur code in use while it is estimated;
 // disparity_correction.h), held constant unless bundle adjustment estimates it.
@@ -92,13 +92,13 @@ struct CameraPoint {
 void TransformToCamera(const double* rotation, const double* translation, const double* point,
                        bool jacobians, CameraPoint* out);
 
-// Analytic Jacobians: autodiff's dual numbers cost several times the arithmetic, and bundle
-// adjustment evaluates these costs most of its time. Both reprojection costs share one row
-// layout, three residuals, so that Ceres's Schur eliminator runs its fixed-size code: a mono
-// observation (no right match) has a disparity row that is always zero.
 // The correction block's size (above).
 constexpr int kCorrectionBlockSize = 3;
 
+// Analytic Jacobians: autodiff's dual numbers cost several times the arithmetic, and bundle
+// adjustment evaluates these costs most of its time. Every observation of a stereo bundle
+// adjustment has this layout, three residuals, so that Ceres's Schur eliminator runs its
+// fixed-size code: one without a right match (LeftOnly) has a disparity row that is always zero.
 class StereoReprojectionCost final
     : public ceres::SizedCostFunction<3, 4, 3, 3, kCorrectionBlockSize> {
  public:
