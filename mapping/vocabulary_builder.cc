@@ -1,7 +1,8 @@
 #include "mapping/vocabulary_builder.h"
 
 #include <cmath>
-#include <set>
+#include <algorithm>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -93,8 +94,9 @@ void IndexKeyframes(const std::vector<cv::Mat>& keyframe_descriptors, Vocabulary
   const size_t words = vocabulary->word_count();
   std::vector<int> documents(words, 0);
   for (const cv::Mat& descriptors : keyframe_descriptors) {
-    std::set<uint32_t> seen;
-    for (int r = 0; r < descriptors.rows; ++r) seen.insert(LookupWord(*vocabulary, descriptors, r));
+    std::vector<uint32_t> seen = LookupWords(*vocabulary, descriptors);
+    std::sort(seen.begin(), seen.end());
+    seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
     for (uint32_t w : seen) ++documents[w];
   }
   const double n = static_cast<double>(std::max<size_t>(1, keyframe_descriptors.size()));

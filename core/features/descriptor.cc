@@ -112,7 +112,36 @@ VISLOC_AVX2_CLONE NearestTwo ColumnNearest(const float* query, const float* colu
   return nearest;
 }
 
+// Float16Columns::NearestOf: the distances a block at a time, a loop over consecutive
+// descriptors that the compiler vectorizes, then the first smallest in order.
+VISLOC_AVX2_CLONE int ColumnArgMin(const float* query, const float* columns, int count, int first,
+                                   int n) {
+  constexpr int kBlock = 64;
+  float distance[kBlock];
+  int best = -1;
+  float best_distance = std::numeric_limits<float>::max();
+  for (int j0 = first; j0 < first + n; j0 += kBlock) {
+    const int m = std::min(kBlock, first + n - j0);
+    for (int j = 0; j < m; ++j) {
+      distance[j] = std::sqrt(SquaredDistance(query, columns, count, j0 + j));
+    }
+    for (int j = 0; j < m; ++j) {
+      if (distance[j] < best_distance) {
+        best_distance = distance[j];
+        best = j0 + j;
+      }
+    }
+  }
+  return best;
+}
+
 }  // namespace
+
+int Float16Columns::NearestOf(const float* query, int first, int count) const {
+  VISLOC_CHECK(first >= 0 && count >= 0 && first + count <= count_, "descriptor range ", first,
+               " + ", count, " of ", count_);
+  return ColumnArgMin(query, columns_.data(), count_, first, count);
+}
 
 NearestTwo Float16Columns::Nearest(const float* query) const {
   return ColumnNearest(query, columns_.data(), count_);

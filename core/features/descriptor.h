@@ -53,6 +53,10 @@ class Float16Columns {
   // register), and no distance stored. Relocalization and the brute-force baseline match every
   // keypoint of a query against hundreds of points.
   NearestTwo Nearest(const float* query) const;
+  // The index in [first, first + count) of the descriptor nearest to `query`, the first of equal
+  // distances, each distance DescriptorDistance's bit for bit (vocabulary lookups: a node's
+  // children are consecutive rows); -1 when count is 0.
+  int NearestOf(const float* query, int first, int count) const;
 
  private:
   int count_ = 0;

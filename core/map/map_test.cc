@@ -1,5 +1,7 @@
 #include "core/map/map.h"
 
+#include <map>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -119,6 +121,67 @@ TEST(LocalizationMapTest, KeyframesFarApartInAWordsPostingListScoreExactly) {
   EXPECT_EQ(scores[70001], 0.25f);
   EXPECT_EQ(scores[70000], 0.0f);
   EXPECT_EQ(localization.ScoreKeyframes({{4, 0.6f}})[70001], 0.6f);
+}
+
+}  // namespace
+}  // namespace visloc
+
+namespace visloc {
+namespace {
+
+// A random vocabulary of `branching` and `depth` over 16-float (or 32-byte binary) descriptors,
+// with two children of one node equal, so that lookups meet exact ties.
+Vocabulary RandomVocabulary(int branching, int depth, bool binary) {
+  Vocabulary vocabulary;
+  vocabulary.branching = branching;
+  vocabulary.depth = depth;
+  int nodes = 0, words = 1;
+  for (int level = 0; level < depth; ++level) nodes += (words *= branching);
+  vocabulary.centroids =
+      binary ? cv::Mat(nodes, 32, CV_8U) : cv::Mat(nodes, 16, CV_32F);
+  cv::RNG rng(5);
+  if (binary) {
+    rng.fill(vocabulary.centroids, cv::RNG::UNIFORM, 0, 256);
+  } else {
+    rng.fill(vocabulary.centroids, cv::RNG::UNIFORM, -1.0, 1.0);
+  }
+  vocabulary.centroids.row(3).copyTo(vocabulary.centroids.row(1));  // A tie at the first level.
+  for (int w = 0; w < words; ++w) vocabulary.word_weights.push_back(0.5f + 0.01f * (w % 7));
+  return vocabulary;
+}
+
+// The batched lookup (eight children at a time for 16 floats) gives LookupWord's words, ties
+// included, and ComputeBow the vector one lookup at a time would.
+TEST(VocabularyTest, BatchedLookupGivesEachDescriptorsWord) {
+  for (const bool binary : {false, true}) {
+    for (const int branching : {8, 10}) {
+      const Vocabulary vocabulary = RandomVocabulary(branching, 3, binary);
+      cv::Mat descriptors = binary ? cv::Mat(300, 32, CV_8U) : cv::Mat(300, 16, CV_32F);
+      cv::RNG rng(9);
+      if (binary) {
+        rng.fill(descriptors, cv::RNG::UNIFORM, 0, 256);
+      } else {
+        rng.fill(descriptors, cv::RNG::UNIFORM, -1.0, 1.0);
+      }
+      vocabulary.centroids.row(1).copyTo(descriptors.row(0));  // On the tie itself.
+      const std::vector<uint32_t> words = LookupWords(vocabulary, descriptors);
+      ASSERT_EQ(words.size(), 300u);
+      std::map<uint32_t, float> counts;
+      for (int r = 0; r < descriptors.rows; ++r) {
+        EXPECT_EQ(words[r], LookupWord(vocabulary, descriptors, r)) << "row " << r;
+        counts[words[r]] += 1.0f;
+      }
+      EXPECT_EQ(words[0] / (branching * branching), 1u);  // The first of the tied children.
+      BowVector expected;
+      float total = 0;
+      for (const auto& [word, count] : counts) {
+        expected.emplace_back(word, count * vocabulary.word_weights[word]);
+        total += expected.back().second;
+      }
+      for (auto& [word, weight] : expected) weight /= total;
+      EXPECT_EQ(ComputeBow(vocabulary, descriptors), expected);
+    }
+  }
 }
 
 }  // namespace

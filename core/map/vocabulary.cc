@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 #include "core/features/descriptor.h"
 #include "core/util/check.h"
@@ -30,15 +29,45 @@ uint32_t LookupWord(const Vocabulary& vocabulary, const cv::Mat& descriptors, in
   return static_cast<uint32_t>(index);
 }
 
+std::vector<uint32_t> LookupWords(const Vocabulary& vocabulary, const cv::Mat& descriptors) {
+  VISLOC_CHECK(!vocabulary.empty(), "empty vocabulary");
+  std::vector<uint32_t> words(descriptors.rows);
+  const bool float16 = descriptors.type() == CV_32F && descriptors.cols == 16 &&
+                       vocabulary.centroids.type() == CV_32F && vocabulary.centroids.cols == 16;
+  if (!float16) {
+    for (int r = 0; r < descriptors.rows; ++r) words[r] = LookupWord(vocabulary, descriptors, r);
+    return words;
+  }
+  std::vector<uint32_t> all(vocabulary.centroids.rows);
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<uint32_t>(i);
+  const Float16Columns centroids(vocabulary.centroids, all);
+  for (int r = 0; r < descriptors.rows; ++r) {
+    const float* query = descriptors.ptr<float>(r);
+    // As LookupWord: node index within its level, level l's rows from sum_{m<l} b^m on.
+    int index = 0, level_start = 0, level_size = vocabulary.branching;
+    for (int level = 0; level < vocabulary.depth; ++level) {
+      const int first = level_start + index * vocabulary.branching;
+      const int best = centroids.NearestOf(query, first, vocabulary.branching) - first;
+      index = index * vocabulary.branching + std::max(best, 0);
+      level_start += level_size;
+      level_size *= vocabulary.branching;
+    }
+    words[r] = static_cast<uint32_t>(index);
+  }
+  return words;
+}
+
 BowVector ComputeBow(const Vocabulary& vocabulary, const cv::Mat& descriptors) {
-  std::map<uint32_t, float> counts;
-  for (int r = 0; r < descriptors.rows; ++r) counts[LookupWord(vocabulary, descriptors, r)] += 1.0f;
+  std::vector<uint32_t> words = LookupWords(vocabulary, descriptors);
+  std::sort(words.begin(), words.end());
   BowVector vector;
   float total = 0;
-  for (const auto& [word, count] : counts) {
-    const float weight = count * vocabulary.word_weights[word];
+  for (size_t i = 0, end = 0; i < words.size(); i = end) {  // Each word's run.
+    float count = 0.0f;
+    for (end = i; end < words.size() && words[end] == words[i]; ++end) count += 1.0f;
+    const float weight = count * vocabulary.word_weights[words[i]];
     if (weight <= 0) continue;
-    vector.emplace_back(word, weight);
+    vector.emplace_back(words[i], weight);
     total += weight;
   }
   for (auto& [word, weight] : vector) weight /= total;

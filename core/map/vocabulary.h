@@ -6,6 +6,7 @@
 //   s(a, b) = 1 - 0.5 || a - b ||_1  in [0, 1]  (as in DBoW2).
 
 #include <cstdint>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -15,6 +16,9 @@ namespace visloc {
 
 // The word (leaf index, 0-based) of descriptor row `row`.
 uint32_t LookupWord(const Vocabulary& vocabulary, const cv::Mat& descriptors, int row);
+// The words of every row, as LookupWord gives them; 16-float descriptors (harris_surf16) compare
+// with a node's children eight at a time.
+std::vector<uint32_t> LookupWords(const Vocabulary& vocabulary, const cv::Mat& descriptors);
 
 // The TF-IDF, L1-normalized vector of a set of descriptors.
 BowVector ComputeBow(const Vocabulary& vocabulary, const cv::Mat& descriptors);
