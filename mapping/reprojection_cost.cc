@@ -4,13 +4,6 @@ namespace visloc::mapping {
 
 namespace {
 
-// [a]x, so that [a]x b = a x b.
-Eigen::Matrix3d Skew(const Eigen::Vector3d& a) {
-  Eigen::Matrix3d m;
-  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
-  return m;
-}
-
 // The pinhole residual (rows 0, 1) of camera point p, and its derivative by p when asked.
 void PinholeResidual(const Eigen::Vector3d& p, const Eigen::Vector2d& observed_px,
                      const RectifiedIntrinsics& k, double* residuals,
@@ -49,9 +42,7 @@ void TransformToCamera(const double* rotation, const double* translation, const 
                                     2.0 * (v.dot(x) * Eigen::Matrix3d::Identity() + v * x.transpose()) -
                                     4.0 * x * v.transpose();
   out->dp_drotation.col(3) = 2.0 * v_cross_x;
-  // R = (w^2 - v.v) I + 2 v v^T + 2 w [v]x for a unit quaternion.
-  out->dp_dpoint = (w * w - v.squaredNorm()) * Eigen::Matrix3d::Identity() +
-                   2.0 * v * v.transpose() + 2.0 * w * Skew(v);
+  out->dp_dpoint = Eigen::Quaterniond(w, v.x(), v.y(), v.z()).toRotationMatrix();
 }
 
 StereoReprojectionCost::StereoReprojectionCost(const Eigen::Vector2d& left_px, double right_x_px,

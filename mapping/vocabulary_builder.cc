@@ -93,8 +93,10 @@ void IndexKeyframes(const std::vector<cv::Mat>& keyframe_descriptors, Vocabulary
                     std::vector<BowVector>* keyframe_vectors) {
   const size_t words = vocabulary->word_count();
   std::vector<int> documents(words, 0);
+  std::vector<std::vector<uint32_t>> keyframe_words;
   for (const cv::Mat& descriptors : keyframe_descriptors) {
-    std::vector<uint32_t> seen = LookupWords(*vocabulary, descriptors);
+    keyframe_words.push_back(LookupWords(*vocabulary, descriptors));
+    std::vector<uint32_t> seen = keyframe_words.back();
     std::sort(seen.begin(), seen.end());
     seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
     for (uint32_t w : seen) ++documents[w];
@@ -106,8 +108,9 @@ void IndexKeyframes(const std::vector<cv::Mat>& keyframe_descriptors, Vocabulary
         static_cast<float>(std::log(n / std::max(1, documents[w])) + 1e-3);
   }
   keyframe_vectors->clear();
-  for (const cv::Mat& descriptors : keyframe_descriptors)
-    keyframe_vectors->push_back(ComputeBow(*vocabulary, descriptors));
+  for (std::vector<uint32_t>& words_of_keyframe : keyframe_words) {
+    keyframe_vectors->push_back(BowFromWords(*vocabulary, std::move(words_of_keyframe)));
+  }
 }
 
 }  // namespace visloc::mapping

@@ -40,6 +40,13 @@ inline Rigid3d operator*(const Rigid3d& a_from_b, const Rigid3d& b_from_c) {
                  a_from_b.translation + a_from_b.rotation * b_from_c.translation);
 }
 
+// The cross-product matrix [v]x, so that [v]x a = v x a.
+inline Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
 // Interpolates between two poses at fraction `t` in [0, 1]: slerp for the rotation, linear for
 // the translation (the usual choice for densely sampled trajectories).
 Rigid3d Interpolate(const Rigid3d& start, const Rigid3d& end, double t);

@@ -8,16 +8,6 @@
 #include "core/util/check.h"
 
 namespace visloc {
-namespace {
-
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
-}  // namespace
-
 Rigid3d ExpSe3(const Vector6d& tangent) {
   const Eigen::Vector3d phi = tangent.tail<3>();
   const double angle = phi.norm();

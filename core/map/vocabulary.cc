@@ -47,8 +47,9 @@ std::vector<uint32_t> LookupWords(const Vocabulary& vocabulary, const cv::Mat& d
     int index = 0, level_start = 0, level_size = vocabulary.branching;
     for (int level = 0; level < vocabulary.depth; ++level) {
       const int first = level_start + index * vocabulary.branching;
-      const int best = centroids.NearestOf(query, first, vocabulary.branching) - first;
-      index = index * vocabulary.branching + std::max(best, 0);
+      // No nearest child (every distance NaN): the first, as LookupWord takes it.
+      const int best = std::max(centroids.NearestOf(query, first, vocabulary.branching), first);
+      index = index * vocabulary.branching + (best - first);
       level_start += level_size;
       level_size *= vocabulary.branching;
     }
@@ -58,7 +59,10 @@ std::vector<uint32_t> LookupWords(const Vocabulary& vocabulary, const cv::Mat& d
 }
 
 BowVector ComputeBow(const Vocabulary& vocabulary, const cv::Mat& descriptors) {
-  std::vector<uint32_t> words = LookupWords(vocabulary, descriptors);
+  return BowFromWords(vocabulary, LookupWords(vocabulary, descriptors));
+}
+
+BowVector BowFromWords(const Vocabulary& vocabulary, std::vector<uint32_t> words) {
   std::sort(words.begin(), words.end());
   BowVector vector;
   float total = 0;
