@@ -5,8 +5,8 @@
 #include <optional>
 
 #include "core/util/check.h"
-#include "core/util/strings.h"
 #include "core/util/parallel.h"
+#include "core/util/strings.h"
 #include "core/util/timer.h"
 
 namespace visloc::mapping {
@@ -84,6 +84,8 @@ void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const c
       BuildStereoFrame(left_raw, right_raw, *extractor_, rectifier_, options_.stereo, correction_);
   stats_.features_ms += timer.ElapsedMs();
   ++stats_.frames;
+  last_features_ = static_cast<int>(frame.left_rect.size());
+  last_stereo_matches_ = frame.stereo_matches();
   if (calibrating_) calibration_frames_.emplace_back(timestamp_ns, frame);
   Process(timestamp_ns, std::move(frame));
   const DisparityCalibrationOptions& calibration = options_.disparity_calibration;
@@ -172,6 +174,7 @@ void MapBuilder::Restart() {
   last_cam_from_world_ = Rigid3d::Identity();
   velocity_ = Rigid3d::Identity();
   last_tracked_ = 0;
+  last_track_succeeded_ = true;
   loop_closer_.Reset();
   stats_.tracking_failures = stats_.loop_closures = stats_.loop_adjustments = 0;
 }
@@ -191,6 +194,7 @@ void MapBuilder::Process(int64_t timestamp_ns, StereoFrame&& frame) {
       tracker_.Track(state_, frame, predicted, RecentLandmarks(state_, options_.keyframes.window),
                      static_cast<uint64_t>(stats_.frames));
   if (!track.success) ++stats_.tracking_failures;
+  last_track_succeeded_ = track.success;
   for (int l : track.in_view) ++state_.landmarks[l].frames_in_view;
   for (const LandmarkMatch& m : track.tracked) ++state_.landmarks[m.landmark].frames_found;
   const Rigid3d& pose = track.cam_from_world;
@@ -236,11 +240,25 @@ Trajectory MapBuilder::FrameTrajectory() const {
   return trajectory;
 }
 
+MapBuilderProgress MapBuilder::Progress() const {
+  MapBuilderProgress progress;
+  progress.frames = stats_.frames;
+  progress.keyframes = static_cast<int>(state_.keyframes.size());
+  for (const Landmark& l : state_.landmarks) progress.landmarks += !l.culled;
+  progress.tracked = last_tracked_;
+  progress.features = last_features_;
+  progress.stereo_matches = last_stereo_matches_;
+  progress.last_tracked = last_track_succeeded_;
+  progress.tracking_failures = stats_.tracking_failures;
+  progress.loop_closures = stats_.loop_closures;
+  progress.map_from_cam = MapFromWorld() * last_cam_from_world_.Inverse() * RectFromRaw();
+  return progress;
+}
+
 std::string MapBuilder::Status() const {
-  int landmarks = 0;
-  for (const Landmark& l : state_.landmarks) landmarks += !l.culled;
-  return StrCat(state_.keyframes.size(), " keyframes, ", landmarks, " landmarks, ", last_tracked_,
-                " tracked, ", stats_.loop_closures, " loops");
+  const MapBuilderProgress progress = Progress();
+  return StrCat(progress.keyframes, " keyframes, ", progress.landmarks, " landmarks, ",
+                progress.tracked, " tracked, ", progress.loop_closures, " loops");
 }
 
 Map MapBuilder::Finish(const MapMetadata& metadata) {

@@ -93,6 +93,23 @@ struct MapBuildStats {
          learning_ms = 0, total_ms = 0;
 };
 
+// Where a build stands after its last frame, for progress reports while frames arrive (mapping
+// over the link answers every frame with it).
+struct MapBuilderProgress {
+  int frames = 0;
+  int keyframes = 0;
+  int landmarks = 0;         // Not culled.
+  int tracked = 0;           // Landmarks the last frame tracked.
+  int features = 0;          // The last frame's left corners.
+  int stereo_matches = 0;    // Of them, matched in the right image.
+  bool last_tracked = true;  // Whether tracking the last frame succeeded (the first always does).
+  int tracking_failures = 0;
+  int loop_closures = 0;
+  // The last frame's raw left camera in the map frame, as estimated so far (later adjustment
+  // moves it).
+  Rigid3d map_from_cam;
+};
+
 class MapBuilder {
  public:
   // The calibrated pair: raw cameras and the right camera's pose from the left one.
@@ -107,6 +124,8 @@ class MapBuilder {
   const MapBuildStats& stats() const { return stats_; }
   // The raw left camera's estimated pose per processed frame, in the map frame.
   Trajectory FrameTrajectory() const;
+  // Where the build stands after the last frame added.
+  MapBuilderProgress Progress() const;
   // Short status for progress displays.
   std::string Status() const;
 
@@ -141,6 +160,9 @@ class MapBuilder {
   Rigid3d velocity_;  // cam_from_world(t) * cam_from_world(t-1)^-1
   MapBuildStats stats_;
   int last_tracked_ = 0;
+  bool last_track_succeeded_ = true;
+  int last_features_ = 0;
+  int last_stereo_matches_ = 0;
   DisparityCorrection correction_;  // Taken off the disparities of new frames.
   bool calibrating_ = false;
   // The frames so far while calibrating, with their matches as first made (zero correction).

@@ -393,6 +393,34 @@ Dataset RenderShort(const std::string& sequence, int frames, const TempDir& dir)
   return ReadDataset(sim::SequenceGenerator(options).Generate(sequence, dir.path()).dir);
 }
 
+// Frame by frame (mapping over the link answers every frame with it), the builder's progress is
+// its trajectory's last pose and its keyframe count so far.
+TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
+  TempDir dir;
+  const Dataset dataset = RenderShort("map_square", 20, dir);
+  const DatasetSource source(dataset);
+  MapBuilder builder(source.left_camera(), source.right_camera(), source.right_from_left(), {});
+  int keyframes_before = 0;
+  for (int i = 0; i < source.size(); ++i) {
+    const StereoImages frame = source.Read(i);
+    builder.AddFrame(frame.timestamp_ns, frame.left_raw, frame.right_raw);
+    const MapBuilderProgress progress = builder.Progress();
+    EXPECT_EQ(progress.frames, i + 1);
+    EXPECT_TRUE(progress.last_tracked) << "frame " << i;
+    EXPECT_GE(progress.keyframes, std::max(1, keyframes_before));
+    keyframes_before = progress.keyframes;
+    const Rigid3d& last = builder.FrameTrajectory().back().pose;
+    EXPECT_LT((progress.map_from_cam.translation - last.translation).norm(), 1e-9) << "frame " << i;
+    EXPECT_LT(progress.map_from_cam.rotation.angularDistance(last.rotation), 1e-9);
+    if (i > 0) {
+      EXPECT_GT(progress.tracked, 50) << "frame " << i;
+    }
+  }
+  EXPECT_GE(keyframes_before, 2);
+  EXPECT_GT(builder.Progress().landmarks, 500);
+  EXPECT_EQ(builder.Progress().tracking_failures, 0);
+}
+
 // MapBuilderOptions::threads splits a frame's work, decodes ahead and runs Ceres on several
 // threads: the map is the same, keyframe for keyframe and point for point.
 TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
@@ -414,7 +442,8 @@ TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
         << "keyframe " << k;
   }
   for (size_t i = 0; i < maps[0].points.size(); ++i) {
-    ASSERT_EQ(maps[0].points[i].position_in_map, maps[1].points[i].position_in_map) << "point " << i;
+    ASSERT_EQ(maps[0].points[i].position_in_map, maps[1].points[i].position_in_map)
+        << "point " << i;
   }
   EXPECT_EQ(stats[0].observations, stats[1].observations);
 }
