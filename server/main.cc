@@ -36,6 +36,13 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
                  "keyframe region on demand (0: no bound)");
   parser.AddFlag("drain-s", &c->drain_s, "grace period for open streams at shutdown");
   parser.AddFlag("max-upload-mib", &c->max_upload_mib, "largest map upload accepted, MiB");
+  parser.AddFlag("max-mapping-jobs", &c->max_mapping_jobs,
+                 "maps built at once from streamed stereo runs (visloc map build --server); 0: "
+                 "none");
+  parser.AddFlag("mapping-threads", &c->mapping_threads,
+                 "threads of each mapping job (features, stereo matching)");
+  parser.AddFlag("max-mapping-frames", &c->max_mapping_frames,
+                 "stereo frames one mapping job takes (bounds its memory)");
   parser.AddFlag("tls-cert", &c->tls_cert, "serve TLS with this certificate chain (PEM)");
   parser.AddFlag("tls-key", &c->tls_key, "the certificate's private key (PEM)");
   parser.AddFlag("tls-client-ca", &c->tls_client_ca,

@@ -91,6 +91,15 @@ MapAdminOptions AdminOptionsOf(const ServerConfig& config) {
   return options;
 }
 
+MappingLimits MappingLimitsOf(const ServerConfig& config) {
+  MappingLimits limits;
+  limits.max_jobs = config.max_mapping_jobs;
+  limits.threads = config.mapping_threads;
+  limits.max_frames = config.max_mapping_frames;
+  limits.read_only = config.maps_read_only;
+  return limits;
+}
+
 // The config checked before anything is built from it.
 const ServerConfig& Checked(const ServerConfig& config) {
   config.Check();
@@ -114,6 +123,13 @@ void ServerConfig::Check() const {
   if (threads < 0) throw UsageError("--threads must not be negative");
   if (!(max_frame_rate_hz >= 0)) throw UsageError("--max-frame-rate-hz must not be negative");
   if (max_upload_mib < 1) throw UsageError("--max-upload-mib must be at least 1");
+  if (max_mapping_jobs < 0 || max_mapping_jobs > 64) {
+    throw UsageError("--max-mapping-jobs must be 0 (no mapping over the link) to 64");
+  }
+  if (mapping_threads < 1 || mapping_threads > 64) {
+    throw UsageError("--mapping-threads must be 1 to 64");
+  }
+  if (max_mapping_frames < 1) throw UsageError("--max-mapping-frames must be at least 1");
   if (tls_cert.empty() != tls_key.empty()) throw UsageError("--tls-cert and --tls-key go together");
   if (!tls_client_ca.empty() && tls_cert.empty()) {
     throw UsageError("--tls-client-ca needs --tls-cert and --tls-key");
@@ -133,6 +149,7 @@ Server::Server(const ServerConfig& config)
             static_cast<size_t>(config.map_memory_mib) << 20),
       localization_(&maps_, LimitsOf(config), &auth_),
       admin_(&maps_, AdminOptionsOf(config), &auth_),
+      mapping_(&maps_, MappingLimitsOf(config), &auth_),
       fleet_(&localization_.registry(), &auth_, config.max_sessions) {
   const auto credentials = Credentials(config_);
   // A read-only replica must not touch the folder: the temporaries in it may be another
@@ -151,10 +168,11 @@ Server::Server(const ServerConfig& config)
   // The sync server gives each call a thread, and a Localize stream keeps its thread for its
   // life (mostly waiting on the network); room for every session plus admin calls.
   grpc::ResourceQuota quota("visloc-server");
-  quota.SetMaxThreads(config_.max_sessions + 16);
+  quota.SetMaxThreads(config_.max_sessions + config_.max_mapping_jobs + 16);
   builder.SetResourceQuota(quota);
   builder.RegisterService(&localization_);
   builder.RegisterService(&admin_);
+  builder.RegisterService(&mapping_);
   builder.RegisterService(&fleet_);
   std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> counting;
   counting.push_back(rpcs_.InterceptorFactory());
@@ -167,7 +185,8 @@ Server::Server(const ServerConfig& config)
                      ": the address is in use (another visloc-server?) or not this machine's");
   }
   grpc::HealthCheckServiceInterface* health = grpc_server_->GetHealthCheckService();
-  for (const char* service : {"visloc.v1.Localization", "visloc.v1.MapAdmin", "visloc.v1.Fleet"}) {
+  for (const char* service :
+       {"visloc.v1.Localization", "visloc.v1.MapAdmin", "visloc.v1.Mapping", "visloc.v1.Fleet"}) {
     health->SetServingStatus(service, true);
   }
   address_ = config_.listen.substr(0, config_.listen.rfind(':')) + ":" + std::to_string(port);

@@ -1,8 +1,8 @@
 #pragma once
 // visloc-server's composition root: one ServerConfig in, the running server out. It owns the map
-// cache, the services (Localization, MapAdmin, Fleet, grpc.health.v1, reflection), the transport
-// (listening address, TLS, keepalive, message limits) and the janitor that unloads idle maps,
-// and answers Status() with a snapshot of what it is doing. Flags and signals are main.cc's.
+// cache, the services (Localization, MapAdmin, Mapping, Fleet, grpc.health.v1, reflection), the
+// transport (listening address, TLS, keepalive, message limits) and the janitor that unloads idle
+// maps, and answers Status() with a snapshot of what it is doing. Flags and signals are main.cc's.
 
 #include <grpcpp/grpcpp.h>
 
@@ -22,6 +22,7 @@
 #include "server/localization_service.h"
 #include "server/map_admin_service.h"
 #include "server/map_cache.h"
+#include "server/mapping_service.h"
 #include "server/rpc_counters.h"
 #include "server/server_status.h"
 
@@ -49,6 +50,10 @@ struct ServerConfig {
   double keepalive_time_s = 20.0, keepalive_timeout_s = 10.0;
   double max_connection_idle_s = 0.0, max_connection_age_s = 0.0;  // 0: unlimited.
   std::string http;  // HOST:PORT of the probes and metrics (http/http_endpoint.h); empty: none.
+  // Mapping over the link (mapping_service.h): jobs at once, each job's threads, its frames.
+  int max_mapping_jobs = 1;
+  int mapping_threads = 1;
+  int max_mapping_frames = 20000;
 
   // Throws UsageError naming the flag of the first bad value.
   void Check() const;
@@ -90,6 +95,7 @@ class Server {
   MapCache maps_;
   LocalizationService localization_;
   MapAdminService admin_;
+  MappingService mapping_;
   FleetService fleet_;
   RpcCounters rpcs_;
   std::unique_ptr<grpc::Server> grpc_server_;
