@@ -9,6 +9,7 @@
 #include "client/map_report.h"
 #include "client/outcome.h"
 #include "client/remote_map.h"
+#include "client/remote_mapping.h"
 #include "client/subcommands.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -143,8 +144,20 @@ int RunBuild(const Args& args) {
                    "learning and the relocalization vocabulary.");
   parser.AddFlag("dataset", &dataset_dir, "stereo dataset folder", /*required=*/true);
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
-  parser.AddFlag("out", &out, "map file to write", /*required=*/true);
-  parser.AddFlag("name", &name, "the map's name (default: the file name without .db)");
+  parser.AddFlag("out", &out, "map file to write (without --server)");
+  parser.AddFlag("name", &name,
+                 "the map's name (default: the file name without .db; with --server, required)");
+  Connection server;
+  server.AddFlags(parser, /*server_required=*/false);
+  parser.SetDefaultText("server",
+                        "none: build here. With ADDR the server builds the map from "
+                        "the streamed run and publishes it as NAME");
+  bool replace = false;
+  parser.AddSwitch("replace", &replace, "with --server: replace a map of that name on the server");
+  double rate_hz = -1.0;
+  parser.AddFlag("rate", &rate_hz,
+                 "with --server: frames a second to stream at (0: the recording's own pace)");
+  parser.SetDefaultText("rate", "as fast as the server maps");
   parser.AddFlag("features", &features, "harris_surf16 (the paper's) or orb");
   parser.AddFlag("frames", &frames,
                  "use only these frames: N (the first N), BEGIN:END or BEGIN:END:STEP");
@@ -186,11 +199,38 @@ int RunBuild(const Args& args) {
   CheckFlags(options.builder);  // --threads, and what the checks above leave.
   options.builder.loop_closure.enabled = loop_closure != 0;
   options.builder.disparity_calibration.enabled = disparity_calibration != 0;
+  server.ApplyEnvironment();
+  if (server.server.empty() == out.empty()) {
+    throw UsageError(
+        "give --out MAP.db (build here) or --server ADDR --name NAME (the server "
+        "builds it)");
+  }
+  if (!server.server.empty() && name.empty()) {
+    throw UsageError("--server needs --name: the name the map is published under");
+  }
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
   const FrameRange range = ParseFrameRange(frames);
   const Dataset dataset =
       SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
+  if (!server.server.empty()) {
+    if (!trajectory.empty() || max_features > 0) {
+      throw UsageError("--trajectory and --max-features are for builds here (--out)");
+    }
+    RemoteBuildOptions remote;
+    remote.name = name;
+    remote.rate_hz = rate_hz;
+    remote.progress = ShowProgress() && !json;
+    remote.json = json;
+    remote.wire.set_replace(replace);
+    remote.wire.set_features(features);
+    remote.wire.set_keyframe_translation_m(options.builder.keyframes.translation_m);
+    remote.wire.set_keyframe_rotation_deg(options.builder.keyframes.rotation_deg);
+    remote.wire.set_loop_closure(loop_closure != 0);
+    remote.wire.set_disparity_calibration(disparity_calibration != 0);
+    remote.wire.set_min_points(static_cast<uint32_t>(options.min_points));
+    return RemoteMapBuild(server, dataset, remote);
+  }
   options.builder.features = DefaultFeatureSettings(features);
   if (max_features > 0) {
     options.builder.features = WithMaxFeatures(options.builder.features, max_features);

@@ -12,7 +12,8 @@
 
 namespace visloc::cli {
 
-using OutcomeFields = std::vector<std::pair<std::string, std::variant<std::string, int64_t>>>;
+using OutcomeFields =
+    std::vector<std::pair<std::string, std::variant<std::string, int64_t, double>>>;
 
 // Prints `sentence` (a newline is added), or the fields as JSON when `json`. Returns 0.
 int PrintOutcome(bool json, const std::string& sentence, const OutcomeFields& fields);

@@ -1,0 +1,262 @@
+// Mapping over the link, end to end: `visloc map build --server` streams the fixture's generated
+// stereo run through a link proxy to the real visloc-server, which builds and publishes the map;
+// robots then localize in it through the same server. A raw gRPC client does what the CLI never
+// does: bad frames, a stream without MappingEnd, a second job, a robot's token.
+
+#include <gmock/gmock.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
+#include "dataset/dataset.h"
+#include "proto/mapping_convert.h"
+#include "tests/support/e2e.h"
+#include "tests/support/link_proxy.h"
+#include "tests/support/process.h"
+#include "visloc/v1/visloc.grpc.pb.h"
+
+namespace visloc {
+namespace {
+
+using ::testing::HasSubstr;
+using testing::JsonNumber;
+using testing::LinkProfile;
+using testing::LinkProxy;
+using testing::ProcessResult;
+using testing::ServerProcess;
+using testing::Visloc;
+
+const std::string kData = VISLOC_LOCALIZATION_DATA;
+const std::string kRun = kData + "/map_square";
+constexpr int kFrames = 60;  // 12 s of the fixture's 5 Hz walk: a few keyframes, seconds to map.
+const std::string kAdminToken = "admin-token-0123456789";
+const std::string kRobotToken = "robot-token-0123456789";
+
+// A link a lab's WiFi might give: 10 ms each way, 100 Mbit/s.
+const LinkProfile kWifi{10, 2, 100};
+
+std::vector<std::string> FilesIn(const std::string& dir) {
+  std::vector<std::string> names;
+  for (const auto& f : std::filesystem::directory_iterator(dir)) {
+    names.push_back(f.path().filename().string());
+  }
+  return names;
+}
+
+class MappingLinkE2eTest : public ::testing::Test {
+ protected:
+  TempDir maps_{"visloc_mapping_link_maps"};
+  TempDir work_{"visloc_mapping_link_work"};
+};
+
+TEST_F(MappingLinkE2eTest, AStreamedRunBecomesTheMapAnOfflineBuildMakesAndRobotsLocalizeInIt) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  LinkProxy link(server.address(), kWifi);
+  const std::string frames = "0:" + std::to_string(kFrames);
+  const ProcessResult built = Visloc({"map", "build", "--server", link.address(), "--name", "hall",
+                                      "--dataset", kRun, "--frames", frames, "--json"});
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_EQ(JsonNumber(built.out, "frames"), kFrames);
+  EXPECT_EQ(JsonNumber(built.out, "lost_frames"), 0);
+  EXPECT_GE(JsonNumber(built.out, "keyframes"), 3);
+  EXPECT_TRUE(server.WaitForLog("event=map_built_over_link map=hall"));
+
+  // The same frames mapped here: the same keyframes (the server decodes the same PNG bytes).
+  const ProcessResult offline = Visloc(
+      {"map", "build", "--dataset", kRun, "--frames", frames, "--out", work_.File("offline.db")});
+  ASSERT_EQ(offline.exit_code, 0) << offline.err;
+  ASSERT_EQ(Visloc({"map", "export", maps_.File("hall.db"), "--keyframes", work_.File("link.tum")})
+                .exit_code,
+            0);
+  ASSERT_EQ(
+      Visloc({"map", "export", work_.File("offline.db"), "--keyframes", work_.File("offline.tum")})
+          .exit_code,
+      0);
+  const Trajectory over_link = testing::ReadTumLines(work_.File("link.tum"));
+  const Trajectory here = testing::ReadTumLines(work_.File("offline.tum"));
+  ASSERT_EQ(over_link.size(), here.size());
+  for (size_t k = 0; k < here.size(); ++k) {
+    EXPECT_EQ(over_link[k].timestamp_ns, here[k].timestamp_ns);
+    EXPECT_LT((over_link[k].pose.translation - here[k].pose.translation).norm(), 1e-3)
+        << "keyframe " << k;
+  }
+
+  // A robot localizes in the published map through the same server.
+  const ProcessResult robot = Visloc(
+      {"stream", "--server", server.address(), "--map", "hall", "--dataset", kRun, "--frames",
+       std::to_string(kFrames), "--rate", "0", "--gt", kRun + "/groundtruth_map.tum", "--json"});
+  ASSERT_EQ(robot.exit_code, 0) << robot.err;
+  EXPECT_GE(JsonNumber(robot.out, "localized_fraction"), 0.95) << robot.out;
+
+  // A second build of the name is refused without --replace, and the map stays.
+  const ProcessResult again = Visloc({"map", "build", "--server", server.address(), "--name",
+                                      "hall", "--dataset", kRun, "--frames", "0:5"});
+  EXPECT_EQ(again.exit_code, 1);
+  EXPECT_THAT(again.err, HasSubstr("a map named 'hall' already exists"));
+}
+
+// The link is cut while frames stream: nothing is published, the map of that name that was
+// there stays byte for byte, no temporary is left, and the server goes on serving.
+TEST_F(MappingLinkE2eTest, ACutLinkPublishesNothingAndLeavesTheOldMap) {
+  testing::SaveLabMap(maps_.File("hall.db"));
+  const std::string before = ReadFileBytes(maps_.File("hall.db"));
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  LinkProxy link(server.address(), kWifi);
+  const int client = testing::SpawnProcess(
+      {VISLOC_CLI_PATH, "map", "build", "--server", link.address(), "--name", "hall", "--replace",
+       "--dataset", kRun, "--frames", "0:" + std::to_string(kFrames), "--rate", "10"},
+      work_.File("client.out"), work_.File("client.err"));
+  ASSERT_TRUE(server.WaitForLog("event=mapping_started map=hall"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // ~15 frames mapped.
+  link.Cut(std::chrono::milliseconds(3000));
+  const int exit_code = testing::WaitProcess(client);
+  EXPECT_NE(exit_code, 0);
+  EXPECT_THAT(ReadFileBytes(work_.File("client.err")), HasSubstr("the mapping stream broke after"));
+  EXPECT_THAT(ReadFileBytes(work_.File("client.err")), HasSubstr("nothing was published"));
+  ASSERT_TRUE(server.WaitForLog("event=mapping_abandoned map=hall")) << server.Log();
+  EXPECT_EQ(ReadFileBytes(maps_.File("hall.db")), before);
+  EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"hall.db"});
+  const ProcessResult list = Visloc({"map", "list", "--server", server.address(), "--json"});
+  EXPECT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_THAT(list.out, HasSubstr("\"hall\""));
+}
+
+// What the CLI never sends, from a raw gRPC client.
+class MappingServiceE2eTest : public MappingLinkE2eTest {
+ protected:
+  void SetUp() override {
+    std::ofstream(work_.File("tokens")) << kRobotToken << " localize\n"
+                                        << kAdminToken << " admin\n";
+    server_ =
+        std::make_unique<ServerProcess>(VISLOC_SERVER_PATH, maps_.path(),
+                                        std::vector<std::string>{"--tokens", work_.File("tokens")});
+    run_ = ReadDataset(kRun);
+  }
+  using Stream = grpc::ClientReaderWriter<v1::MappingRequest, v1::MappingProgress>;
+  struct Call {
+    grpc::ClientContext context;
+    std::unique_ptr<Stream> stream;
+  };
+  std::unique_ptr<Call> Open(const std::string& token = kAdminToken) {
+    auto call = std::make_unique<Call>();
+    call->context.AddMetadata("authorization", "Bearer " + token);
+    call->stream = v1::Mapping::NewStub(
+                       grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials()))
+                       ->BuildMap(&call->context);
+    return call;
+  }
+  v1::MappingRequest Start(const std::string& name) const {
+    v1::MappingRequest request;
+    request.mutable_start()->set_map_name(name);
+    proto::ToProto(run_.left.camera, run_.right->camera, run_.left.body_from_cam,
+                   run_.right->body_from_cam, request.mutable_start()->mutable_rig());
+    return request;
+  }
+  v1::MappingRequest Frame(int i) const {
+    v1::MappingRequest request;
+    request.mutable_frame()->set_timestamp_ns(run_.frames[i].timestamp_ns);
+    request.mutable_frame()->set_left_encoded(ReadFileBytes(run_.frames[i].left_path));
+    request.mutable_frame()->set_right_encoded(ReadFileBytes(run_.frames[i].right_path));
+    return request;
+  }
+  // Sends `request` and reads its answer.
+  static v1::MappingProgress Exchange(Stream* stream, const v1::MappingRequest& request) {
+    v1::MappingProgress answer;
+    EXPECT_TRUE(stream->Write(request));
+    EXPECT_TRUE(stream->Read(&answer));
+    return answer;
+  }
+
+  std::unique_ptr<ServerProcess> server_;
+  Dataset run_;
+};
+
+TEST_F(MappingServiceE2eTest, BadFramesAreAnsweredByNameAndTheJobGoesOn) {
+  auto call = Open();
+  ASSERT_TRUE(call->stream->Write(Start("bad_frames")));
+  EXPECT_EQ(Exchange(call->stream.get(), Frame(0)).state(), v1::MAPPING_TRACKING);
+
+  v1::MappingRequest garbage = Frame(1);
+  garbage.mutable_frame()->set_left_encoded("not an image");
+  const v1::MappingProgress refused = Exchange(call->stream.get(), garbage);
+  EXPECT_EQ(refused.state(), v1::MAPPING_FRAME_ERROR);
+  EXPECT_THAT(refused.error(), HasSubstr("left image: 12 bytes are not a decodable PNG or JPEG"));
+
+  v1::MappingRequest small = Frame(1);
+  small.mutable_frame()->clear_right_encoded();
+  v1::RawImage* raw = small.mutable_frame()->mutable_right_raw();
+  raw->set_width(10);
+  raw->set_height(10);
+  raw->set_pixels(std::string(100, '\x80'));
+  EXPECT_THAT(Exchange(call->stream.get(), small).error(),
+              HasSubstr("right image is 10x10 but the session camera is"));
+
+  EXPECT_THAT(Exchange(call->stream.get(), Frame(0)).error(), HasSubstr("is not after the last"));
+  const v1::MappingProgress next = Exchange(call->stream.get(), Frame(1));
+  EXPECT_EQ(next.state(), v1::MAPPING_TRACKING);
+  EXPECT_EQ(next.frame_index(), 4u);
+  EXPECT_TRUE(next.has_pose());
+  EXPECT_GT(next.tracked(), 50u);
+
+  // The stream ends without MappingEnd: nothing is published.
+  call->stream->WritesDone();
+  const grpc::Status status = call->stream->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_THAT(status.error_message(), HasSubstr("nothing was published"));
+  EXPECT_TRUE(FilesIn(maps_.path()).empty());
+}
+
+TEST_F(MappingServiceE2eTest, OneJobAtATimeAdminsOnlyAndSmallMapsAreNotPublished) {
+  auto robot = Open(kRobotToken);
+  robot->stream->Write(Start("robot_map"));
+  robot->stream->WritesDone();
+  EXPECT_EQ(robot->stream->Finish().error_code(), grpc::StatusCode::PERMISSION_DENIED);
+
+  auto first = Open();
+  ASSERT_TRUE(first->stream->Write(Start("tiny")));
+  EXPECT_EQ(Exchange(first->stream.get(), Frame(0)).state(), v1::MAPPING_TRACKING);
+  auto second = Open();
+  second->stream->Write(Start("other"));
+  second->stream->WritesDone();
+  const grpc::Status busy = second->stream->Finish();
+  EXPECT_EQ(busy.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_THAT(busy.error_message(), HasSubstr("--max-mapping-jobs"));
+
+  // One stereo frame of the room is a map of its stereo points.
+  v1::MappingRequest end;
+  end.mutable_end();
+  ASSERT_TRUE(first->stream->Write(end));
+  first->stream->WritesDone();
+  v1::MappingProgress answer, last;
+  while (first->stream->Read(&answer)) last = answer;
+  EXPECT_EQ(first->stream->Finish().error_code(), grpc::StatusCode::OK);
+  EXPECT_EQ(last.state(), v1::MAPPING_PUBLISHED);
+  EXPECT_EQ(last.map().name(), "tiny");
+  EXPECT_EQ(last.keyframes(), 1u);
+  EXPECT_GT(last.points(), 100u);
+  EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"tiny.db"});
+
+  // A map smaller than asked for is not published.
+  auto strict = Open();
+  v1::MappingRequest start = Start("strict");
+  start.mutable_start()->mutable_options()->set_min_points(100000);
+  ASSERT_TRUE(strict->stream->Write(start));
+  EXPECT_EQ(Exchange(strict->stream.get(), Frame(0)).state(), v1::MAPPING_TRACKING);
+  ASSERT_TRUE(strict->stream->Write(end));
+  strict->stream->WritesDone();
+  while (strict->stream->Read(&answer)) last = answer;
+  const grpc::Status refused = strict->stream->Finish();
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_EQ(last.state(), v1::MAPPING_FAILED);
+  EXPECT_THAT(last.error(), HasSubstr("fewer than 100000 (min_points)"));
+  EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"tiny.db"});
+}
+
+}  // namespace
+}  // namespace visloc
