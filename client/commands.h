@@ -26,6 +26,7 @@ int RunPlot(const Args& args);
 int RunBench(const Args& args);
 int RunHealth(const Args& args);
 int RunSessions(const Args& args);  // `visloc sessions`
+int RunJobs(const Args& args);      // `visloc jobs`
 int RunLoad(const Args& args);      // `visloc load`
 
 // True when stderr is a terminal, so progress lines with carriage returns make sense.

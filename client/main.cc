@@ -39,6 +39,8 @@ const std::vector<Subcommand> kCommands = {
     {"health", "ask visloc-server whether it is serving (grpc.health.v1)", RunHealth},
     {"sessions", "the live robots of a visloc-server: map, status, pose, inliers, latency",
      RunSessions},
+    {"jobs", "the mapping jobs of a visloc-server: maps being built from streamed stereo runs",
+     RunJobs},
     {"load", "how many robots a visloc-server answers in time (many robots from one process)",
      RunLoad},
 };

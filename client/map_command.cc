@@ -154,6 +154,8 @@ int RunBuild(const Args& args) {
                         "the streamed run and publishes it as NAME");
   bool replace = false;
   parser.AddSwitch("replace", &replace, "with --server: replace a map of that name on the server");
+  std::string robot_id = "visloc-map-build";
+  parser.AddFlag("robot-id", &robot_id, "with --server: the robot's name in the server's jobs");
   double rate_hz = -1.0;
   parser.AddFlag("rate", &rate_hz,
                  "with --server: frames a second to stream at (0: the recording's own pace)");
@@ -219,6 +221,7 @@ int RunBuild(const Args& args) {
     }
     RemoteBuildOptions remote;
     remote.name = name;
+    remote.robot_id = robot_id;
     remote.rate_hz = rate_hz;
     remote.progress = ShowProgress() && !json;
     remote.json = json;

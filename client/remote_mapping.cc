@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <mutex>
 #include <thread>
+#include <vector>
 
 #include "client/outcome.h"
 #include "core/util/check.h"
@@ -27,7 +28,9 @@ struct Answers {
   uint64_t answered = 0;  // Frame answers.
   int lost = 0, frame_errors = 0;
   std::string first_frame_error;
-  bool done = false;  // The server closed its side.
+  bool done = false;                    // The server closed its side.
+  std::vector<Clock::time_point> sent;  // Per frame, when it was written.
+  std::vector<double> latency_ms;       // Per answered frame: from writing it to its answer.
   v1::MappingProgress last;
   std::optional<v1::MappingProgress> published;
   std::string failure;
@@ -62,6 +65,11 @@ void ReadAnswers(grpc::ClientReaderWriter<v1::MappingRequest, v1::MappingProgres
         state == v1::MAPPING_FRAME_ERROR) {
       ++answers->answered;
       answers->lost += state == v1::MAPPING_LOST;
+      if (answer.frame_index() < answers->sent.size()) {
+        answers->latency_ms.push_back(std::chrono::duration<double, std::milli>(
+                                          Clock::now() - answers->sent[answer.frame_index()])
+                                          .count());
+      }
       if (state == v1::MAPPING_FRAME_ERROR && answers->frame_errors++ == 0) {
         answers->first_frame_error = StrCat("frame ", answer.frame_index(), ": ", answer.error());
       }
@@ -119,6 +127,7 @@ int RemoteMapBuild(const Connection& server, const Dataset& dataset,
   server.Prepare(&context);
   auto stream = stub->BuildMap(&context);
   Answers answers;
+  answers.sent.resize(total);
   std::thread reader(ReadAnswers, stream.get(), total, options.progress, &answers);
   bool link_ok = stream->Write(request);
   const Clock::time_point started = Clock::now();
@@ -136,6 +145,10 @@ int RemoteMapBuild(const Connection& server, const Dataset& dataset,
     frame->set_timestamp_ns(dataset.frames[i].timestamp_ns);
     frame->set_left_encoded(ReadFileBytes(dataset.frames[i].left_path));
     frame->set_right_encoded(ReadFileBytes(dataset.frames[i].right_path));
+    {
+      std::lock_guard<std::mutex> lock(answers.mutex);
+      answers.sent[i] = Clock::now();
+    }
     link_ok = stream->Write(request);
   }
   const double sending_s = std::chrono::duration<double>(Clock::now() - started).count();
@@ -172,7 +185,13 @@ int RemoteMapBuild(const Connection& server, const Dataset& dataset,
     sentence +=
         StrCat("; ", answers.frame_errors, " frames refused (", answers.first_frame_error, ")");
   }
-  sentence += StrCat("; mapped at ", FormatFixed(rate, 1), " frames a second");
+  std::vector<double>& latency = answers.latency_ms;
+  std::sort(latency.begin(), latency.end());
+  const double median_ms = latency.empty() ? 0.0 : latency[latency.size() / 2];
+  const double max_ms = latency.empty() ? 0.0 : latency.back();
+  sentence +=
+      StrCat("; mapped at ", FormatFixed(rate, 1), " frames a second, each answered in ",
+             FormatFixed(median_ms, 0), " ms (median), ", FormatFixed(max_ms, 0), " ms at most");
   return PrintOutcome(options.json, sentence,
                       {{"map", options.name},
                        {"server", server.server},
@@ -182,6 +201,8 @@ int RemoteMapBuild(const Connection& server, const Dataset& dataset,
                        {"lost_frames", static_cast<int64_t>(answers.lost)},
                        {"refused_frames", static_cast<int64_t>(answers.frame_errors)},
                        {"frames_per_second", rate},
+                       {"answer_ms_median", median_ms},
+                       {"answer_ms_max", max_ms},
                        {"finish_ms", done.frame_ms()}});
 }
 

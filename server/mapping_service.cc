@@ -1,5 +1,6 @@
 #include "server/mapping_service.h"
 
+#include <chrono>
 #include <ctime>
 #include <optional>
 
@@ -62,16 +63,199 @@ std::pair<cv::Mat, cv::Mat> DecodePair(const v1::StereoFrame& frame,
                  rig.right, "right")};
 }
 
+int64_t UnixNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+uint64_t MappingJobs::Begin(const std::string& map_name, const std::string& robot_id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const uint64_t id = next_id_++;
+  v1::MappingJob& job = jobs_[id];
+  job.set_job_id(id);
+  job.set_map_name(map_name);
+  job.set_robot_id(robot_id);
+  job.set_state(v1::MAPPING_TRACKING);
+  job.set_started_unix_ns(UnixNowNs());
+  return id;
+}
+
+void MappingJobs::Update(uint64_t id, const v1::MappingProgress& progress) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto found = jobs_.find(id);
+  if (found == jobs_.end()) return;
+  v1::MappingJob& job = found->second;
+  job.set_state(progress.state());
+  // A frame's answer carries its index; the job's final answer carries the count of frames.
+  const bool frame = progress.state() == v1::MAPPING_TRACKING ||
+                     progress.state() == v1::MAPPING_LOST ||
+                     progress.state() == v1::MAPPING_FRAME_ERROR;
+  job.set_frames(frame ? progress.frame_index() + 1 : progress.frame_index());
+  if (progress.state() == v1::MAPPING_FRAME_ERROR) return;
+  job.set_keyframes(progress.keyframes());
+  job.set_points(progress.points());
+  job.set_tracking_failures(progress.tracking_failures());
+  job.set_has_pose(progress.has_pose());
+  if (progress.has_pose()) *job.mutable_map_from_cam() = progress.map_from_cam();
+}
+
+void MappingJobs::SetState(uint64_t id, v1::MappingState state) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (const auto found = jobs_.find(id); found != jobs_.end()) found->second.set_state(state);
+}
+
+void MappingJobs::End(uint64_t id, v1::MappingState state, const std::string& error) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto found = jobs_.find(id);
+  if (found == jobs_.end()) return;
+  found->second.set_state(state);
+  found->second.set_error(error);
+  found->second.set_ended_unix_ns(UnixNowNs());
+  size_t ended = 0;
+  for (auto it = jobs_.rbegin(); it != jobs_.rend(); ++it) ended += it->second.ended_unix_ns() != 0;
+  for (auto it = jobs_.begin(); ended > keep_ended_ && it != jobs_.end();) {
+    if (it->second.ended_unix_ns() != 0) {
+      it = jobs_.erase(it);
+      --ended;
+    } else {
+      ++it;
+    }
+  }
+}
+
+bool MappingJobs::Ended(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto found = jobs_.find(id);
+  return found == jobs_.end() || found->second.ended_unix_ns() != 0;
+}
+
+std::vector<v1::MappingJob> MappingJobs::Snapshot() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<v1::MappingJob> jobs;
+  for (const auto& [id, job] : jobs_) jobs.push_back(job);
+  return jobs;
+}
+
+namespace {
+
+// One job while its stream lasts: the mapper and what arrived. Ends the job's record as FAILED
+// when it is left without an outcome (an exception on the way).
+struct Job {
+  // The mapper is made first: a rig it refuses leaves no job behind in the registry.
+  Job(MappingJobs* jobs, const v1::MappingStart& start, const proto::StereoRigInput& rig_in,
+      const proto::MappingJobOptions& options_in)
+      : registry(jobs),
+        rig(rig_in),
+        options(options_in),
+        builder(rig.left, rig.right, rig.right_from_left, options.builder),
+        name(start.map_name()),
+        robot_id(start.robot_id()),
+        id(jobs->Begin(name, robot_id)) {}
+  ~Job() {
+    if (!registry->Ended(id)) registry->End(id, v1::MAPPING_FAILED, "the server failed the job");
+  }
+  Job(const Job&) = delete;
+  Job& operator=(const Job&) = delete;
+
+  MappingJobs* registry;
+  proto::StereoRigInput rig;
+  proto::MappingJobOptions options;
+  mapping::MapBuilder builder;
+  std::string name;
+  std::string robot_id;
+  uint64_t id;
+  uint64_t frames = 0;  // Arrived.
+  int64_t last_timestamp_ns = 0;
+};
+
+// A frame through the mapper, answered with the build's progress; a bad frame is answered
+// MAPPING_FRAME_ERROR with the reason, and the job goes on.
+v1::MappingProgress MapFrame(const v1::StereoFrame& frame, int max_frames, Job* job) {
+  const Timer timer;
+  v1::MappingProgress progress;
+  try {
+    if (job->frames >= static_cast<uint64_t>(max_frames)) {
+      throw InputError(StrCat("the job has its ", max_frames,
+                              " frames (--max-mapping-frames); end the stream to publish"));
+    }
+    if (job->builder.Progress().frames > 0 && frame.timestamp_ns() <= job->last_timestamp_ns) {
+      throw InputError(StrCat("timestamp ", frame.timestamp_ns(), " ns is not after the last ",
+                              job->last_timestamp_ns, " ns"));
+    }
+    const auto [left, right] = DecodePair(frame, job->rig);
+    job->builder.AddFrame(frame.timestamp_ns(), left, right);
+    job->last_timestamp_ns = frame.timestamp_ns();
+    proto::ToProto(job->builder.Progress(), &progress);
+  } catch (const InputError& e) {
+    progress.set_state(v1::MAPPING_FRAME_ERROR);
+    progress.set_error(e.what());
+  }
+  progress.set_frame_index(job->frames++);
+  progress.set_timestamp_ns(frame.timestamp_ns());
+  progress.set_frame_ms(timer.ElapsedMs());
+  job->registry->Update(job->id, progress);
+  return progress;
+}
+
 // The job's last answer when nothing is published: FAILED with the reason, and the same reason
 // as the call's status.
-Status Fail(Stream* stream, const std::string& map_name, StatusCode code,
-            const std::string& reason) {
+Status Fail(Stream* stream, Job* job, StatusCode code, const std::string& reason) {
   v1::MappingProgress failed;
   failed.set_state(v1::MAPPING_FAILED);
   failed.set_error(reason);
   stream->Write(failed);
-  Log("mapping_failed", {{"map", map_name}, {"reason", reason}});
+  job->registry->End(job->id, v1::MAPPING_FAILED, reason);
+  Log("mapping_failed", {{"map", job->name}, {"reason", reason}});
   return Status(code, reason);
+}
+
+// After MappingEnd: global adjustment, learning, and the map published under its name.
+Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, Stream* stream,
+                        Job* job) {
+  job->registry->SetState(job->id, v1::MAPPING_FINISHING);
+  v1::MappingProgress answer;
+  answer.set_state(v1::MAPPING_FINISHING);
+  answer.set_frame_index(job->frames);
+  stream->Write(answer);
+  const int mapped = job->builder.Progress().frames;
+  if (mapped == 0) {
+    return Fail(stream, job, StatusCode::FAILED_PRECONDITION,
+                "no frame was mapped: nothing was published");
+  }
+  const Timer timer;
+  const MapMetadata metadata{job->name, static_cast<int64_t>(std::time(nullptr)),
+                             StrCat("streamed by ", job->robot_id.empty() ? peer : job->robot_id),
+                             StrCat("visloc ", VislocVersion(), " mapping service"), ""};
+  const Map map = job->builder.Finish(metadata);
+  if (static_cast<int>(map.points.size()) < job->options.min_points) {
+    return Fail(stream, job, StatusCode::FAILED_PRECONDITION,
+                StrCat("the map would have ", map.points.size(), " points, fewer than ",
+                       job->options.min_points, " (min_points) from ", mapped,
+                       " frames: nothing was published"));
+  }
+  const std::string staged = folder.StagingPathFor(job->name);
+  mapstore::SaveMap(map, staged);
+  answer.Clear();
+  proto::ToProto(folder.Publish(staged, job->name, job->options.replace), answer.mutable_map());
+  answer.set_state(v1::MAPPING_PUBLISHED);
+  answer.set_frame_index(job->frames);
+  answer.set_keyframes(static_cast<uint32_t>(map.keyframes.size()));
+  answer.set_points(map.points.size());
+  answer.set_tracking_failures(static_cast<uint32_t>(job->builder.stats().tracking_failures));
+  answer.set_loop_closures(static_cast<uint32_t>(job->builder.stats().loop_closures));
+  answer.set_frame_ms(timer.ElapsedMs());
+  job->registry->Update(job->id, answer);
+  job->registry->End(job->id, v1::MAPPING_PUBLISHED, "");
+  Log("map_built_over_link", {{"map", job->name},
+                              {"frames", std::to_string(job->frames)},
+                              {"keyframes", std::to_string(map.keyframes.size())},
+                              {"points", std::to_string(map.points.size())},
+                              {"finish_ms", StrCat(timer.ElapsedMs())}});
+  stream->Write(answer);
+  return Status::OK;
 }
 
 }  // namespace
@@ -79,31 +263,35 @@ Status Fail(Stream* stream, const std::string& map_name, StatusCode code,
 MappingService::MappingService(MapCache* maps, const MappingLimits& limits, const TokenAuth* auth)
     : maps_(maps), limits_(limits), auth_(auth) {}
 
+Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const {
+  if (limits_.read_only) {
+    return Status(StatusCode::FAILED_PRECONDITION,
+                  "this server's maps folder is read-only (--maps-read-only): build maps on the "
+                  "fleet's admin server");
+  }
+  if (limits_.max_jobs == 0) {
+    return Status(StatusCode::FAILED_PRECONDITION,
+                  "mapping over the link is off on this server (--max-mapping-jobs 0)");
+  }
+  mapstore::CheckMapName(start.map_name());
+  if (maps_->directory().Contains(start.map_name()) && !replace) {
+    return Status(StatusCode::ALREADY_EXISTS,
+                  StrCat("a map named '", start.map_name(),
+                         "' already exists; build with --replace (MappingOptions.replace) to "
+                         "replace it when the new one is published"));
+  }
+  return Status::OK;
+}
+
 Status MappingService::BuildMap(grpc::ServerContext* context, Stream* stream) {
   return HandleRpc(*auth_, *context, Role::kAdmin, "BuildMap", [&] {
-    if (limits_.read_only) {
-      return Status(StatusCode::FAILED_PRECONDITION,
-                    "this server's maps folder is read-only (--maps-read-only): build maps on "
-                    "the fleet's admin server");
-    }
-    if (limits_.max_jobs == 0) {
-      return Status(StatusCode::FAILED_PRECONDITION,
-                    "mapping over the link is off on this server (--max-mapping-jobs 0)");
-    }
     v1::MappingRequest request;
     if (!stream->Read(&request) || !request.has_start()) {
       return Status(StatusCode::INVALID_ARGUMENT, "a mapping stream starts with MappingStart");
     }
     const v1::MappingStart start = request.start();
-    const std::string& name = start.map_name();
-    mapstore::CheckMapName(name);
-    proto::MappingJobOptions job = proto::FromProto(start.options());
-    if (maps_->directory().Contains(name) && !job.replace) {
-      return Status(StatusCode::ALREADY_EXISTS,
-                    StrCat("a map named '", name,
-                           "' already exists; build with --replace (MappingOptions.replace) to "
-                           "replace it when the new one is published"));
-    }
+    proto::MappingJobOptions options = proto::FromProto(start.options());
+    if (Status refused = Refuse(start, options.replace); !refused.ok()) return refused;
     const proto::StereoRigInput rig = proto::FromProto(start.rig(), limits_.wire);
     const JobSlot slot(&active_jobs_, limits_.max_jobs);
     if (!slot.held()) {
@@ -111,99 +299,43 @@ Status MappingService::BuildMap(grpc::ServerContext* context, Stream* stream) {
                     StrCat(limits_.max_jobs, " mapping job", limits_.max_jobs == 1 ? "" : "s",
                            " already running (--max-mapping-jobs); try again when it ends"));
     }
-    job.builder.threads = limits_.threads;
-    mapping::MapBuilder builder(rig.left, rig.right, rig.right_from_left, job.builder);
-    Log("mapping_started", {{"map", name},
-                            {"robot", start.robot_id()},
+    options.builder.threads = limits_.threads;
+    Job job(&jobs_, start, rig, options);
+    Log("mapping_started", {{"map", job.name},
+                            {"job", std::to_string(job.id)},
+                            {"robot", job.robot_id},
                             {"peer", context->peer()},
-                            {"replace", job.replace ? "true" : "false"}});
-    uint64_t frames = 0;
-    int64_t last_timestamp_ns = 0;
+                            {"replace", options.replace ? "true" : "false"}});
     bool ended = false;
-    while (stream->Read(&request)) {
+    while (!ended && stream->Read(&request)) {
       if (request.has_end()) {
         ended = true;
+      } else if (!request.has_frame()) {
+        return Fail(stream, &job, StatusCode::INVALID_ARGUMENT,
+                    "a mapping stream has one MappingStart, then frames: nothing was published");
+      } else if (!stream->Write(MapFrame(request.frame(), limits_.max_frames, &job))) {
         break;
       }
-      if (!request.has_frame()) {
-        return Fail(stream, name, StatusCode::INVALID_ARGUMENT,
-                    "a mapping stream has one MappingStart, then frames: nothing was published");
-      }
-      const Timer timer;
-      const v1::StereoFrame& frame = request.frame();
-      v1::MappingProgress progress;
-      try {
-        if (frames >= static_cast<uint64_t>(limits_.max_frames)) {
-          throw InputError(StrCat("the job has its ", limits_.max_frames,
-                                  " frames (--max-mapping-frames); end the stream to publish"));
-        }
-        if (builder.Progress().frames > 0 && frame.timestamp_ns() <= last_timestamp_ns) {
-          throw InputError(StrCat("timestamp ", frame.timestamp_ns(), " ns is not after the last ",
-                                  last_timestamp_ns, " ns"));
-        }
-        const auto [left, right] = DecodePair(frame, rig);
-        builder.AddFrame(frame.timestamp_ns(), left, right);
-        last_timestamp_ns = frame.timestamp_ns();
-        proto::ToProto(builder.Progress(), &progress);
-      } catch (const InputError& e) {
-        progress.set_state(v1::MAPPING_FRAME_ERROR);
-        progress.set_error(e.what());
-      }
-      progress.set_frame_index(frames++);
-      progress.set_timestamp_ns(frame.timestamp_ns());
-      progress.set_frame_ms(timer.ElapsedMs());
-      if (!stream->Write(progress)) break;
     }
     if (!ended) {
-      const std::string reason =
-          StrCat("the mapping stream of '", name, "' broke after ", frames, " frames",
-                 context->IsCancelled() ? " (the client went away)" : " (no MappingEnd)",
-                 ": nothing was published");
+      const std::string why = context->IsCancelled() ? "the client went away" : "no MappingEnd";
+      const std::string reason = StrCat("the mapping stream of '", job.name, "' broke after ",
+                                        job.frames, " frames (", why, "): nothing was published");
+      jobs_.End(job.id, v1::MAPPING_ABANDONED, reason);
       Log("mapping_abandoned",
-          {{"map", name},
-           {"frames", std::to_string(frames)},
-           {"reason", context->IsCancelled() ? "the client went away" : "no MappingEnd"}});
+          {{"map", job.name}, {"frames", std::to_string(job.frames)}, {"reason", why}});
       return Status(StatusCode::ABORTED, reason);
     }
-    v1::MappingProgress finishing;
-    finishing.set_state(v1::MAPPING_FINISHING);
-    finishing.set_frame_index(frames);
-    stream->Write(finishing);
-    const mapping::MapBuilderProgress so_far = builder.Progress();
-    if (so_far.frames == 0) {
-      return Fail(stream, name, StatusCode::FAILED_PRECONDITION,
-                  "no frame was mapped: nothing was published");
-    }
-    const Timer timer;
-    const MapMetadata metadata{
-        name, static_cast<int64_t>(std::time(nullptr)),
-        StrCat("streamed by ", start.robot_id().empty() ? context->peer() : start.robot_id()),
-        StrCat("visloc ", VislocVersion(), " mapping service"), ""};
-    const Map map = builder.Finish(metadata);
-    if (static_cast<int>(map.points.size()) < job.min_points) {
-      return Fail(
-          stream, name, StatusCode::FAILED_PRECONDITION,
-          StrCat("the map would have ", map.points.size(), " points, fewer than ", job.min_points,
-                 " (min_points) from ", so_far.frames, " frames: nothing was published"));
-    }
-    mapstore::MapDirectory directory = maps_->directory();  // Publish renames in its folder.
-    const std::string staged = directory.StagingPathFor(name);
-    mapstore::SaveMap(map, staged);
-    v1::MappingProgress published;
-    proto::ToProto(directory.Publish(staged, name, job.replace), published.mutable_map());
-    published.set_state(v1::MAPPING_PUBLISHED);
-    published.set_frame_index(frames);
-    published.set_keyframes(static_cast<uint32_t>(map.keyframes.size()));
-    published.set_points(map.points.size());
-    published.set_tracking_failures(static_cast<uint32_t>(builder.stats().tracking_failures));
-    published.set_loop_closures(static_cast<uint32_t>(builder.stats().loop_closures));
-    published.set_frame_ms(timer.ElapsedMs());
-    Log("map_built_over_link", {{"map", name},
-                                {"frames", std::to_string(frames)},
-                                {"keyframes", std::to_string(map.keyframes.size())},
-                                {"points", std::to_string(map.points.size())},
-                                {"finish_ms", StrCat(timer.ElapsedMs())}});
-    stream->Write(published);
+    return FinishAndPublish(maps_->directory(), context->peer(), stream, &job);
+  });
+}
+
+Status MappingService::ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
+                                v1::ListJobsResponse* response) {
+  return HandleRpc(*auth_, *context, Role::kLocalize, "ListJobs", [&] {
+    for (const v1::MappingJob& job : jobs_.Snapshot()) *response->add_jobs() = job;
+    response->set_server_time_unix_ns(UnixNowNs());
+    response->set_max_jobs(static_cast<uint32_t>(limits_.max_jobs));
     return Status::OK;
   });
 }

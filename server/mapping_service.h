@@ -8,7 +8,11 @@
 // breaks, or ends without MappingEnd, publishes nothing.
 
 #include <atomic>
+#include <cstdint>
+#include <map>
+#include <mutex>
 #include <string>
+#include <vector>
 
 #include "proto/geometry_convert.h"
 #include "server/auth.h"
@@ -28,6 +32,27 @@ struct MappingLimits {
   proto::WireLimits wire;
 };
 
+// The server's mapping jobs, running and recently ended, for ListJobs (`visloc jobs`). Thread-safe.
+class MappingJobs {
+ public:
+  explicit MappingJobs(size_t keep_ended = 32) : keep_ended_(keep_ended) {}
+  // A new running job; returns its id.
+  uint64_t Begin(const std::string& map_name, const std::string& robot_id);
+  // A frame's answer: its state, and for a mapped frame the counts and pose.
+  void Update(uint64_t id, const v1::MappingProgress& progress);
+  void SetState(uint64_t id, v1::MappingState state);
+  // Ends a job (PUBLISHED, FAILED or ABANDONED); only the newest keep_ended ended jobs are kept.
+  void End(uint64_t id, v1::MappingState state, const std::string& error);
+  bool Ended(uint64_t id) const;
+  std::vector<v1::MappingJob> Snapshot() const;
+
+ private:
+  mutable std::mutex mutex_;
+  uint64_t next_id_ = 1;
+  std::map<uint64_t, v1::MappingJob> jobs_;
+  size_t keep_ended_;
+};
+
 class MappingService final : public v1::Mapping::Service {
  public:
   // Every call needs the admin role. `maps` and `auth` must outlive the service.
@@ -36,14 +61,22 @@ class MappingService final : public v1::Mapping::Service {
   grpc::Status BuildMap(
       grpc::ServerContext* context,
       grpc::ServerReaderWriter<v1::MappingProgress, v1::MappingRequest>* stream) override;
+  grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
+                        v1::ListJobsResponse* response) override;
 
   int active_jobs() const { return active_jobs_.load(); }
+  std::vector<v1::MappingJob> jobs() const { return jobs_.Snapshot(); }
 
  private:
+  // Why a job may not start (read-only folder, mapping off, a bad name, a name taken without
+  // `replace`); OK otherwise.
+  grpc::Status Refuse(const v1::MappingStart& start, bool replace) const;
+
   MapCache* maps_;
   MappingLimits limits_;
   const TokenAuth* auth_;
   std::atomic<int> active_jobs_{0};
+  MappingJobs jobs_;
 };
 
 }  // namespace visloc::server

@@ -66,6 +66,10 @@ TEST_F(MappingLinkE2eTest, AStreamedRunBecomesTheMapAnOfflineBuildMakesAndRobots
   EXPECT_EQ(JsonNumber(built.out, "lost_frames"), 0);
   EXPECT_GE(JsonNumber(built.out, "keyframes"), 3);
   EXPECT_TRUE(server.WaitForLog("event=map_built_over_link map=hall"));
+  const ProcessResult jobs = Visloc({"jobs", "--server", server.address(), "--json"});
+  ASSERT_EQ(jobs.exit_code, 0) << jobs.err;
+  EXPECT_THAT(jobs.out, HasSubstr("\"map\":\"hall\",\"robot\":\"visloc-map-build\",\"state\":"
+                                  "\"published\",\"running\":false,\"frames\":60,"));
 
   // The same frames mapped here: the same keyframes (the server decodes the same PNG bytes).
   const ProcessResult offline = Visloc(
@@ -122,6 +126,9 @@ TEST_F(MappingLinkE2eTest, ACutLinkPublishesNothingAndLeavesTheOldMap) {
   ASSERT_TRUE(server.WaitForLog("event=mapping_abandoned map=hall")) << server.Log();
   EXPECT_EQ(ReadFileBytes(maps_.File("hall.db")), before);
   EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"hall.db"});
+  const ProcessResult jobs = Visloc({"jobs", "--server", server.address()});
+  EXPECT_THAT(jobs.out, HasSubstr("abandoned"));
+  EXPECT_THAT(jobs.out, HasSubstr("(the client went away): nothing was published"));
   const ProcessResult list = Visloc({"map", "list", "--server", server.address(), "--json"});
   EXPECT_EQ(list.exit_code, 0) << list.err;
   EXPECT_THAT(list.out, HasSubstr("\"hall\""));
