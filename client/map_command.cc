@@ -156,6 +156,10 @@ int RunBuild(const Args& args) {
   parser.AddSwitch("replace", &replace, "with --server: replace a map of that name on the server");
   std::string robot_id = "visloc-map-build";
   parser.AddFlag("robot-id", &robot_id, "with --server: the robot's name in the server's jobs");
+  double resume_s = 30.0;
+  parser.AddFlag("resume-s", &resume_s,
+                 "with --server: how long a broken link is retried, the job resumed where the "
+                 "server has it (0: give up at once)");
   double rate_hz = -1.0;
   parser.AddFlag("rate", &rate_hz,
                  "with --server: frames a second to stream at (0: the recording's own pace)");
@@ -223,6 +227,8 @@ int RunBuild(const Args& args) {
     remote.name = name;
     remote.robot_id = robot_id;
     remote.rate_hz = rate_hz;
+    if (!(resume_s >= 0)) throw UsageError("--resume-s must not be negative");
+    remote.resume_s = resume_s;
     remote.progress = ShowProgress() && !json;
     remote.json = json;
     remote.wire.set_replace(replace);

@@ -20,12 +20,16 @@ struct RemoteBuildOptions {
   // as the server maps them.
   double rate_hz = -1.0;
   int max_in_flight = 8;  // Frames sent but not yet answered (the server's queue, bounded).
+  // A broken link is retried, and the job resumed where the server has it, for this long; the
+  // server keeps a broken job for its own window (visloc-server --mapping-resume-s).
+  double resume_s = 30.0;
   bool progress = false;  // A progress line on stderr.
   bool json = false;
 };
 
-// Streams every frame of `dataset`, then MappingEnd. Returns 0 when the map is published; throws
-// InputError with the server's reason otherwise (nothing is then published).
+// Streams every frame of `dataset`, then MappingEnd, resuming the job on a new stream when the
+// link breaks. Returns 0 when the map is published; throws InputError with the server's reason
+// otherwise (nothing is then published).
 int RemoteMapBuild(const Connection& server, const Dataset& dataset,
                    const RemoteBuildOptions& options);
 

@@ -43,6 +43,9 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
                  "threads of each mapping job (features, stereo matching)");
   parser.AddFlag("max-mapping-frames", &c->max_mapping_frames,
                  "stereo frames one mapping job takes (bounds its memory)");
+  parser.AddFlag("mapping-resume-s", &c->mapping_resume_s,
+                 "a mapping job whose link broke waits this long for its client to resume it, "
+                 "keeping its map so far (0: dropped at once)");
   parser.AddFlag("tls-cert", &c->tls_cert, "serve TLS with this certificate chain (PEM)");
   parser.AddFlag("tls-key", &c->tls_key, "the certificate's private key (PEM)");
   parser.AddFlag("tls-client-ca", &c->tls_client_ca,

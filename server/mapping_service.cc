@@ -25,27 +25,6 @@ namespace {
 
 using Stream = grpc::ServerReaderWriter<v1::MappingProgress, v1::MappingRequest>;
 
-// One of `limit` job slots, held while it lives; empty when all are taken.
-class JobSlot {
- public:
-  JobSlot(std::atomic<int>* active, int limit) : active_(active) {
-    int now = active_->load();
-    while (now < limit && !active_->compare_exchange_weak(now, now + 1)) {
-    }
-    held_ = now < limit;
-  }
-  ~JobSlot() {
-    if (held_) --*active_;
-  }
-  JobSlot(const JobSlot&) = delete;
-  JobSlot& operator=(const JobSlot&) = delete;
-  bool held() const { return held_; }
-
- private:
-  std::atomic<int>* active_;
-  bool held_ = false;
-};
-
 // One stereo frame decoded to the rig's cameras, or InputError naming the side and the problem.
 std::pair<cv::Mat, cv::Mat> DecodePair(const v1::StereoFrame& frame,
                                        const proto::StereoRigInput& rig) {
@@ -139,28 +118,51 @@ std::vector<v1::MappingJob> MappingJobs::Snapshot() const {
   return jobs;
 }
 
-namespace {
+// One of `limit` job slots, held while it lives; empty when all are taken.
+class JobSlot {
+ public:
+  JobSlot(std::atomic<int>* active, int limit) : active_(active) {
+    int now = active_->load();
+    while (now < limit && !active_->compare_exchange_weak(now, now + 1)) {
+    }
+    held_ = now < limit;
+  }
+  ~JobSlot() {
+    if (held_) --*active_;
+  }
+  JobSlot(const JobSlot&) = delete;
+  JobSlot& operator=(const JobSlot&) = delete;
+  bool held() const { return held_; }
 
-// One job while its stream lasts: the mapper and what arrived. Ends the job's record as FAILED
-// when it is left without an outcome (an exception on the way).
-struct Job {
+ private:
+  std::atomic<int>* active_;
+  bool held_ = false;
+};
+
+// One job from its MappingStart to its outcome, across the streams that feed it (a resumed job
+// is taken over by the next stream): its slot, the mapper and what arrived. Ends the job's record
+// as FAILED when it is left without an outcome (an exception on the way).
+struct ActiveMappingJob {
   // The mapper is made first: a rig it refuses leaves no job behind in the registry.
-  Job(MappingJobs* jobs, const v1::MappingStart& start, const proto::StereoRigInput& rig_in,
-      const proto::MappingJobOptions& options_in)
+  ActiveMappingJob(MappingJobs* jobs, std::unique_ptr<JobSlot> slot_in,
+                   const v1::MappingStart& start, const proto::StereoRigInput& rig_in,
+                   const proto::MappingJobOptions& options_in)
       : registry(jobs),
+        slot(std::move(slot_in)),
         rig(rig_in),
         options(options_in),
         builder(rig.left, rig.right, rig.right_from_left, options.builder),
         name(start.map_name()),
         robot_id(start.robot_id()),
         id(jobs->Begin(name, robot_id)) {}
-  ~Job() {
+  ~ActiveMappingJob() {
     if (!registry->Ended(id)) registry->End(id, v1::MAPPING_FAILED, "the server failed the job");
   }
-  Job(const Job&) = delete;
-  Job& operator=(const Job&) = delete;
+  ActiveMappingJob(const ActiveMappingJob&) = delete;
+  ActiveMappingJob& operator=(const ActiveMappingJob&) = delete;
 
   MappingJobs* registry;
+  std::unique_ptr<JobSlot> slot;
   proto::StereoRigInput rig;
   proto::MappingJobOptions options;
   mapping::MapBuilder builder;
@@ -170,6 +172,10 @@ struct Job {
   uint64_t frames = 0;  // Arrived.
   int64_t last_timestamp_ns = 0;
 };
+
+namespace {
+
+using Job = ActiveMappingJob;
 
 // A frame through the mapper, answered with the build's progress; a bad frame is answered
 // MAPPING_FRAME_ERROR with the reason, and the job goes on.
@@ -196,6 +202,7 @@ v1::MappingProgress MapFrame(const v1::StereoFrame& frame, int max_frames, Job* 
   progress.set_frame_index(job->frames++);
   progress.set_timestamp_ns(frame.timestamp_ns());
   progress.set_frame_ms(timer.ElapsedMs());
+  progress.set_job_id(job->id);
   job->registry->Update(job->id, progress);
   return progress;
 }
@@ -206,6 +213,7 @@ Status Fail(Stream* stream, Job* job, StatusCode code, const std::string& reason
   v1::MappingProgress failed;
   failed.set_state(v1::MAPPING_FAILED);
   failed.set_error(reason);
+  failed.set_job_id(job->id);
   stream->Write(failed);
   job->registry->End(job->id, v1::MAPPING_FAILED, reason);
   Log("mapping_failed", {{"map", job->name}, {"reason", reason}});
@@ -219,6 +227,7 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
   v1::MappingProgress answer;
   answer.set_state(v1::MAPPING_FINISHING);
   answer.set_frame_index(job->frames);
+  answer.set_job_id(job->id);
   stream->Write(answer);
   const int mapped = job->builder.Progress().frames;
   if (mapped == 0) {
@@ -242,6 +251,7 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
   proto::ToProto(folder.Publish(staged, job->name, job->options.replace), answer.mutable_map());
   answer.set_state(v1::MAPPING_PUBLISHED);
   answer.set_frame_index(job->frames);
+  answer.set_job_id(job->id);
   answer.set_keyframes(static_cast<uint32_t>(map.keyframes.size()));
   answer.set_points(map.points.size());
   answer.set_tracking_failures(static_cast<uint32_t>(job->builder.stats().tracking_failures));
@@ -263,6 +273,8 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
 MappingService::MappingService(MapCache* maps, const MappingLimits& limits, const TokenAuth* auth)
     : maps_(maps), limits_(limits), auth_(auth) {}
 
+MappingService::~MappingService() = default;
+
 Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const {
   if (limits_.read_only) {
     return Status(StatusCode::FAILED_PRECONDITION,
@@ -283,56 +295,146 @@ Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const
   return Status::OK;
 }
 
+std::unique_ptr<ActiveMappingJob> MappingService::Open(const grpc::ServerContext& context,
+                                                       const v1::MappingStart& start,
+                                                       Stream* stream, Status* refused) {
+  if (start.resume_job_id() != 0) {
+    std::unique_ptr<Job> job;
+    {
+      std::lock_guard<std::mutex> lock(waiting_mutex_);
+      const auto found = waiting_.find(start.resume_job_id());
+      if (found != waiting_.end() && found->second.job->name == start.map_name()) {
+        job = std::move(found->second.job);
+        waiting_.erase(found);
+      }
+    }
+    if (!job) {
+      *refused = Status(
+          StatusCode::NOT_FOUND,
+          StrCat("mapping job ", start.resume_job_id(), " of '", start.map_name(),
+                 "' is not waiting to be resumed (it ended, or its ", limits_.resume_window_s,
+                 " s window passed): nothing of it was published; build again"));
+      return nullptr;
+    }
+    v1::MappingProgress resumed;
+    proto::ToProto(job->builder.Progress(), &resumed);
+    resumed.set_state(v1::MAPPING_RESUMED);
+    resumed.set_frame_index(job->frames);
+    resumed.set_timestamp_ns(job->last_timestamp_ns);
+    resumed.set_job_id(job->id);
+    jobs_.SetState(job->id, v1::MAPPING_TRACKING);
+    Log("mapping_resumed", {{"map", job->name},
+                            {"job", std::to_string(job->id)},
+                            {"frames", std::to_string(job->frames)},
+                            {"peer", context.peer()}});
+    stream->Write(resumed);
+    return job;
+  }
+  proto::MappingJobOptions options = proto::FromProto(start.options());
+  if (*refused = Refuse(start, options.replace); !refused->ok()) return nullptr;
+  const proto::StereoRigInput rig = proto::FromProto(start.rig(), limits_.wire);
+  auto slot = std::make_unique<JobSlot>(&active_jobs_, limits_.max_jobs);
+  if (!slot->held()) {
+    *refused = Status(StatusCode::RESOURCE_EXHAUSTED,
+                      StrCat(limits_.max_jobs, " mapping job", limits_.max_jobs == 1 ? "" : "s",
+                             " already running or waiting to be resumed (--max-mapping-jobs); "
+                             "try again when it ends"));
+    return nullptr;
+  }
+  options.builder.threads = limits_.threads;
+  auto job = std::make_unique<Job>(&jobs_, std::move(slot), start, rig, options);
+  Log("mapping_started", {{"map", job->name},
+                          {"job", std::to_string(job->id)},
+                          {"robot", job->robot_id},
+                          {"peer", context.peer()},
+                          {"replace", options.replace ? "true" : "false"}});
+  return job;
+}
+
+Status MappingService::Park(std::unique_ptr<ActiveMappingJob> job, const std::string& why) {
+  const std::string broke = StrCat("the mapping stream of '", job->name, "' broke after ",
+                                   job->frames, " frames (", why, ")");
+  if (limits_.resume_window_s <= 0) {
+    jobs_.End(job->id, v1::MAPPING_ABANDONED, broke + ": nothing was published");
+    Log("mapping_abandoned",
+        {{"map", job->name}, {"frames", std::to_string(job->frames)}, {"reason", why}});
+    return Status(StatusCode::ABORTED, broke + ": nothing was published");
+  }
+  const uint64_t id = job->id;
+  jobs_.SetState(id, v1::MAPPING_WAITING);
+  Log("mapping_waiting", {{"map", job->name},
+                          {"job", std::to_string(id)},
+                          {"frames", std::to_string(job->frames)},
+                          {"reason", why}});
+  const std::string message =
+      StrCat(broke, ": job ", id, " waits ", limits_.resume_window_s,
+             " s to be resumed (MappingStart.resume_job_id); nothing is published until it ends");
+  std::lock_guard<std::mutex> lock(waiting_mutex_);
+  const auto window = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(limits_.resume_window_s));
+  waiting_[id] = {std::chrono::steady_clock::now() + window, std::move(job)};
+  return Status(StatusCode::ABORTED, message);
+}
+
+void MappingService::ExpireWaitingJobs() {
+  std::vector<std::unique_ptr<Job>> expired;
+  {
+    std::lock_guard<std::mutex> lock(waiting_mutex_);
+    const auto now = std::chrono::steady_clock::now();
+    for (auto it = waiting_.begin(); it != waiting_.end();) {
+      if (it->second.deadline > now) {
+        ++it;
+        continue;
+      }
+      expired.push_back(std::move(it->second.job));
+      it = waiting_.erase(it);
+    }
+  }
+  for (const std::unique_ptr<Job>& job : expired) {
+    const std::string reason = StrCat("the mapping stream of '", job->name, "' broke after ",
+                                      job->frames, " frames and was not resumed within ",
+                                      limits_.resume_window_s, " s: nothing was published");
+    jobs_.End(job->id, v1::MAPPING_ABANDONED, reason);
+    Log("mapping_abandoned", {{"map", job->name},
+                              {"job", std::to_string(job->id)},
+                              {"frames", std::to_string(job->frames)},
+                              {"reason", "not resumed in time"}});
+  }
+}
+
 Status MappingService::BuildMap(grpc::ServerContext* context, Stream* stream) {
   return HandleRpc(*auth_, *context, Role::kAdmin, "BuildMap", [&] {
+    ExpireWaitingJobs();
     v1::MappingRequest request;
     if (!stream->Read(&request) || !request.has_start()) {
       return Status(StatusCode::INVALID_ARGUMENT, "a mapping stream starts with MappingStart");
     }
-    const v1::MappingStart start = request.start();
-    proto::MappingJobOptions options = proto::FromProto(start.options());
-    if (Status refused = Refuse(start, options.replace); !refused.ok()) return refused;
-    const proto::StereoRigInput rig = proto::FromProto(start.rig(), limits_.wire);
-    const JobSlot slot(&active_jobs_, limits_.max_jobs);
-    if (!slot.held()) {
-      return Status(StatusCode::RESOURCE_EXHAUSTED,
-                    StrCat(limits_.max_jobs, " mapping job", limits_.max_jobs == 1 ? "" : "s",
-                           " already running (--max-mapping-jobs); try again when it ends"));
-    }
-    options.builder.threads = limits_.threads;
-    Job job(&jobs_, start, rig, options);
-    Log("mapping_started", {{"map", job.name},
-                            {"job", std::to_string(job.id)},
-                            {"robot", job.robot_id},
-                            {"peer", context->peer()},
-                            {"replace", options.replace ? "true" : "false"}});
+    Status refused;
+    std::unique_ptr<Job> job = Open(*context, request.start(), stream, &refused);
+    if (!job) return refused;
     bool ended = false;
     while (!ended && stream->Read(&request)) {
       if (request.has_end()) {
         ended = true;
       } else if (!request.has_frame()) {
-        return Fail(stream, &job, StatusCode::INVALID_ARGUMENT,
+        return Fail(stream, job.get(), StatusCode::INVALID_ARGUMENT,
                     "a mapping stream has one MappingStart, then frames: nothing was published");
-      } else if (!stream->Write(MapFrame(request.frame(), limits_.max_frames, &job))) {
+      } else if (!stream->Write(MapFrame(request.frame(), limits_.max_frames, job.get()))) {
         break;
       }
     }
     if (!ended) {
-      const std::string why = context->IsCancelled() ? "the client went away" : "no MappingEnd";
-      const std::string reason = StrCat("the mapping stream of '", job.name, "' broke after ",
-                                        job.frames, " frames (", why, "): nothing was published");
-      jobs_.End(job.id, v1::MAPPING_ABANDONED, reason);
-      Log("mapping_abandoned",
-          {{"map", job.name}, {"frames", std::to_string(job.frames)}, {"reason", why}});
-      return Status(StatusCode::ABORTED, reason);
+      return Park(std::move(job),
+                  context->IsCancelled() ? "the client went away" : "no MappingEnd");
     }
-    return FinishAndPublish(maps_->directory(), context->peer(), stream, &job);
+    return FinishAndPublish(maps_->directory(), context->peer(), stream, job.get());
   });
 }
 
 Status MappingService::ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
                                 v1::ListJobsResponse* response) {
   return HandleRpc(*auth_, *context, Role::kLocalize, "ListJobs", [&] {
+    ExpireWaitingJobs();
     for (const v1::MappingJob& job : jobs_.Snapshot()) *response->add_jobs() = job;
     response->set_server_time_unix_ns(UnixNowNs());
     response->set_max_jobs(static_cast<uint32_t>(limits_.max_jobs));

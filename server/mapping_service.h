@@ -8,8 +8,10 @@
 // breaks, or ends without MappingEnd, publishes nothing.
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -21,6 +23,8 @@
 
 namespace visloc::server {
 
+struct ActiveMappingJob;  // One job's mapper and state (mapping_service.cc).
+
 struct MappingLimits {
   // Jobs at once; more are refused (RESOURCE_EXHAUSTED). A job holds its frames' features and
   // the map so far in memory, and takes a core while frames arrive.
@@ -29,6 +33,9 @@ struct MappingLimits {
   // Frames one job takes; later frames are answered MAPPING_FRAME_ERROR (bounds its memory).
   int max_frames = 20000;
   bool read_only = false;  // A replica of a shared maps folder: mapping is refused.
+  // A job whose stream breaks waits this long for its client to resume it
+  // (MappingStart.resume_job_id), keeping its map so far and its slot; 0: it is dropped at once.
+  double resume_window_s = 30.0;
   proto::WireLimits wire;
 };
 
@@ -57,12 +64,17 @@ class MappingService final : public v1::Mapping::Service {
  public:
   // Every call needs the admin role. `maps` and `auth` must outlive the service.
   MappingService(MapCache* maps, const MappingLimits& limits, const TokenAuth* auth);
+  ~MappingService() override;
 
   grpc::Status BuildMap(
       grpc::ServerContext* context,
       grpc::ServerReaderWriter<v1::MappingProgress, v1::MappingRequest>* stream) override;
   grpc::Status ListJobs(grpc::ServerContext* context, const v1::ListJobsRequest*,
                         v1::ListJobsResponse* response) override;
+
+  // Drops the jobs that waited longer than the resume window (each logged and listed as
+  // abandoned). The server's janitor calls it; every call of the service does too.
+  void ExpireWaitingJobs();
 
   int active_jobs() const { return active_jobs_.load(); }
   std::vector<v1::MappingJob> jobs() const { return jobs_.Snapshot(); }
@@ -71,12 +83,26 @@ class MappingService final : public v1::Mapping::Service {
   // Why a job may not start (read-only folder, mapping off, a bad name, a name taken without
   // `replace`); OK otherwise.
   grpc::Status Refuse(const v1::MappingStart& start, bool replace) const;
+  // A new job for `start`, or the waiting job it resumes (answered MAPPING_RESUMED); null with
+  // `refused` set when there is none.
+  std::unique_ptr<ActiveMappingJob> Open(
+      const grpc::ServerContext& context, const v1::MappingStart& start,
+      grpc::ServerReaderWriter<v1::MappingProgress, v1::MappingRequest>* stream,
+      grpc::Status* refused);
+  // A job whose stream broke: kept for the resume window, or abandoned without one.
+  grpc::Status Park(std::unique_ptr<ActiveMappingJob> job, const std::string& why);
 
   MapCache* maps_;
   MappingLimits limits_;
   const TokenAuth* auth_;
   std::atomic<int> active_jobs_{0};
   MappingJobs jobs_;
+  struct WaitingJob {
+    std::chrono::steady_clock::time_point deadline;
+    std::unique_ptr<ActiveMappingJob> job;
+  };
+  std::mutex waiting_mutex_;
+  std::map<uint64_t, WaitingJob> waiting_;  // By job id.
 };
 
 }  // namespace visloc::server

@@ -97,6 +97,7 @@ MappingLimits MappingLimitsOf(const ServerConfig& config) {
   limits.threads = config.mapping_threads;
   limits.max_frames = config.max_mapping_frames;
   limits.read_only = config.maps_read_only;
+  limits.resume_window_s = config.mapping_resume_s;
   return limits;
 }
 
@@ -130,6 +131,9 @@ void ServerConfig::Check() const {
     throw UsageError("--mapping-threads must be 1 to 64");
   }
   if (max_mapping_frames < 1) throw UsageError("--max-mapping-frames must be at least 1");
+  if (!(mapping_resume_s >= 0 && mapping_resume_s <= 3600)) {
+    throw UsageError("--mapping-resume-s must be 0 to 3600");
+  }
   if (tls_cert.empty() != tls_key.empty()) throw UsageError("--tls-cert and --tls-key go together");
   if (!tls_client_ca.empty() && tls_cert.empty()) {
     throw UsageError("--tls-client-ca needs --tls-cert and --tls-key");
@@ -205,6 +209,7 @@ Server::Server(const ServerConfig& config)
     while (!stopping_) {
       std::this_thread::sleep_for(std::chrono::milliseconds(500));
       maps_.UnloadIdle();
+      mapping_.ExpireWaitingJobs();
     }
   });
 }

@@ -105,30 +105,62 @@ TEST_F(MappingLinkE2eTest, AStreamedRunBecomesTheMapAnOfflineBuildMakesAndRobots
   EXPECT_THAT(again.err, HasSubstr("a map named 'hall' already exists"));
 }
 
-// The link is cut while frames stream: nothing is published, the map of that name that was
-// there stays byte for byte, no temporary is left, and the server goes on serving.
-TEST_F(MappingLinkE2eTest, ACutLinkPublishesNothingAndLeavesTheOldMap) {
-  testing::SaveLabMap(maps_.File("hall.db"));
-  const std::string before = ReadFileBytes(maps_.File("hall.db"));
+// The link is cut for two seconds while frames stream: the client reconnects and resumes the
+// job where the server has it, and the map is the one an unbroken run makes.
+TEST_F(MappingLinkE2eTest, AShortCutIsResumedAndTheMapIsTheSame) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   LinkProxy link(server.address(), kWifi);
+  const std::string frames = "0:" + std::to_string(kFrames);
   const int client = testing::SpawnProcess(
-      {VISLOC_CLI_PATH, "map", "build", "--server", link.address(), "--name", "hall", "--replace",
-       "--dataset", kRun, "--frames", "0:" + std::to_string(kFrames), "--rate", "10"},
+      {VISLOC_CLI_PATH, "map", "build", "--server", link.address(), "--name", "hall", "--dataset",
+       kRun, "--frames", frames, "--rate", "10", "--json"},
       work_.File("client.out"), work_.File("client.err"));
   ASSERT_TRUE(server.WaitForLog("event=mapping_started map=hall"));
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // ~15 frames mapped.
-  link.Cut(std::chrono::milliseconds(3000));
-  const int exit_code = testing::WaitProcess(client);
-  EXPECT_NE(exit_code, 0);
-  EXPECT_THAT(ReadFileBytes(work_.File("client.err")), HasSubstr("the mapping stream broke after"));
-  EXPECT_THAT(ReadFileBytes(work_.File("client.err")), HasSubstr("nothing was published"));
+  link.Cut(std::chrono::milliseconds(2000));
+  ASSERT_EQ(testing::WaitProcess(client), 0) << ReadFileBytes(work_.File("client.err"));
+  const std::string out = ReadFileBytes(work_.File("client.out"));
+  EXPECT_GE(JsonNumber(out, "resumes"), 1) << out;
+  EXPECT_EQ(JsonNumber(out, "frames"), kFrames) << out;
+  EXPECT_TRUE(server.WaitForLog("event=mapping_waiting map=hall"));
+  EXPECT_TRUE(server.WaitForLog("event=mapping_resumed map=hall"));
+
+  ASSERT_EQ(Visloc({"map", "build", "--dataset", kRun, "--frames", frames, "--out",
+                    work_.File("offline.db")})
+                .exit_code,
+            0);
+  for (const auto& [map, tum] : {std::pair{maps_.File("hall.db"), work_.File("link.tum")},
+                                 std::pair{work_.File("offline.db"), work_.File("offline.tum")}}) {
+    ASSERT_EQ(Visloc({"map", "export", map, "--keyframes", tum}).exit_code, 0);
+  }
+  EXPECT_EQ(ReadFileBytes(work_.File("link.tum")), ReadFileBytes(work_.File("offline.tum")));
+}
+
+// The link stays down beyond the resume windows: nothing is published, the map of that name that
+// was there stays byte for byte, no temporary is left, and the server goes on serving.
+TEST_F(MappingLinkE2eTest, ALongCutPublishesNothingAndLeavesTheOldMap) {
+  testing::SaveLabMap(maps_.File("hall.db"));
+  const std::string before = ReadFileBytes(maps_.File("hall.db"));
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--mapping-resume-s", "1"});
+  LinkProxy link(server.address(), kWifi);
+  const int client =
+      testing::SpawnProcess({VISLOC_CLI_PATH, "map", "build", "--server", link.address(), "--name",
+                             "hall", "--replace", "--dataset", kRun, "--frames",
+                             "0:" + std::to_string(kFrames), "--rate", "10", "--resume-s", "2"},
+                            work_.File("client.out"), work_.File("client.err"));
+  ASSERT_TRUE(server.WaitForLog("event=mapping_started map=hall"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  link.Cut(std::chrono::milliseconds(6000));
+  EXPECT_NE(testing::WaitProcess(client), 0);
+  const std::string err = ReadFileBytes(work_.File("client.err"));
+  EXPECT_THAT(err, HasSubstr("the mapping stream broke after"));
+  EXPECT_THAT(err, HasSubstr("nothing was published"));
   ASSERT_TRUE(server.WaitForLog("event=mapping_abandoned map=hall")) << server.Log();
   EXPECT_EQ(ReadFileBytes(maps_.File("hall.db")), before);
   EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"hall.db"});
   const ProcessResult jobs = Visloc({"jobs", "--server", server.address()});
   EXPECT_THAT(jobs.out, HasSubstr("abandoned"));
-  EXPECT_THAT(jobs.out, HasSubstr("(the client went away): nothing was published"));
+  EXPECT_THAT(jobs.out, HasSubstr("was not resumed within 1 s: nothing was published"));
   const ProcessResult list = Visloc({"map", "list", "--server", server.address(), "--json"});
   EXPECT_EQ(list.exit_code, 0) << list.err;
   EXPECT_THAT(list.out, HasSubstr("\"hall\""));
@@ -211,12 +243,33 @@ TEST_F(MappingServiceE2eTest, BadFramesAreAnsweredByNameAndTheJobGoesOn) {
   EXPECT_TRUE(next.has_pose());
   EXPECT_GT(next.tracked(), 50u);
 
-  // The stream ends without MappingEnd: nothing is published.
+  // The stream ends without MappingEnd: nothing is published, and the job waits to be resumed.
   call->stream->WritesDone();
   const grpc::Status status = call->stream->Finish();
   EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED);
-  EXPECT_THAT(status.error_message(), HasSubstr("nothing was published"));
+  EXPECT_THAT(status.error_message(), HasSubstr("waits 30 s to be resumed"));
   EXPECT_TRUE(FilesIn(maps_.path()).empty());
+
+  // Resuming another map's job is refused; resuming this one answers where it stands.
+  v1::MappingRequest resume = Start("other_name");
+  resume.mutable_start()->set_resume_job_id(next.job_id());
+  auto wrong = Open();
+  wrong->stream->Write(resume);
+  wrong->stream->WritesDone();
+  EXPECT_EQ(wrong->stream->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+  resume.mutable_start()->set_map_name("bad_frames");
+  auto again = Open();
+  ASSERT_TRUE(again->stream->Write(resume));
+  v1::MappingProgress resumed;
+  ASSERT_TRUE(again->stream->Read(&resumed));
+  EXPECT_EQ(resumed.state(), v1::MAPPING_RESUMED);
+  EXPECT_EQ(resumed.job_id(), next.job_id());
+  EXPECT_EQ(resumed.timestamp_ns(), run_.frames[1].timestamp_ns);  // The last frame mapped.
+  EXPECT_EQ(resumed.frame_index(), 5u);                            // Frames that arrived.
+  const v1::MappingProgress after = Exchange(again->stream.get(), Frame(2));
+  EXPECT_EQ(after.state(), v1::MAPPING_TRACKING);
+  EXPECT_EQ(after.frame_index(), 5u);
+  again->context.TryCancel();
 }
 
 TEST_F(MappingServiceE2eTest, OneJobAtATimeAdminsOnlyAndSmallMapsAreNotPublished) {
