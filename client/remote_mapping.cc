@@ -187,6 +187,12 @@ class MappingUpload {
     sentence +=
         StrCat("; mapped at ", FormatFixed(rate, 1), " frames a second, each answered in ",
                FormatFixed(median_ms, 0), " ms (median), ", FormatFixed(max_ms, 0), " ms at most");
+    const double paced_hz = PacedRate();
+    if (paced_hz > 0 && rate < 0.95 * paced_hz) {
+      sentence += StrCat("; FELL BEHIND the ", FormatFixed(paced_hz, 1),
+                         " frames a second it was paced at (the link's bandwidth or the server's "
+                         "time per frame: see each answer's time)");
+    }
     return PrintOutcome(options_.json, sentence,
                         {{"map", options_.name},
                          {"server", server_.server},
@@ -198,6 +204,7 @@ class MappingUpload {
                          {"refused_frames", static_cast<int64_t>(answers_.frame_errors)},
                          {"resumes", static_cast<int64_t>(resumes_)},
                          {"frames_per_second", rate},
+                         {"paced_frames_per_second", PacedRate()},
                          {"answer_ms_median", median_ms},
                          {"answer_ms_max", max_ms},
                          {"finish_ms", done.frame_ms()}});
@@ -246,6 +253,16 @@ class MappingUpload {
     reader.join();
     if (options_.progress) std::fprintf(stderr, "\r\33[K");
     return stream->Finish();
+  }
+
+  // The rate frames were paced at (--rate, or the recording's own); 0 when sent as fast as
+  // the server answered.
+  double PacedRate() const {
+    if (options_.rate_hz > 0) return options_.rate_hz;
+    const auto& frames = dataset_.frames;
+    if (options_.rate_hz < 0 || frames.size() < 2) return 0.0;
+    return (frames.size() - 1) /
+           ((frames.back().timestamp_ns - frames.front().timestamp_ns) * 1e-9);
   }
 
   bool SendFrame(Stream* stream, size_t index) {
