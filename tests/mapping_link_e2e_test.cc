@@ -166,6 +166,22 @@ TEST_F(MappingLinkE2eTest, ALongCutPublishesNothingAndLeavesTheOldMap) {
   EXPECT_THAT(list.out, HasSubstr("\"hall\""));
 }
 
+TEST_F(MappingLinkE2eTest, TheCommandSaysWhereTheMapGoes) {
+  const ProcessResult nameless =
+      Visloc({"map", "build", "--dataset", kRun, "--server", "127.0.0.1:1"});
+  EXPECT_EQ(nameless.exit_code, 2);
+  EXPECT_THAT(nameless.err, HasSubstr("--server needs --name"));
+  const ProcessResult both = Visloc({"map", "build", "--dataset", kRun, "--server", "127.0.0.1:1",
+                                     "--name", "x", "--out", work_.File("x.db")});
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_THAT(both.err, HasSubstr("give --out MAP.db (build here) or --server ADDR --name NAME"));
+  const ProcessResult trajectory =
+      Visloc({"map", "build", "--dataset", kRun, "--server", "127.0.0.1:1", "--name", "x",
+              "--trajectory", work_.File("t.tum")});
+  EXPECT_EQ(trajectory.exit_code, 2);
+  EXPECT_THAT(trajectory.err, HasSubstr("--trajectory and --max-features are for builds here"));
+}
+
 // What the CLI never sends, from a raw gRPC client.
 class MappingServiceE2eTest : public MappingLinkE2eTest {
  protected:
