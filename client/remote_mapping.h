@@ -1,7 +1,8 @@
 #pragma once
 // `visloc map build --server ADDR --name NAME --dataset DIR`: streams a recorded stereo run to
-// the server's Mapping service, which builds the map as frames arrive and publishes it under
-// NAME when the run ends (server/mapping_service.h). Images go as the recording's own files
+// the server's Mapping service through the client library's MappingSession, which resumes the
+// job across link cuts; the server builds the map as frames arrive and publishes it under NAME
+// when the run ends (server/mapping_service.h). Images go as the recording's own files
 // (PNG or JPEG bytes), so the server maps exactly the pixels an offline build would.
 
 #include <string>

@@ -343,6 +343,10 @@ std::unique_ptr<ActiveMappingJob> MappingService::Open(const grpc::ServerContext
   }
   options.builder.threads = limits_.threads;
   auto job = std::make_unique<Job>(&jobs_, std::move(slot), start, rig, options);
+  v1::MappingProgress started;
+  started.set_state(v1::MAPPING_STARTED);
+  started.set_job_id(job->id);
+  stream->Write(started);
   Log("mapping_started", {{"map", job->name},
                           {"job", std::to_string(job->id)},
                           {"robot", job->robot_id},

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "client/lib/channel.h"
 #include "client/lib/pose_math.h"
 #include "visloc/client/session.h"
 #include "visloc/v1/visloc.grpc.pb.h"
@@ -39,35 +40,10 @@ bool Permanent(grpc::StatusCode code) {
   }
 }
 
-std::shared_ptr<grpc::ChannelCredentials> ChannelCredentials(const Credentials& c) {
-  if (c.tls_ca_pem.empty()) return grpc::InsecureChannelCredentials();
-  grpc::SslCredentialsOptions tls;
-  tls.pem_root_certs = c.tls_ca_pem;
-  tls.pem_cert_chain = c.tls_cert_pem;
-  tls.pem_private_key = c.tls_key_pem;
-  return grpc::SslCredentials(tls);
-}
-
-// A fresh channel for every stream: after a stall the old connection may be a dead TCP
-// connection that gRPC has not noticed yet, so it must not be shared (a local subchannel pool).
 std::shared_ptr<grpc::Channel> NewChannel(const SessionOptions& o) {
-  grpc::ChannelArguments args;
-  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, static_cast<int>(o.keepalive_time.count()));
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, static_cast<int>(o.keepalive_timeout.count()));
-  args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 0);
-  args.SetInt(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
-  // The channel's own reconnection must not wait longer than ours.
-  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
-  args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_initial.count()));
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, static_cast<int>(o.backoff_max.count()));
-  args.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
-  // Replicas (several addresses): each new stream goes to the next ready one.
-  args.SetLoadBalancingPolicyName("round_robin");
-  if (!o.credentials.tls_target_name.empty()) {
-    args.SetSslTargetNameOverride(o.credentials.tls_target_name);
-  }
-  return grpc::CreateCustomChannel(o.server, ChannelCredentials(o.credentials), args);
+  return NewStreamChannel(
+      o.server, o.credentials,
+      {o.keepalive_time, o.keepalive_timeout, o.backoff_initial, o.backoff_max});
 }
 
 class SessionImpl final : public Session {
@@ -252,10 +228,11 @@ void SessionImpl::DropAllQueued(const std::string& why, Events* events) {
 void SessionImpl::ExpireQueued(Clock::time_point now, Events* events) {
   if (options_.wait_for_room) return;  // A replay: every frame is sent, however late.
   while (!queue_.empty() && now - queue_.front().submitted > options_.frame_deadline) {
-    DropOldestQueued("stale: waited " +
-                         std::to_string(static_cast<int>(MsBetween(queue_.front().submitted, now))) +
-                         " ms for the link",
-                     events);
+    DropOldestQueued(
+        "stale: waited " +
+            std::to_string(static_cast<int>(MsBetween(queue_.front().submitted, now))) +
+            " ms for the link",
+        events);
   }
 }
 
@@ -266,17 +243,17 @@ void SessionImpl::CheckLink(Clock::time_point now, Events* events) {
   const auto waited = now - in_flight_.front().submitted;
   // A stream's first answer also waits for the server to load the map: a longer allowance.
   const auto stall_after =
-      stream_->answered ? options_.stall_timeout
-                        : std::max<std::chrono::milliseconds>(options_.stall_timeout,
-                                                              std::chrono::seconds(10));
+      stream_->answered
+          ? options_.stall_timeout
+          : std::max<std::chrono::milliseconds>(options_.stall_timeout, std::chrono::seconds(10));
   if (waited > stall_after) {
-    stream_->why_ended = "stalled: no answer for " +
-                         std::to_string(static_cast<int>(MsBetween(in_flight_.front().submitted, now))) +
-                         " ms";
+    stream_->why_ended =
+        "stalled: no answer for " +
+        std::to_string(static_cast<int>(MsBetween(in_flight_.front().submitted, now))) + " ms";
     stream_->context.TryCancel();
   } else if (waited > options_.frame_deadline && state_ == LinkState::kConnected) {
-    SetState(LinkState::kDegraded, "no answer for over " +
-                                       std::to_string(options_.frame_deadline.count()) + " ms",
+    SetState(LinkState::kDegraded,
+             "no answer for over " + std::to_string(options_.frame_deadline.count()) + " ms",
              events);
   }
 }
@@ -343,7 +320,8 @@ void SessionImpl::ReadAnswers(Stream* stream) {
       }
       answer.response = response;
       events.push_back(std::move(answer));
-      if (!late && state_ == LinkState::kDegraded) SetState(LinkState::kConnected, "answering again", &events);
+      if (!late && state_ == LinkState::kDegraded)
+        SetState(LinkState::kConnected, "answering again", &events);
     }
     wake_.notify_all();
     Emit(std::move(events));

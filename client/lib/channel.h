@@ -1,0 +1,28 @@
+#pragma once
+// The channel a client stream runs on (localization sessions, mapping sessions, one-off calls):
+// a fresh connection per stream, since after a stall the old one may be a dead TCP connection
+// that gRPC has not noticed yet (a local subchannel pool); keepalive; the channel's own
+// reconnection no slower than the caller's; round robin over replicas; TLS from PEM strings.
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+
+#include "visloc/client/session.h"
+
+namespace visloc::client {
+
+struct ChannelTiming {
+  std::chrono::milliseconds keepalive_time{10000};
+  std::chrono::milliseconds keepalive_timeout{5000};
+  std::chrono::milliseconds backoff_initial{50};
+  std::chrono::milliseconds backoff_max{500};
+};
+
+std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,
+                                                const Credentials& credentials,
+                                                const ChannelTiming& timing);
+
+}  // namespace visloc::client
