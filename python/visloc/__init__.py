@@ -14,12 +14,18 @@ the frame's map_from_cam_hint) so tracking goes on.
     event = session.next(timeout_s=0.05)               # answers, drops, link changes
     session.close()
 
+Mapping over the link (``MappingSession``, ``stereo_rig_from_yaml``): a robot streams a stereo
+run and the server builds the map (visloc.mapping).
+
 The wire messages are visloc.v1 (``from visloc.v1 import visloc_pb2``), generated from the
 repository's proto/ by Debian's protoc and grpc_python_plugin at build time.
 """
 
-from visloc.camera import camera_from_yaml, pinhole_camera
+from visloc.camera import (body_from_cam_from_yaml, camera_from_yaml, pinhole_camera,
+                           stereo_rig_from_yaml)
+from visloc.mapping import MappingError, MappingOptions, MappingSession
 from visloc.session import Event, LinkState, NotSent, Session, SessionOptions, encode_image
 
-__all__ = ["Event", "LinkState", "NotSent", "Session", "SessionOptions", "camera_from_yaml",
-           "encode_image", "pinhole_camera"]
+__all__ = ["Event", "LinkState", "MappingError", "MappingOptions", "MappingSession", "NotSent",
+           "Session", "SessionOptions", "body_from_cam_from_yaml", "camera_from_yaml",
+           "encode_image", "pinhole_camera", "stereo_rig_from_yaml"]

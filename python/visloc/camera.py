@@ -9,6 +9,7 @@ OpenCV's FileStorage, as the C++ library's CameraFromYaml reads it, so both acce
 from typing import List
 
 import cv2
+import numpy as np
 
 from visloc.v1 import visloc_pb2 as pb
 
@@ -37,8 +38,7 @@ def _text(node) -> str:
     return node.string() if node.isString() else ""
 
 
-def camera_from_yaml(path: str) -> pb.CameraModel:
-    """The camera a sensor.yaml describes; ValueError naming the file and what is wrong."""
+def _read_yaml(path: str):
     try:
         with open(path, "r", encoding="utf-8", errors="replace") as f:
             text = f.read()
@@ -54,6 +54,44 @@ def camera_from_yaml(path: str) -> pb.CameraModel:
         raise ValueError(f"{path}: not a YAML file OpenCV can read ({cause})") from None
     if not storage.isOpened():
         raise ValueError(f"{path}: not a YAML file OpenCV can read")
+    return storage
+
+
+def body_from_cam_from_yaml(path: str) -> pb.Pose:
+    """The camera's pose on the body, a sensor.yaml's T_BS (identity when it has none)."""
+    storage = _read_yaml(path)  # Kept: its nodes are views into it.
+    node = storage.getNode("T_BS")
+    if node.empty():
+        return pb.Pose(qw=1.0)
+    m = np.array(_numbers(path, node.getNode("data"), "T_BS.data", 16)).reshape(4, 4)
+    r = m[:3, :3]
+    # The rotation's quaternion from its largest diagonal term (stable for every angle).
+    trace = np.trace(r)
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = [0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s]
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+        v = [0.0, 0.0, 0.0]
+        v[i] = 0.25 * s
+        v[j] = (r[j, i] + r[i, j]) / s
+        v[k] = (r[k, i] + r[i, k]) / s
+        q = [(r[k, j] - r[j, k]) / s] + v
+    return pb.Pose(tx=m[0, 3], ty=m[1, 3], tz=m[2, 3], qw=q[0], qx=q[1], qy=q[2], qz=q[3])
+
+
+def stereo_rig_from_yaml(left_path: str, right_path: str) -> pb.StereoRig:
+    """A stereo rig (for mapping over the link) from its two cameras' sensor.yaml files."""
+    return pb.StereoRig(left=camera_from_yaml(left_path), right=camera_from_yaml(right_path),
+                        body_from_left=body_from_cam_from_yaml(left_path),
+                        body_from_right=body_from_cam_from_yaml(right_path))
+
+
+def camera_from_yaml(path: str) -> pb.CameraModel:
+    """The camera a sensor.yaml describes; ValueError naming the file and what is wrong."""
+    storage = _read_yaml(path)
     model = _text(storage.getNode("camera_model"))
     if not model:
         raise ValueError(f"{path}: missing 'camera_model'")

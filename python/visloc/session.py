@@ -103,6 +103,25 @@ class NotSent:
         return f"NotSent({self.reason!r})"
 
 
+def open_channel(server: str, tls_ca_pem: bytes, tls_cert_pem: bytes, tls_key_pem: bytes,
+                 keepalive_time_ms: int, backoff_initial_s: float,
+                 backoff_max_s: float) -> grpc.Channel:
+    """A fresh connection for one stream (a stalled one may be dead without gRPC knowing)."""
+    options = [("grpc.keepalive_time_ms", keepalive_time_ms),
+               ("grpc.keepalive_timeout_ms", 5000),
+               ("grpc.http2.max_pings_without_data", 0),
+               ("grpc.use_local_subchannel_pool", 1),  # A fresh connection every time.
+               ("grpc.initial_reconnect_backoff_ms", int(backoff_initial_s * 1000)),
+               ("grpc.max_reconnect_backoff_ms", int(backoff_max_s * 1000)),
+               # The wire's limit from the proto, as the C++ library's.
+               ("grpc.max_receive_message_length", pb.MAX_MESSAGE_BYTES)]
+    if tls_ca_pem:
+        credentials = grpc.ssl_channel_credentials(tls_ca_pem, tls_key_pem or None,
+                                                   tls_cert_pem or None)
+        return grpc.secure_channel(server, credentials, options)
+    return grpc.insecure_channel(server, options)
+
+
 def encode_image(image: np.ndarray, encoding: str, jpeg_quality: int = 90) -> bytes:
     """The image as it goes on the wire: grey, then JPEG/PNG bytes or raw pixels."""
     if image is None or image.size == 0:
@@ -262,19 +281,9 @@ class Session:
             events.append(Event("link", link_state=state, detail=detail))
 
     def _channel(self) -> grpc.Channel:
-        options = [("grpc.keepalive_time_ms", self._o.keepalive_time_ms),
-                   ("grpc.keepalive_timeout_ms", 5000),
-                   ("grpc.http2.max_pings_without_data", 0),
-                   ("grpc.use_local_subchannel_pool", 1),  # A fresh connection every time.
-                   ("grpc.initial_reconnect_backoff_ms", int(self._o.backoff_initial_s * 1000)),
-                   ("grpc.max_reconnect_backoff_ms", int(self._o.backoff_max_s * 1000)),
-                   # The wire's limit from the proto, as the C++ library's.
-                   ("grpc.max_receive_message_length", pb.MAX_MESSAGE_BYTES)]
-        if self._o.tls_ca_pem:
-            credentials = grpc.ssl_channel_credentials(
-                self._o.tls_ca_pem, self._o.tls_key_pem or None, self._o.tls_cert_pem or None)
-            return grpc.secure_channel(self._o.server, credentials, options)
-        return grpc.insecure_channel(self._o.server, options)
+        o = self._o
+        return open_channel(o.server, o.tls_ca_pem, o.tls_cert_pem, o.tls_key_pem,
+                            o.keepalive_time_ms, o.backoff_initial_s, o.backoff_max_s)
 
     def _requests(self, stream_state):
         start = pb.LocalizeRequest()
