@@ -12,6 +12,8 @@
 //                            with odometry, else map -> camera
 // Service:                   ~relocalize (std_srvs/Trigger): the last image through the
 //                            Relocalize RPC; a fix becomes the session's next hint.
+// With ~mode:=map the node streams a stereo camera to the server's mapper instead
+// (mapping_node.h, launch/visloc_mapping.launch).
 // Frames: the image's frame_id is the camera's optical frame (x right, y down, z forward, as
 // visloc's camera frame). Poses are map_from_cam. No pose is published while lost.
 
@@ -40,6 +42,7 @@
 
 #include "proto/geometry_convert.h"
 #include "ros/messages/ros_messages.h"
+#include "ros/node/mapping_node.h"
 #include "ros/node/pose_output.h"
 #include "visloc/client/session.h"
 
@@ -62,7 +65,8 @@ std::string ReadFileOrEmpty(const std::string& path) {
 // geometry_msgs' Quaternion and Point / Vector3 fields, whichever message holds them.
 template <typename RosQuaternion, typename RosVector>
 Rigid3d FromRos(const RosQuaternion& q, const RosVector& v) {
-  return Rigid3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized(), Eigen::Vector3d(v.x, v.y, v.z));
+  return Rigid3d(Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized(),
+                 Eigen::Vector3d(v.x, v.y, v.z));
 }
 template <typename RosQuaternion, typename RosVector>
 void ToRos(const Rigid3d& pose, RosQuaternion* q, RosVector* v) {
@@ -76,7 +80,9 @@ void ToRos(const Rigid3d& pose, RosQuaternion* q, RosVector* v) {
 }
 Rigid3d FromRos(const geometry_msgs::Pose& p) { return FromRos(p.orientation, p.position); }
 Rigid3d FromRos(const geometry_msgs::Transform& t) { return FromRos(t.rotation, t.translation); }
-void ToRos(const Rigid3d& pose, geometry_msgs::Pose* p) { ToRos(pose, &p->orientation, &p->position); }
+void ToRos(const Rigid3d& pose, geometry_msgs::Pose* p) {
+  ToRos(pose, &p->orientation, &p->position);
+}
 void ToRos(const Rigid3d& pose, geometry_msgs::Transform* t) {
   ToRos(pose, &t->rotation, &t->translation);
 }
@@ -107,8 +113,8 @@ class LocalizationNode {
     if (use_odometry_) odom_sub_ = nh_.subscribe("odom", 50, &LocalizationNode::OnOdometry, this);
     if (use_imu_) imu_sub_ = nh_.subscribe("imu", 400, &LocalizationNode::OnImu, this);
     relocalize_srv_ = pnh_.advertiseService("relocalize", &LocalizationNode::OnRelocalize, this);
-    diagnostics_timer_ = nh_.createWallTimer(ros::WallDuration(1.0),
-                                             [this](const ros::WallTimerEvent&) { PublishDiagnostics(); });
+    diagnostics_timer_ = nh_.createWallTimer(
+        ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { PublishDiagnostics(); });
     PublishStatus("waiting for camera_info");
   }
 
@@ -125,13 +131,15 @@ class LocalizationNode {
   void ReadParameters() {
     options_.server = pnh_.param<std::string>("server", "127.0.0.1:50051");
     options_.map_name = pnh_.param<std::string>("map", "");
-    if (options_.map_name.empty()) throw std::runtime_error("parameter ~map (the map's name) is required");
+    if (options_.map_name.empty())
+      throw std::runtime_error("parameter ~map (the map's name) is required");
     options_.robot_id = pnh_.param<std::string>("robot_id", ros::this_node::getName());
     options_.credentials.token = pnh_.param<std::string>("token", "");
     options_.credentials.tls_ca_pem = ReadFileOrEmpty(pnh_.param<std::string>("tls_ca", ""));
     const std::string encoding = pnh_.param<std::string>("encoding", "jpeg");
-    options_.encoding = encoding == "png" ? vc::Encoding::kPng
-                        : encoding == "raw" ? vc::Encoding::kRaw : vc::Encoding::kJpeg;
+    options_.encoding = encoding == "png"   ? vc::Encoding::kPng
+                        : encoding == "raw" ? vc::Encoding::kRaw
+                                            : vc::Encoding::kJpeg;
     options_.jpeg_quality = pnh_.param("jpeg_quality", 90);
     options_.max_in_flight = pnh_.param("max_in_flight", 2);
     options_.frame_deadline = std::chrono::milliseconds(pnh_.param("frame_deadline_ms", 1000));
@@ -187,7 +195,8 @@ class LocalizationNode {
     ROS_INFO("visloc: session on map '%s' at %s, camera %ux%u fx %.1f", options_.map_name.c_str(),
              options_.server.c_str(), msg.width, msg.height, msg.K[0]);
     PublishStatus("connecting");
-    if (before_session_ && before_session_->timestamp_ns == static_cast<int64_t>(msg.header.stamp.toNSec())) {
+    if (before_session_ &&
+        before_session_->timestamp_ns == static_cast<int64_t>(msg.header.stamp.toNSec())) {
       --images_received_;  // Counted again when submitted.
       *early = std::move(before_session_);
     }
@@ -384,7 +393,8 @@ class LocalizationNode {
       waiting_for_odometry_.push_back({stamp_ns, map_from_cam});
       if (waiting_for_odometry_.size() > 10) {
         waiting_for_odometry_.pop_front();
-        ROS_WARN_THROTTLE(5.0, "visloc: no odometry at the images' stamps: no map -> odom for them");
+        ROS_WARN_THROTTLE(5.0,
+                          "visloc: no odometry at the images' stamps: no map -> odom for them");
       }
       return;
     }
@@ -501,7 +511,8 @@ class LocalizationNode {
   int64_t last_imu_frame_ns_ = INT64_MIN;
   std::optional<vc::Frame> last_frame_;
   std::optional<vc::Frame> before_session_;
-  std::deque<StampedPose> waiting_for_odometry_;  // map_from_cam of answers ahead of odometry.  // The newest image before camera_info came.
+  std::deque<StampedPose> waiting_for_odometry_;  // map_from_cam of answers ahead of odometry.  //
+                                                  // The newest image before camera_info came.
   std::optional<v1::Pose> pending_hint_;
   v1::LocalizeResponse last_response_;
   std::string link_state_ = "connecting", last_status_;
@@ -518,6 +529,10 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   try {
+    // ~mode:=map streams a stereo camera to the server's mapper instead (mapping_node.h).
+    if (pnh.param<std::string>("mode", "localize") == "map") {
+      return visloc::ros_node::RunMappingNode(nh, pnh);
+    }
     visloc::ros_node::LocalizationNode node(nh, pnh);
     // Two threads: image callbacks never wait behind a relocalize service call.
     ros::MultiThreadedSpinner spinner(2);

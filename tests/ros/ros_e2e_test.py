@@ -13,6 +13,8 @@
      resume;
    - kidnap (JPEG CompressedImage, no odometry, TF map -> camera): no pose while the camera is
      covered, a status that says lost, poses again after relocalization;
+   - mapping mode: the generated square's stereo bag through visloc_mapping.launch to the
+     server's mapper, ended by the node's finish_map service, against the same frames mapped here;
    - with --real, the real EuRoC snippet: its bag (camera_info with OpenCV's rectification, as
      ROS's stereo calibration writes it) imported and mapped, and its left camera through the node.
 Prints the figures docs/ros.md quotes; --report FILE writes them as JSON.
@@ -470,10 +472,59 @@ def part_node(a, work, map_db, figures):
                              "poses_while_covered": len(during), "median_error_cm": float(np.median(errs))}
         world.stop(node)
         listener.close()
+        part_mapping(world, a, work, figures)
         if a.real:
             part_real_node(world, a, work, figures)
     finally:
         world.close()
+
+
+def part_mapping(world, a, work, figures):
+    """The node in mapping mode: a stereo bag of the generated square through it to the server's
+    mapper, the run ended by the node's finish_map service; the published map against the same
+    frames mapped here."""
+    import rosgraph
+    import rospy
+    from std_srvs.srv import Trigger
+    bag = os.path.join(work, "mapping.bag")
+    run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"),
+         os.path.join(a.data, "map_square"), bag])
+    node = world.start("node_mapping", ["roslaunch", "visloc_ros", "visloc_mapping.launch",
+                                        "server:=127.0.0.1:%d" % world.server_port,
+                                        "map:=square_over_ros"])
+    master = rosgraph.Master("/visloc_ros_test")
+    check(wait_for(lambda: all(any(t == topic for t, _ in master.getSystemState()[1])
+                               for topic in ("/cam0/image_raw", "/cam1/image_raw",
+                                             "/cam1/camera_info")), 60),
+          "mapping: the node subscribes to both cameras")
+    player = subprocess.Popen(["rosbag", "play", "-q", "--delay=0.5", "-r", str(a.rate), "-u", "12",
+                               bag], env=world.env, stdout=subprocess.DEVNULL)
+    check(player.wait(120) == 0, "mapping: rosbag play finished")
+    rospy.wait_for_service("/visloc_mapper/finish_map", 30)
+    answer = rospy.ServiceProxy("/visloc_mapper/finish_map", Trigger)()
+    check(answer.success and "published 'square_over_ros'" in answer.message,
+          "mapping: finish_map says %r" % answer.message)
+    frames = int(answer.message.split(": ")[1].split(" frames")[0]) if answer.success else 0
+    check(frames >= 50, "mapping: %d stereo frames mapped (12 s of a 5 Hz camera)" % frames)
+    published = os.path.join(world.maps, "square_over_ros.db")
+    here = os.path.join(work, "mapping_here.db")
+    run([a.visloc, "map", "build", "--dataset", os.path.join(a.data, "map_square"), "--frames",
+         "0:%d" % frames, "--out", here])
+    link = read_tum_positions(a.visloc, published, os.path.join(work, "mapping_link.tum"))
+    local = read_tum_positions(a.visloc, here, os.path.join(work, "mapping_here.tum"))
+    worst_mm = max((np.linalg.norm(link[t] - local[t]) * 1000 for t in local if t in link),
+                   default=float("inf"))
+    check(len(link) == len(local) and worst_mm < 1.0,
+          "mapping: %d keyframes over ROS and the link, %d built here, %.4f mm apart at most"
+          % (len(link), len(local), worst_mm))
+    figures["mapping"] = {"frames": frames, "keyframes": len(link), "worst_keyframe_mm": worst_mm}
+    world.stop(node)
+
+
+def read_tum_positions(visloc, map_db, out):
+    """timestamp_ns -> keyframe position (m) of a map file."""
+    run([visloc, "map", "export", map_db, "--keyframes", out])
+    return {t: m[:3, 3] for t, m in read_tum(out).items()}
 
 
 def main():
