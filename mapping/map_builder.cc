@@ -255,6 +255,23 @@ MapBuilderProgress MapBuilder::Progress() const {
   return progress;
 }
 
+MapSoFar MapBuilder::MapSoFarView(size_t max_points) const {
+  const Rigid3d map_from_world = MapFromWorld();
+  MapSoFar view;
+  for (const SlamKeyframe& k : state_.keyframes) {
+    view.keyframe_centres.push_back(map_from_world * CameraCenter(k.cam_from_world));
+  }
+  for (const Landmark& l : state_.landmarks) view.total_points += !l.culled;
+  const size_t stride =
+      max_points == 0 ? 1 : std::max<size_t>(1, (view.total_points + max_points - 1) / max_points);
+  size_t live = 0;
+  for (const Landmark& l : state_.landmarks) {
+    if (l.culled || live++ % stride != 0) continue;
+    view.points.push_back(map_from_world * l.position_in_world);
+  }
+  return view;
+}
+
 std::string MapBuilder::Status() const {
   const MapBuilderProgress progress = Progress();
   return StrCat(progress.keyframes, " keyframes, ", progress.landmarks, " landmarks, ",

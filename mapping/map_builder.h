@@ -93,6 +93,14 @@ struct MapBuildStats {
          learning_ms = 0, total_ms = 0;
 };
 
+// The map a build has so far in the map frame, for drawing while frames arrive: keyframe
+// centres and (at most a requested number of) landmark positions, in metres.
+struct MapSoFar {
+  std::vector<Eigen::Vector3d> keyframe_centres;
+  std::vector<Eigen::Vector3d> points;
+  int total_points = 0;
+};
+
 // Where a build stands after its last frame, for progress reports while frames arrive (mapping
 // over the link answers every frame with it).
 struct MapBuilderProgress {
@@ -126,6 +134,8 @@ class MapBuilder {
   Trajectory FrameTrajectory() const;
   // Where the build stands after the last frame added.
   MapBuilderProgress Progress() const;
+  // The map so far, at most `max_points` landmarks (evenly taken).
+  MapSoFar MapSoFarView(size_t max_points) const;
   // Short status for progress displays.
   std::string Status() const;
 

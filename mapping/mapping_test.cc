@@ -419,6 +419,13 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
   EXPECT_GE(keyframes_before, 2);
   EXPECT_GT(builder.Progress().landmarks, 500);
   EXPECT_EQ(builder.Progress().tracking_failures, 0);
+  // The map so far for drawing: every keyframe, the first at the map's origin; points decimated.
+  const MapSoFar view = builder.MapSoFarView(100);
+  ASSERT_EQ(static_cast<int>(view.keyframe_centres.size()), keyframes_before);
+  EXPECT_LT(view.keyframe_centres[0].norm(), 1e-9);
+  EXPECT_EQ(view.total_points, builder.Progress().landmarks);
+  EXPECT_LE(view.points.size(), 100u);
+  EXPECT_GE(view.points.size(), 50u);
 }
 
 // MapBuilderOptions::threads splits a frame's work, decodes ahead and runs Ceres on several

@@ -1,5 +1,6 @@
 #include "server/mapping_service.h"
 
+#include <cctype>
 #include <chrono>
 #include <ctime>
 #include <optional>
@@ -97,6 +98,7 @@ void MappingJobs::End(uint64_t id, v1::MappingState state, const std::string& er
   for (auto it = jobs_.rbegin(); it != jobs_.rend(); ++it) ended += it->second.ended_unix_ns() != 0;
   for (auto it = jobs_.begin(); ended > keep_ended_ && it != jobs_.end();) {
     if (it->second.ended_unix_ns() != 0) {
+      top_views_.erase(it->first);
       it = jobs_.erase(it);
       --ended;
     } else {
@@ -109,6 +111,38 @@ bool MappingJobs::Ended(uint64_t id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto found = jobs_.find(id);
   return found == jobs_.end() || found->second.ended_unix_ns() != 0;
+}
+
+void MappingJobs::SetMapSoFar(uint64_t id, std::vector<std::pair<float, float>> keyframes_xz,
+                              std::vector<std::pair<float, float>> points_xz) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!jobs_.count(id)) return;
+  top_views_[id] = {std::move(keyframes_xz), std::move(points_xz)};
+}
+
+std::vector<MappingJobView> MappingJobs::Views() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<MappingJobView> views;
+  for (const auto& [id, job] : jobs_) {
+    MappingJobView view;
+    view.id = id;
+    view.map = job.map_name();
+    view.robot_id = job.robot_id();
+    view.state = v1::MappingState_Name(job.state()).substr(8);  // Without "MAPPING_".
+    for (char& c : view.state) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    view.running = job.ended_unix_ns() == 0;
+    view.frames = job.frames();
+    view.keyframes = job.keyframes();
+    view.points = static_cast<int64_t>(job.points());
+    view.has_pose = view.running && job.has_pose();
+    if (view.has_pose) view.map_from_cam = proto::FromProto(job.map_from_cam(), "map_from_cam");
+    if (const auto found = top_views_.find(id); found != top_views_.end()) {
+      view.keyframes_xz = found->second.keyframes_xz;
+      view.points_xz = found->second.points_xz;
+    }
+    views.push_back(std::move(view));
+  }
+  return views;
 }
 
 std::vector<v1::MappingJob> MappingJobs::Snapshot() const {
@@ -171,11 +205,25 @@ struct ActiveMappingJob {
   uint64_t id;
   uint64_t frames = 0;  // Arrived.
   int64_t last_timestamp_ns = 0;
+  int shared_keyframes = -1;  // Keyframes when the map so far was last shared.
 };
 
 namespace {
 
 using Job = ActiveMappingJob;
+
+// The job's map so far for the operator's page: when a keyframe was added, and every 10 frames
+// (adjustment moves the rest).
+void ShareMapSoFar(Job* job, int keyframes) {
+  if (keyframes == job->shared_keyframes && job->frames % 10 != 0) return;
+  job->shared_keyframes = keyframes;
+  constexpr size_t kMaxPoints = 4000;
+  const mapping::MapSoFar view = job->builder.MapSoFarView(kMaxPoints);
+  std::vector<std::pair<float, float>> keyframes_xz, points_xz;
+  for (const Eigen::Vector3d& c : view.keyframe_centres) keyframes_xz.emplace_back(c.x(), c.z());
+  for (const Eigen::Vector3d& p : view.points) points_xz.emplace_back(p.x(), p.z());
+  job->registry->SetMapSoFar(job->id, std::move(keyframes_xz), std::move(points_xz));
+}
 
 // A frame through the mapper, answered with the build's progress; a bad frame is answered
 // MAPPING_FRAME_ERROR with the reason, and the job goes on.
@@ -195,6 +243,7 @@ v1::MappingProgress MapFrame(const v1::StereoFrame& frame, int max_frames, Job* 
     job->builder.AddFrame(frame.timestamp_ns(), left, right);
     job->last_timestamp_ns = frame.timestamp_ns();
     proto::ToProto(job->builder.Progress(), &progress);
+    ShareMapSoFar(job, static_cast<int>(progress.keyframes()));
   } catch (const InputError& e) {
     progress.set_state(v1::MAPPING_FRAME_ERROR);
     progress.set_error(e.what());

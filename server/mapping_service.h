@@ -19,6 +19,7 @@
 #include "proto/geometry_convert.h"
 #include "server/auth.h"
 #include "server/map_cache.h"
+#include "server/server_status.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc::server {
@@ -51,12 +52,20 @@ class MappingJobs {
   // Ends a job (PUBLISHED, FAILED or ABANDONED); only the newest keep_ended ended jobs are kept.
   void End(uint64_t id, v1::MappingState state, const std::string& error);
   bool Ended(uint64_t id) const;
+  // The job's map so far from above (x, z), for the operator's page.
+  void SetMapSoFar(uint64_t id, std::vector<std::pair<float, float>> keyframes_xz,
+                   std::vector<std::pair<float, float>> points_xz);
   std::vector<v1::MappingJob> Snapshot() const;
+  std::vector<MappingJobView> Views() const;
 
  private:
   mutable std::mutex mutex_;
   uint64_t next_id_ = 1;
   std::map<uint64_t, v1::MappingJob> jobs_;
+  struct TopView {
+    std::vector<std::pair<float, float>> keyframes_xz, points_xz;
+  };
+  std::map<uint64_t, TopView> top_views_;  // Of the jobs in jobs_.
   size_t keep_ended_;
 };
 
@@ -78,6 +87,7 @@ class MappingService final : public v1::Mapping::Service {
 
   int active_jobs() const { return active_jobs_.load(); }
   std::vector<v1::MappingJob> jobs() const { return jobs_.Snapshot(); }
+  std::vector<MappingJobView> job_views() const { return jobs_.Views(); }
 
  private:
   // Why a job may not start (read-only folder, mapping off, a bad name, a name taken without

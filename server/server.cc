@@ -200,6 +200,7 @@ Server::Server(const ServerConfig& config)
     sources.readiness = [this] { return Readiness(); };
     sources.maps = [this] { return Maps(); };
     sources.top_view = [this](const std::string& name) { return TopView(name); };
+    sources.mapping_jobs = [this] { return mapping_.job_views(); };
     http_ = std::make_unique<HttpEndpoint>(
         HttpOptions{config_.http, config_.tls_cert, config_.tls_key, VislocVersion()},
         std::move(sources), &auth_);

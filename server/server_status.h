@@ -87,6 +87,23 @@ struct MapTopView {
   int64_t total_points = 0;
 };
 
+// A mapping job (mapping over the link) as the operator's page draws it: its state and the map
+// it has so far from above.
+struct MappingJobView {
+  uint64_t id = 0;
+  std::string map;
+  std::string robot_id;
+  std::string state;  // tracking, lost, frame_error, finishing, waiting, published, failed, ...
+  bool running = false;
+  uint64_t frames = 0;
+  int64_t keyframes = 0;
+  int64_t points = 0;
+  bool has_pose = false;
+  Rigid3d map_from_cam;  // The left camera as mapped so far, when has_pose.
+  std::vector<std::pair<float, float>> keyframes_xz;  // (x, z) in metres.
+  std::vector<std::pair<float, float>> points_xz;     // At most a few thousand.
+};
+
 struct ServerStatus {
   std::vector<SessionStatus> sessions;  // By id.
   FrameCounters counters;

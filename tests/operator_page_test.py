@@ -12,6 +12,8 @@ run the kidnap and the square sequences at 15 Hz.
 
 - a map of 10,000 keyframes and 200,000 points, chosen on the page, is drawn (decimated) within
   2 s of the click;
+- a mapping job (`visloc map build --server`) is listed, its map grows on the canvas with the
+  mapping robot's arrow, and it shows published when the run ends;
 
   operator_page_test.py VISLOC_SERVER VISLOC WRITE_SYNTHETIC_MAP LOCALIZATION_DATA SANITIZE
                         [SCREENSHOT.png]
@@ -135,11 +137,51 @@ def main():
                 time.sleep(0.05)
             check(big_s is not None and big_s < USABLE_S,
                   f"the 10,000-keyframe map drawn {big_s} s after the click (info: {info})")
+            # Mapping over the link: a run streamed to the server shows as a job whose map grows
+            # on the page, with the mapping robot's arrow, and ends published.
+            mapper = subprocess.Popen(
+                [visloc_bin, "map", "build", "--server", grpc_address, "--name", "grown",
+                 "--robot-id", "rover-mapper", "--dataset", os.path.join(data, "map_square"),
+                 "--frames", "0:60", "--rate", "10"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            robots.append(mapper)
+            job_row = "#jobrows tr"
+            grown = []  # Keyframes the page showed, poll after poll.
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                row = driver.execute_script(
+                    f"const r = document.querySelector('{job_row}');"
+                    "return r ? [r.dataset.state, r.children[3].textContent] : null;")
+                if row and row[0] in ("tracking", "lost"):
+                    if not grown:
+                        driver.execute_script(f"document.querySelector('{job_row}').click();")
+                    grown.append(int(row[1]))
+                    if len(set(grown)) >= 3:
+                        break
+                time.sleep(0.3)
+            check(len(set(grown)) >= 3, f"the mapping job's keyframes grew on the page: {grown}")
+            info = driver.execute_script("return document.getElementById('viewinfo').textContent;")
+            check(info.startswith("mapping grown"), f"the growing map is shown: {info}")
+            png = driver.get_screenshot_as_png()
+            image = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+            region = image[y:y + h, x:x + w].astype(int)
+            mapping_pixels = near((0xff, 0x6c, 0xb4))  # #b46cff in BGR: keyframes and the arrow.
+            check(mapping_pixels > 50, f"the growing map and its robot drawn: {mapping_pixels} pixels")
+            mapper.wait(60)
+            published = False
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline and not published:
+                published = driver.execute_script(
+                    f"const r = document.querySelector('{job_row}');"
+                    "return r !== null && r.dataset.state === 'published';")
+                time.sleep(0.2)
+            check(published, "the mapping job shows published when the run ends")
             errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
             check(not errors, f"browser console errors: {errors}")
             print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
-                  f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click ({info})")
+                  f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click; mapping "
+                  f"job keyframes seen {grown}, {mapping_pixels} pixels of its map")
         finally:
             if driver:
                 driver.quit()

@@ -100,6 +100,12 @@ void HttpEndpoint::RouteOperatorPage() {
         SessionsJson(status.sessions, status.max_sessions, std::chrono::system_clock::now()),
         "application/json");
   });
+  http_->Get("/api/mapping", [this](const httplib::Request& request, httplib::Response& response) {
+    if (!Allowed(*auth_, request, &response)) return;
+    response.set_content(MappingJobsJson(sources_.mapping_jobs ? sources_.mapping_jobs()
+                                                               : std::vector<MappingJobView>{}),
+                         "application/json");
+  });
   http_->Get("/api/maps", [this](const httplib::Request& request, httplib::Response& response) {
     if (!Allowed(*auth_, request, &response)) return;
     response.set_content(MapsJson(sources_.maps()), "application/json");

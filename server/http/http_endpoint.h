@@ -44,6 +44,8 @@ struct HttpSources {
   std::function<std::vector<MapSummary>()> maps;
   // Throws NotFoundError for an unknown map, InputError for one that does not load.
   std::function<MapTopView(const std::string& name)> top_view;
+  // The mapping jobs (running and recently ended) with their maps so far.
+  std::function<std::vector<MappingJobView>()> mapping_jobs;
 };
 
 class HttpEndpoint {

@@ -98,4 +98,33 @@ std::string TopViewJson(const MapTopView& view) {
   return json.str();
 }
 
+std::string MappingJobsJson(const std::vector<MappingJobView>& jobs) {
+  JsonWriter json;
+  json.BeginObject().Key("jobs").BeginArray();
+  for (const MappingJobView& j : jobs) {
+    json.BeginObject()
+        .Field("job", j.id)
+        .Field("map", j.map)
+        .Field("robot", j.robot_id)
+        .Field("state", j.state)
+        .Field("running", j.running)
+        .Field("frames", j.frames)
+        .Field("keyframes", j.keyframes)
+        .Field("points", j.points)
+        .Field("has_pose", j.has_pose);
+    if (j.has_pose) {
+      json.Field("x", j.map_from_cam.translation.x())
+          .Field("z", j.map_from_cam.translation.z())
+          .Field("yaw_deg", YawDeg(j.map_from_cam));
+    }
+    json.Key("keyframes_xz");
+    Pairs(json, j.keyframes_xz);
+    json.Key("points_xz");
+    Pairs(json, j.points_xz);
+    json.EndObject();
+  }
+  json.EndArray().EndObject();
+  return json.str();
+}
+
 }  // namespace visloc::server

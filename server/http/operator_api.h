@@ -19,5 +19,8 @@ std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_ses
 std::string MapsJson(const std::vector<MapSummary>& maps);
 // {"name","total_keyframes","total_points","keyframes":[x,z,x,z,...],"points":[...]}
 std::string TopViewJson(const MapTopView& view);
+// {"jobs":[{"job","map","robot","state","running","frames","keyframes","points","has_pose",
+//  "x","z","yaw_deg","keyframes_xz":[x,z,...],"points_xz":[...]}]}
+std::string MappingJobsJson(const std::vector<MappingJobView>& jobs);
 
 }  // namespace visloc::server
