@@ -142,7 +142,7 @@ int RunBuild(const Args& args) {
                    "Builds a map from a stereo sequence (EuRoC or KITTI): stereo visual odometry, "
                    "keyframes, local and global bundle adjustment with loop closure, visibility "
                    "learning and the relocalization vocabulary.");
-  parser.AddFlag("dataset", &dataset_dir, "stereo dataset folder", /*required=*/true);
+  parser.AddFlag("dataset", &dataset_dir, "stereo dataset folder");
   parser.AddFlag("format", &format, "euroc or kitti (default: detected)");
   parser.AddFlag("out", &out, "map file to write (without --server)");
   parser.AddFlag("name", &name,
@@ -154,6 +154,14 @@ int RunBuild(const Args& args) {
                         "the streamed run and publishes it as NAME");
   bool replace = false;
   parser.AddSwitch("replace", &replace, "with --server: replace a map of that name on the server");
+  std::vector<std::string> cameras, camera_yamls;
+  parser.AddList("camera", &cameras,
+                 "with --server, instead of --dataset: the left and the right camera (a V4L2 "
+                 "device, a GStreamer pipeline or a video file; --camera L --camera R); Ctrl-C "
+                 "ends the run");
+  parser.AddList("camera-yaml", &camera_yamls,
+                 "with --camera: each camera's sensor.yaml (intrinsics, lens, T_BS), left then "
+                 "right");
   std::string robot_id = "visloc-map-build";
   parser.AddFlag("robot-id", &robot_id, "with --server: the robot's name in the server's jobs");
   double resume_s = 30.0;
@@ -216,9 +224,16 @@ int RunBuild(const Args& args) {
   }
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
+  if (dataset_dir.empty() == cameras.empty()) {
+    throw UsageError("give --dataset DIR, or with --server two cameras (--camera L --camera R)");
+  }
+  if (!cameras.empty()) {
+    if (server.server.empty()) throw UsageError("--camera maps over the link: give --server");
+    if (cameras.size() != 2 || camera_yamls.size() != 2) {
+      throw UsageError("--camera L --camera R with --camera-yaml L.yaml --camera-yaml R.yaml");
+    }
+  }
   const FrameRange range = ParseFrameRange(frames);
-  const Dataset dataset =
-      SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
   if (!server.server.empty()) {
     if (!trajectory.empty() || max_features > 0) {
       throw UsageError("--trajectory and --max-features are for builds here (--out)");
@@ -238,8 +253,17 @@ int RunBuild(const Args& args) {
     remote.wire.set_loop_closure(loop_closure != 0);
     remote.wire.set_disparity_calibration(disparity_calibration != 0);
     remote.wire.set_min_points(static_cast<uint32_t>(options.min_points));
-    return RemoteMapBuild(server, dataset, remote);
+    if (!cameras.empty()) {
+      if (range.begin != 0 || range.step != 1) throw UsageError("with --camera, --frames is N");
+      const int pairs = range.all() ? 0 : static_cast<int>(std::min<size_t>(range.end, 1 << 30));
+      return RemoteMapBuildFromCameras(server, cameras, camera_yamls, pairs, remote);
+    }
+    return RemoteMapBuild(
+        server, SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range),
+        remote);
   }
+  const Dataset dataset =
+      SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
   options.builder.features = DefaultFeatureSettings(features);
   if (max_features > 0) {
     options.builder.features = WithMaxFeatures(options.builder.features, max_features);

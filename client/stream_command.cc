@@ -20,6 +20,7 @@
 #include "client/connection.h"
 #include "client/dataset_frames.h"
 #include "client/localization_report.h"
+#include "client/video_source.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -254,9 +255,8 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
                  "with --camera: the camera model (an EuRoC sensor.yaml, as `visloc calibrate` "
                  "writes)");
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
-  parser.AddFlag(
-      "rate", &args->rate_hz,
-      "frames per second to send (0: as fast as possible, every frame answered)");
+  parser.AddFlag("rate", &args->rate_hz,
+                 "frames per second to send (0: as fast as possible, every frame answered)");
   parser.SetDefaultText("rate", "the dataset's timing");
   parser.AddFlag("policy", &args->policy, "all (answer every frame) or newest (drop stale frames)");
   parser.AddFlag("encoding", &args->encoding,
@@ -342,8 +342,8 @@ void PrintStreamSummary(const StreamArgs& args, const StreamRecorder& rec,
   std::printf(
       "link: %s, %.1f KiB a frame; %d dropped (link slower than the camera), %d late, %d "
       "undelivered, %d breaks, %llu streams\n",
-      EncodingLabel(args).c_str(), kb_per_frame, rec.dropped, rec.late, rec.undelivered, rec.link_breaks,
-      static_cast<unsigned long long>(stats.streams_opened));
+      EncodingLabel(args).c_str(), kb_per_frame, rec.dropped, rec.late, rec.undelivered,
+      rec.link_breaks, static_cast<unsigned long long>(stats.streams_opened));
 }
 
 // Where the frames come from: a dataset's files, or a live source through OpenCV.
@@ -398,47 +398,27 @@ class DatasetSource final : public FrameSource {
 class CaptureSource final : public FrameSource {
  public:
   explicit CaptureSource(const StreamArgs& args)
-      : args_(args), camera_(ReadSensorYaml(args.sensor_path)) {
-    const std::string& source = args.camera_source;
-    const bool device =
-        source.rfind("/dev/video", 0) == 0 ||
-        (!source.empty() && source.find_first_not_of("0123456789") == std::string::npos);
-    live_ = device || source.find('!') != std::string::npos;
-    if (device) {
-      const int index =
-          source.rfind("/dev/video", 0) == 0 ? std::stoi(source.substr(10)) : std::stoi(source);
-      capture_.open(index, cv::CAP_V4L2);
-    } else if (source.find('!') != std::string::npos) {
-      capture_.open(source, cv::CAP_GSTREAMER);
-    } else {
-      // A missing file is named here: OpenCV would probe every backend for it first.
-      if (!std::filesystem::is_regular_file(source)) {
-        throw InputError("--camera " + source + ": no such video file (nor a device or pipeline)");
-      }
-      capture_.open(source);
-    }
-    if (!capture_.isOpened()) throw InputError("--camera " + source + ": cannot open it");
-    file_fps_ = live_ ? 0.0 : capture_.get(cv::CAP_PROP_FPS);
-  }
+      : args_(args),
+        camera_(ReadSensorYaml(args.sensor_path)),
+        video_(args.camera_source, "--camera") {}
   const CameraInfo& camera() const override { return camera_; }
   size_t expected() const override {
-    const double frames = live_ ? 0.0 : capture_.get(cv::CAP_PROP_FRAME_COUNT);
-    const size_t in_file = frames > 0 ? static_cast<size_t>(frames) : 0;
+    const size_t in_file = video_.file_frames();
     return args_.frames > 0 ? (in_file ? std::min<size_t>(args_.frames, in_file) : args_.frames)
                             : in_file;
   }
   bool Next(client::Frame* frame) override {
     if (args_.frames > 0 && read_ >= static_cast<size_t>(args_.frames)) return false;
     cv::Mat image;
-    if (!capture_.read(image) || image.empty()) return false;
+    if (!video_.Read(&image)) return false;
     const size_t i = read_++;
-    const double rate = args_.rate_hz > 0 ? args_.rate_hz : file_fps_;
-    if (!live_ && rate > 0 && args_.rate_hz != 0) {
+    const double rate = args_.rate_hz > 0 ? args_.rate_hz : video_.file_fps();
+    if (!video_.live() && rate > 0 && args_.rate_hz != 0) {
       std::this_thread::sleep_until(start_ +
                                     std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
     }
     const int64_t timestamp_ns =
-        live_ || rate <= 0
+        video_.live() || rate <= 0
             ? std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start_).count()
             : static_cast<int64_t>(i * 1e9 / rate);
     *frame = client::Frame();
@@ -450,9 +430,7 @@ class CaptureSource final : public FrameSource {
  private:
   const StreamArgs& args_;
   CameraInfo camera_;
-  mutable cv::VideoCapture capture_;
-  bool live_ = false;
-  double file_fps_ = 0.0;
+  VideoSource video_;
   size_t read_ = 0;
   Clock::time_point start_ = Clock::now();
 };

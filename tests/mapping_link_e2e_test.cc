@@ -12,6 +12,9 @@
 #include <fstream>
 #include <thread>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
@@ -164,6 +167,39 @@ TEST_F(MappingLinkE2eTest, ALongCutPublishesNothingAndLeavesTheOldMap) {
   const ProcessResult list = Visloc({"map", "list", "--server", server.address(), "--json"});
   EXPECT_EQ(list.exit_code, 0) << list.err;
   EXPECT_THAT(list.out, HasSubstr("\"hall\""));
+}
+
+// Two cameras instead of a recording: the run's left and right images as MJPG video files,
+// read through OpenCV as a robot's cameras would be.
+TEST_F(MappingLinkE2eTest, TwoCamerasAreMappedOverTheLink) {
+  const Dataset run = ReadDataset(kRun);
+  for (const auto& [side, video] :
+       {std::pair{0, work_.File("left.avi")}, std::pair{1, work_.File("right.avi")}}) {
+    const Camera& camera = side == 0 ? run.left.camera : run.right->camera;
+    cv::VideoWriter writer(video, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 5.0,
+                           cv::Size(camera.width(), camera.height()), /*isColor=*/false);
+    ASSERT_TRUE(writer.isOpened());
+    for (int i = 0; i < 40; ++i) {
+      writer.write(cv::imread(side == 0 ? run.frames[i].left_path : run.frames[i].right_path,
+                              cv::IMREAD_GRAYSCALE));
+    }
+  }
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const ProcessResult built =
+      Visloc({"map", "build", "--server", server.address(), "--name", "cams", "--camera",
+              work_.File("left.avi"), "--camera", work_.File("right.avi"), "--camera-yaml",
+              kRun + "/mav0/cam0/sensor.yaml", "--camera-yaml", kRun + "/mav0/cam1/sensor.yaml",
+              "--rate", "50", "--json"});
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_EQ(JsonNumber(built.out, "frames"), 40);
+  EXPECT_GE(JsonNumber(built.out, "keyframes"), 3);
+  EXPECT_EQ(JsonNumber(built.out, "lost_frames"), 0);
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("cams.db")));
+
+  const ProcessResult one = Visloc({"map", "build", "--server", server.address(), "--name", "x",
+                                    "--camera", work_.File("left.avi")});
+  EXPECT_EQ(one.exit_code, 2);
+  EXPECT_THAT(one.err, HasSubstr("--camera L --camera R with --camera-yaml L.yaml"));
 }
 
 TEST_F(MappingLinkE2eTest, TheCommandSaysWhereTheMapGoes) {
