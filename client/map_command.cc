@@ -154,6 +154,10 @@ int RunBuild(const Args& args) {
                         "the streamed run and publishes it as NAME");
   bool replace = false;
   parser.AddSwitch("replace", &replace, "with --server: replace a map of that name on the server");
+  bool extend = false;
+  parser.AddSwitch("extend", &extend,
+                   "with --server: add the run to the server's map NAME as a new session (as "
+                   "visloc map extend) and replace it with the result");
   std::vector<std::string> cameras, camera_yamls;
   parser.AddList("camera", &cameras,
                  "with --server, instead of --dataset: the left and the right camera (a V4L2 "
@@ -247,6 +251,7 @@ int RunBuild(const Args& args) {
     remote.progress = ShowProgress() && !json;
     remote.json = json;
     remote.wire.set_replace(replace);
+    remote.wire.set_extend(extend);
     remote.wire.set_features(features);
     remote.wire.set_keyframe_translation_m(options.builder.keyframes.translation_m);
     remote.wire.set_keyframe_rotation_deg(options.builder.keyframes.rotation_deg);

@@ -38,7 +38,8 @@ void ToProto(const Camera& left, const Camera& right, const Rigid3d& body_from_l
 
 MappingJobOptions FromProto(const v1::MappingOptions& options) {
   MappingJobOptions job;
-  job.replace = options.replace();
+  job.replace = options.replace() || options.extend();
+  job.extend = options.extend();
   job.builder.features =
       DefaultFeatureSettings(options.features().empty() ? "harris_surf16" : options.features());
   if (options.keyframe_translation_m() != 0) {

@@ -29,6 +29,7 @@ struct MappingJobOptions {
   mapping::MapBuilderOptions builder;
   int min_points = 100;
   bool replace = false;
+  bool extend = false;  // Merge into the existing map of the name (which it then replaces).
 };
 
 // Zero values take `visloc map build`'s defaults. Throws InputError for an unknown feature kind

@@ -10,12 +10,14 @@
 #include "core/util/timer.h"
 #include "core/util/version.h"
 #include "mapping/map_builder.h"
+#include "mapping/session_merge.h"
 #include "mapstore/map_directory.h"
 #include "proto/convert.h"
 #include "proto/map_info_convert.h"
 #include "proto/mapping_convert.h"
 #include "server/log.h"
 #include "server/rpc.h"
+#include "server/spooled_frames.h"
 
 namespace visloc::server {
 
@@ -206,6 +208,10 @@ struct ActiveMappingJob {
   uint64_t frames = 0;  // Arrived.
   int64_t last_timestamp_ns = 0;
   int shared_keyframes = -1;  // Keyframes when the map so far was last shared.
+  // An extension's frames, read again by the merge after MappingEnd.
+  std::unique_ptr<SpooledFrames> spool =
+      options.extend ? std::make_unique<SpooledFrames>(robot_id.empty() ? name : robot_id, rig)
+                     : nullptr;
 };
 
 namespace {
@@ -241,6 +247,7 @@ v1::MappingProgress MapFrame(const v1::StereoFrame& frame, int max_frames, Job* 
     }
     const auto [left, right] = DecodePair(frame, job->rig);
     job->builder.AddFrame(frame.timestamp_ns(), left, right);
+    if (job->spool) job->spool->Add(frame.timestamp_ns(), left, right);
     job->last_timestamp_ns = frame.timestamp_ns();
     proto::ToProto(job->builder.Progress(), &progress);
     ShareMapSoFar(job, static_cast<int>(progress.keyframes()));
@@ -269,6 +276,18 @@ Status Fail(Stream* stream, Job* job, StatusCode code, const std::string& reason
   return Status(code, reason);
 }
 
+// An extension after MappingEnd: the run merged into the existing map as a new session, as
+// `visloc map extend` does (mapping::MergeSession: the run's images localized in the map, the
+// run mapped, placed and merged). Throws InputError when the run does not overlap the map.
+Map Extend(const mapstore::MapDirectory& folder, Job* job) {
+  const Map existing = mapstore::LoadMap(folder.PathOf(job->name));
+  mapping::SessionMergeOptions options;
+  options.threads = job->options.builder.threads;
+  mapping::SessionMergeStats stats;
+  return mapping::MergeSession(existing, *job->spool, mapping::SessionMergeKind::kExtend, options,
+                               &stats);
+}
+
 // After MappingEnd: global adjustment, learning, and the map published under its name.
 Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, Stream* stream,
                         Job* job) {
@@ -284,10 +303,11 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
                 "no frame was mapped: nothing was published");
   }
   const Timer timer;
-  const MapMetadata metadata{job->name, static_cast<int64_t>(std::time(nullptr)),
-                             StrCat("streamed by ", job->robot_id.empty() ? peer : job->robot_id),
-                             StrCat("visloc ", VislocVersion(), " mapping service"), ""};
-  const Map map = job->builder.Finish(metadata);
+  const MapMetadata metadata{
+      job->name, static_cast<int64_t>(std::time(nullptr)),
+      StrCat("robot ", job->robot_id.empty() ? peer : job->robot_id, " over the link"),
+      StrCat("visloc ", VislocVersion(), " mapping service"), ""};
+  const Map map = job->spool ? Extend(folder, job) : job->builder.Finish(metadata);
   if (static_cast<int>(map.points.size()) < job->options.min_points) {
     return Fail(stream, job, StatusCode::FAILED_PRECONDITION,
                 StrCat("the map would have ", map.points.size(), " points, fewer than ",
@@ -335,6 +355,10 @@ Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const
                   "mapping over the link is off on this server (--max-mapping-jobs 0)");
   }
   mapstore::CheckMapName(start.map_name());
+  if (start.options().extend() && !maps_->directory().Contains(start.map_name())) {
+    return Status(StatusCode::NOT_FOUND, StrCat("no map named '", start.map_name(),
+                                                "' to extend; build it first (without extend)"));
+  }
   if (maps_->directory().Contains(start.map_name()) && !replace) {
     return Status(StatusCode::ALREADY_EXISTS,
                   StrCat("a map named '", start.map_name(),

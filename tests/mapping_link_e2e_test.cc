@@ -28,6 +28,7 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using testing::JsonNumber;
 using testing::LinkProfile;
 using testing::LinkProxy;
@@ -200,6 +201,29 @@ TEST_F(MappingLinkE2eTest, TwoCamerasAreMappedOverTheLink) {
                                     "--camera", work_.File("left.avi")});
   EXPECT_EQ(one.exit_code, 2);
   EXPECT_THAT(one.err, HasSubstr("--camera L --camera R with --camera-yaml L.yaml"));
+}
+
+// A second run extends the map over the link, as `visloc map extend` extends a file: the run
+// is placed in the map and merged, and the map is replaced with the result.
+TEST_F(MappingLinkE2eTest, ASecondRunExtendsTheMap) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  ASSERT_EQ(Visloc({"map", "build", "--server", server.address(), "--name", "hall", "--dataset",
+                    kRun, "--frames", "0:40"})
+                .exit_code,
+            0);
+  const ProcessResult before = Visloc({"map", "info", maps_.File("hall.db"), "--json"});
+  const ProcessResult extended =
+      Visloc({"map", "build", "--server", server.address(), "--name", "hall", "--extend",
+              "--dataset", kRun, "--frames", "30:70", "--json"});
+  ASSERT_EQ(extended.exit_code, 0) << extended.err;
+  const ProcessResult after = Visloc({"map", "info", maps_.File("hall.db"), "--json"});
+  EXPECT_GT(JsonNumber(after.out, "keyframes"), JsonNumber(before.out, "keyframes"));
+  EXPECT_THAT(after.out, HasSubstr("lineage"));
+  EXPECT_THAT(after.out, Not(HasSubstr("\"lineage\":\"\"")));
+  const ProcessResult missing = Visloc({"map", "build", "--server", server.address(), "--name",
+                                        "nowhere", "--extend", "--dataset", kRun, "--frames", "5"});
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_THAT(missing.err, HasSubstr("no map named 'nowhere' to extend"));
 }
 
 TEST_F(MappingLinkE2eTest, TheCommandSaysWhereTheMapGoes) {
