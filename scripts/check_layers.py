@@ -26,9 +26,10 @@ EXEMPT = re.compile(r"(_test\.cc|_benchmark\.cc|_fuzzer\.cc|_test_writer\.h)$")
 EXEMPT_DIRS = ("tests/", "fuzz/", "examples/", "build", "out/", "python/", "docs/", ".")
 # Binaries and the folders whose sources they are (besides what their libraries own).
 BINARIES = {
-    "visloc": "client/",
-    "visloc-server": "server/main.cc",
-    "visloc_ros_node": "ros/node/visloc_ros_node.cc",
+    "visloc": ("client/",),
+    "visloc-server": ("server/main.cc",),
+    "visloc_ros_node": ("ros/node/visloc_ros_node.cc", "ros/node/mapping_node.cc",
+                        "ros/node/mapping_node.h"),
 }
 
 
@@ -100,9 +101,10 @@ def owners(root, targets, order):
     first_in = {}
     for name in order:
         first_in.setdefault(targets[name][0], name)
-    for binary, where in BINARIES.items():
-        if where.endswith(".cc"):
-            owner[where] = binary
+    for binary, paths in BINARIES.items():
+        for where in paths:
+            if where.endswith((".cc", ".h")):
+                owner[where] = binary
     for folder, _, files in os.walk(root):
         rel = os.path.relpath(folder, root) + "/"
         for f in files:
