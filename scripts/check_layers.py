@@ -29,7 +29,7 @@ BINARIES = {
     "visloc": ("client/",),
     "visloc-server": ("server/main.cc",),
     "visloc_ros_node": ("ros/node/visloc_ros_node.cc", "ros/node/mapping_node.cc",
-                        "ros/node/mapping_node.h"),
+                        "ros/node/mapping_node.h", "ros/node/ros_camera_info.h"),
 }
 
 

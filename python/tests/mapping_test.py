@@ -16,22 +16,13 @@ import unittest
 
 import cv2
 
+from harness import start
 from visloc import MappingError, MappingOptions, MappingSession, stereo_rig_from_yaml
 
 SERVER, PROXY, CLI, DATA = sys.argv[1:5]
 del sys.argv[1:5]
 RUN = os.path.join(DATA, "map_square")
 FRAMES = 30
-
-
-def start(argv):
-    """A child that prints 'listening on ADDRESS'; returns (process, address)."""
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    line = process.stdout.readline()
-    if not line.startswith("listening on "):
-        process.kill()
-        raise RuntimeError(f"{argv[0]} did not start: {line!r}")
-    return process, line.split()[-1]
 
 
 def keyframes(map_path, out):

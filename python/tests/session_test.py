@@ -8,7 +8,6 @@ The data folder is the localization test fixture (map.db and query_square/).
 import glob
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -16,21 +15,12 @@ import unittest
 
 import cv2
 
+from harness import start
 from visloc import Session, SessionOptions, pinhole_camera
 from visloc.v1 import visloc_pb2 as pb
 
 SERVER, PROXY, DATA = sys.argv[1], sys.argv[2], sys.argv[3]
 del sys.argv[1:4]
-
-
-def start(argv):
-    """A child that prints 'listening on ADDRESS'; returns (process, address)."""
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    line = process.stdout.readline()
-    if not line.startswith("listening on "):
-        process.kill()
-        raise RuntimeError(f"{argv[0]} did not start: {line!r}")
-    return process, line.split()[-1]
 
 
 def read_tum(path):

@@ -15,6 +15,7 @@
 
 #include "proto/geometry_convert.h"
 #include "ros/messages/ros_messages.h"
+#include "ros/node/ros_camera_info.h"
 #include "visloc/client/mapping_session.h"
 
 namespace visloc::ros_node {
@@ -24,18 +25,6 @@ namespace vc = visloc::client;
 
 constexpr int64_t kPairWindowNs = 2'000'000'000;  // An unpaired image older than this is dropped.
 constexpr size_t kMaxQueued = 600;                // Paired frames waiting for the link.
-
-ros_msg::CameraInfoMessage FromRos(const sensor_msgs::CameraInfo& msg) {
-  ros_msg::CameraInfoMessage info;
-  info.width = ros_msg::ImageSide(msg.width);
-  info.height = ros_msg::ImageSide(msg.height);
-  info.distortion_model = msg.distortion_model;
-  info.d = msg.D;
-  std::copy(msg.K.begin(), msg.K.end(), info.k.begin());
-  std::copy(msg.R.begin(), msg.R.end(), info.r.begin());
-  std::copy(msg.P.begin(), msg.P.end(), info.p.begin());
-  return info;
-}
 
 cv::Mat Decode(const sensor_msgs::Image& msg) {
   return ros_msg::DecodeRawImage(
@@ -80,7 +69,7 @@ class MappingNode {
   void SetInfo(const sensor_msgs::CameraInfo& msg,
                std::optional<ros_msg::CameraInfoMessage>* info) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!*info) *info = FromRos(msg);
+    if (!*info) *info = CameraInfoFromRos(msg);
     ready_.notify_all();
   }
 

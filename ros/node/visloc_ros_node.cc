@@ -44,6 +44,7 @@
 #include "ros/messages/ros_messages.h"
 #include "ros/node/mapping_node.h"
 #include "ros/node/pose_output.h"
+#include "ros/node/ros_camera_info.h"
 #include "visloc/client/session.h"
 
 namespace visloc::ros_node {
@@ -165,12 +166,7 @@ class LocalizationNode {
   vc::Session* OpenSession(const sensor_msgs::CameraInfo& msg, std::optional<vc::Frame>* early) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (session_ || failed_) return nullptr;
-    ros_msg::CameraInfoMessage info;
-    info.width = ros_msg::ImageSide(msg.width);
-    info.height = ros_msg::ImageSide(msg.height);
-    info.distortion_model = msg.distortion_model;
-    info.d = msg.D;
-    std::copy(msg.K.begin(), msg.K.end(), info.k.begin());
+    const ros_msg::CameraInfoMessage info = CameraInfoFromRos(msg);
     try {
       ToProto(ros_msg::CameraFromInfo(info, nh_.resolveName("camera_info")), &options_.camera);
     } catch (const std::exception& e) {
