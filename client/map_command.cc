@@ -228,8 +228,9 @@ int RunBuild(const Args& args) {
   }
   if (name.empty()) name = fs::path(out).stem().string();
   mapstore::CheckMapName(name);
-  if (dataset_dir.empty() == cameras.empty()) {
-    throw UsageError("give --dataset DIR, or with --server two cameras (--camera L --camera R)");
+  if (dataset_dir.empty() && cameras.empty()) throw UsageError("missing --dataset");
+  if (!dataset_dir.empty() && !cameras.empty()) {
+    throw UsageError("give --dataset DIR or two cameras (--camera L --camera R), not both");
   }
   if (!cameras.empty()) {
     if (server.server.empty()) throw UsageError("--camera maps over the link: give --server");

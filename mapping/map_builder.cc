@@ -255,6 +255,31 @@ MapBuilderProgress MapBuilder::Progress() const {
   return progress;
 }
 
+namespace {
+
+// A frame's features: keypoints, descriptors, and one rectified position, grid entry and stereo
+// column per keypoint.
+size_t FeatureBytes(const FeatureSet& features) {
+  const size_t n = features.keypoints.size();
+  return n * (sizeof(Keypoint) + sizeof(Eigen::Vector2d) + sizeof(Eigen::Vector2f) +
+              2 * sizeof(int) + sizeof(double)) +
+         features.descriptors.total() * features.descriptors.elemSize();
+}
+
+}  // namespace
+
+size_t MapBuilder::MemoryBytes() const {
+  size_t bytes = 0;
+  for (const SlamKeyframe& k : state_.keyframes) bytes += FeatureBytes(k.features);
+  for (const Landmark& l : state_.landmarks) {
+    bytes += sizeof(Landmark) + l.observations.size() * sizeof(l.observations[0]);
+  }
+  for (const auto& [timestamp_ns, frame] : calibration_frames_) {
+    bytes += FeatureBytes(frame.left) + frame.point_in_rect.size() * sizeof(Eigen::Vector3d);
+  }
+  return bytes;
+}
+
 MapSoFar MapBuilder::MapSoFarView(size_t max_points) const {
   const Rigid3d map_from_world = MapFromWorld();
   MapSoFar view;

@@ -134,6 +134,10 @@ class MapBuilder {
   Trajectory FrameTrajectory() const;
   // Where the build stands after the last frame added.
   MapBuilderProgress Progress() const;
+  // What the build holds in memory, approximately (bytes): every keyframe's features and stereo
+  // matches, the landmarks, and the frames kept while the rig's disparity bias is estimated. A
+  // server bounds its mapping jobs by it.
+  size_t MemoryBytes() const;
   // The map so far, at most `max_points` landmarks (evenly taken).
   MapSoFar MapSoFarView(size_t max_points) const;
   // Short status for progress displays.

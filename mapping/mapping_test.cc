@@ -401,6 +401,7 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
   const DatasetSource source(dataset);
   MapBuilder builder(source.left_camera(), source.right_camera(), source.right_from_left(), {});
   int keyframes_before = 0;
+  size_t memory_before = 0;
   for (int i = 0; i < source.size(); ++i) {
     const StereoImages frame = source.Read(i);
     builder.AddFrame(frame.timestamp_ns, frame.left_raw, frame.right_raw);
@@ -415,7 +416,11 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
     if (i > 0) {
       EXPECT_GT(progress.tracked, 50) << "frame " << i;
     }
+    // Every frame is kept while the rig's disparity bias is being estimated: memory only grows.
+    EXPECT_GT(builder.MemoryBytes(), memory_before) << "frame " << i;
+    memory_before = builder.MemoryBytes();
   }
+  EXPECT_GT(memory_before, size_t{20} * 600 * 64);  // 20 frames of 600 16-float descriptors.
   EXPECT_GE(keyframes_before, 2);
   EXPECT_GT(builder.Progress().landmarks, 500);
   EXPECT_EQ(builder.Progress().tracking_failures, 0);

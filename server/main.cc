@@ -42,7 +42,10 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
   parser.AddFlag("mapping-threads", &c->mapping_threads,
                  "threads of each mapping job (features, stereo matching)");
   parser.AddFlag("max-mapping-frames", &c->max_mapping_frames,
-                 "stereo frames one mapping job takes (bounds its memory)");
+                 "stereo frames one mapping job takes");
+  parser.AddFlag("max-mapping-memory-mib", &c->max_mapping_memory_mib,
+                 "memory one mapping job's mapper may hold (features, stereo matches, points), "
+                 "MiB; frames beyond it are refused and the run may be ended to publish");
   parser.AddFlag("mapping-resume-s", &c->mapping_resume_s,
                  "a mapping job whose link broke waits this long for its client to resume it, "
                  "keeping its map so far (0: dropped at once)");

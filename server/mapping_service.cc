@@ -233,13 +233,18 @@ void ShareMapSoFar(Job* job, int keyframes) {
 
 // A frame through the mapper, answered with the build's progress; a bad frame is answered
 // MAPPING_FRAME_ERROR with the reason, and the job goes on.
-v1::MappingProgress MapFrame(const v1::StereoFrame& frame, int max_frames, Job* job) {
+v1::MappingProgress MapFrame(const v1::StereoFrame& frame, const MappingLimits& limits, Job* job) {
   const Timer timer;
   v1::MappingProgress progress;
   try {
-    if (job->frames >= static_cast<uint64_t>(max_frames)) {
-      throw InputError(StrCat("the job has its ", max_frames,
+    if (job->frames >= static_cast<uint64_t>(limits.max_frames)) {
+      throw InputError(StrCat("the job has its ", limits.max_frames,
                               " frames (--max-mapping-frames); end the stream to publish"));
+    }
+    if (job->builder.MemoryBytes() > limits.max_memory_bytes) {
+      throw InputError(StrCat("the job holds ", job->builder.MemoryBytes() >> 20,
+                              " MiB of features and points, its bound (--max-mapping-memory-mib ",
+                              limits.max_memory_bytes >> 20, "); end the stream to publish"));
     }
     if (job->builder.Progress().frames > 0 && frame.timestamp_ns() <= job->last_timestamp_ns) {
       throw InputError(StrCat("timestamp ", frame.timestamp_ns(), " ns is not after the last ",
@@ -496,7 +501,7 @@ Status MappingService::BuildMap(grpc::ServerContext* context, Stream* stream) {
       } else if (!request.has_frame()) {
         return Fail(stream, job.get(), StatusCode::INVALID_ARGUMENT,
                     "a mapping stream has one MappingStart, then frames: nothing was published");
-      } else if (!stream->Write(MapFrame(request.frame(), limits_.max_frames, job.get()))) {
+      } else if (!stream->Write(MapFrame(request.frame(), limits_, job.get()))) {
         break;
       }
     }

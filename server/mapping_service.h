@@ -31,8 +31,10 @@ struct MappingLimits {
   // the map so far in memory, and takes a core while frames arrive.
   int max_jobs = 1;
   int threads = 1;  // Each job's threads (mapping::MapBuilderOptions::threads).
-  // Frames one job takes; later frames are answered MAPPING_FRAME_ERROR (bounds its memory).
+  // Frames one job takes, and the memory its mapper may hold (MapBuilder::MemoryBytes); frames
+  // beyond either are answered MAPPING_FRAME_ERROR, and the client may end the run to publish.
   int max_frames = 20000;
+  size_t max_memory_bytes = size_t{2048} << 20;
   bool read_only = false;  // A replica of a shared maps folder: mapping is refused.
   // A job whose stream breaks waits this long for its client to resume it
   // (MappingStart.resume_job_id), keeping its map so far and its slot; 0: it is dropped at once.

@@ -96,6 +96,7 @@ MappingLimits MappingLimitsOf(const ServerConfig& config) {
   limits.max_jobs = config.max_mapping_jobs;
   limits.threads = config.mapping_threads;
   limits.max_frames = config.max_mapping_frames;
+  limits.max_memory_bytes = static_cast<size_t>(config.max_mapping_memory_mib) << 20;
   limits.read_only = config.maps_read_only;
   limits.resume_window_s = config.mapping_resume_s;
   return limits;
@@ -131,6 +132,9 @@ void ServerConfig::Check() const {
     throw UsageError("--mapping-threads must be 1 to 64");
   }
   if (max_mapping_frames < 1) throw UsageError("--max-mapping-frames must be at least 1");
+  if (max_mapping_memory_mib < 1 || max_mapping_memory_mib > (int64_t{1} << 24)) {
+    throw UsageError("--max-mapping-memory-mib must be 1 to 16777216");
+  }
   if (!(mapping_resume_s >= 0 && mapping_resume_s <= 3600)) {
     throw UsageError("--mapping-resume-s must be 0 to 3600");
   }

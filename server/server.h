@@ -54,6 +54,7 @@ struct ServerConfig {
   int max_mapping_jobs = 1;
   int mapping_threads = 1;
   int max_mapping_frames = 20000;
+  int64_t max_mapping_memory_mib = 2048;  // What one job's mapper may hold.
   double mapping_resume_s = 30.0;  // A broken mapping stream's job waits this long to resume.
 
   // Throws UsageError naming the flag of the first bad value.

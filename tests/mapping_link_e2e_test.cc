@@ -28,10 +28,10 @@ namespace visloc {
 namespace {
 
 using ::testing::HasSubstr;
-using ::testing::Not;
 using testing::JsonNumber;
 using testing::LinkProfile;
 using testing::LinkProxy;
+using ::testing::Not;
 using testing::ProcessResult;
 using testing::ServerProcess;
 using testing::Visloc;
@@ -224,6 +224,21 @@ TEST_F(MappingLinkE2eTest, ASecondRunExtendsTheMap) {
                                         "nowhere", "--extend", "--dataset", kRun, "--frames", "5"});
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_THAT(missing.err, HasSubstr("no map named 'nowhere' to extend"));
+}
+
+// A job is bounded in memory: frames beyond the bound are refused by name, and the run so far
+// is still published when it ends.
+TEST_F(MappingLinkE2eTest, FramesBeyondAJobsMemoryAreRefusedAndTheRunSoFarPublished) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(), {"--max-mapping-memory-mib", "1"});
+  const ProcessResult built = Visloc({"map", "build", "--server", server.address(), "--name",
+                                      "small", "--dataset", kRun, "--frames", "0:30", "--json"});
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_GT(JsonNumber(built.out, "refused_frames"), 5) << built.out;
+  EXPECT_LT(JsonNumber(built.out, "refused_frames"), 30) << built.out;
+  const ProcessResult text = Visloc({"map", "build", "--server", server.address(), "--name",
+                                     "small", "--replace", "--dataset", kRun, "--frames", "0:30"});
+  EXPECT_THAT(text.out, HasSubstr("(--max-mapping-memory-mib 1); end the stream to publish"));
+  EXPECT_TRUE(std::filesystem::exists(maps_.File("small.db")));
 }
 
 TEST_F(MappingLinkE2eTest, TheCommandSaysWhereTheMapGoes) {
