@@ -410,7 +410,7 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
     EXPECT_TRUE(progress.last_tracked) << "frame " << i;
     EXPECT_GE(progress.keyframes, std::max(1, keyframes_before));
     keyframes_before = progress.keyframes;
-    const Rigid3d& last = builder.FrameTrajectory().back().pose;
+    const Rigid3d last = builder.FrameTrajectory().back().pose;  // A copy: the trajectory is a temporary.
     EXPECT_LT((progress.map_from_cam.translation - last.translation).norm(), 1e-9) << "frame " << i;
     EXPECT_LT(progress.map_from_cam.rotation.angularDistance(last.rotation), 1e-9);
     if (i > 0) {
