@@ -4,7 +4,6 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include <cctype>
 #include <cstdio>
 #include <iostream>
 #include <string>
@@ -15,18 +14,11 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "proto/mapping_convert.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
 namespace visloc::cli {
 namespace {
-
-// "MAPPING_FRAME_ERROR" -> "frame_error".
-std::string StateText(v1::MappingState state) {
-  std::string name = v1::MappingState_Name(state);
-  if (StartsWith(name, "MAPPING_")) name = name.substr(8);
-  for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return name;
-}
 
 // How long a job ran (or has run), seconds.
 double Seconds(const v1::MappingJob& job, int64_t now_ns) {
@@ -45,7 +37,7 @@ std::string ToJson(const v1::ListJobsResponse& list, const std::string& server) 
         .Field("job", job.job_id())
         .Field("map", job.map_name())
         .Field("robot", job.robot_id())
-        .Field("state", StateText(job.state()))
+        .Field("state", proto::MappingStateText(job.state()))
         .Field("running", job.ended_unix_ns() == 0)
         .Field("frames", job.frames())
         .Field("keyframes", static_cast<int64_t>(job.keyframes()))
@@ -73,9 +65,9 @@ std::string Table(const v1::ListJobsResponse& list, const std::string& server) {
     std::snprintf(
         line, sizeof(line), "%5llu %-16.16s %-14.14s %-11s %7llu %9u %8llu %6u %8.1f  %s\n",
         static_cast<unsigned long long>(job.job_id()), job.map_name().c_str(),
-        job.robot_id().empty() ? "-" : job.robot_id().c_str(), StateText(job.state()).c_str(),
-        static_cast<unsigned long long>(job.frames()), job.keyframes(),
-        static_cast<unsigned long long>(job.points()), job.tracking_failures(),
+        job.robot_id().empty() ? "-" : job.robot_id().c_str(),
+        proto::MappingStateText(job.state()).c_str(), static_cast<unsigned long long>(job.frames()),
+        job.keyframes(), static_cast<unsigned long long>(job.points()), job.tracking_failures(),
         Seconds(job, list.server_time_unix_ns()), job.error().c_str());
     out += line;
   }

@@ -23,19 +23,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-const char* StateName(v1::MappingState state) {
-  switch (state) {
-    case v1::MAPPING_TRACKING:
-      return "tracking";
-    case v1::MAPPING_LOST:
-      return "lost";
-    case v1::MAPPING_FRAME_ERROR:
-      return "bad frame";
-    default:
-      return "?";
-  }
-}
-
 // When frame `index` of a recording is due: at `rate_hz`, at its own pace (0), or now (negative).
 Clock::time_point DueTime(const Dataset& dataset, size_t index, double rate_hz,
                           Clock::time_point start) {
@@ -123,17 +110,7 @@ class CameraFeed final : public StereoFeed {
     if (interrupted || (frames_ > 0 && read_ >= static_cast<size_t>(frames_))) return false;
     if (!left_.Grab() || !right_.Grab()) return false;
     if (!left_.Retrieve(&frame->left) || !right_.Retrieve(&frame->right)) return false;
-    const size_t i = read_++;
-    const double rate = paced_hz();
-    if (!left_.live() && rate > 0) {
-      std::this_thread::sleep_until(start_ +
-                                    std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
-    }
-    const int64_t timestamp_ns =
-        left_.live() || rate <= 0
-            ? std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start_).count()
-            : static_cast<int64_t>(i * 1e9 / rate);
-    frame->timestamp_ns = timestamp_ns + 1;  // Strictly positive and increasing.
+    frame->timestamp_ns = left_.Stamp(read_++, paced_hz(), /*pace=*/true, start_);
     return true;
   }
 
@@ -178,7 +155,8 @@ struct Answers {
       if (progress) {
         std::fprintf(stderr, "\r\33[Kframe %llu%s: %s, %u keyframes, %llu points",
                      static_cast<unsigned long long>(p.frame_index() + 1),
-                     total ? StrCat(" / ", total).c_str() : "", StateName(p.state()), p.keyframes(),
+                     total ? StrCat(" / ", total).c_str() : "",
+                     proto::MappingStateText(p.state()).c_str(), p.keyframes(),
                      static_cast<unsigned long long>(p.points()));
       }
     }

@@ -413,16 +413,8 @@ class CaptureSource final : public FrameSource {
     if (!video_.Read(&image)) return false;
     const size_t i = read_++;
     const double rate = args_.rate_hz > 0 ? args_.rate_hz : video_.file_fps();
-    if (!video_.live() && rate > 0 && args_.rate_hz != 0) {
-      std::this_thread::sleep_until(start_ +
-                                    std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / rate)));
-    }
-    const int64_t timestamp_ns =
-        video_.live() || rate <= 0
-            ? std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start_).count()
-            : static_cast<int64_t>(i * 1e9 / rate);
     *frame = client::Frame();
-    frame->timestamp_ns = timestamp_ns + 1;  // Strictly positive and increasing.
+    frame->timestamp_ns = video_.Stamp(i, rate, /*pace=*/args_.rate_hz != 0, start_);
     frame->image = image;  // Grey or BGR; the library converts and checks the size.
     return true;
   }

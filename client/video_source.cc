@@ -1,6 +1,7 @@
 #include "client/video_source.h"
 
 #include <filesystem>
+#include <thread>
 
 #include "core/util/check.h"
 
@@ -31,6 +32,19 @@ VideoSource::VideoSource(const std::string& source, const std::string& flag) {
 size_t VideoSource::file_frames() const {
   const double frames = live_ ? 0.0 : capture_.get(cv::CAP_PROP_FRAME_COUNT);
   return frames > 0 ? static_cast<size_t>(frames) : 0;
+}
+
+int64_t VideoSource::Stamp(size_t index, double rate_hz, bool pace,
+                           std::chrono::steady_clock::time_point start) const {
+  if (live_ || rate_hz <= 0) {  // Stamped when read.
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() -
+                                                                start)
+               .count() +
+           1;  // Strictly positive and increasing.
+  }
+  const auto due = std::chrono::nanoseconds(static_cast<int64_t>(index * 1e9 / rate_hz));
+  if (pace) std::this_thread::sleep_until(start + due);
+  return due.count() + 1;
 }
 
 }  // namespace visloc::cli

@@ -3,6 +3,7 @@
 // GStreamer pipeline (anything with a "!"), or a video file. `visloc stream --camera` and
 // `visloc map build --server --camera L --camera R` read their cameras through it.
 
+#include <chrono>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -25,6 +26,11 @@ class VideoSource {
   bool Grab() { return capture_.grab(); }
   bool Retrieve(cv::Mat* image) { return capture_.retrieve(*image) && !image->empty(); }
   bool Read(cv::Mat* image) { return capture_.read(*image) && !image->empty(); }
+  // The stamp of the `index`-th frame read since `start` (ns, strictly positive): the clock for a
+  // live source or an unknown rate, else its position in the file at `rate_hz`. With `pace`, a
+  // file's frame is first waited for until it is due at that rate.
+  int64_t Stamp(size_t index, double rate_hz, bool pace,
+                std::chrono::steady_clock::time_point start) const;
 
  private:
   mutable cv::VideoCapture capture_;

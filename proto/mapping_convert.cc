@@ -60,6 +60,12 @@ MappingJobOptions FromProto(const v1::MappingOptions& options) {
   return job;
 }
 
+std::string MappingStateText(v1::MappingState state) {
+  std::string name = v1::MappingState_Name(state);
+  if (StartsWith(name, "MAPPING_")) name = name.substr(8);
+  return ToLower(name);
+}
+
 void ToProto(const mapping::MapBuilderProgress& progress, v1::MappingProgress* out) {
   out->set_state(progress.last_tracked ? v1::MAPPING_TRACKING : v1::MAPPING_LOST);
   out->set_frame_index(static_cast<uint64_t>(progress.frames - 1));

@@ -36,6 +36,9 @@ struct MappingJobOptions {
 // or thresholds out of range.
 MappingJobOptions FromProto(const v1::MappingOptions& options);
 
+// "MAPPING_FRAME_ERROR" -> "frame_error": how logs, job lists and the operator page name a state.
+std::string MappingStateText(v1::MappingState state);
+
 // A frame's answer: the builder's progress after it (state TRACKING or LOST by its tracking).
 void ToProto(const mapping::MapBuilderProgress& progress, v1::MappingProgress* out);
 

@@ -97,5 +97,10 @@ TEST(MappingConvertTest, ALostFrameSaysWhatTheMapperSaw) {
   EXPECT_THAT(wire.error(), HasSubstr("too few stereo matches"));
 }
 
+TEST(MappingConvertTest, StatesAreNamedWithoutTheirPrefix) {
+  EXPECT_EQ(proto::MappingStateText(v1::MAPPING_FRAME_ERROR), "frame_error");
+  EXPECT_EQ(proto::MappingStateText(v1::MAPPING_PUBLISHED), "published");
+}
+
 }  // namespace
 }  // namespace visloc

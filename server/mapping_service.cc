@@ -1,6 +1,5 @@
 #include "server/mapping_service.h"
 
-#include <cctype>
 #include <chrono>
 #include <ctime>
 #include <optional>
@@ -130,8 +129,7 @@ std::vector<MappingJobView> MappingJobs::Views() const {
     view.id = id;
     view.map = job.map_name();
     view.robot_id = job.robot_id();
-    view.state = v1::MappingState_Name(job.state()).substr(8);  // Without "MAPPING_".
-    for (char& c : view.state) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    view.state = proto::MappingStateText(job.state());
     view.running = job.ended_unix_ns() == 0;
     view.frames = job.frames();
     view.keyframes = job.keyframes();
@@ -246,13 +244,13 @@ v1::MappingProgress MapFrame(const v1::StereoFrame& frame, const MappingLimits& 
                               " MiB of features and points, its bound (--max-mapping-memory-mib ",
                               limits.max_memory_bytes >> 20, "); end the stream to publish"));
     }
-    if (job->builder.Progress().frames > 0 && frame.timestamp_ns() <= job->last_timestamp_ns) {
+    if (job->builder.stats().frames > 0 && frame.timestamp_ns() <= job->last_timestamp_ns) {
       throw InputError(StrCat("timestamp ", frame.timestamp_ns(), " ns is not after the last ",
                               job->last_timestamp_ns, " ns"));
     }
     const auto [left, right] = DecodePair(frame, job->rig);
     job->builder.AddFrame(frame.timestamp_ns(), left, right);
-    if (job->spool) job->spool->Add(frame.timestamp_ns(), left, right);
+    if (job->spool) job->spool->Add(frame, left, right);
     job->last_timestamp_ns = frame.timestamp_ns();
     proto::ToProto(job->builder.Progress(), &progress);
     ShareMapSoFar(job, static_cast<int>(progress.keyframes()));

@@ -16,8 +16,9 @@ class SpooledFrames final : public mapping::StereoSource {
  public:
   SpooledFrames(std::string name, const proto::StereoRigInput& rig);
 
-  // Keeps one decoded-fine frame's images as PNG (lossless: what was mapped).
-  void Add(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right);
+  // Keeps one frame that decoded fine: each image's bytes as they arrived (PNG or JPEG; read
+  // back they decode to what was mapped), or a raw one as PNG.
+  void Add(const v1::StereoFrame& frame, const cv::Mat& left, const cv::Mat& right);
 
   std::string name() const override { return name_; }
   const Camera& left_camera() const override { return rig_.left; }
@@ -29,6 +30,7 @@ class SpooledFrames final : public mapping::StereoSource {
 
  private:
   std::string Path(int index, const char* side) const;
+  void Keep(const std::string& encoded, const cv::Mat& decoded, const std::string& path) const;
 
   std::string name_;
   proto::StereoRigInput rig_;

@@ -365,6 +365,24 @@ TEST_F(MappingServiceE2eTest, BadFramesAreAnsweredByNameAndTheJobGoesOn) {
   again->context.TryCancel();
 }
 
+// Without a resume window a broken job is abandoned at once and its slot freed.
+TEST_F(MappingServiceE2eTest, WithoutAResumeWindowABrokenJobIsAbandonedAtOnce) {
+  server_ = std::make_unique<ServerProcess>(
+      VISLOC_SERVER_PATH, maps_.path(),
+      std::vector<std::string>{"--tokens", work_.File("tokens"), "--mapping-resume-s", "0"});
+  auto call = Open();
+  ASSERT_EQ(Exchange(call->stream.get(), Start("gone")).state(), v1::MAPPING_STARTED);
+  EXPECT_EQ(Exchange(call->stream.get(), Frame(0)).state(), v1::MAPPING_TRACKING);
+  call->stream->WritesDone();
+  const grpc::Status status = call->stream->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_THAT(status.error_message(), HasSubstr("(no MappingEnd): nothing was published"));
+  auto next = Open();  // The slot is free again.
+  EXPECT_EQ(Exchange(next->stream.get(), Start("next")).state(), v1::MAPPING_STARTED);
+  next->context.TryCancel();
+  EXPECT_TRUE(FilesIn(maps_.path()).empty());
+}
+
 TEST_F(MappingServiceE2eTest, OneJobAtATimeAdminsOnlyAndSmallMapsAreNotPublished) {
   auto robot = Open(kRobotToken);
   robot->stream->Write(Start("robot_map"));

@@ -21,6 +21,13 @@ struct ChannelTiming {
   std::chrono::milliseconds backoff_max{500};
 };
 
+// The bearer token, when there is one, as the call's authorization metadata.
+inline void Authorize(grpc::ClientContext* context, const Credentials& credentials) {
+  if (!credentials.token.empty()) {
+    context->AddMetadata("authorization", "Bearer " + credentials.token);
+  }
+}
+
 std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,
                                                 const Credentials& credentials,
                                                 const ChannelTiming& timing);

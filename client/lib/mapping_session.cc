@@ -157,9 +157,7 @@ class MappingSessionImpl final : public MappingSession {
                                 {std::chrono::milliseconds(10000), std::chrono::milliseconds(5000),
                                  options_.backoff_initial, options_.backoff_max});
     context_ = std::make_unique<grpc::ClientContext>();
-    if (!options_.credentials.token.empty()) {
-      context_->AddMetadata("authorization", "Bearer " + options_.credentials.token);
-    }
+    Authorize(context_.get(), options_.credentials);
     stream_ = v1::Mapping::NewStub(channel_)->BuildMap(context_.get());
     v1::MappingRequest start;
     v1::MappingStart* s = start.mutable_start();
@@ -269,9 +267,7 @@ class MappingSessionImpl final : public MappingSession {
   // After a break around MappingEnd: whether the server published the job anyway.
   std::optional<v1::MappingProgress> PublishedMeanwhile() const {
     grpc::ClientContext context;
-    if (!options_.credentials.token.empty()) {
-      context.AddMetadata("authorization", "Bearer " + options_.credentials.token);
-    }
+    Authorize(&context, options_.credentials);
     context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
     v1::ListJobsResponse jobs;
     if (!v1::Mapping::NewStub(channel_)->ListJobs(&context, {}, &jobs).ok()) return std::nullopt;

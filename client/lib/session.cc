@@ -266,9 +266,7 @@ bool SessionImpl::OpenStream(Events* events, grpc::Status* refused) {
     *refused = grpc::Status(grpc::StatusCode::UNAVAILABLE, "cannot connect to " + options_.server);
     return false;
   }
-  if (!options_.credentials.token.empty()) {
-    stream->context.AddMetadata("authorization", "Bearer " + options_.credentials.token);
-  }
+  Authorize(&stream->context, options_.credentials);
   stream->call = v1::Localization::NewStub(stream->channel)->Localize(&stream->context);
   v1::LocalizeRequest start;
   v1::SessionStart* s = start.mutable_start();
@@ -557,9 +555,7 @@ v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& fr
                                 : EncodeImage(frame.image, options.encoding, options.jpeg_quality));
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + timeout);
-  if (!options.credentials.token.empty()) {
-    context.AddMetadata("authorization", "Bearer " + options.credentials.token);
-  }
+  Authorize(&context, options.credentials);
   v1::RelocalizeResponse response;
   const grpc::Status status =
       v1::Localization::NewStub(NewChannel(options))->Relocalize(&context, request, &response);
