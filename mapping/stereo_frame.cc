@@ -62,7 +62,7 @@ struct RefinementScratch {
 }  // namespace
 
 // Built for AVX2 too: there std::floor is one instruction, not a call (the same values).
-VISLOC_AVX2_CLONE bool RefineDisparity(const cv::Mat& left, const cv::Mat& right,
+VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& right,
                                        const cv::Mat& right_gradient_x, double x, double y,
                                        int radius, double* d) {
   const int margin = radius + 2;
@@ -167,7 +167,7 @@ RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
 }
 
 // sums[k] += value * right[k] for k in [0, count): one left pixel against a run of the right row.
-VISLOC_AVX2_CLONE void AccumulateProducts(int value, const uchar* __restrict right, int count,
+VISLOC_SIMD_CLONES void AccumulateProducts(int value, const uchar* __restrict right, int count,
                                           int* __restrict sums) {
   for (int k = 0; k < count; ++k) sums[k] += value * right[k];
 }

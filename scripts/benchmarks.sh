@@ -181,8 +181,8 @@ echo "== writing $REPORT"
   echo "- Memory: $(free -g | awk '/^Mem:/ {print $2}') GiB; OS: $(. /etc/os-release; echo "$PRETTY_NAME"); compiler: $(c++ --version | head -1)"
   echo "- OpenCV $(pkg-config --modversion opencv4), Ceres, gRPC $(pkg-config --modversion grpc++ 2>/dev/null || echo '(Debian)')"
   echo "- Vector code: the Harris response, non-maximum suppression and descriptor distances to a candidate"
-  echo "  set are built for AVX2 and for the x86-64 baseline, picked at load time (same results); this CPU"
-  echo "  $(grep -qw avx2 /proc/cpuinfo && echo runs the AVX2 versions || echo has no AVX2: baseline versions)."
+  echo "  set are built for AVX-512, AVX2 and the x86-64 baseline, picked at load time (same results); this"
+  echo "  CPU $(if grep -qw avx512f /proc/cpuinfo; then echo runs the AVX-512 versions; elif grep -qw avx2 /proc/cpuinfo; then echo runs the AVX2 versions; else echo has neither: baseline versions; fi)."
   echo
   echo "## Accuracy (paper Tables 3-4, Fig. 10), 320x240, map of the full 2 m square"
   echo

@@ -70,7 +70,7 @@ inline float SquaredDistance(const float* query, const float* columns, int count
 // lanes are merged as one pass in index order would have left them: the smallest best, at its
 // first index, and as second the smallest of the other lanes' bests and the winner's second. The
 // remainder (count % 8, the last indices) is offered in order after that.
-VISLOC_AVX2_CLONE NearestTwo ColumnNearest(const float* query, const float* columns, int count) {
+VISLOC_SIMD_CLONES NearestTwo ColumnNearest(const float* query, const float* columns, int count) {
   constexpr float kFar = std::numeric_limits<float>::max();
   Floats8 best, second;
   Ints8 best_index, index;
@@ -114,7 +114,7 @@ VISLOC_AVX2_CLONE NearestTwo ColumnNearest(const float* query, const float* colu
 
 // Float16Columns::NearestOf: the distances a block at a time, a loop over consecutive
 // descriptors that the compiler vectorizes, then the first smallest in order.
-VISLOC_AVX2_CLONE int ColumnArgMin(const float* query, const float* columns, int count, int first,
+VISLOC_SIMD_CLONES int ColumnArgMin(const float* query, const float* columns, int count, int first,
                                    int n) {
   constexpr int kBlock = 64;
   float distance[kBlock];

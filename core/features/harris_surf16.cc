@@ -138,7 +138,7 @@ constexpr int kMaxWindow = 41;  // Window taps: sigma up to 10 px (a 20 px scale
 // weighted sum down the ring. Only the response is image-sized, and every loop is contiguous,
 // for the vectorizer. kHalf > 0 fixes `half` at compile time, so the tap loops unroll.
 template <int kHalf>
-VISLOC_AVX2_CLONE float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps, float k,
+VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps, float k,
                                    float norm, cv::Mat* response) {
   const int half = kHalf > 0 ? kHalf : static_cast<int>(taps.size()) - 1;
   const int rows = smoothed.rows, cols = smoothed.cols, window = 2 * half + 1;
@@ -195,7 +195,7 @@ VISLOC_AVX2_CLONE float HarrisRows(const cv::Mat& smoothed, const std::vector<fl
 }
 
 // The largest of the 8 neighbours of each pixel x in [x0, x1) of row `mid`.
-VISLOC_AVX2_CLONE void NeighbourMax(const float* up, const float* mid, const float* down, int x0,
+VISLOC_SIMD_CLONES void NeighbourMax(const float* up, const float* mid, const float* down, int x0,
                                     int x1, float* out) {
   for (int x = x0; x < x1; ++x) {
     const float above = std::max(std::max(up[x - 1], up[x]), up[x + 1]);
@@ -205,7 +205,7 @@ VISLOC_AVX2_CLONE void NeighbourMax(const float* up, const float* mid, const flo
 }
 
 // out[x] = 1 where mid[x] is positive and no neighbour exceeds it, for x in [x0, x1).
-VISLOC_AVX2_CLONE void MaximaMask(const float* __restrict mid, const float* __restrict neighbour_max,
+VISLOC_SIMD_CLONES void MaximaMask(const float* __restrict mid, const float* __restrict neighbour_max,
                                   int x0, int x1, uint8_t* __restrict out) {
   for (int x = x0; x < x1; ++x) {
     out[x] = static_cast<uint8_t>((mid[x] > 0.0f) & (mid[x] >= neighbour_max[x]));
