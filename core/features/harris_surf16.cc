@@ -63,16 +63,28 @@ int Reflect101(int i, int n) {
   return i;
 }
 
-// The largest value of a float row, in four independent lanes (vectorizable; one running max
-// would be a dependency chain).
+// GCC's generic vectors of sixteen floats: one AVX-512 register, two AVX2 or four SSE2 ones in
+// the other clones.
+typedef float Floats16 __attribute__((vector_size(64)));
+
+// The largest value of a float row (no NaN), sixteen lanes at a time: a maximum is exact in
+// any order, and the scalar form (std::max) is not vectorized by GCC and cost a tenth of
+// HarrisRows. Inlined into the clones, so each gets its own vector width.
 inline float RowMax(const float* row, int n) {
-  float lanes[4] = {row[0], row[0], row[0], row[0]};
+  float best = row[0];
   int x = 0;
-  for (; x + 4 <= n; x += 4) {
-    for (int j = 0; j < 4; ++j) lanes[j] = std::max(lanes[j], row[x + j]);
+  if (n >= 16) {
+    Floats16 lanes;
+    __builtin_memcpy(&lanes, row, sizeof lanes);
+    for (x = 16; x + 16 <= n; x += 16) {
+      Floats16 v;
+      __builtin_memcpy(&v, row + x, sizeof v);
+      lanes = v > lanes ? v : lanes;
+    }
+    for (int j = 0; j < 16; ++j) best = std::max(best, lanes[j]);
   }
-  for (; x < n; ++x) lanes[0] = std::max(lanes[0], row[x]);
-  return std::max(std::max(lanes[0], lanes[1]), std::max(lanes[2], lanes[3]));
+  for (; x < n; ++x) best = std::max(best, row[x]);
+  return best;
 }
 
 // 3x3 Sobel gradients (OpenCV's kernels: gx = [-1 0 1] across, [1 2 1] down) at column x of a
@@ -194,64 +206,71 @@ VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<f
   return strongest;
 }
 
-// The largest of the 8 neighbours of each pixel x in [x0, x1) of row `mid`.
-VISLOC_SIMD_CLONES void NeighbourMax(const float* up, const float* mid, const float* down, int x0,
-                                    int x1, float* out) {
-  for (int x = x0; x < x1; ++x) {
-    const float above = std::max(std::max(up[x - 1], up[x]), up[x + 1]);
-    const float below = std::max(std::max(down[x - 1], down[x]), down[x + 1]);
-    out[x] = std::max(std::max(above, below), std::max(mid[x - 1], mid[x + 1]));
-  }
+// The largest of the 8 neighbours of pixel x of row `mid`.
+inline float NeighbourMax(const float* up, const float* mid, const float* down, int x) {
+  const float above = std::max(std::max(up[x - 1], up[x]), up[x + 1]);
+  const float below = std::max(std::max(down[x - 1], down[x]), down[x + 1]);
+  return std::max(std::max(above, below), std::max(mid[x - 1], mid[x + 1]));
 }
 
-// out[x] = 1 where mid[x] is positive and no neighbour exceeds it, for x in [x0, x1).
-VISLOC_SIMD_CLONES void MaximaMask(const float* __restrict mid, const float* __restrict neighbour_max,
-                                  int x0, int x1, uint8_t* __restrict out) {
+// The local maxima of row `mid` at columns [x0, x1) (no 8-neighbour exceeds them), as byte
+// masks: `strong` where the response also reaches `threshold` (corner candidates), and, when
+// given, `positive` where it is above zero (the finest scale's maxima that LocalizeAtFinestScale
+// moves coarse corners to). One pass computes both, so the finest response is scanned once.
+VISLOC_SIMD_CLONES void LocalMaxima(const float* __restrict up, const float* __restrict mid,
+                                    const float* __restrict down, int x0, int x1, float threshold,
+                                    uint8_t* __restrict strong, uint8_t* __restrict positive) {
+  if (positive == nullptr) {
+    for (int x = x0; x < x1; ++x) {
+      strong[x] = static_cast<uint8_t>((mid[x] >= threshold) &
+                                       (mid[x] >= NeighbourMax(up, mid, down, x)));
+    }
+    return;
+  }
   for (int x = x0; x < x1; ++x) {
-    out[x] = static_cast<uint8_t>((mid[x] > 0.0f) & (mid[x] >= neighbour_max[x]));
+    const bool is_max = mid[x] >= NeighbourMax(up, mid, down, x);
+    strong[x] = static_cast<uint8_t>((mid[x] >= threshold) & is_max);
+    positive[x] = static_cast<uint8_t>((mid[x] > 0.0f) & is_max);
   }
-}
-
-// Bit i set when pixel i of four is a corner candidate: at least `threshold`, and no smaller than
-// any neighbour.
-inline int CandidateMask4(const float* response, const float* neighbour_max, float threshold) {
-#if defined(__SSE2__)
-  const __m128 v = _mm_loadu_ps(response);
-  return _mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(v, _mm_set1_ps(threshold)),
-                                    _mm_cmpge_ps(v, _mm_loadu_ps(neighbour_max))));
-#else
-  int mask = 0;
-  for (int i = 0; i < 4; ++i) {
-    mask |= (response[i] >= threshold && response[i] >= neighbour_max[i]) << i;
-  }
-  return mask;
-#endif
 }
 
 // Local maxima above `threshold` (no 8-neighbour is larger), refined to sub-pixel by a separable
 // quadratic fit. The response may come from a level of the image pyramid `level_scale` times
 // smaller than the image; positions are returned in full-resolution pixels (pixel centres:
 // full-resolution pixels 2i and 2i+1 average into half-resolution pixel i, centred at 2i + 0.5).
+// With `positive_maxima`, also every positive local maximum of the response, border included
+// (an 8-bit mask of its size; LocalizeAtFinestScale reads it).
 void FindMaxima(const cv::Mat& response, float threshold, double sigma, int border, int level_scale,
-                std::vector<Keypoint>* out) {
+                std::vector<Keypoint>* out, cv::Mat* positive_maxima = nullptr) {
+  const int rows = response.rows, cols = response.cols;
   const float offset = 0.5f * (level_scale - 1);
   border = std::max(border, 1);
-  const int x0 = border, x1 = response.cols - border;
-  if (x1 <= x0) return;
-  // Padded so the last group of four reads inside.
-  std::vector<float> neighbour_max(response.cols + 4, std::numeric_limits<float>::infinity());
-  for (int y = border; y < response.rows - border; ++y) {
+  const int x0 = border, x1 = cols - border;
+  // Rows and columns scanned: the candidates' range, or every interior pixel for the mask.
+  const int scan_y0 = positive_maxima ? 1 : border;
+  const int scan_y1 = positive_maxima ? rows - 1 : rows - border;
+  const int scan_x0 = positive_maxima ? 1 : x0, scan_x1 = positive_maxima ? cols - 1 : x1;
+  if (positive_maxima) {
+    positive_maxima->create(rows, cols, CV_8UC1);
+    positive_maxima->setTo(0);
+  }
+  if (scan_x1 <= scan_x0) return;
+  // Padded by a word of zeros, so the scan below reads whole 8-byte words.
+  std::vector<uint8_t> strong(cols + 8, 0);
+  for (int y = scan_y0; y < scan_y1; ++y) {
     const float* r = response.ptr<float>(y);
     const float* up = response.ptr<float>(y - 1);
     const float* down = response.ptr<float>(y + 1);
-    NeighbourMax(up, r, down, x0, x1, neighbour_max.data());
-    // About 1% of pixels pass, four tested at once; reading past x1 is harmless, those bits are
-    // dropped.
-    for (int group = x0; group < x1; group += 4) {
-      int mask = CandidateMask4(r + group, neighbour_max.data() + group, threshold);
-      if (group + 4 > x1) mask &= (1 << (x1 - group)) - 1;
-      for (; mask != 0; mask &= mask - 1) {
-        const int x = group + __builtin_ctz(mask);
+    LocalMaxima(up, r, down, scan_x0, scan_x1, threshold, strong.data(),
+                positive_maxima ? positive_maxima->ptr<uint8_t>(y) : nullptr);
+    if (y < border || y >= rows - border) continue;
+    // About 1% of pixels pass: a word of eight flags at a time, in column order.
+    for (int group = x0; group < x1; group += 8) {
+      uint64_t word;
+      std::memcpy(&word, &strong[group], sizeof word);
+      if (group + 8 > x1) word &= (uint64_t{1} << (8 * (x1 - group))) - 1;  // Little-endian.
+      for (; word != 0; word &= word - 1) {
+        const int x = group + __builtin_ctzll(word) / 8;
         const float v = r[x];
         const float dx = 0.5f * (r[x + 1] - r[x - 1]), dxx = r[x + 1] - 2 * v + r[x - 1];
         const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * v + up[x];
@@ -272,8 +291,8 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
 // within their scale (with its sub-pixel fit): a blurred corner's response peak is displaced
 // from the physical corner by an amount that depends on the view, so coarse positions would
 // slide as the camera approaches. Corners without a fine maximum nearby keep their position.
-void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* keypoints,
-                           double finest_scale) {
+void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
+                           std::vector<Keypoint>* keypoints, double finest_scale) {
   const int rows = fine_response.rows, cols = fine_response.cols;
   // Keypoint scales are floats: compared with the double, the finest scale's own keypoints
   // (1.2f > 1.2) would all be searched again, for nothing.
@@ -282,17 +301,6 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, std::vector<Keypoint>* 
       std::none_of(keypoints->begin(), keypoints->end(),
                    [&](const Keypoint& k) { return k.scale_px > finest; })) {
     return;
-  }
-  // The fine maxima once for the image (a positive response no neighbour exceeds), rather than
-  // a 3x3 test at every pixel of every coarse corner's window: coarse corners are a thousand or
-  // more, their windows overlap.
-  cv::Mat is_max(rows, cols, CV_8UC1, cv::Scalar(0));
-  std::vector<float> neighbour_max(cols);
-  for (int y = 1; y < rows - 1; ++y) {
-    const float* mid = fine_response.ptr<float>(y);
-    NeighbourMax(fine_response.ptr<float>(y - 1), mid, fine_response.ptr<float>(y + 1), 1,
-                 cols - 1, neighbour_max.data());
-    MaximaMask(mid, neighbour_max.data(), 1, cols - 1, is_max.ptr<uint8_t>(y));
   }
   for (Keypoint& k : *keypoints) {
     if (k.scale_px <= finest) continue;
@@ -493,16 +501,22 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   }
   const float threshold =
       std::max(1e-12f, static_cast<float>(options_.relative_threshold) * strongest);
+  const size_t finest = std::min_element(options_.scales_px.begin(), options_.scales_px.end()) -
+                        options_.scales_px.begin();
+  VISLOC_CHECK(level_scales[finest] == 1, "the finest scale must be below 2 px");
+  // The finest scale's maxima, found with its candidates, when coarser scales will need them.
+  cv::Mat fine_maxima;
+  const bool coarse_scales = responses.size() > 1;
   std::vector<Keypoint> keypoints;
   const int border = std::max(options_.border_px, 2);
   for (size_t i = 0; i < responses.size(); ++i) {
     FindMaxima(responses[i], threshold, options_.scales_px[i], border / level_scales[i],
-               level_scales[i], &keypoints);
+               level_scales[i], &keypoints,
+               coarse_scales && i == finest ? &fine_maxima : nullptr);
   }
-  const size_t finest = std::min_element(options_.scales_px.begin(), options_.scales_px.end()) -
-                        options_.scales_px.begin();
-  VISLOC_CHECK(level_scales[finest] == 1, "the finest scale must be below 2 px");
-  LocalizeAtFinestScale(responses[finest], &keypoints, options_.scales_px[finest]);
+  if (coarse_scales) {
+    LocalizeAtFinestScale(responses[finest], fine_maxima, &keypoints, options_.scales_px[finest]);
+  }
   keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
   keypoints = KeepStrongInCell(std::move(keypoints), grey.size(), options_.grid_cols,
                                options_.grid_rows, options_.cell_relative_threshold);
