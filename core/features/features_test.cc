@@ -339,6 +339,87 @@ TEST(HarrisSurf16Test, ResponseEqualsItsDefinitionInsideAndAtTheBorder) {
   EXPECT_THROW(HarrisResponse(room, 0.0, 0.04, &strongest), std::exception);
 }
 
+// One scale's corners by their definition, from HarrisSurf16Extractor's own response: every
+// pixel at least `border` from the edge whose response reaches `relative` of the strongest and
+// no 8-neighbour exceeds, at its quadratic sub-pixel peak; strongest first (ties in row-major
+// order), none within a radius-2 disc of a stronger one. Written plainly, pixel by pixel.
+std::vector<Keypoint> ReferenceCorners(const cv::Mat& grey, double sigma, double relative,
+                                       int border) {
+  float strongest = 0.0f;
+  const cv::Mat r = HarrisResponse(grey, sigma, 0.04, &strongest);
+  const float threshold = std::max(1e-12f, static_cast<float>(relative) * strongest);
+  std::vector<Keypoint> found;
+  for (int y = border; y < r.rows - border; ++y) {
+    for (int x = border; x < r.cols - border; ++x) {
+      const float v = r.at<float>(y, x);
+      bool is_max = v >= threshold;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) is_max = is_max && v >= r.at<float>(y + dy, x + dx);
+      }
+      if (!is_max) continue;
+      const float left = r.at<float>(y, x - 1), right = r.at<float>(y, x + 1);
+      const float up = r.at<float>(y - 1, x), down = r.at<float>(y + 1, x);
+      const float dxx = right - 2 * v + left, dyy = down - 2 * v + up;
+      Keypoint k;
+      k.pixel = Eigen::Vector2f(
+          x + (dxx < 0 ? std::clamp(-0.5f * (right - left) / dxx, -0.5f, 0.5f) : 0.0f),
+          y + (dyy < 0 ? std::clamp(-0.5f * (down - up) / dyy, -0.5f, 0.5f) : 0.0f));
+      k.scale_px = static_cast<float>(sigma);
+      k.response = v;
+      found.push_back(k);
+    }
+  }
+  std::stable_sort(found.begin(), found.end(),
+                   [](const Keypoint& a, const Keypoint& b) { return a.response > b.response; });
+  std::vector<Keypoint> kept;
+  for (const Keypoint& k : found) {
+    const bool covered = std::any_of(kept.begin(), kept.end(), [&](const Keypoint& s) {
+      const long dx = std::lround(k.pixel.x()) - std::lround(s.pixel.x());
+      const long dy = std::lround(k.pixel.y()) - std::lround(s.pixel.y());
+      return dx * dx + dy * dy <= 5;
+    });
+    if (!covered) kept.push_back(k);
+  }
+  return kept;
+}
+
+TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
+  // The detector scans flags eight columns at a time: widths whose scanned span is and is not a
+  // multiple of eight, so the last partial word is exercised; and both relative thresholds.
+  // Blurred noise: corners everywhere, of every strength.
+  cv::Mat noise(67, 203, CV_8UC1);
+  cv::RNG(7).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, cv::Size(7, 7), 1.5);
+  for (int width : {61, 64, 203}) {
+    const cv::Mat image = noise.colRange(0, width).clone();
+    for (double relative : {1e-5, 0.02}) {
+      HarrisSurf16Options options;
+      options.scales_px = {1.2};
+      options.relative_threshold = relative;
+      options.cell_relative_threshold = 0;
+      options.max_features = 100000;
+      const std::vector<Keypoint> detected = HarrisSurf16Extractor(options).Detect(image);
+      const std::vector<Keypoint> expected =
+          ReferenceCorners(image, 1.2, relative, options.border_px);
+      ASSERT_GT(expected.size(), 10u) << width;
+      ASSERT_EQ(detected.size(), expected.size()) << "width " << width << ", " << relative;
+      for (size_t i = 0; i < expected.size(); ++i) {
+        EXPECT_EQ(detected[i].response, expected[i].response) << i;
+        EXPECT_EQ(detected[i].pixel, expected[i].pixel) << i;
+      }
+      // With a coarser scale, the finest one is scanned border to border for the maxima that
+      // coarse corners move to; its own corners still keep out of the border.
+      options.scales_px = {1.2, 2.0};
+      const float last = static_cast<float>(width - options.border_px) - 0.5f;
+      for (const Keypoint& k : HarrisSurf16Extractor(options).Detect(image)) {
+        if (k.scale_px != 1.2f) continue;
+        EXPECT_GE(k.pixel.x(), options.border_px - 0.5f);
+        EXPECT_LE(k.pixel.x(), last) << "width " << width;
+      }
+    }
+  }
+}
+
 TEST(SpreadOverGridTest, TakesTheBestPerCellAndNeverMoreThanAsked) {
   // 100 pixels, best first, on a 10x10 lattice over a 320x240 image with a 4x3 grid.
   std::vector<Eigen::Vector2f> pixels;
