@@ -291,6 +291,9 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
 // within their scale (with its sub-pixel fit): a blurred corner's response peak is displaced
 // from the physical corner by an amount that depends on the view, so coarse positions would
 // slide as the camera approaches. Corners without a fine maximum nearby keep their position.
+// `is_max` marks the fine response's positive local maxima (FindMaxima's mask): found once for
+// the image rather than by a 3x3 test at every pixel of every coarse corner's window, since
+// coarse corners are a thousand or more and their windows overlap.
 void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
                            std::vector<Keypoint>* keypoints, double finest_scale) {
   const int rows = fine_response.rows, cols = fine_response.cols;
