@@ -61,10 +61,11 @@ struct RefinementScratch {
 
 }  // namespace
 
-// Built for AVX2 too: there std::floor is one instruction, not a call (the same values).
+// Built for AVX2 and AVX-512 too: there std::floor is one instruction, not a call (the same
+// values).
 VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& right,
-                                       const cv::Mat& right_gradient_x, double x, double y,
-                                       int radius, double* d) {
+                                        const cv::Mat& right_gradient_x, double x, double y,
+                                        int radius, double* d) {
   const int margin = radius + 2;
   if (x < margin || y < margin || x >= left.cols - margin || y >= left.rows - margin) return false;
   const int n = (2 * radius + 1) * (2 * radius + 1);
@@ -168,7 +169,7 @@ RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
 
 // sums[k] += value * right[k] for k in [0, count): one left pixel against a run of the right row.
 VISLOC_SIMD_CLONES void AccumulateProducts(int value, const uchar* __restrict right, int count,
-                                          int* __restrict sums) {
+                                           int* __restrict sums) {
   for (int k = 0; k < count; ++k) sums[k] += value * right[k];
 }
 

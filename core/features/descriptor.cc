@@ -115,7 +115,7 @@ VISLOC_SIMD_CLONES NearestTwo ColumnNearest(const float* query, const float* col
 // Float16Columns::NearestOf: the distances a block at a time, a loop over consecutive
 // descriptors that the compiler vectorizes, then the first smallest in order.
 VISLOC_SIMD_CLONES int ColumnArgMin(const float* query, const float* columns, int count, int first,
-                                   int n) {
+                                    int n) {
   constexpr int kBlock = 64;
   float distance[kBlock];
   int best = -1;

@@ -150,8 +150,8 @@ constexpr int kMaxWindow = 41;  // Window taps: sigma up to 10 px (a 20 px scale
 // weighted sum down the ring. Only the response is image-sized, and every loop is contiguous,
 // for the vectorizer. kHalf > 0 fixes `half` at compile time, so the tap loops unroll.
 template <int kHalf>
-VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps, float k,
-                                   float norm, cv::Mat* response) {
+VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps,
+                                    float k, float norm, cv::Mat* response) {
   const int half = kHalf > 0 ? kHalf : static_cast<int>(taps.size()) - 1;
   const int rows = smoothed.rows, cols = smoothed.cols, window = 2 * half + 1;
   const int padded = cols + 2 * half;  // window <= kMaxWindow: HarrisResponse checks.
@@ -217,13 +217,14 @@ inline float NeighbourMax(const float* up, const float* mid, const float* down, 
 // masks: `strong` where the response also reaches `threshold` (corner candidates), and, when
 // given, `positive` where it is above zero (the finest scale's maxima that LocalizeAtFinestScale
 // moves coarse corners to). One pass computes both, so the finest response is scanned once.
+// Two loops rather than a test of `positive` per pixel, so that each one vectorizes.
 VISLOC_SIMD_CLONES void LocalMaxima(const float* __restrict up, const float* __restrict mid,
                                     const float* __restrict down, int x0, int x1, float threshold,
                                     uint8_t* __restrict strong, uint8_t* __restrict positive) {
   if (positive == nullptr) {
     for (int x = x0; x < x1; ++x) {
-      strong[x] = static_cast<uint8_t>((mid[x] >= threshold) &
-                                       (mid[x] >= NeighbourMax(up, mid, down, x)));
+      strong[x] =
+          static_cast<uint8_t>((mid[x] >= threshold) & (mid[x] >= NeighbourMax(up, mid, down, x)));
     }
     return;
   }
@@ -514,8 +515,7 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   const int border = std::max(options_.border_px, 2);
   for (size_t i = 0; i < responses.size(); ++i) {
     FindMaxima(responses[i], threshold, options_.scales_px[i], border / level_scales[i],
-               level_scales[i], &keypoints,
-               coarse_scales && i == finest ? &fine_maxima : nullptr);
+               level_scales[i], &keypoints, coarse_scales && i == finest ? &fine_maxima : nullptr);
   }
   if (coarse_scales) {
     LocalizeAtFinestScale(responses[finest], fine_maxima, &keypoints, options_.scales_px[finest]);
