@@ -6,7 +6,7 @@
 // Inline, with a fixed-length path for the 16-float rows of harris_surf16: guided matching calls
 // it thousands of times per frame (BM_DescriptorDistance/0: 8.6 ns out of line, 7.6 ns now).
 // Matching one query against a whole candidate set (relocalization, brute force) goes through
-// Float16Columns, which finds the same nearest two eight at a time.
+// Float16Columns, which finds the same nearest two sixteen at a time.
 
 #include <cmath>
 #include <cstdint>
@@ -49,9 +49,9 @@ class Float16Columns {
   // The nearest two descriptors to `query`, exactly as NearestTwo::Offer of each distance
   // DescriptorDistance(query, descriptor j) in order j = 0, 1, ... leaves them (the first of
   // equal bests, a tie's twin as the second), bit for bit: the same operations in the same order
-  // for each distance, but eight descriptors at a time with AVX2 (no sum runs across a
-  // register), and no distance stored. Relocalization and the brute-force baseline match every
-  // keypoint of a query against hundreds of points.
+  // for each distance, but sixteen descriptors at a time (no sum runs across a register), and
+  // no distance stored. Relocalization and the brute-force baseline match every keypoint of a
+  // query against hundreds of points.
   NearestTwo Nearest(const float* query) const;
   // The index in [first, first + count) of the descriptor nearest to `query`, the first of equal
   // distances, each distance DescriptorDistance's bit for bit (vocabulary lookups: a node's

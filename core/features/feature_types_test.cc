@@ -22,10 +22,12 @@ TEST(DescriptorDistanceTest, HammingForBinaryAndL2ForFloat) {
 TEST(DescriptorDistanceTest, ColumnsFindTheSameNearestTwoBitForBit) {
   cv::Mat descriptors(37, 16, CV_32F);
   cv::randu(descriptors, -1.0f, 1.0f);
-  // 19 rows: two groups of eight lanes and a remainder. Rows 12 (twice) and 7 (in both groups)
-  // tie: the first index must win and its twin be the second.
-  const std::vector<uint32_t> rows = {5,  0,  36, 12, 12, 7,  30, 1,  2, 3,
-                                      33, 20, 18, 9,  4,  7,  12, 22, 12};
+  // 35 rows: two groups of sixteen lanes and a remainder. Rows 12 (within a group, across the
+  // groups and into the remainder) and 7 (in both groups) tie: the first index must win and its
+  // twin be the second.
+  const std::vector<uint32_t> rows = {5,  0,  36, 12, 12, 7,  30, 1,  2,  3,  33, 20,
+                                      18, 9,  4,  31, 7,  12, 22, 26, 8,  10, 11, 13,
+                                      14, 15, 16, 17, 19, 21, 23, 24, 12, 25, 27};
   const Float16Columns columns(descriptors, rows);
   ASSERT_EQ(columns.size(), static_cast<int>(rows.size()));
   int ties = 0;
