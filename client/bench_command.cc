@@ -5,7 +5,7 @@
 //   - the same engine with visibility prediction off (transparent world) and brute force, whole
 //     frames and the map search alone (predict + project + match + pose, what prediction changes);
 //   - OpenCV's ORB (ORB::create(500), default pyramid) detecting and describing each frame;
-//   - global relocalization per query (features + retrieval + verification);
+//   - global relocalization per query (features + retrieval + verification), and per step;
 //   - with --server: the round trip per frame through gRPC, one frame in flight at a time.
 // Images are decoded before timing starts; only the engine's work is timed.
 
@@ -92,24 +92,47 @@ ErrorStats TimeOrb(const std::vector<cv::Mat>& images) {
 }
 
 struct RelocalizationRun {
-  ErrorStats ms;  // Features + retrieval + verification, per query.
+  ErrorStats ms;                   // Features + retrieval + verification, per query.
+  std::vector<StepSummary> steps;  // The same apart (RelocalizationTimes).
   double found_fraction = 0.0;
 };
+
+// Per step of RelocalizationTimes, its median and p95 over the queries.
+std::vector<StepSummary> SummarizeRelocalizationSteps(
+    const std::vector<RelocalizationTimes>& times) {
+  const std::pair<const char*, double RelocalizationTimes::*> fields[] = {
+      {"features", &RelocalizationTimes::features_ms},
+      {"retrieval", &RelocalizationTimes::retrieval_ms},
+      {"matching", &RelocalizationTimes::matching_ms},
+      {"ransac", &RelocalizationTimes::ransac_ms},
+      {"verification", &RelocalizationTimes::verification_ms}};
+  std::vector<StepSummary> steps;
+  for (const auto& [name, field] : fields) {
+    std::vector<double> ms;
+    for (const RelocalizationTimes& t : times) ms.push_back(t.*field);
+    steps.push_back({name, ComputeErrorStats(ms)});
+  }
+  return steps;
+}
 
 RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap>& map,
                                      const Camera& camera,
                                      const std::vector<cv::Mat>& images, int queries) {
   const QueryPipeline pipeline(map, camera, LocalizerOptions{});  // As a session and the RPC.
   std::vector<double> ms;
+  std::vector<RelocalizationTimes> times;
   int found = 0;
   const size_t step = std::max<size_t>(1, images.size() / std::max(1, queries));
   for (size_t i = 0; i < images.size(); i += step) {
     Timer timer;
-    found += pipeline.RelocalizeImage(images[i]).success;
+    const RelocalizationResult result = pipeline.RelocalizeImage(images[i]);
     ms.push_back(timer.ElapsedMs());
+    found += result.success;
+    times.push_back(result.times);
   }
   RelocalizationRun run;
   run.ms = ComputeErrorStats(ms);
+  run.steps = SummarizeRelocalizationSteps(times);
   run.found_fraction = ms.empty() ? 0.0 : static_cast<double>(found) / ms.size();
   return run;
 }
@@ -289,15 +312,20 @@ int RunBench(const Args& raw_args) {
           .Field("grpc_in_process_ms_per_frame_median", grpc->in_process_ms.median)
           .Field("grpc_no_engine_ms_per_frame_median", grpc->no_engine_ms.median);
     }
-    out.Key("steps").BeginObject();
-    for (const StepSummary& step : steps) {
-      out.Key(step.name)
-          .BeginObject()
-          .Field("median", step.ms.median)
-          .Field("p95", step.ms.p95)
-          .EndObject();
-    }
-    out.EndObject().EndObject();
+    const auto write_steps = [&](const char* key, const std::vector<StepSummary>& summaries) {
+      out.Key(key).BeginObject();
+      for (const StepSummary& step : summaries) {
+        out.Key(step.name)
+            .BeginObject()
+            .Field("median", step.ms.median)
+            .Field("p95", step.ms.p95)
+            .EndObject();
+      }
+      out.EndObject();
+    };
+    write_steps("steps", steps);
+    write_steps("relocalization_steps", relocalization.steps);
+    out.EndObject();
     std::cout << out.str() << "\n";
     return 0;
   }
@@ -326,6 +354,10 @@ int RunBench(const Args& raw_args) {
               "global relocalization/query", relocalization.ms.median,
               relocalization.ms.median / orb.median, 100 * relocalization.found_fraction,
               relocalization.ms.median / ours);
+  for (const StepSummary& step : relocalization.steps) {
+    std::printf("  %-26s %10.3f %10s            (%.2fx one tracking frame)\n", step.name.c_str(),
+                step.ms.median, "", step.ms.median / ours);
+  }
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;
     const double in_process = grpc->in_process_ms.median;

@@ -323,6 +323,15 @@ TEST(LocalizationE2eTest, BenchReportsEveryFigureInOneRun) {
   EXPECT_GT(JsonNumber(bench.out, "", "brute_force_ms_per_frame_median"),
             JsonNumber(bench.out, "", "ms_per_frame_median"));
   EXPECT_GT(JsonNumber(bench.out, "detect", "median"), 0.0);
+  // Relocalization's steps apart, each timed and all of them within the whole (medians of four
+  // queries: their sum may pass the median whole a little).
+  double steps_ms = 0.0;
+  for (const char* step : {"features", "retrieval", "matching", "ransac", "verification"}) {
+    const double ms = JsonNumber(bench.out, step, "median");
+    EXPECT_GT(ms, 0.0) << step;
+    steps_ms += ms;
+  }
+  EXPECT_LE(steps_ms, 1.2 * JsonNumber(bench.out, "", "relocalization_ms_median"));
 }
 
 TEST(LocalizationE2eTest, MaxFeaturesCapsTheKeypointsPerQuery) {

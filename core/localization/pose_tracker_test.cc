@@ -173,6 +173,14 @@ TEST(RelocalizerTest, FindsTheCameraWithoutAPriorAndRefusesClutter) {
   EXPECT_NEAR(found.keyframe, 12, 4);
   ASSERT_FALSE(found.candidates.empty());
   EXPECT_TRUE(found.candidates.front().score >= found.candidates.back().score);
+  // Every step of a verified candidate was timed, within the whole (features are the
+  // pipeline's: a frame given as features has none).
+  const RelocalizationTimes& t = found.times;
+  EXPECT_EQ(t.features_ms, 0.0);
+  for (double step_ms : {t.retrieval_ms, t.matching_ms, t.ransac_ms, t.verification_ms}) {
+    EXPECT_GT(step_ms, 0.0);
+  }
+  EXPECT_LE(t.retrieval_ms + t.matching_ms + t.ransac_ms + t.verification_ms, found.ms);
 
   // A local search far from the camera does not find it.
   const RelocalizationScope elsewhere{map->keyframe_centers()[32], 0.3};

@@ -63,7 +63,10 @@ QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
 
 RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {
   const Timer timer;
-  RelocalizationResult found = relocalizer_->Relocalize(ExtractForRelocalization(image));
+  const QueryFrame frame = ExtractForRelocalization(image);
+  const double features_ms = timer.ElapsedMs();
+  RelocalizationResult found = relocalizer_->Relocalize(frame);
+  found.times.features_ms = features_ms;
   found.ms = timer.ElapsedMs();
   return found;
 }

@@ -25,24 +25,30 @@ Relocalizer::Relocalizer(const PoseTracker& tracker, const RelocalizationOptions
                "the map has no appearance index (vocabulary and keyframe vectors)");
 }
 
-void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candidate,
-                         PoseFix* fix) const {
+void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candidate, PoseFix* fix,
+                         RelocalizationTimes* times) const {
+  Timer timer;
   const LocalizationMap& map = tracker_.map();
   const auto visible = map.VisiblePoints(candidate->keyframe);
   const std::vector<uint32_t> points(visible.begin(), visible.end());
   const PointView map_points = map.Points(points);
   const std::vector<PointMatch> matches =
       MatchByDescriptor(map_points, points, frame, options_.matching);
+  times->matching_ms += timer.ElapsedMs();
   candidate->matches = static_cast<int>(matches.size());
   if (candidate->matches < options_.min_matches) return;
   PnpRansacOptions ransac = tracker_.options().ransac;
   ransac.min_inliers = options_.min_ransac_inliers;
   ransac.max_iterations = options_.ransac_iterations;
   ransac.seed = static_cast<uint64_t>(candidate->keyframe) + 1;
+  timer.Restart();
   const PnpResult pnp = SolvePnpRansac(tracker_.Observations(map_points, frame, matches), ransac);
+  times->ransac_ms += timer.ElapsedMs();
   candidate->ransac_inliers = pnp.stats.inliers;
   if (!pnp.success) return;
+  timer.Restart();
   *fix = tracker_.Polish(frame, pnp.cam_from_world, options_.verify_radius_px);
+  times->verification_ms += timer.ElapsedMs();
   fix->ransac_iterations = pnp.stats.iterations;
   candidate->verified_inliers = fix->inliers;
   candidate->accepted = fix->success && fix->inliers >= options_.min_verified_inliers &&
@@ -67,12 +73,13 @@ RelocalizationResult Relocalizer::Relocalize(
     return scores[a] > scores[b] || (scores[a] == scores[b] && a < b);
   });
   ranked.resize(keep);
+  result.times.retrieval_ms = timer.ElapsedMs();
   for (int keyframe : ranked) {
     RelocalizationCandidate candidate;
     candidate.keyframe = keyframe;
     candidate.score = scores[keyframe];
     PoseFix fix;
-    Verify(frame, &candidate, &fix);
+    Verify(frame, &candidate, &fix, &result.times);
     result.candidates.push_back(candidate);
     if (candidate.accepted && (!result.success || fix.inliers > result.fix.inliers)) {
       result.success = true;

@@ -50,12 +50,23 @@ struct RelocalizationCandidate {
   bool accepted = false;
 };
 
+// Where a relocalization's time went, ms. The candidate steps are summed over the candidates
+// verified.
+struct RelocalizationTimes {
+  double features_ms = 0.0;      // Features at every scale, undistorted (RelocalizeImage only).
+  double retrieval_ms = 0.0;     // Bag of words, keyframe scores, ranking.
+  double matching_ms = 0.0;      // Descriptor matching against each candidate's points.
+  double ransac_ms = 0.0;        // PnP RANSAC on those matches.
+  double verification_ms = 0.0;  // Re-matching by projection and refinement (Polish).
+};
+
 struct RelocalizationResult {
   bool success = false;
   PoseFix fix;  // The verified pose and its statistics (when success).
   int keyframe = -1;
   std::vector<RelocalizationCandidate> candidates;  // As tried, best appearance first.
   double ms = 0.0;
+  RelocalizationTimes times;
 };
 
 class Relocalizer {
@@ -67,7 +78,8 @@ class Relocalizer {
                                   const std::optional<RelocalizationScope>& scope = {}) const;
 
  private:
-  void Verify(const QueryFrame& frame, RelocalizationCandidate* candidate, PoseFix* fix) const;
+  void Verify(const QueryFrame& frame, RelocalizationCandidate* candidate, PoseFix* fix,
+              RelocalizationTimes* times) const;
 
   const PoseTracker& tracker_;
   RelocalizationOptions options_;
