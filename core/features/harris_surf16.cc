@@ -7,10 +7,6 @@
 #include <limits>
 #include <optional>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include <opencv2/imgproc.hpp>
 
 #include "core/util/check.h"
@@ -540,7 +536,16 @@ struct DescriptorPattern {
   int half_haar = 1;  // Haar wavelet half size (the wavelet is 2 s wide, rounded to even).
   std::array<double, kSamplesPerSide> offsets{};
   std::array<float, kSamplesPerSide * kSamplesPerSide> weights{};
+  // The same for DescribeOneSmall's steps: for row sy and step i, sixteen lanes holding the
+  // weights of samples 2i, 2i + 1, 6 + 2i and 7 + 2i, four lanes each.
+  std::array<float, kSamplesPerSide * 3 * 16> lane_weights{};
 };
+
+// The samples DescribeOneSmall takes at step i of a row: 2i and 2i + 1 of the left sub-region,
+// the same of the right one.
+constexpr std::array<int, 4> SmallStepSamples(int i) {
+  return {2 * i, 2 * i + 1, 6 + 2 * i, 7 + 2 * i};
+}
 
 DescriptorPattern MakePattern(double s) {
   DescriptorPattern pattern;
@@ -553,6 +558,13 @@ DescriptorPattern MakePattern(double s) {
       const double ox = pattern.offsets[sx], oy = pattern.offsets[sy];
       pattern.weights[sy * kSamplesPerSide + sx] =
           static_cast<float>(std::exp(-(ox * ox + oy * oy) * gauss));
+    }
+    for (int i = 0; i < 3; ++i) {
+      const std::array<int, 4> sx = SmallStepSamples(i);
+      for (int lane = 0; lane < 16; ++lane) {
+        pattern.lane_weights[(sy * 3 + i) * 16 + lane] =
+            pattern.weights[sy * kSamplesPerSide + sx[lane / 4]];
+      }
     }
   }
   return pattern;
@@ -624,11 +636,6 @@ class SmallHaar {
   bool Contains(int x0, int y0, int x1, int y1) const {
     return x0 >= 1 && y0 >= 1 && x1 < pairs_.cols && y1 < pairs_.rows;
   }
-  void Haar(int x, int y, float* dx, float* dy) const {
-    const int16_t* pair = pairs_.ptr<int16_t>(y) + 2 * x;
-    *dx = pair[0];
-    *dy = pair[1];
-  }
   // Row y's pairs, each (dx | dy << 16) in a little-endian 32-bit word.
   const int32_t* PairRow(int y) const { return pairs_.ptr<int32_t>(y); }
 
@@ -694,38 +701,58 @@ void DescribeOne(const DescriptorPattern& pattern, const std::array<int, kSample
   Normalize(sums, descriptor);
 }
 
-#if defined(__SSE2__)
-// DescribeOne for the smallest wavelet, with a sample's four values (dx, dy, |dx|, |dy|) in one
-// SSE2 register. Each value goes through the same operations as in DescribeOne, in the same
-// order, so the descriptor has the same bits, in about half the instructions.
-void DescribeOneSmall(const DescriptorPattern& pattern, const std::array<int, kSamplesPerSide>& xs,
-                      const std::array<int, kSamplesPerSide>& ys, const SmallHaar& small,
-                      float* descriptor) {
-  const __m128 abs_upper = _mm_castsi128_ps(_mm_set_epi32(0x7fffffff, 0x7fffffff, -1, -1));
-  const auto sample = [&](const int32_t* row, int x) {
-    const __m128i pair = _mm_cvtsi32_si128(row[x]);
-    // Sign-extend the two 16-bit values: (dx, dy) as 32-bit integers in lanes 0 and 1.
-    const __m128i wide = _mm_srai_epi32(_mm_unpacklo_epi16(pair, pair), 16);
-    const __m128 values = _mm_cvtepi32_ps(wide);
-    return _mm_and_ps(_mm_movelh_ps(values, values), abs_upper);
-  };
+// DescribeOne for the smallest wavelet, four samples at a time in sixteen lanes: per row of
+// the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of the
+// right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the lanes
+// are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each value
+// goes through DescribeOne's operations in its order, so the descriptor has the same bits. One
+// AVX-512 register in that clone, two AVX2 or four SSE2 ones in the others.
+typedef short Shorts8 __attribute__((vector_size(16)));
+typedef float Floats8 __attribute__((vector_size(32)));
+typedef int Ints16 __attribute__((vector_size(64)));
+
+// (dx, dy, |dx|, |dy|) of the samples at columns x[0..3] of a response-table row, in lanes
+// 4j ... 4j + 3 for sample j. (Written to `out`: a vector return value would have an ABI that
+// differs between the clones.)
+inline void FourSamples(const int32_t* row, const int* x, Floats16* out) {
+  const int32_t words[4] = {row[x[0]], row[x[1]], row[x[2]], row[x[3]]};
+  Shorts8 pairs;  // dx0 dy0 dx1 dy1 ... (little-endian words)
+  std::memcpy(&pairs, words, sizeof pairs);
+  const Floats8 values = __builtin_convertvector(pairs, Floats8);
+  const Floats16 spread =
+      __builtin_shufflevector(values, values, 0, 1, 0, 1, 2, 3, 2, 3, 4, 5, 4, 5, 6, 7, 6, 7);
+  const Ints16 keep_sign = {-1, -1, 0x7fffffff, 0x7fffffff, -1, -1, 0x7fffffff, 0x7fffffff,
+                            -1, -1, 0x7fffffff, 0x7fffffff, -1, -1, 0x7fffffff, 0x7fffffff};
+  *out = reinterpret_cast<Floats16>(reinterpret_cast<Ints16>(spread) & keep_sign);
+}
+
+VISLOC_SIMD_CLONES void DescribeOneSmall(const DescriptorPattern& pattern,
+                                         const std::array<int, kSamplesPerSide>& xs,
+                                         const std::array<int, kSamplesPerSide>& ys,
+                                         const SmallHaar& small, float* descriptor) {
   std::array<float, 16> sums{};
   for (int sy = 0; sy < kSamplesPerSide; ++sy) {
     const int32_t* row = small.PairRow(ys[sy]);
-    const float* weights = &pattern.weights[sy * kSamplesPerSide];
-    for (int column = 0; column < 2; ++column) {
-      __m128 even = _mm_setzero_ps(), odd = _mm_setzero_ps();
-      for (int sx = 6 * column; sx < 6 * column + 6; sx += 2) {
-        even = _mm_add_ps(even, _mm_mul_ps(_mm_set1_ps(weights[sx]), sample(row, xs[sx])));
-        odd = _mm_add_ps(odd, _mm_mul_ps(_mm_set1_ps(weights[sx + 1]), sample(row, xs[sx + 1])));
-      }
-      float* cell = &sums[4 * ((sy / 6) * 2 + column)];
-      _mm_storeu_ps(cell, _mm_add_ps(_mm_loadu_ps(cell), _mm_add_ps(even, odd)));
+    Floats16 acc = {};
+    for (int i = 0; i < 3; ++i) {
+      const std::array<int, 4> sx = SmallStepSamples(i);
+      const int x[4] = {xs[sx[0]], xs[sx[1]], xs[sx[2]], xs[sx[3]]};
+      Floats16 w, samples;
+      std::memcpy(&w, &pattern.lane_weights[(sy * 3 + i) * 16], sizeof w);
+      FourSamples(row, x, &samples);
+      acc += w * samples;
     }
+    // cell += even + odd, for the left sub-region's cell and the right one's (adjacent in sums).
+    const Floats8 even = __builtin_shufflevector(acc, acc, 0, 1, 2, 3, 8, 9, 10, 11);
+    const Floats8 odd = __builtin_shufflevector(acc, acc, 4, 5, 6, 7, 12, 13, 14, 15);
+    float* cells = &sums[8 * (sy / 6)];
+    Floats8 both;
+    std::memcpy(&both, cells, sizeof both);
+    both += even + odd;
+    std::memcpy(cells, &both, sizeof both);
   }
   Normalize(sums, descriptor);
 }
-#endif
 
 }  // namespace
 
@@ -754,13 +781,7 @@ cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
     if (half == 1) {
       if (!small) small.emplace(grey);
       if (small->Contains(xs.front(), ys.front(), xs.back(), ys.back())) {
-#if defined(__SSE2__)
         DescribeOneSmall(*pattern, xs, ys, *small, d);
-#else
-        DescribeOne(
-            *pattern, xs, ys,
-            [&](int x, int y, float* dx, float* dy) { small->Haar(x, y, dx, dy); }, d);
-#endif
         continue;
       }
     }
