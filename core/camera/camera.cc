@@ -1,11 +1,13 @@
 #include "core/camera/camera.h"
 
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include <Eigen/LU>
 
 #include "core/util/check.h"
+#include "core/util/cpu_dispatch.h"
 #include "core/util/strings.h"
 
 namespace visloc {
@@ -183,6 +185,89 @@ Eigen::Vector2d Camera::Undistort(const Eigen::Vector2d& distorted_normalized) c
 double Camera::PixelScale(const Eigen::Vector2d& normalized) const {
   if (lens_.IsIdeal()) return 1.0;
   return std::sqrt(std::abs(DistortJacobian(normalized).determinant()));
+}
+
+namespace {
+
+// GCC's generic vectors of eight doubles (one AVX-512 register, two AVX2 or four SSE2 ones in
+// the other clones) and their comparison masks.
+typedef double Doubles8 __attribute__((vector_size(64)));
+typedef long long Masks8 __attribute__((vector_size(64)));
+
+// Camera::Undistort and Camera::PixelScale of a radial-tangential lens with coefficients k, for
+// eight distorted normalized points (x_d[l], y_d[l]): each expression is Distort's,
+// DistortJacobian's and Undistort's own, term by term in the same order, so every lane computes
+// what the scalar code does; a lane stops updating at the iteration where the scalar loop
+// breaks. The scales' square roots are taken by the caller.
+VISLOC_SIMD_CLONES void UndistortRadialTangential8(const std::array<double, 4>& k,
+                                                   const double* x_d, const double* y_d,
+                                                   double* x_out, double* y_out,
+                                                   double* abs_det_out) {
+  const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
+  Doubles8 dx, dy;
+  std::memcpy(&dx, x_d, sizeof dx);
+  std::memcpy(&dy, y_d, sizeof dy);
+  Doubles8 x = dx, y = dy;
+  Masks8 active = {-1, -1, -1, -1, -1, -1, -1, -1};
+  Doubles8 j00, j01, j11;
+  const auto jacobian = [&] {
+    const Doubles8 r2 = x * x + y * y;
+    const Doubles8 radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+    const Doubles8 d_radial_d_r2 = k1 + 2.0 * k2 * r2;
+    j00 = radial + 2.0 * x * x * d_radial_d_r2 + 2.0 * p1 * y + 6.0 * p2 * x;
+    j01 = 2.0 * x * y * d_radial_d_r2 + 2.0 * p1 * x + 2.0 * p2 * y;
+    j11 = radial + 2.0 * y * y * d_radial_d_r2 + 6.0 * p1 * y + 2.0 * p2 * x;
+  };
+  for (int iteration = 0; iteration < 20; ++iteration) {
+    jacobian();
+    const Doubles8 r2 = x * x + y * y;
+    const Doubles8 radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+    const Doubles8 residual_x = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - dx;
+    const Doubles8 residual_y = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - dy;
+    const Doubles8 det = j00 * j11 - j01 * j01;
+    const Doubles8 step_x = (j11 * residual_x - j01 * residual_y) / det;
+    const Doubles8 step_y = (-j01 * residual_x + j00 * residual_y) / det;
+    x = active ? x - step_x : x;
+    y = active ? y - step_y : y;
+    active = active && !(step_x * step_x + step_y * step_y < 1e-28);
+    bool any = false;
+    for (int l = 0; l < 8; ++l) any = any || active[l] != 0;
+    if (!any) break;
+  }
+  jacobian();
+  const Doubles8 det = j00 * j11 - j01 * j01;
+  std::memcpy(x_out, &x, sizeof x);
+  std::memcpy(y_out, &y, sizeof y);
+  for (int l = 0; l < 8; ++l) abs_det_out[l] = std::abs(det[l]);
+}
+
+}  // namespace
+
+void Camera::UnprojectMany(const std::vector<Eigen::Vector2f>& pixels,
+                           std::vector<Eigen::Vector2d>* normalized,
+                           std::vector<double>* pixel_scales) const {
+  const size_t n = pixels.size();
+  normalized->resize(n);
+  pixel_scales->resize(n);
+  const bool batched = lens_.model == LensModel::kRadialTangential && !lens_.IsIdeal();
+  size_t i = 0;
+  for (; batched && i + 8 <= n; i += 8) {
+    double x_d[8], y_d[8], x[8], y[8], abs_det[8];
+    for (int l = 0; l < 8; ++l) {
+      const Eigen::Vector2d pixel = pixels[i + l].cast<double>();
+      x_d[l] = (pixel.x() - cx_) / fx_;  // As Unproject.
+      y_d[l] = (pixel.y() - cy_) / fy_;
+    }
+    UndistortRadialTangential8(lens_.coefficients, x_d, y_d, x, y, abs_det);
+    for (int l = 0; l < 8; ++l) {
+      (*normalized)[i + l] = Eigen::Vector2d(x[l], y[l]);
+      (*pixel_scales)[i + l] = std::sqrt(abs_det[l]);
+    }
+  }
+  for (; i < n; ++i) {
+    (*normalized)[i] = Unproject(pixels[i].cast<double>()).head<2>();
+    (*pixel_scales)[i] = PixelScale((*normalized)[i]);
+  }
 }
 
 bool Camera::IsInImage(const Eigen::Vector2d& pixel, double margin_px) const {

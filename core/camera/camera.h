@@ -19,6 +19,7 @@
 
 #include <array>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -87,6 +88,12 @@ class Camera {
   // Solvers that measure errors in normalized units weigh them by it, so that a pixel means a
   // pixel everywhere in the image.
   double PixelScale(const Eigen::Vector2d& normalized) const;
+  // Unproject's (x, y) and their PixelScale for many pixels, the same bits as one at a time
+  // (a query's keypoints). Radial-tangential lenses undistort eight pixels at a time: each lane
+  // runs Undistort's Newton iterations, in the same operations, and stops where it would.
+  void UnprojectMany(const std::vector<Eigen::Vector2f>& pixels,
+                     std::vector<Eigen::Vector2d>* normalized,
+                     std::vector<double>* pixel_scales) const;
 
   bool IsInImage(const Eigen::Vector2d& pixel, double margin_px = 0.0) const;
   // The same camera for an image scaled by `factor` (e.g. 0.5 for half resolution).

@@ -52,6 +52,39 @@ TEST(CameraTest, ProjectUnprojectRoundTrip) {
   }
 }
 
+// A query's keypoints are unprojected in batches (eight lanes for a radial-tangential lens):
+// every ray and scale must be Unproject's and PixelScale's, bit for bit, including the lanes that
+// converge in fewer iterations than their neighbours and the remainder after the last eight.
+TEST(CameraTest, UnprojectManyEqualsUnprojectBitForBit) {
+  for (const Camera& camera : {DistortedCamera(), Camera::FromHorizontalFov(640, 480, 90.0),
+                               FisheyeCamera(), Camera::FisheyeFromDiagonalFov(320, 240, 170)}) {
+    std::vector<Eigen::Vector2f> pixels;
+    for (float u = -3.25f; u < camera.width() + 3; u += 13.7f) {
+      for (float v = -2.5f; v < camera.height() + 2; v += 17.3f) pixels.emplace_back(u, v);
+    }
+    pixels.emplace_back(camera.cx(), camera.cy());  // Converges at once, beside slower lanes.
+    ASSERT_NE(pixels.size() % 8, 0u);
+    std::vector<Eigen::Vector2d> normalized;
+    std::vector<double> scales;
+    camera.UnprojectMany(pixels, &normalized, &scales);
+    ASSERT_EQ(normalized.size(), pixels.size());
+    ASSERT_EQ(scales.size(), pixels.size());
+    int finite = 0;
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      const Eigen::Vector3d ray = camera.Unproject(pixels[i].cast<double>());
+      if (!ray.allFinite()) {
+        EXPECT_FALSE(normalized[i].allFinite()) << pixels[i].transpose();
+        continue;
+      }
+      ++finite;
+      EXPECT_EQ(normalized[i].x(), ray.x()) << pixels[i].transpose();
+      EXPECT_EQ(normalized[i].y(), ray.y()) << pixels[i].transpose();
+      EXPECT_EQ(scales[i], camera.PixelScale(ray.head<2>())) << pixels[i].transpose();
+    }
+    EXPECT_GT(finite, 300);
+  }
+}
+
 TEST(CameraTest, DistortionRoundTripWithinHundredthOfPixel) {
   const Camera camera = DistortedCamera();
   double worst_px = 0.0;

@@ -4,20 +4,24 @@ namespace visloc {
 
 QueryFrame::QueryFrame(FeatureSet features, const Camera& camera, int cell_px) {
   const int n = static_cast<int>(features.size());
-  normalized_.reserve(n);
-  pixel_scale_.reserve(n);
-  std::vector<Eigen::Vector2f> pixels;
-  pixels.reserve(n);
+  std::vector<Eigen::Vector2f> pixels(n);
+  for (int i = 0; i < n; ++i) pixels[i] = features.keypoints[i].pixel;
+  camera.UnprojectMany(pixels, &normalized_, &pixel_scale_);
+  // Rays 90 degrees or more off the axis (a fisheye's corners) are left out.
   std::vector<int> kept;
-  const bool ideal = camera.lens().IsIdeal();
+  kept.reserve(n);
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector2f& pixel = features.keypoints[i].pixel;
-    const Eigen::Vector3d ray = camera.Unproject(pixel.cast<double>());
-    if (!ray.allFinite()) continue;
-    kept.push_back(i);
-    pixels.push_back(pixel);
-    normalized_.push_back(ray.head<2>());
-    pixel_scale_.push_back(ideal ? 1.0 : camera.PixelScale(ray.head<2>()));
+    if (normalized_[i].allFinite()) kept.push_back(i);
+  }
+  if (static_cast<int>(kept.size()) < n) {
+    for (size_t j = 0; j < kept.size(); ++j) {
+      pixels[j] = pixels[kept[j]];
+      normalized_[j] = normalized_[kept[j]];
+      pixel_scale_[j] = pixel_scale_[kept[j]];
+    }
+    pixels.resize(kept.size());
+    normalized_.resize(kept.size());
+    pixel_scale_.resize(kept.size());
   }
   features_ = static_cast<int>(kept.size()) == n ? std::move(features) : features.Subset(kept);
   grid_ = KeypointGrid(std::move(pixels), camera.width(), camera.height(), cell_px);
