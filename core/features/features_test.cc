@@ -313,6 +313,25 @@ cv::Mat ReferenceHarris(const cv::Mat& grey, double sigma, double k) {
   return norm * (ixx.mul(iyy) - ixy.mul(ixy) - k * trace.mul(trace));
 }
 
+// The detector's own 8-bit blur must give cv::GaussianBlur's bytes: for the derivative scales
+// of every default detector scale at both pyramid levels (0.7 sigma: 0.84, 1.4, 2.24 and 0.7,
+// 1.12 at half size) and wider ones, on noise of odd sizes (borders reflected on all sides) and
+// an image smaller than the window.
+TEST(HarrisSurf16Test, BlurEqualsOpenCvByteForByte) {
+  cv::RNG rng(7);
+  for (const cv::Size size : {cv::Size(97, 61), cv::Size(64, 48), cv::Size(7, 40)}) {
+    cv::Mat noise(size, CV_8UC1);
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    for (double sigma : {0.7, 0.84, 1.12, 1.4, 2.24, 3.5, 7.0}) {
+      const int half = std::max(2, static_cast<int>(std::lround(2.0 * sigma)));
+      cv::Mat ours, theirs;
+      GaussianBlurLikeOpenCv(noise, sigma, half, &ours);
+      cv::GaussianBlur(noise, theirs, cv::Size(2 * half + 1, 2 * half + 1), sigma);
+      EXPECT_EQ(cv::countNonZero(ours != theirs), 0) << "sigma " << sigma << " " << size;
+    }
+  }
+}
+
 TEST(HarrisSurf16Test, ResponseEqualsItsDefinitionInsideAndAtTheBorder) {
   // Odd sizes and windows of 5, 7 and 11 taps (the last not unrolled), on the rendered room and on
   // a strip three rows high, where the window reflects more than once.

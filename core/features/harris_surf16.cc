@@ -59,6 +59,14 @@ int Reflect101(int i, int n) {
   return i;
 }
 
+// std::lround of a float pixel coordinate, inline: the library call cost a tenth of merging a
+// frame's corners. In double, x + 0.5 is exact for |x| < 2^28, so truncating it rounds halves
+// away from zero exactly as lround does.
+inline int RoundPixel(float x) {
+  return x >= 0 ? static_cast<int>(static_cast<double>(x) + 0.5)
+                : -static_cast<int>(0.5 - static_cast<double>(x));
+}
+
 // GCC's generic vectors of sixteen floats: one AVX-512 register, two AVX2 or four SSE2 ones in
 // the other clones.
 typedef float Floats16 __attribute__((vector_size(64)));
@@ -304,9 +312,8 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
   }
   for (Keypoint& k : *keypoints) {
     if (k.scale_px <= finest) continue;
-    const int radius = std::max(1, static_cast<int>(std::lround(k.scale_px)));
-    const int cx = static_cast<int>(std::lround(k.pixel.x())),
-              cy = static_cast<int>(std::lround(k.pixel.y()));
+    const int radius = std::max(1, RoundPixel(k.scale_px));
+    const int cx = RoundPixel(k.pixel.x()), cy = RoundPixel(k.pixel.y());
     int best_x = -1, best_y = -1;
     double best_distance = 1e9;
     for (int y = std::max(1, cy - radius); y <= std::min(rows - 2, cy + radius); ++y) {
@@ -372,9 +379,9 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
   keypoints = SortedByResponse(keypoints);
   cv::Mat taken(size, CV_8UC1, cv::Scalar(0));
   std::vector<Keypoint> kept;
+  kept.reserve(keypoints.size());
   for (const Keypoint& k : keypoints) {
-    const int x = static_cast<int>(std::lround(k.pixel.x())),
-              y = static_cast<int>(std::lround(k.pixel.y()));
+    const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
     if (taken.at<uint8_t>(y, x)) continue;
     kept.push_back(k);
     // Mark the disc of radius 2 (dx^2 + dy^2 <= 5, 21 pixels) around it.
@@ -414,9 +421,145 @@ std::vector<Keypoint> KeepStrongInCell(std::vector<Keypoint> keypoints, const cv
   return kept;
 }
 
+// OpenCV's 8-bit Gaussian kernel in fixed point (cv::GaussianBlur on CV_8U, OpenCV 4.x): the
+// normalized Gaussian of `window` taps times 256, rounded with error diffusion from the outer
+// taps inwards, the centre taking what makes the sum 256 (getGaussianKernelFixedPoint_ED over
+// getGaussianKernelBitExact, with IEEE doubles for its soft doubles; every step there is
+// correctly rounded but the exponential, which would have to land within an ulp of a rounding
+// boundary to differ). The blur test holds it to OpenCV's on every scale a detector uses.
+std::vector<uint16_t> FixedPointGaussianTaps(int window, double sigma) {
+  const int half = window / 2;
+  const double scale = -0.125 / (sigma * sigma);  // x below is twice the offset.
+  std::vector<double> values(half);
+  double sum = 0.0;
+  for (int i = 0, x = 1 - window; i < half; ++i, x += 2) {
+    values[i] = std::exp(static_cast<double>(x * x) * scale);
+    sum += values[i];
+  }
+  sum *= 2.0;
+  sum += 1.0;
+  const double normalize = 1.0 / sum;
+  std::vector<uint16_t> taps(window);
+  double error = 0.0;
+  int64_t total = 0;
+  for (int i = 0; i < half; ++i) {
+    const double adjusted = values[i] * normalize * 256.0 + error;
+    const int64_t tap = std::llrint(adjusted);  // Half to even, as cvRound of a soft double.
+    error = adjusted - static_cast<double>(tap);
+    taps[i] = taps[window - 1 - i] = static_cast<uint16_t>(tap);
+    total += tap;
+  }
+  taps[half] = static_cast<uint16_t>(256 - 2 * total);
+  return taps;
+}
+
+// One row of GaussianBlur8u's filter along rows, out[x] = sum_t k[t] in[x + t], kept as floats
+// for the filter down the columns. Sixteen-bit sums as OpenCV's: at most 255 * 256, and every
+// partial sum of these non-negative terms is below the whole, so the symmetric grouping of the
+// five-tap window is exact too. Restricted pointers: nothing here overlaps, which the
+// vectorizer cannot otherwise know.
+template <int kWindow>
+inline void BlurAlongRow(const uint8_t* __restrict in, const uint16_t* __restrict k, int cols,
+                         int window, float* __restrict out) {
+  if constexpr (kWindow == 5) {
+    const uint16_t k0 = k[0], k1 = k[1], k2 = k[2];
+    for (int x = 0; x < cols; ++x) {
+      const uint16_t outer = static_cast<uint16_t>(in[x] + in[x + 4]);
+      const uint16_t inner = static_cast<uint16_t>(in[x + 1] + in[x + 3]);
+      out[x] = static_cast<uint16_t>(k0 * outer + k1 * inner + k2 * in[x + 2]);
+    }
+  } else {
+    for (int x = 0; x < cols; ++x) {
+      uint32_t acc = 0;
+      for (int t = 0; t < window; ++t) acc += uint32_t{k[t]} * in[x + t];
+      out[x] = static_cast<float>(acc);
+    }
+  }
+}
+
+// One row of its filter down the columns, with the rounding, from the window's rows in[0 .. n -
+// 1]. In floats, exactly: the products and every partial sum are integers below 255 * 256^2 <
+// 2^24, and adding 2^15 and scaling by 2^-16 before truncating are exact as well.
+template <int kWindow>
+inline void BlurDownColumns(const float* const* in, const uint16_t* __restrict k, int cols,
+                            int window, uint8_t* __restrict out) {
+  if constexpr (kWindow == 5) {  // The detector's scales: each row a restricted pointer.
+    const float* __restrict r0 = in[0];
+    const float* __restrict r1 = in[1];
+    const float* __restrict r2 = in[2];
+    const float* __restrict r3 = in[3];
+    const float* __restrict r4 = in[4];
+    const float k0 = k[0], k1 = k[1], k2 = k[2];
+    for (int x = 0; x < cols; ++x) {
+      const float acc = k0 * (r0[x] + r4[x]) + k1 * (r1[x] + r3[x]) + k2 * r2[x];
+      out[x] = static_cast<uint8_t>(static_cast<int>((acc + 32768.0f) * (1.0f / 65536.0f)));
+    }
+  } else {
+    for (int x = 0; x < cols; ++x) {
+      float acc = 0.0f;
+      for (int t = 0; t < window; ++t) acc += static_cast<float>(k[t]) * in[t][x];
+      out[x] = static_cast<uint8_t>(static_cast<int>((acc + 32768.0f) * (1.0f / 65536.0f)));
+    }
+  }
+}
+
+// cv::GaussianBlur of an 8-bit image with `taps` (FixedPointGaussianTaps) and OpenCV's default
+// border (reflect-101), bit for bit: OpenCV sums sum_i taps_i p_i along the row exactly (8
+// fraction bits, at most 255 * 256), then sum_j taps_j h_j down the column exactly (16 fraction
+// bits) and rounds once, half up: out = (sum_j taps_j sum_i taps_i p + 2^15) >> 16. Exact sums
+// do not depend on their order, so a streamed pass with its own loops (vectorized, in every
+// clone) gives the same bytes. Rows are filtered once into a ring of the last `window`, as in
+// HarrisRows. kWindow > 0 fixes the window at compile time.
+template <int kWindow>
+VISLOC_SIMD_CLONES void GaussianBlur8u(const cv::Mat& grey, const std::vector<uint16_t>& taps,
+                                       cv::Mat* smoothed) {
+  const int window = kWindow > 0 ? kWindow : static_cast<int>(taps.size());
+  const int half = window / 2;
+  const int rows = grey.rows, cols = grey.cols;
+  std::vector<uint8_t> padded(cols + 2 * static_cast<size_t>(half));
+  std::vector<float> ring(static_cast<size_t>(window) * cols);
+  std::vector<int> ring_row(window, -1);
+  std::vector<const float*> rows_in_window(window);
+  smoothed->create(rows, cols, CV_8UC1);
+  for (int y = 0; y < rows; ++y) {
+    for (int j = -half; j <= half; ++j) {
+      const int image_row = Reflect101(y + j, rows), slot = image_row % window;
+      float* filtered = &ring[static_cast<size_t>(slot) * cols];
+      if (ring_row[slot] != image_row) {
+        const uint8_t* in = grey.ptr<uint8_t>(image_row);
+        std::memcpy(&padded[half], in, cols);
+        for (int t = 1; t <= half; ++t) {
+          padded[half - t] = in[Reflect101(-t, cols)];
+          padded[half + cols - 1 + t] = in[Reflect101(cols - 1 + t, cols)];
+        }
+        BlurAlongRow<kWindow>(padded.data(), taps.data(), cols, window, filtered);
+        ring_row[slot] = image_row;
+      }
+      rows_in_window[j + half] = filtered;
+    }
+    BlurDownColumns<kWindow>(rows_in_window.data(), taps.data(), cols, window,
+                             smoothed->ptr<uint8_t>(y));
+  }
+}
+
 }  // namespace
 
-// The image is smoothed in 8-bit fixed point (OpenCV, several times faster than in float); the
+void GaussianBlurLikeOpenCv(const cv::Mat& grey, double sigma, int half, cv::Mat* smoothed) {
+  VISLOC_CHECK(grey.type() == CV_8UC1 && half >= 1, "8-bit blur, half width ", half);
+  const int window = 2 * half + 1;
+  if (grey.rows < window || grey.cols < window) {  // Reflected more than once: OpenCV's own.
+    cv::GaussianBlur(grey, *smoothed, cv::Size(window, window), sigma);
+    return;
+  }
+  const std::vector<uint16_t> taps = FixedPointGaussianTaps(window, sigma);
+  if (window == 5) {
+    GaussianBlur8u<5>(grey, taps, smoothed);
+  } else {
+    GaussianBlur8u<0>(grey, taps, smoothed);
+  }
+}
+
+// The image is smoothed in 8-bit fixed point (OpenCV's arithmetic, GaussianBlurLikeOpenCv); the
 // gradients and the tensor follow in one streamed pass (HarrisRows).
 cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_response) {
   VISLOC_CHECK(grey.type() == CV_8UC1 && !grey.empty(),
@@ -427,8 +570,7 @@ cv::Mat HarrisResponse(const cv::Mat& grey, double sigma, double k, float* max_r
   cv::Mat smoothed;
   const double derivative_sigma = 0.7 * sigma;
   const int derivative_half = GaussianHalfWidth(derivative_sigma);
-  cv::GaussianBlur(grey, smoothed, cv::Size(2 * derivative_half + 1, 2 * derivative_half + 1),
-                   derivative_sigma);
+  GaussianBlurLikeOpenCv(grey, derivative_sigma, derivative_half, &smoothed);
   const cv::Mat kernel = cv::getGaussianKernel(2 * half + 1, sigma, CV_32F);
   const std::vector<float> taps(kernel.ptr<float>(half), kernel.ptr<float>(half) + half + 1);
   // det - k trace^2, scale-normalized by sigma^4 (a product of two squared first derivatives)
