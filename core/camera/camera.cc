@@ -103,34 +103,70 @@ double ThetaDistortedDerivative(const std::array<double, 4>& k, double theta) {
   return 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
 }
 
+
+// The radial-tangential (Brown-Conrady) distortion of normalized (x, y) and its Jacobian
+// [j00 j01; j01 j11] (symmetric), for T = double or a vector of doubles: one formula serves the
+// scalar Distort, DistortJacobian and Undistort and the batched undistortion, which therefore
+// compute the same bits. k = (k1, k2, p1, p2).
+template <typename T>
+void DistortRadialTangential(const std::array<double, 4>& k, const T& x, const T& y, T* x_d,
+                             T* y_d) {
+  const auto& [k1, k2, p1, p2] = k;
+  const T r2 = x * x + y * y;
+  const T radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+  *x_d = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+  *y_d = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+}
+
+template <typename T>
+void DistortRadialTangentialJacobian(const std::array<double, 4>& k, const T& x, const T& y,
+                                     T* j00, T* j01, T* j11) {
+  const auto& [k1, k2, p1, p2] = k;
+  const T r2 = x * x + y * y;
+  const T radial = 1.0 + k1 * r2 + k2 * r2 * r2;
+  const T d_radial_d_r2 = k1 + 2.0 * k2 * r2;
+  *j00 = radial + 2.0 * x * x * d_radial_d_r2 + 2.0 * p1 * y + 6.0 * p2 * x;
+  *j01 = 2.0 * x * y * d_radial_d_r2 + 2.0 * p1 * x + 2.0 * p2 * y;
+  *j11 = radial + 2.0 * y * y * d_radial_d_r2 + 6.0 * p1 * y + 2.0 * p2 * x;
+}
+
+// One Newton step of undistortion at estimate (x, y) for the distorted point (x_d, y_d):
+// (step_x, step_y) = J^-1 (Distort(x, y) - (x_d, y_d)), the 2x2 inverse in closed form.
+template <typename T>
+void UndistortStep(const std::array<double, 4>& k, const T& x, const T& y, const T& x_d,
+                   const T& y_d, T* step_x, T* step_y) {
+  T j00, j01, j11, distorted_x, distorted_y;
+  DistortRadialTangentialJacobian(k, x, y, &j00, &j01, &j11);
+  DistortRadialTangential(k, x, y, &distorted_x, &distorted_y);
+  const T residual_x = distorted_x - x_d;
+  const T residual_y = distorted_y - y_d;
+  const T det = j00 * j11 - j01 * j01;
+  *step_x = (j11 * residual_x - j01 * residual_y) / det;
+  *step_y = (-j01 * residual_x + j00 * residual_y) / det;
+}
+
 }  // namespace
 
 Eigen::Vector2d Camera::Distort(const Eigen::Vector2d& normalized) const {
   const auto& k = lens_.coefficients;
-  const double x = normalized.x();
-  const double y = normalized.y();
-  const double r2 = x * x + y * y;
   if (lens_.model == LensModel::kEquidistant) {
-    const double r = std::sqrt(r2);
+    const double r = std::sqrt(normalized.x() * normalized.x() + normalized.y() * normalized.y());
     if (r < 1e-12) return normalized;
     return normalized * (ThetaDistorted(k, std::atan(r)) / r);
   }
   if (lens_.IsIdeal()) return normalized;
-  const auto& [k1, k2, p1, p2] = k;
-  const double radial = 1.0 + k1 * r2 + k2 * r2 * r2;
-  return Eigen::Vector2d(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-                         y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
+  Eigen::Vector2d distorted;
+  DistortRadialTangential(k, normalized.x(), normalized.y(), &distorted.x(), &distorted.y());
+  return distorted;
 }
 
 Eigen::Matrix2d Camera::DistortJacobian(const Eigen::Vector2d& normalized) const {
   const auto& k = lens_.coefficients;
-  const double x = normalized.x();
-  const double y = normalized.y();
-  const double r2 = x * x + y * y;
   Eigen::Matrix2d jacobian;
   if (lens_.model == LensModel::kEquidistant) {
     // (x, y) -> g(r) (x, y) with g = theta_d(atan r) / r:
     // J = g I + g'(r) / r (x, y)(x, y)^T.
+    const double r2 = normalized.x() * normalized.x() + normalized.y() * normalized.y();
     const double r = std::sqrt(r2);
     if (r < 1e-9) return Eigen::Matrix2d::Identity();
     const double theta = std::atan(r);
@@ -139,13 +175,9 @@ Eigen::Matrix2d Camera::DistortJacobian(const Eigen::Vector2d& normalized) const
     jacobian = g * Eigen::Matrix2d::Identity() + (dg_dr / r) * normalized * normalized.transpose();
     return jacobian;
   }
-  const auto& [k1, k2, p1, p2] = k;
-  const double radial = 1.0 + k1 * r2 + k2 * r2 * r2;
-  const double d_radial_d_r2 = k1 + 2.0 * k2 * r2;
-  jacobian(0, 0) = radial + 2.0 * x * x * d_radial_d_r2 + 2.0 * p1 * y + 6.0 * p2 * x;
-  jacobian(0, 1) = 2.0 * x * y * d_radial_d_r2 + 2.0 * p1 * x + 2.0 * p2 * y;
+  DistortRadialTangentialJacobian(k, normalized.x(), normalized.y(), &jacobian(0, 0),
+                                  &jacobian(0, 1), &jacobian(1, 1));
   jacobian(1, 0) = jacobian(0, 1);
-  jacobian(1, 1) = radial + 2.0 * y * y * d_radial_d_r2 + 6.0 * p1 * y + 2.0 * p2 * x;
   return jacobian;
 }
 
@@ -170,12 +202,9 @@ Eigen::Vector2d Camera::Undistort(const Eigen::Vector2d& distorted_normalized) c
   if (lens_.IsIdeal()) return distorted_normalized;
   Eigen::Vector2d estimate = distorted_normalized;
   for (int iteration = 0; iteration < 20; ++iteration) {
-    const Eigen::Matrix2d j = DistortJacobian(estimate);
-    const Eigen::Vector2d residual = Distort(estimate) - distorted_normalized;
-    // The 2x2 inverse in closed form.
-    const double det = j(0, 0) * j(1, 1) - j(0, 1) * j(1, 0);
-    const Eigen::Vector2d step(( j(1, 1) * residual.x() - j(0, 1) * residual.y()) / det,
-                               (-j(1, 0) * residual.x() + j(0, 0) * residual.y()) / det);
+    Eigen::Vector2d step;
+    UndistortStep(lens_.coefficients, estimate.x(), estimate.y(), distorted_normalized.x(),
+                  distorted_normalized.y(), &step.x(), &step.y());
     estimate -= step;
     if (step.squaredNorm() < 1e-28) break;
   }
@@ -189,44 +218,22 @@ double Camera::PixelScale(const Eigen::Vector2d& normalized) const {
 
 namespace {
 
-// GCC's generic vectors of eight doubles (one AVX-512 register, two AVX2 or four SSE2 ones in
-// the other clones) and their comparison masks.
-typedef double Doubles8 __attribute__((vector_size(64)));
-typedef long long Masks8 __attribute__((vector_size(64)));
-
 // Camera::Undistort and Camera::PixelScale of a radial-tangential lens with coefficients k, for
-// eight distorted normalized points (x_d[l], y_d[l]): each expression is Distort's,
-// DistortJacobian's and Undistort's own, term by term in the same order, so every lane computes
-// what the scalar code does; a lane stops updating at the iteration where the scalar loop
-// breaks. The scales' square roots are taken by the caller.
+// eight distorted normalized points (x_d[l], y_d[l]): the lanes go through Undistort's own
+// templates, so every lane computes what the scalar code does; a lane stops updating at the
+// iteration where the scalar loop breaks. The scales' square roots are taken by the caller.
 VISLOC_SIMD_CLONES void UndistortRadialTangential8(const std::array<double, 4>& k,
                                                    const double* x_d, const double* y_d,
                                                    double* x_out, double* y_out,
                                                    double* abs_det_out) {
-  const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
   Doubles8 dx, dy;
   std::memcpy(&dx, x_d, sizeof dx);
   std::memcpy(&dy, y_d, sizeof dy);
   Doubles8 x = dx, y = dy;
-  Masks8 active = {-1, -1, -1, -1, -1, -1, -1, -1};
-  Doubles8 j00, j01, j11;
-  const auto jacobian = [&] {
-    const Doubles8 r2 = x * x + y * y;
-    const Doubles8 radial = 1.0 + k1 * r2 + k2 * r2 * r2;
-    const Doubles8 d_radial_d_r2 = k1 + 2.0 * k2 * r2;
-    j00 = radial + 2.0 * x * x * d_radial_d_r2 + 2.0 * p1 * y + 6.0 * p2 * x;
-    j01 = 2.0 * x * y * d_radial_d_r2 + 2.0 * p1 * x + 2.0 * p2 * y;
-    j11 = radial + 2.0 * y * y * d_radial_d_r2 + 6.0 * p1 * y + 2.0 * p2 * x;
-  };
+  Int64s8 active = {-1, -1, -1, -1, -1, -1, -1, -1};
   for (int iteration = 0; iteration < 20; ++iteration) {
-    jacobian();
-    const Doubles8 r2 = x * x + y * y;
-    const Doubles8 radial = 1.0 + k1 * r2 + k2 * r2 * r2;
-    const Doubles8 residual_x = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - dx;
-    const Doubles8 residual_y = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - dy;
-    const Doubles8 det = j00 * j11 - j01 * j01;
-    const Doubles8 step_x = (j11 * residual_x - j01 * residual_y) / det;
-    const Doubles8 step_y = (-j01 * residual_x + j00 * residual_y) / det;
+    Doubles8 step_x, step_y;
+    UndistortStep(k, x, y, dx, dy, &step_x, &step_y);
     x = active ? x - step_x : x;
     y = active ? y - step_y : y;
     active = active && !(step_x * step_x + step_y * step_y < 1e-28);
@@ -234,7 +241,8 @@ VISLOC_SIMD_CLONES void UndistortRadialTangential8(const std::array<double, 4>& 
     for (int l = 0; l < 8; ++l) any = any || active[l] != 0;
     if (!any) break;
   }
-  jacobian();
+  Doubles8 j00, j01, j11;
+  DistortRadialTangentialJacobian(k, x, y, &j00, &j01, &j11);
   const Doubles8 det = j00 * j11 - j01 * j01;
   std::memcpy(x_out, &x, sizeof x);
   std::memcpy(y_out, &y, sizeof y);

@@ -27,11 +27,8 @@ Float16Columns::Float16Columns(const cv::Mat& descriptors, const std::vector<uin
 
 namespace {
 
-// GCC's generic vectors of sixteen: one AVX-512 register in the AVX-512 clone, two AVX2 ones in
-// the AVX2 clone, four SSE2 ones in the baseline, the same IEEE operations in all. (Eight lanes
-// left the AVX-512 clone half-width: relocalization 5-8% slower on real frames.)
-typedef float FloatLanes __attribute__((vector_size(64)));
-typedef int IntLanes __attribute__((vector_size(64)));
+// Sixteen lanes (Floats16, Ints16 of cpu_dispatch.h). (Eight lanes left the AVX-512 clone
+// half-width: relocalization 5-8% slower on real frames.)
 constexpr int kLanes = 16;
 
 // The squared distance of `query` to descriptors j0 ... j0 + 15 of the columns. The lanes and
@@ -39,13 +36,13 @@ constexpr int kLanes = 16;
 // and the sum is (l0 + l1) + (l2 + l3), before its square root. (Written to `out`: a vector
 // return value would have an ABI that differs between the clones.)
 inline void SquaredDistancesOfLanes(const float* query, const float* columns, int count, int j0,
-                                    FloatLanes* out) {
-  FloatLanes sums[4] = {};
+                                    Floats16* out) {
+  Floats16 sums[4] = {};
   for (int i = 0; i < 16; i += 4) {
     for (int k = 0; k < 4; ++k) {
-      FloatLanes column;
+      Floats16 column;
       __builtin_memcpy(&column, columns + (i + k) * count + j0, sizeof column);
-      const FloatLanes diff = query[i + k] - column;
+      const Floats16 diff = query[i + k] - column;
       sums[k] += diff * diff;
     }
   }
@@ -73,8 +70,8 @@ inline float SquaredDistance(const float* query, const float* columns, int count
 // remainder (count % 16, the last indices) is offered in order after that.
 VISLOC_SIMD_CLONES NearestTwo ColumnNearest(const float* query, const float* columns, int count) {
   constexpr float kFar = std::numeric_limits<float>::max();
-  FloatLanes best, second;
-  IntLanes best_index, index;
+  Floats16 best, second;
+  Ints16 best_index, index;
   for (int l = 0; l < kLanes; ++l) {
     best[l] = second[l] = kFar;
     best_index[l] = -1;
@@ -82,9 +79,9 @@ VISLOC_SIMD_CLONES NearestTwo ColumnNearest(const float* query, const float* col
   }
   int j0 = 0;
   for (; j0 + kLanes <= count; j0 += kLanes, index += kLanes) {
-    FloatLanes squared;
+    Floats16 squared;
     SquaredDistancesOfLanes(query, columns, count, j0, &squared);
-    const IntLanes closer = squared < best;
+    const Ints16 closer = squared < best;
     second = closer ? best : (squared < second ? squared : second);
     best_index = closer ? index : best_index;
     best = closer ? squared : best;

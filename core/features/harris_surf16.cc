@@ -67,10 +67,6 @@ inline int RoundPixel(float x) {
                 : -static_cast<int>(0.5 - static_cast<double>(x));
 }
 
-// GCC's generic vectors of sixteen floats: one AVX-512 register, two AVX2 or four SSE2 ones in
-// the other clones.
-typedef float Floats16 __attribute__((vector_size(64)));
-
 // The largest value of a float row (no NaN), sixteen lanes at a time: a maximum is exact in
 // any order, and the scalar form (std::max) is not vectorized by GCC and cost a tenth of
 // HarrisRows. Inlined into the clones, so each gets its own vector width.
@@ -847,11 +843,7 @@ void DescribeOne(const DescriptorPattern& pattern, const std::array<int, kSample
 // the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of the
 // right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the lanes
 // are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each value
-// goes through DescribeOne's operations in its order, so the descriptor has the same bits. One
-// AVX-512 register in that clone, two AVX2 or four SSE2 ones in the others.
-typedef short Shorts8 __attribute__((vector_size(16)));
-typedef float Floats8 __attribute__((vector_size(32)));
-typedef int Ints16 __attribute__((vector_size(64)));
+// goes through DescribeOne's operations in its order, so the descriptor has the same bits.
 
 // (dx, dy, |dx|, |dy|) of the samples at columns x[0..3] of a response-table row, in lanes
 // 4j ... 4j + 3 for sample j. (Written to `out`: a vector return value would have an ABI that

@@ -14,3 +14,17 @@
 #else
 #define VISLOC_SIMD_CLONES
 #endif
+
+// GCC's generic vectors for the cloned loops, named by element type and count. A 64-byte vector
+// is one AVX-512 register in that clone, two AVX2 or four SSE2 ones in the others; every clone
+// applies the same IEEE operations lane by lane. Comparisons of Doubles8 give Int64s8 masks.
+// (Pass them through pointers, not by value across a clone boundary: a vector's calling
+// convention differs between the clones.)
+namespace visloc {
+typedef float Floats16 __attribute__((vector_size(64)));
+typedef int Ints16 __attribute__((vector_size(64)));
+typedef double Doubles8 __attribute__((vector_size(64)));
+typedef long long Int64s8 __attribute__((vector_size(64)));
+typedef float Floats8 __attribute__((vector_size(32)));
+typedef short Shorts8 __attribute__((vector_size(16)));
+}  // namespace visloc
