@@ -157,8 +157,7 @@ VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<f
   const int padded = cols + 2 * half;  // window <= kMaxWindow: HarrisResponse checks.
   const float* g = taps.data();
   std::vector<float> tensor(3 * static_cast<size_t>(padded));
-  std::vector<float> ring(3 * static_cast<size_t>(window) * cols),
-      sums(3 * static_cast<size_t>(cols));
+  std::vector<float> ring(3 * static_cast<size_t>(window) * cols);
   std::vector<int> ring_row(window, -1);             // Image row each ring slot holds.
   std::vector<const float*> rows_in_window(window);  // Slots of rows y - half ... y + half.
   response->create(rows, cols, CV_32F);
@@ -183,53 +182,53 @@ VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<f
       }
       rows_in_window[j + half] = filtered;
     }
+    // in[c][half + t]: plane c of row y + t. The window's sums down the columns and the
+    // response in one pass, so the sums never go through memory; the ring and the response
+    // never overlap, which the vectorizer cannot otherwise know (ivdep).
+    const float* in[3][kMaxWindow];
     for (int c = 0; c < 3; ++c) {
-      const float* in[kMaxWindow];  // in[half + t]: plane c of row y + t.
-      for (int j = 0; j < window; ++j) in[j] = rows_in_window[j] + c * cols;
-      float* out = &sums[c * static_cast<size_t>(cols)];
-      for (int x = 0; x < cols; ++x) {
-        float acc = g[0] * in[half][x];
-        for (int t = 1; t <= half; ++t) acc += g[t] * (in[half - t][x] + in[half + t][x]);
-        out[x] = acc;
-      }
+      for (int j = 0; j < window; ++j) in[c][j] = rows_in_window[j] + c * cols;
     }
-    const float* sxx = sums.data();
-    const float* syy = sxx + cols;
-    const float* sxy = syy + cols;
     float* r = response->ptr<float>(y);
+#pragma GCC ivdep
     for (int x = 0; x < cols; ++x) {
-      const float trace = sxx[x] + syy[x];
-      r[x] = norm * (sxx[x] * syy[x] - sxy[x] * sxy[x] - k * trace * trace);
+      float sums[3];
+      for (int c = 0; c < 3; ++c) {
+        float acc = g[0] * in[c][half][x];
+        for (int t = 1; t <= half; ++t) acc += g[t] * (in[c][half - t][x] + in[c][half + t][x]);
+        sums[c] = acc;
+      }
+      const float trace = sums[0] + sums[1];
+      r[x] = norm * (sums[0] * sums[1] - sums[2] * sums[2] - k * trace * trace);
     }
     strongest = std::max(strongest, RowMax(r, cols));
   }
   return strongest;
 }
 
-// The largest of the 8 neighbours of pixel x of row `mid`.
-inline float NeighbourMax(const float* up, const float* mid, const float* down, int x) {
-  const float above = std::max(std::max(up[x - 1], up[x]), up[x + 1]);
-  const float below = std::max(std::max(down[x - 1], down[x]), down[x + 1]);
-  return std::max(std::max(above, below), std::max(mid[x - 1], mid[x + 1]));
-}
-
 // The local maxima of row `mid` at columns [x0, x1) (no 8-neighbour exceeds them), as byte
 // masks: `strong` where the response also reaches `threshold` (corner candidates), and, when
 // given, `positive` where it is above zero (the finest scale's maxima that LocalizeAtFinestScale
 // moves coarse corners to). One pass computes both, so the finest response is scanned once.
-// Two loops rather than a test of `positive` per pixel, so that each one vectorizes.
+// The 3x3 maximum is separable: the column maxima of the three rows (`column_max`, scratch for
+// columns x0 - 1 ... x1), then their maximum across; the pixel itself is in it, which changes
+// nothing (v >= max(a, v) exactly when v >= a). Four comparisons a pixel instead of eight.
+// Separate loops for the two masks, so that each one vectorizes.
 VISLOC_SIMD_CLONES void LocalMaxima(const float* __restrict up, const float* __restrict mid,
                                     const float* __restrict down, int x0, int x1, float threshold,
-                                    uint8_t* __restrict strong, uint8_t* __restrict positive) {
+                                    float* __restrict column_max, uint8_t* __restrict strong,
+                                    uint8_t* __restrict positive) {
+  for (int x = x0 - 1; x <= x1; ++x) column_max[x] = std::max(std::max(up[x], mid[x]), down[x]);
   if (positive == nullptr) {
     for (int x = x0; x < x1; ++x) {
-      strong[x] =
-          static_cast<uint8_t>((mid[x] >= threshold) & (mid[x] >= NeighbourMax(up, mid, down, x)));
+      const float around = std::max(std::max(column_max[x - 1], column_max[x]), column_max[x + 1]);
+      strong[x] = static_cast<uint8_t>((mid[x] >= threshold) & (mid[x] >= around));
     }
     return;
   }
   for (int x = x0; x < x1; ++x) {
-    const bool is_max = mid[x] >= NeighbourMax(up, mid, down, x);
+    const float around = std::max(std::max(column_max[x - 1], column_max[x]), column_max[x + 1]);
+    const bool is_max = mid[x] >= around;
     strong[x] = static_cast<uint8_t>((mid[x] >= threshold) & is_max);
     positive[x] = static_cast<uint8_t>((mid[x] > 0.0f) & is_max);
   }
@@ -258,11 +257,12 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
   if (scan_x1 <= scan_x0) return;
   // Padded by a word of zeros, so the scan below reads whole 8-byte words.
   std::vector<uint8_t> strong(cols + 8, 0);
+  std::vector<float> column_max(cols);
   for (int y = scan_y0; y < scan_y1; ++y) {
     const float* r = response.ptr<float>(y);
     const float* up = response.ptr<float>(y - 1);
     const float* down = response.ptr<float>(y + 1);
-    LocalMaxima(up, r, down, scan_x0, scan_x1, threshold, strong.data(),
+    LocalMaxima(up, r, down, scan_x0, scan_x1, threshold, column_max.data(), strong.data(),
                 positive_maxima ? positive_maxima->ptr<uint8_t>(y) : nullptr);
     if (y < border || y >= rows - border) continue;
     // About 1% of pixels pass: a word of eight flags at a time, in column order.
@@ -371,24 +371,55 @@ std::vector<Keypoint> SortedByResponse(const std::vector<Keypoint>& keypoints) {
   return sorted;
 }
 
+// One bit per pixel of an image, with two columns of padding on either side and two rows above
+// and below, so a disc of radius 2 is marked without clipping: an image's worth is a few tens
+// of kilobytes, cleared and probed within the cache, where a byte per pixel is not.
+class PixelDiscMask {
+ public:
+  explicit PixelDiscMask(const cv::Size& size)
+      : words_per_row_((size.width + 4 + 63) / 64),
+        words_(static_cast<size_t>(words_per_row_) * (size.height + 4), 0) {}
+
+  bool Test(int x, int y) const {
+    const int bit = x + 2;
+    return (Row(y)[bit >> 6] >> (bit & 63)) & 1;
+  }
+
+  // Marks the disc of radius 2 around (x, y): dx^2 + dy^2 <= 5, 21 pixels.
+  void MarkDisc(int x, int y) {
+    for (int dy = -2; dy <= 2; ++dy) {
+      const int reach = std::abs(dy) == 2 ? 1 : 2;
+      SetRun(Row(y + dy), x + 2 - reach, 2 * reach + 1);
+    }
+  }
+
+ private:
+  uint64_t* Row(int y) { return &words_[static_cast<size_t>(y + 2) * words_per_row_]; }
+  const uint64_t* Row(int y) const {
+    return &words_[static_cast<size_t>(y + 2) * words_per_row_];
+  }
+  // Sets bits first ... first + length - 1 (length <= 5) of a row.
+  static void SetRun(uint64_t* row, int first, int length) {
+    const uint64_t run = (uint64_t{1} << length) - 1;
+    const int word = first >> 6, shift = first & 63;
+    row[word] |= run << shift;
+    if (shift + length > 64) row[word + 1] |= run >> (64 - shift);
+  }
+
+  int words_per_row_;
+  std::vector<uint64_t> words_;
+};
+
 std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
   keypoints = SortedByResponse(keypoints);
-  cv::Mat taken(size, CV_8UC1, cv::Scalar(0));
+  PixelDiscMask taken(size);
   std::vector<Keypoint> kept;
   kept.reserve(keypoints.size());
   for (const Keypoint& k : keypoints) {
     const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
-    if (taken.at<uint8_t>(y, x)) continue;
+    if (taken.Test(x, y)) continue;
     kept.push_back(k);
-    // Mark the disc of radius 2 (dx^2 + dy^2 <= 5, 21 pixels) around it.
-    for (int dy = -2; dy <= 2; ++dy) {
-      if (y + dy < 0 || y + dy >= size.height) continue;
-      uint8_t* row = taken.ptr<uint8_t>(y + dy);
-      const int reach = std::abs(dy) == 2 ? 1 : 2;
-      for (int dx = std::max(-reach, -x); dx <= std::min(reach, size.width - 1 - x); ++dx) {
-        row[x + dx] = 1;
-      }
-    }
+    taken.MarkDisc(x, y);
   }
   return kept;
 }
