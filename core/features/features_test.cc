@@ -358,6 +358,23 @@ TEST(HarrisSurf16Test, ResponseEqualsItsDefinitionInsideAndAtTheBorder) {
   EXPECT_THROW(HarrisResponse(room, 0.0, 0.04, &strongest), std::exception);
 }
 
+// MergeAcrossScales by its definition: strongest first (a stable order), each kept unless a
+// kept one's rounded pixel is within dx^2 + dy^2 <= 5 of its own.
+std::vector<Keypoint> ReferenceMerge(std::vector<Keypoint> found) {
+  std::stable_sort(found.begin(), found.end(),
+                   [](const Keypoint& a, const Keypoint& b) { return a.response > b.response; });
+  std::vector<Keypoint> kept;
+  for (const Keypoint& k : found) {
+    const bool covered = std::any_of(kept.begin(), kept.end(), [&](const Keypoint& s) {
+      const long dx = std::lround(k.pixel.x()) - std::lround(s.pixel.x());
+      const long dy = std::lround(k.pixel.y()) - std::lround(s.pixel.y());
+      return dx * dx + dy * dy <= 5;
+    });
+    if (!covered) kept.push_back(k);
+  }
+  return kept;
+}
+
 // One scale's corners by their definition, from HarrisSurf16Extractor's own response: every
 // pixel at least `border` from the edge whose response reaches `relative` of the strongest and
 // no 8-neighbour exceeds, at its quadratic sub-pixel peak; strongest first (ties in row-major
@@ -388,18 +405,7 @@ std::vector<Keypoint> ReferenceCorners(const cv::Mat& grey, double sigma, double
       found.push_back(k);
     }
   }
-  std::stable_sort(found.begin(), found.end(),
-                   [](const Keypoint& a, const Keypoint& b) { return a.response > b.response; });
-  std::vector<Keypoint> kept;
-  for (const Keypoint& k : found) {
-    const bool covered = std::any_of(kept.begin(), kept.end(), [&](const Keypoint& s) {
-      const long dx = std::lround(k.pixel.x()) - std::lround(s.pixel.x());
-      const long dy = std::lround(k.pixel.y()) - std::lround(s.pixel.y());
-      return dx * dx + dy * dy <= 5;
-    });
-    if (!covered) kept.push_back(k);
-  }
-  return kept;
+  return ReferenceMerge(found);
 }
 
 TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
@@ -436,6 +442,27 @@ TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
         EXPECT_LE(k.pixel.x(), last) << "width " << width;
       }
     }
+  }
+}
+
+TEST(HarrisSurf16Test, MergeKeepsTheStrongestOfCloseCornersAnywhereInTheImage) {
+  // Dense random corners, so that discs overlap everywhere: across the 64-pixel words of the
+  // merge's bit mask, along every edge and in the corners of the image; some responses tie.
+  const cv::Size size(203, 37);
+  cv::RNG rng(11);
+  std::vector<Keypoint> keypoints(1500);
+  for (Keypoint& k : keypoints) {
+    k.pixel = Eigen::Vector2f(rng.uniform(-0.49f, size.width - 0.51f),
+                              rng.uniform(-0.49f, size.height - 0.51f));
+    k.response = static_cast<float>(rng.uniform(1, 200));
+  }
+  const std::vector<Keypoint> merged = MergeAcrossScales(keypoints, size);
+  const std::vector<Keypoint> expected = ReferenceMerge(keypoints);
+  ASSERT_GT(expected.size(), 300u);
+  ASSERT_EQ(merged.size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(merged[i].pixel, expected[i].pixel) << i;
+    EXPECT_EQ(merged[i].response, expected[i].response) << i;
   }
 }
 

@@ -410,20 +410,6 @@ class PixelDiscMask {
   std::vector<uint64_t> words_;
 };
 
-std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
-  keypoints = SortedByResponse(keypoints);
-  PixelDiscMask taken(size);
-  std::vector<Keypoint> kept;
-  kept.reserve(keypoints.size());
-  for (const Keypoint& k : keypoints) {
-    const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
-    if (taken.Test(x, y)) continue;
-    kept.push_back(k);
-    taken.MarkDisc(x, y);
-  }
-  return kept;
-}
-
 // The keypoints whose response reaches `relative` of the strongest in their grid cell.
 std::vector<Keypoint> KeepStrongInCell(std::vector<Keypoint> keypoints, const cv::Size& size,
                                        int grid_cols, int grid_rows, double relative) {
@@ -570,6 +556,20 @@ VISLOC_SIMD_CLONES void GaussianBlur8u(const cv::Mat& grey, const std::vector<ui
 }
 
 }  // namespace
+
+std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
+  keypoints = SortedByResponse(keypoints);
+  PixelDiscMask taken(size);
+  std::vector<Keypoint> kept;
+  kept.reserve(keypoints.size());
+  for (const Keypoint& k : keypoints) {
+    const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
+    if (taken.Test(x, y)) continue;
+    kept.push_back(k);
+    taken.MarkDisc(x, y);
+  }
+  return kept;
+}
 
 void GaussianBlurLikeOpenCv(const cv::Mat& grey, double sigma, int half, cv::Mat* smoothed) {
   VISLOC_CHECK(grey.type() == CV_8UC1 && half >= 1, "8-bit blur, half width ", half);

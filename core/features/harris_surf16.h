@@ -73,6 +73,11 @@ cv::Mat HarrisResponse(const cv::Mat& grey, double sigma_px, double k, float* st
 // bytes (OpenCV's fixed-point kernel and arithmetic), several times faster.
 void GaussianBlurLikeOpenCv(const cv::Mat& grey, double sigma_px, int half, cv::Mat* smoothed);
 
+// The keypoints strongest first (equal responses in their given order), without those whose
+// rounded pixel lies in the radius-2 disc (dx^2 + dy^2 <= 5 px^2) of a stronger one kept: one
+// corner where several scales, or two close maxima, found it. Pixels inside an image of `size`.
+std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size);
+
 // Indices of at most `max_features` keypoints: the strongest of each grid cell up to an equal
 // quota, then the strongest of the rest.
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
