@@ -103,7 +103,6 @@ double ThetaDistortedDerivative(const std::array<double, 4>& k, double theta) {
   return 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])));
 }
 
-
 // The radial-tangential (Brown-Conrady) distortion of normalized (x, y) and its Jacobian
 // [j00 j01; j01 j11] (symmetric), for T = double or a vector of doubles: one formula serves the
 // scalar Distort, DistortJacobian and Undistort and the batched undistortion, which therefore
