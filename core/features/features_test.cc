@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <set>
 
 #include <opencv2/imgproc.hpp>
@@ -463,6 +464,15 @@ TEST(HarrisSurf16Test, MergeKeepsTheStrongestOfCloseCornersAnywhereInTheImage) {
   for (size_t i = 0; i < expected.size(); ++i) {
     EXPECT_EQ(merged[i].pixel, expected[i].pixel) << i;
     EXPECT_EQ(merged[i].response, expected[i].response) << i;
+  }
+  // A corner that rounds to no pixel of the image is refused, not written beyond the mask.
+  for (const Eigen::Vector2f& outside :
+       {Eigen::Vector2f(-0.5f, 3.0f), Eigen::Vector2f(5.0f, size.height - 0.5f),
+        Eigen::Vector2f(size.width + 40.0f, 3.0f),
+        Eigen::Vector2f(std::numeric_limits<float>::quiet_NaN(), 3.0f)}) {
+    std::vector<Keypoint> with_outside = keypoints;
+    with_outside[700].pixel = outside;
+    EXPECT_THROW(MergeAcrossScales(with_outside, size), CheckError) << outside.transpose();
   }
 }
 

@@ -562,7 +562,13 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
   PixelDiscMask taken(size);
   std::vector<Keypoint> kept;
   kept.reserve(keypoints.size());
+  const float max_x = size.width - 0.5f, max_y = size.height - 0.5f;
   for (const Keypoint& k : keypoints) {
+    // Rounding to a pixel of the image (the mask has no room beyond it); NaN fails too.
+    VISLOC_CHECK(k.pixel.x() > -0.5f && k.pixel.x() < max_x && k.pixel.y() > -0.5f &&
+                     k.pixel.y() < max_y,
+                 "a corner at (", k.pixel.x(), ", ", k.pixel.y(), ") lies outside the ",
+                 size.width, "x", size.height, " image");
     const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
     if (taken.Test(x, y)) continue;
     kept.push_back(k);
@@ -870,12 +876,6 @@ void DescribeOne(const DescriptorPattern& pattern, const std::array<int, kSample
   Normalize(sums, descriptor);
 }
 
-// DescribeOne for the smallest wavelet, four samples at a time in sixteen lanes: per row of
-// the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of the
-// right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the lanes
-// are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each value
-// goes through DescribeOne's operations in its order, so the descriptor has the same bits.
-
 // (dx, dy, |dx|, |dy|) of the samples at columns x[0..3] of a response-table row, in lanes
 // 4j ... 4j + 3 for sample j. (Written to `out`: a vector return value would have an ABI that
 // differs between the clones.)
@@ -891,6 +891,11 @@ inline void FourSamples(const int32_t* row, const int* x, Floats16* out) {
   *out = reinterpret_cast<Floats16>(reinterpret_cast<Ints16>(spread) & keep_sign);
 }
 
+// DescribeOne for the smallest wavelet, four samples at a time in sixteen lanes: per row of
+// the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of the
+// right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the lanes
+// are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each value
+// goes through DescribeOne's operations in its order, so the descriptor has the same bits.
 VISLOC_SIMD_CLONES void DescribeOneSmall(const DescriptorPattern& pattern,
                                          const std::array<int, kSamplesPerSide>& xs,
                                          const std::array<int, kSamplesPerSide>& ys,

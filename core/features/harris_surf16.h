@@ -75,7 +75,8 @@ void GaussianBlurLikeOpenCv(const cv::Mat& grey, double sigma_px, int half, cv::
 
 // The keypoints strongest first (equal responses in their given order), without those whose
 // rounded pixel lies in the radius-2 disc (dx^2 + dy^2 <= 5 px^2) of a stronger one kept: one
-// corner where several scales, or two close maxima, found it. Pixels inside an image of `size`.
+// corner where several scales, or two close maxima, found it. Every pixel must round to one of
+// an image of `size` (CheckError otherwise).
 std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size);
 
 // Indices of at most `max_features` keypoints: the strongest of each grid cell up to an equal
