@@ -213,15 +213,10 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
   return fix;
 }
 
-PoseFix PoseTracker::Polish(const QueryFrame& frame, const Rigid3d& cam_from_map,
-                            double radius_px) const {
+PoseFix PoseTracker::Polish(const QueryFrame& frame, const Rigid3d& cam_from_map) const {
   PoseFix fix;
   const std::vector<uint32_t> points = PredictPoints(cam_from_map, &fix);
-  const PointView map_points = map_->Points(points);
-  RefineAround(map_points, frame, points, cam_from_map, radius_px, &fix);
-  if (fix.success) {
-    RefineAround(map_points, frame, points, fix.cam_from_map, options_.refine_radius_px, &fix);
-  }
+  RefineAround(map_->Points(points), frame, points, cam_from_map, options_.refine_radius_px, &fix);
   return fix;
 }
 

@@ -88,9 +88,11 @@ class PoseTracker {
 
   // Full guided estimation from a prior pose.
   PoseFix Track(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const;
-  // Verification and refinement of a pose from elsewhere (relocalization): predict from it,
-  // match within `radius_px`, refine on the inliers, then once more in the tight radius.
-  PoseFix Polish(const QueryFrame& frame, const Rigid3d& cam_from_map, double radius_px) const;
+  // Verification and refinement of a pose from elsewhere (relocalization's RANSAC on
+  // descriptor matches), as Track ends: predict the points visible from it, re-match them in the
+  // tight radius and refine on the inliers. The refinement starts from the inliers within the
+  // RANSAC threshold of the given pose, so a pose further off than that is not verified.
+  PoseFix Polish(const QueryFrame& frame, const Rigid3d& cam_from_map) const;
 
   const PoseTrackerOptions& options() const { return options_; }
   const Camera& camera() const { return camera_; }

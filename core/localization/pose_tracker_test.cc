@@ -155,6 +155,29 @@ TEST(PoseTrackerTest, CoarseSubsetGivesThePoseAndFallsBackToAllPoints) {
   }
 }
 
+// Polish verifies a pose as close as RANSAC's from one round of tight re-matching, and does not
+// verify one further off than the RANSAC threshold.
+TEST(PoseTrackerTest, PolishVerifiesAPoseNearTheTruthAndNotAFarOne) {
+  const auto map = MapWithAppearance();
+  const Rigid3d truth = TruePose(*map);
+  const View view = RenderView(*map, truth, 150, 6);
+  const QueryFrame frame(view.features, map->map().camera);
+  const PoseTracker tracker(map, map->map().camera, PoseTrackerOptions{});
+  // 1.4 mm and 0.08 degrees off: well within the 2 px RANSAC threshold.
+  const Rigid3d near =
+      Rigid3d(RotationFromRollPitchYaw(0.001, -0.001, 0.0005), Eigen::Vector3d(0.001, 0, -0.001)) *
+      truth;
+  const PoseFix fix = tracker.Polish(frame, near);
+  ASSERT_TRUE(fix.success);
+  EXPECT_TRUE(ApproxEqual(fix.cam_from_map, truth, 0.005, 0.1));
+  EXPECT_GT(fix.inliers, 100);
+  EXPECT_GT(fix.inlier_ratio, 0.9);
+  EXPECT_GE(fix.predicted, fix.putatives);
+  // Turned by 2.6 degrees: the points project ~7 px from their keypoints.
+  const Rigid3d off = Rigid3d(RotationFromRollPitchYaw(0, 0.045, 0), Eigen::Vector3d::Zero()) * truth;
+  EXPECT_FALSE(tracker.Polish(frame, off).success);
+}
+
 TEST(PoseTrackerTest, PredictionModesParseByName) {
   EXPECT_EQ(ParsePredictionMode("brute_force"), PredictionMode::kBruteForce);
   EXPECT_THROW(ParsePredictionMode("magic"), InputError);

@@ -14,7 +14,6 @@ LocalizerOptions ScaledToCamera(LocalizerOptions options, const Camera& camera) 
     const double scale = camera.width() / 320.0;
     options.tracker.search_radius_px *= scale;
     options.tracker.refine_radius_px *= scale;
-    options.relocalization.verify_radius_px *= scale;
     options.tracker.map_error_px *= scale;
   }
   return options;

@@ -14,7 +14,6 @@ void RelocalizationOptions::Check() const {
                "relocalization thresholds");
   VISLOC_CHECK(min_verified_inlier_ratio >= 0 && min_verified_inlier_ratio <= 1,
                "relocalization inlier ratio ", min_verified_inlier_ratio);
-  VISLOC_CHECK(verify_radius_px > 0, "verify radius ", verify_radius_px);
   matching.Check();
 }
 
@@ -47,7 +46,7 @@ void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candi
   candidate->ransac_inliers = pnp.stats.inliers;
   if (!pnp.success) return;
   timer.Restart();
-  *fix = tracker_.Polish(frame, pnp.cam_from_world, options_.verify_radius_px);
+  *fix = tracker_.Polish(frame, pnp.cam_from_world);
   times->verification_ms += timer.ElapsedMs();
   fix->ransac_iterations = pnp.stats.iterations;
   candidate->verified_inliers = fix->inliers;

@@ -5,8 +5,8 @@
 // and the best candidates are verified geometrically, most similar first:
 //   1. match the image's keypoints to the points the candidate keyframe sees (descriptors only),
 //   2. PnP with RANSAC on those matches,
-//   3. verify: predict the points visible from that pose, re-match them by projection, and
-//      refine. Accept only with enough inliers at a high enough inlier ratio, so an image from
+//   3. verify: predict the points visible from that pose, re-match them by projection in the
+//      tracker's tight radius, and refine. Accept only with enough inliers at a high enough inlier ratio, so an image from
 //      a place that is not in the map is refused rather than forced onto the best candidate.
 // A local search restricts the candidates to keyframes near a pose (fast relocalization around
 // the last known pose when tracking is briefly lost).
@@ -25,7 +25,6 @@ struct RelocalizationOptions {
   int min_verified_inliers = 40;  // After re-matching by projection.
   double min_verified_inlier_ratio = 0.5;
   int strong_inliers = 80;          // Stop at the first candidate this well supported.
-  double verify_radius_px = 8.0;    // Re-matching radius around the RANSAC pose's projections.
   DescriptorMatchOptions matching;  // Descriptor thresholds for step 1.
   // RANSAC's budget per candidate (it stops earlier once the inliers found make a better model
   // unlikely). Real images leave 15-20% of a candidate's descriptor matches correct (25-40 of
