@@ -109,7 +109,7 @@ void IndexKeyframes(const std::vector<cv::Mat>& keyframe_descriptors, Vocabulary
   }
   keyframe_vectors->clear();
   for (std::vector<uint32_t>& words_of_keyframe : keyframe_words) {
-    keyframe_vectors->push_back(BowFromWords(*vocabulary, std::move(words_of_keyframe)));
+    keyframe_vectors->push_back(BowFromWords(*vocabulary, words_of_keyframe));
   }
 }
 

@@ -111,13 +111,27 @@ VISLOC_SIMD_CLONES NearestTwo ColumnNearest(const float* query, const float* col
 }
 
 // Float16Columns::NearestOf: the distances a block at a time, a loop over consecutive
-// descriptors that the compiler vectorizes, then the first smallest in order.
+// descriptors that the compiler vectorizes, then the first smallest in order. A range of at most
+// sixteen (a vocabulary node's children) is one vector of lanes when the sixteen columns from
+// `first` lie within the array.
 VISLOC_SIMD_CLONES int ColumnArgMin(const float* query, const float* columns, int count, int first,
                                     int n) {
-  constexpr int kBlock = 64;
-  float distance[kBlock];
   int best = -1;
   float best_distance = std::numeric_limits<float>::max();
+  if (n <= kLanes && first + kLanes <= count) {
+    Floats16 squared;
+    SquaredDistancesOfLanes(query, columns, count, first, &squared);
+    for (int l = 0; l < n; ++l) {
+      const float distance = std::sqrt(squared[l]);
+      if (distance < best_distance) {
+        best_distance = distance;
+        best = first + l;
+      }
+    }
+    return best;
+  }
+  constexpr int kBlock = 64;
+  float distance[kBlock];
   for (int j0 = first; j0 < first + n; j0 += kBlock) {
     const int m = std::min(kBlock, first + n - j0);
     for (int j = 0; j < m; ++j) {

@@ -62,16 +62,21 @@ BowVector ComputeBow(const Vocabulary& vocabulary, const cv::Mat& descriptors) {
   return BowFromWords(vocabulary, LookupWords(vocabulary, descriptors));
 }
 
-BowVector BowFromWords(const Vocabulary& vocabulary, std::vector<uint32_t> words) {
-  std::sort(words.begin(), words.end());
+BowVector BowFromWords(const Vocabulary& vocabulary, const std::vector<uint32_t>& words) {
+  // Counted per word, then taken in word order (a vocabulary has a few hundred to a few
+  // thousand words, fewer than a sort of an image's words costs).
+  std::vector<uint32_t> counts(vocabulary.word_weights.size(), 0);
+  for (uint32_t word : words) {
+    VISLOC_CHECK(word < counts.size(), "word ", word, " of ", counts.size());
+    ++counts[word];
+  }
   BowVector vector;
   float total = 0;
-  for (size_t i = 0, end = 0; i < words.size(); i = end) {  // Each word's run.
-    float count = 0.0f;
-    for (end = i; end < words.size() && words[end] == words[i]; ++end) count += 1.0f;
-    const float weight = count * vocabulary.word_weights[words[i]];
+  for (uint32_t word = 0; word < counts.size(); ++word) {
+    if (counts[word] == 0) continue;
+    const float weight = static_cast<float>(counts[word]) * vocabulary.word_weights[word];
     if (weight <= 0) continue;
-    vector.emplace_back(words[i], weight);
+    vector.emplace_back(word, weight);
     total += weight;
   }
   for (auto& [word, weight] : vector) weight /= total;

@@ -23,7 +23,7 @@ std::vector<uint32_t> LookupWords(const Vocabulary& vocabulary, const cv::Mat& d
 // The TF-IDF, L1-normalized vector of a set of descriptors.
 BowVector ComputeBow(const Vocabulary& vocabulary, const cv::Mat& descriptors);
 // The same from their words (LookupWords), in any order.
-BowVector BowFromWords(const Vocabulary& vocabulary, std::vector<uint32_t> words);
+BowVector BowFromWords(const Vocabulary& vocabulary, const std::vector<uint32_t>& words);
 
 double BowScore(const BowVector& a, const BowVector& b);
 
