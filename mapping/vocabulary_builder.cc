@@ -108,7 +108,7 @@ void IndexKeyframes(const std::vector<cv::Mat>& keyframe_descriptors, Vocabulary
         static_cast<float>(std::log(n / std::max(1, documents[w])) + 1e-3);
   }
   keyframe_vectors->clear();
-  for (std::vector<uint32_t>& words_of_keyframe : keyframe_words) {
+  for (const std::vector<uint32_t>& words_of_keyframe : keyframe_words) {
     keyframe_vectors->push_back(BowFromWords(*vocabulary, words_of_keyframe));
   }
 }

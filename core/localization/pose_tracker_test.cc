@@ -174,7 +174,8 @@ TEST(PoseTrackerTest, PolishVerifiesAPoseNearTheTruthAndNotAFarOne) {
   EXPECT_GT(fix.inlier_ratio, 0.9);
   EXPECT_GE(fix.predicted, fix.putatives);
   // Turned by 2.6 degrees: the points project ~7 px from their keypoints.
-  const Rigid3d off = Rigid3d(RotationFromRollPitchYaw(0, 0.045, 0), Eigen::Vector3d::Zero()) * truth;
+  const Rigid3d off =
+      Rigid3d(RotationFromRollPitchYaw(0, 0.045, 0), Eigen::Vector3d::Zero()) * truth;
   EXPECT_FALSE(tracker.Polish(frame, off).success);
 }
 

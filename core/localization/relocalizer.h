@@ -6,8 +6,9 @@
 //   1. match the image's keypoints to the points the candidate keyframe sees (descriptors only),
 //   2. PnP with RANSAC on those matches,
 //   3. verify: predict the points visible from that pose, re-match them by projection in the
-//      tracker's tight radius, and refine. Accept only with enough inliers at a high enough inlier ratio, so an image from
-//      a place that is not in the map is refused rather than forced onto the best candidate.
+//      tracker's tight radius, and refine. Accept only with enough inliers at a high enough
+//      inlier ratio, so an image from a place that is not in the map is refused rather than
+//      forced onto the best candidate.
 // A local search restricts the candidates to keyframes near a pose (fast relocalization around
 // the last known pose when tracking is briefly lost).
 
