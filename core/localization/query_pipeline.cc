@@ -1,5 +1,10 @@
 #include "core/localization/query_pipeline.h"
 
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
 #include "core/util/check.h"
 #include "core/util/timer.h"
 
@@ -41,6 +46,10 @@ QueryPipeline::QueryPipeline(std::shared_ptr<const LocalizationMap> map, const C
       map->map().features, options_.max_query_features, options_.finest_scale_only));
   relocalization_extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
       map->map().features, options_.max_relocalization_features, /*finest_scale_only=*/false));
+  const double focal_ratio = camera_.fx() / map->map().camera.fx();
+  if (std::max(focal_ratio, 1.0 / focal_ratio) > options_.relocalization_resample_ratio) {
+    relocalization_resample_ = focal_ratio;
+  }
   tracker_ = std::make_unique<PoseTracker>(std::move(map), camera_, options_.tracker);
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
 }
@@ -57,7 +66,24 @@ QueryFrame QueryPipeline::Extract(const cv::Mat& image, ExtractStats* stats,
 
 QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
   CheckImage(image, camera_);
-  return QueryFrame(relocalization_extractor_->Extract(image), camera_);
+  if (relocalization_resample_ == 1.0) {
+    return QueryFrame(relocalization_extractor_->Extract(image), camera_);
+  }
+  const cv::Size resampled_size(
+      std::max(1, static_cast<int>(std::lround(image.cols / relocalization_resample_))),
+      std::max(1, static_cast<int>(std::lround(image.rows / relocalization_resample_))));
+  cv::Mat resampled;
+  cv::resize(image, resampled, resampled_size, 0, 0,
+             relocalization_resample_ > 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  FeatureSet features = relocalization_extractor_->Extract(resampled);
+  // Back to the camera's pixels (pixel centres at integer coordinates in both images).
+  const float sx = static_cast<float>(image.cols) / resampled_size.width;
+  const float sy = static_cast<float>(image.rows) / resampled_size.height;
+  for (Keypoint& k : features.keypoints) {
+    k.pixel = Eigen::Vector2f((k.pixel.x() + 0.5f) * sx - 0.5f, (k.pixel.y() + 0.5f) * sy - 0.5f);
+    k.scale_px *= sx;
+  }
+  return QueryFrame(std::move(features), camera_);
 }
 
 RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {

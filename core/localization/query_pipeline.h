@@ -29,7 +29,10 @@ class QueryPipeline {
   QueryFrame Extract(const cv::Mat& image, ExtractStats* stats = nullptr,
                      double* undistort_ms = nullptr) const;
   // The same with the relocalization features: all of the map's scales, more corners
-  // (LocalizerOptions::max_relocalization_features). Throws as Extract does.
+  // (LocalizerOptions::max_relocalization_features), detected and described on the image
+  // resampled to the map camera's focal length when the two differ
+  // (LocalizerOptions::relocalization_resample_ratio); the keypoints are in the camera's pixels.
+  // Throws as Extract does.
   QueryFrame ExtractForRelocalization(const cv::Mat& image) const;
   // Global relocalization of one image, with nothing known about where it was taken; `ms`
   // includes the feature extraction.
@@ -47,6 +50,9 @@ class QueryPipeline {
   std::unique_ptr<FeatureExtractor> relocalization_extractor_;
   std::unique_ptr<PoseTracker> tracker_;
   std::unique_ptr<Relocalizer> relocalizer_;
+  // Query pixels per map pixel at the same angle (the focal lengths' ratio) when relocalization
+  // resamples the image to the map's, else 1.
+  double relocalization_resample_ = 1.0;
 };
 
 }  // namespace visloc
