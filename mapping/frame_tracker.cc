@@ -103,7 +103,8 @@ TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame
   pnp.seed = seed;
   const auto solve = [&](const std::vector<LandmarkMatch>& matches) {
     return SolvePnpRansac(
-        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
+        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_),
+        pnp);
   };
   const std::vector<int> coarse = CoarseSubset(state, predicted, landmarks);
   std::vector<LandmarkMatch> matches =
