@@ -2,7 +2,6 @@
 
 #include <cmath>
 
-#include "core/features/features.h"
 #include "core/util/check.h"
 
 namespace visloc::mapping {
@@ -13,7 +12,6 @@ void TrackingOptions::Check() const {
                ", ", refine_radius_px, " px");
   VISLOC_CHECK(max_error_px > 0 && min_inliers >= 4, "tracking thresholds ", max_error_px, " px, ",
                min_inliers, " inliers");
-  VISLOC_CHECK(coarse_landmarks >= 0, "coarse landmarks ", coarse_landmarks);
 }
 
 std::vector<PoseObservation> LandmarkObservations(const SlamState& state,
@@ -59,22 +57,6 @@ std::vector<LandmarkMatch> FrameTracker::Match(const SlamState& state, const Ste
                         radius_px, options_.matching, in_view);
 }
 
-std::vector<int> FrameTracker::CoarseSubset(const SlamState& state, const Rigid3d& cam_from_world,
-                                            const std::vector<int>& landmarks) const {
-  const int wanted = options_.coarse_landmarks;
-  if (wanted == 0 || static_cast<int>(landmarks.size()) <= wanted) return landmarks;
-  const std::vector<ProjectedLandmark> projected =
-      ProjectLandmarks(state, view_, cam_from_world, landmarks);
-  // `landmarks` come oldest first (ascending ids), the best established first.
-  std::vector<Eigen::Vector2f> pixels;
-  pixels.reserve(projected.size());
-  for (const ProjectedLandmark& p : projected) pixels.push_back(p.pixel.cast<float>());
-  const cv::Size image(view_.camera.width(), view_.camera.height());
-  std::vector<int> subset;
-  for (int i : SpreadOverGrid(pixels, image, 8, 6, wanted)) subset.push_back(projected[i].landmark);
-  return subset;
-}
-
 std::vector<LandmarkMatch> FrameTracker::MatchWithoutPrediction(const SlamState& state,
                                                                 const StereoFrame& frame) const {
   if (state.keyframes.empty()) return {};
@@ -99,24 +81,17 @@ TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame
                                 uint64_t seed) const {
   TrackResult result;
   result.cam_from_world = predicted;
+  std::vector<LandmarkMatch> matches =
+      Match(state, frame, predicted, landmarks, options_.search_radius_px);
   PnpRansacOptions pnp = pnp_;
   pnp.seed = seed;
-  const auto solve = [&](const std::vector<LandmarkMatch>& matches) {
-    return SolvePnpRansac(
-        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_),
-        pnp);
-  };
-  const std::vector<int> coarse = CoarseSubset(state, predicted, landmarks);
-  std::vector<LandmarkMatch> matches =
-      Match(state, frame, predicted, coarse, options_.search_radius_px);
-  PnpResult ransac = solve(matches);
-  if (!ransac.success && coarse.size() < landmarks.size()) {
-    matches = Match(state, frame, predicted, landmarks, options_.search_radius_px);
-    ransac = solve(matches);
-  }
+  PnpResult ransac = SolvePnpRansac(
+      LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
   if (!ransac.success) {
     matches = MatchWithoutPrediction(state, frame);
-    ransac = solve(matches);
+    ransac = SolvePnpRansac(
+        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_),
+        pnp);
   }
   if (!ransac.success) return result;
   // Re-match with the estimated pose in a tight radius: more tracks, fewer outliers.

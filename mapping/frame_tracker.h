@@ -25,12 +25,6 @@ struct TrackingOptions {
   // image motion between frames, and the error of a pose projected, grow with resolution.
   double search_radius_px = 15.0;  // Around the constant-velocity prediction (paper: 15 px).
   double refine_radius_px = 4.0;   // Around the RANSAC pose.
-  // Landmarks matched in the wide radius for RANSAC: the oldest of each part of the image, spread
-  // over it (0: all). RANSAC's pose is as good from a few hundred as from the thousands a window
-  // holds (KITTI), since the tight re-match takes every landmark, and the wide search is most of
-  // the tracking time. When RANSAC fails on the subset, all landmarks are tried. As localization
-  // does (PoseTrackerOptions::coarse_points).
-  int coarse_landmarks = 400;
   DescriptorMatchOptions matching;
   double max_error_px = 2.0;  // Inlier threshold of RANSAC and of the tracked landmarks.
   int min_inliers = 15;       // A pose needs this many RANSAC inliers.
@@ -65,10 +59,6 @@ class FrameTracker {
   // The last keyframe's landmarks matched to the frame's keypoints by descriptor alone.
   std::vector<LandmarkMatch> MatchWithoutPrediction(const SlamState& state,
                                                     const StereoFrame& frame) const;
-  // At most options_.coarse_landmarks of `landmarks` that project into the view at
-  // `cam_from_world`, spread over the image (all of them when there are no more).
-  std::vector<int> CoarseSubset(const SlamState& state, const Rigid3d& cam_from_world,
-                                const std::vector<int>& landmarks) const;
   std::vector<LandmarkMatch> Match(const SlamState& state, const StereoFrame& frame,
                                    const Rigid3d& cam_from_world, const std::vector<int>& landmarks,
                                    double radius_px, std::vector<int>* in_view = nullptr) const;

@@ -350,48 +350,6 @@ TEST(FrameTrackerTest, AFrameFarFromItsPredictionIsFoundByDescriptorsAlone) {
   EXPECT_LT(error_m, 0.05);
 }
 
-// RANSAC on a spread subset of the landmarks gives the pose all of them give (the tight
-// re-match takes every landmark either way), and a subset too small for RANSAC falls back to
-// all of them.
-TEST(FrameTrackerTest, ACoarseSubsetTracksAsAllLandmarksDoAndFallsBackToThem) {
-  const DriveScene scene(0.0);
-  const auto extractor = CreateFeatureExtractor(
-      FeatureSettingsForImage(DefaultFeatureSettings("harris_surf16"), 1241, 376));
-  const StereoMatchOptions options;
-  cv::Mat left, right;
-  scene.Render(0.0, &left, &right);
-  SlamState state;
-  AddKeyframe(&state, 0, BuildStereoFrame(left, right, *extractor, scene.rectifier(), options),
-              Rigid3d::Identity(), {});
-  scene.Render(0.6, &left, &right);
-  const StereoFrame frame = BuildStereoFrame(left, right, *extractor, scene.rectifier(), options);
-  const Camera& rect = scene.rectifier().rectified_camera();
-  const RectifiedIntrinsics intrinsics{rect.fx(), rect.cx(), rect.cy(),
-                                       scene.rectifier().baseline_m()};
-  const Rigid3d truth = scene.CamFromFirst(0.6);
-  // A constant-velocity prediction's error: 10 cm and half a degree.
-  const Rigid3d predicted =
-      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * M_PI / 180, Eigen::Vector3d::UnitY())),
-              Eigen::Vector3d(0.1, 0, 0)) *
-      truth;
-  const std::vector<int> landmarks = RecentLandmarks(state, 10);
-  ASSERT_GT(landmarks.size(), 1000u);
-  size_t all_tracked = 0;
-  for (int coarse_landmarks : {0, 150, 3}) {
-    TrackingOptions tracking;
-    tracking.coarse_landmarks = coarse_landmarks;
-    const FrameTracker tracker(tracking, ViewOf(scene.rectifier()), intrinsics, 8.0);
-    const TrackResult track = tracker.Track(state, frame, predicted, landmarks, 1);
-    ASSERT_TRUE(track.success) << coarse_landmarks;
-    const double error_m = (CameraCenter(track.cam_from_world) - CameraCenter(truth)).norm();
-    std::printf("coarse %d: %zu of %zu landmarks in view tracked, %.2f cm from the truth\n",
-                coarse_landmarks, track.tracked.size(), track.in_view.size(), 100 * error_m);
-    EXPECT_LT(error_m, 0.02) << coarse_landmarks;
-    if (coarse_landmarks == 0) all_tracked = track.tracked.size();
-    EXPECT_GT(track.tracked.size(), 0.95 * all_tracked) << coarse_landmarks;
-  }
-}
-
 class MapBuilderTest : public ::testing::TestWithParam<bool> {};
 
 // With and without lens distortion: rectification and raw-pixel observations must agree.
