@@ -110,6 +110,35 @@ TEST(LocalizationE2eTest, OffsetSquareIsLocalizedToCentimetres) {
   EXPECT_GT(std::stod(row[7]), 0.5);  // inlier ratio
 }
 
+// A robot whose camera is not the mapping rig's: the square walked with a 640x480 camera of the
+// same field of view, in the map made at 320x240. Its images are resampled to the map camera's
+// focal length before detection; described at their own pixels, the corners matched the map's
+// at other scales (56% inliers, 1.6 cm median and 10 cm max error over 150 frames).
+TEST(LocalizationE2eTest, ACameraOfAnotherResolutionTracksAsTheMapsOwnDoes) {
+  TempDir dir("visloc_localization_e2e");
+  const ProcessResult sim =
+      Visloc({"sim", "--out", dir.path(), "--sequence", "query_square", "--resolution", "640x480",
+              "--frames", "60", "--no-contact-sheet"});
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  const std::string sequence = dir.path() + "/query_square";
+  const ProcessResult localize =
+      Visloc({"localize", "--map", kData + "/map.db", "--dataset", sequence, "--trajectory",
+              dir.File("est.tum"), "--json"});
+  ASSERT_EQ(localize.exit_code, 0) << localize.err;
+  const ProcessResult eval = Visloc({"eval", "--gt", sequence + "/groundtruth_map.tum", "--est",
+                                     dir.File("est.tum"), "--json"});
+  ASSERT_EQ(eval.exit_code, 0) << eval.err;
+  const double median_m = JsonNumber(eval.out, "translation_m", "median");
+  const double max_m = JsonNumber(eval.out, "translation_m", "max");
+  const double inlier_ratio = JsonNumber(localize.out, "", "inlier_ratio_median");
+  std::printf("640x480 in the 320x240 map: median %.2f cm, max %.2f cm, inlier ratio %.2f\n",
+              100 * median_m, 100 * max_m, inlier_ratio);
+  EXPECT_EQ(JsonNumber(localize.out, "", "localized_fraction"), 1.0);
+  EXPECT_LT(median_m, 0.006);  // measured 0.32 cm over 150 frames
+  EXPECT_LT(max_m, 0.02);
+  EXPECT_GT(inlier_ratio, 0.8);
+}
+
 TEST(LocalizationE2eTest, StraightLineLeavingTheMap) {
   const LocalizeRun run = Localize("straight");
   EXPECT_GE(run.localized_fraction(), 0.95);

@@ -54,8 +54,7 @@ void LocalizerOptions::Check() const {
   VISLOC_CHECK(max_query_features >= 0 && max_relocalization_features >= 0,
                "keypoint counts: query ", max_query_features, ", relocalization ",
                max_relocalization_features);
-  VISLOC_CHECK(relocalization_resample_ratio >= 1.0, "relocalization resample ratio ",
-               relocalization_resample_ratio);
+  VISLOC_CHECK(resample_ratio >= 1.0, "query resample ratio ", resample_ratio);
 }
 
 std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const LocalizationMap& map,

@@ -79,13 +79,13 @@ struct LocalizerOptions {
   // below). Tracking keeps the cheaper query features: its prior finds the points by position.
   int max_relocalization_features = 0;
   // A query camera whose focal length differs from the map camera's by more than this factor
-  // (either way) has its image resampled to the map's focal length for relocalization. The
+  // (either way) has its images resampled to the map's focal length before detection. The
   // detector's scales are in pixels, so without it a corner the map described at one scale is
-  // described at another in the query, and appearance alone no longer finds it: a 640x480
-  // image against a map made at 320x240 (same field of view) matched half the points, and its
-  // bag of words ranked every keyframe alike (0.47-0.49), so the right place could miss the
-  // candidates. Tracking keeps the camera's own pixels: its prior finds points by position.
-  double relocalization_resample_ratio = 1.2;
+  // described at another in the query. A 640x480 camera in a map made at 320x240 (same field of
+  // view): relocalization matched half the points and its bag of words ranked every keyframe
+  // alike (0.47-0.49), so the right place could miss the candidates; tracking kept 56% of its
+  // matches as inliers (97% at 320x240) and was 1.6 cm off at the median (0.33 cm).
+  double resample_ratio = 1.2;
   void Check() const;
 };
 

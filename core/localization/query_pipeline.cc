@@ -47,35 +47,27 @@ QueryPipeline::QueryPipeline(std::shared_ptr<const LocalizationMap> map, const C
   relocalization_extractor_ = CreateFeatureExtractor(QueryFeatureSettings(
       map->map().features, options_.max_relocalization_features, /*finest_scale_only=*/false));
   const double focal_ratio = camera_.fx() / map->map().camera.fx();
-  if (std::max(focal_ratio, 1.0 / focal_ratio) > options_.relocalization_resample_ratio) {
-    relocalization_resample_ = focal_ratio;
+  if (std::max(focal_ratio, 1.0 / focal_ratio) > options_.resample_ratio) {
+    resample_ = focal_ratio;
   }
   tracker_ = std::make_unique<PoseTracker>(std::move(map), camera_, options_.tracker);
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
 }
 
-QueryFrame QueryPipeline::Extract(const cv::Mat& image, ExtractStats* stats,
-                                  double* undistort_ms) const {
+FeatureSet QueryPipeline::ExtractAtMapScale(const FeatureExtractor& extractor,
+                                            const cv::Mat& image, ExtractStats* stats) const {
   CheckImage(image, camera_);
-  FeatureSet features = extractor_->Extract(image, stats);
-  const Timer undistort;
-  QueryFrame frame(std::move(features), camera_);
-  if (undistort_ms) *undistort_ms = undistort.ElapsedMs();
-  return frame;
-}
-
-QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
-  CheckImage(image, camera_);
-  if (relocalization_resample_ == 1.0) {
-    return QueryFrame(relocalization_extractor_->Extract(image), camera_);
-  }
+  if (resample_ == 1.0) return extractor.Extract(image, stats);
+  const Timer timer;
   const cv::Size resampled_size(
-      std::max(1, static_cast<int>(std::lround(image.cols / relocalization_resample_))),
-      std::max(1, static_cast<int>(std::lround(image.rows / relocalization_resample_))));
+      std::max(1, static_cast<int>(std::lround(image.cols / resample_))),
+      std::max(1, static_cast<int>(std::lround(image.rows / resample_))));
   cv::Mat resampled;
   cv::resize(image, resampled, resampled_size, 0, 0,
-             relocalization_resample_ > 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
-  FeatureSet features = relocalization_extractor_->Extract(resampled);
+             resample_ > 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
+  const double resample_ms = timer.ElapsedMs();
+  FeatureSet features = extractor.Extract(resampled, stats);
+  if (stats) stats->detect_ms += resample_ms;
   // Back to the camera's pixels (pixel centres at integer coordinates in both images).
   const float sx = static_cast<float>(image.cols) / resampled_size.width;
   const float sy = static_cast<float>(image.rows) / resampled_size.height;
@@ -83,7 +75,20 @@ QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
     k.pixel = Eigen::Vector2f((k.pixel.x() + 0.5f) * sx - 0.5f, (k.pixel.y() + 0.5f) * sy - 0.5f);
     k.scale_px *= sx;
   }
-  return QueryFrame(std::move(features), camera_);
+  return features;
+}
+
+QueryFrame QueryPipeline::Extract(const cv::Mat& image, ExtractStats* stats,
+                                  double* undistort_ms) const {
+  FeatureSet features = ExtractAtMapScale(*extractor_, image, stats);
+  const Timer undistort;
+  QueryFrame frame(std::move(features), camera_);
+  if (undistort_ms) *undistort_ms = undistort.ElapsedMs();
+  return frame;
+}
+
+QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
+  return QueryFrame(ExtractAtMapScale(*relocalization_extractor_, image, nullptr), camera_);
 }
 
 RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {

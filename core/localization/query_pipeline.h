@@ -24,15 +24,14 @@ class QueryPipeline {
                 const LocalizerOptions& options);
 
   // Detects and describes the image's keypoints and undistorts them through the camera (that
-  // step's time in `undistort_ms`). Throws InputError for an image that is not 8-bit grey of
-  // the camera's size.
+  // step's time in `undistort_ms`). The image is resampled to the map camera's focal length
+  // when the two differ (LocalizerOptions::resample_ratio); the keypoints are in the camera's
+  // pixels either way. Throws InputError for an image that is not 8-bit grey of the camera's
+  // size.
   QueryFrame Extract(const cv::Mat& image, ExtractStats* stats = nullptr,
                      double* undistort_ms = nullptr) const;
   // The same with the relocalization features: all of the map's scales, more corners
-  // (LocalizerOptions::max_relocalization_features), detected and described on the image
-  // resampled to the map camera's focal length when the two differ
-  // (LocalizerOptions::relocalization_resample_ratio); the keypoints are in the camera's pixels.
-  // Throws as Extract does.
+  // (LocalizerOptions::max_relocalization_features). Throws as Extract does.
   QueryFrame ExtractForRelocalization(const cv::Mat& image) const;
   // Global relocalization of one image, with nothing known about where it was taken; `ms`
   // includes the feature extraction.
@@ -50,9 +49,14 @@ class QueryPipeline {
   std::unique_ptr<FeatureExtractor> relocalization_extractor_;
   std::unique_ptr<PoseTracker> tracker_;
   std::unique_ptr<Relocalizer> relocalizer_;
-  // Query pixels per map pixel at the same angle (the focal lengths' ratio) when relocalization
-  // resamples the image to the map's, else 1.
-  double relocalization_resample_ = 1.0;
+  // Query pixels per map pixel at the same angle (the focal lengths' ratio) when query images
+  // are resampled to the map's, else 1.
+  double resample_ = 1.0;
+
+  // `extractor` on the image, at the map camera's scale (resample_), keypoints in the camera's
+  // pixels; the resampling's time counts as detection.
+  FeatureSet ExtractAtMapScale(const FeatureExtractor& extractor, const cv::Mat& image,
+                               ExtractStats* stats) const;
 };
 
 }  // namespace visloc
