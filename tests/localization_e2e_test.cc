@@ -121,12 +121,11 @@ TEST(LocalizationE2eTest, ACameraOfAnotherResolutionTracksAsTheMapsOwnDoes) {
               "--frames", "60", "--no-contact-sheet"});
   ASSERT_EQ(sim.exit_code, 0) << sim.err;
   const std::string sequence = dir.path() + "/query_square";
-  const ProcessResult localize =
-      Visloc({"localize", "--map", kData + "/map.db", "--dataset", sequence, "--trajectory",
-              dir.File("est.tum"), "--json"});
+  const ProcessResult localize = Visloc({"localize", "--map", kData + "/map.db", "--dataset",
+                                         sequence, "--trajectory", dir.File("est.tum"), "--json"});
   ASSERT_EQ(localize.exit_code, 0) << localize.err;
-  const ProcessResult eval = Visloc({"eval", "--gt", sequence + "/groundtruth_map.tum", "--est",
-                                     dir.File("est.tum"), "--json"});
+  const ProcessResult eval = Visloc(
+      {"eval", "--gt", sequence + "/groundtruth_map.tum", "--est", dir.File("est.tum"), "--json"});
   ASSERT_EQ(eval.exit_code, 0) << eval.err;
   const double median_m = JsonNumber(eval.out, "translation_m", "median");
   const double max_m = JsonNumber(eval.out, "translation_m", "max");

@@ -54,14 +54,13 @@ QueryPipeline::QueryPipeline(std::shared_ptr<const LocalizationMap> map, const C
   relocalizer_ = std::make_unique<Relocalizer>(*tracker_, options_.relocalization);
 }
 
-FeatureSet QueryPipeline::ExtractAtMapScale(const FeatureExtractor& extractor,
-                                            const cv::Mat& image, ExtractStats* stats) const {
+FeatureSet QueryPipeline::ExtractAtMapScale(const FeatureExtractor& extractor, const cv::Mat& image,
+                                            ExtractStats* stats) const {
   CheckImage(image, camera_);
   if (resample_ == 1.0) return extractor.Extract(image, stats);
   const Timer timer;
-  const cv::Size resampled_size(
-      std::max(1, static_cast<int>(std::lround(image.cols / resample_))),
-      std::max(1, static_cast<int>(std::lround(image.rows / resample_))));
+  const cv::Size resampled_size(std::max(1, static_cast<int>(std::lround(image.cols / resample_))),
+                                std::max(1, static_cast<int>(std::lround(image.rows / resample_))));
   cv::Mat resampled;
   cv::resize(image, resampled, resampled_size, 0, 0,
              resample_ > 1.0 ? cv::INTER_AREA : cv::INTER_LINEAR);
