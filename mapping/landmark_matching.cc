@@ -8,41 +8,29 @@ RectifiedView ViewOf(const StereoRectifier& rectifier) {
   return {rectifier.rectified_camera(), Eigen::AlignedBox2d(low, low + size)};
 }
 
-std::vector<ProjectedLandmark> ProjectLandmarks(const SlamState& state, const RectifiedView& view,
-                                                const Rigid3d& cam_from_world,
-                                                const std::vector<int>& landmarks) {
-  std::vector<ProjectedLandmark> projected;
-  for (int l : landmarks) {
-    const Eigen::Vector3d p = cam_from_world * state.landmarks[l].position_in_world;
-    if (p.z() < 0.1) continue;  // Behind, or too close to project stably.
-    Eigen::Vector2d pixel;
-    if (!view.camera.Project(p, &pixel) || !view.region.contains(pixel)) continue;
-    projected.push_back({l, pixel});
-  }
-  return projected;
-}
-
 std::vector<LandmarkMatch> MatchLandmarks(const SlamState& state, const KeypointGrid& grid,
                                           const cv::Mat& descriptors, const RectifiedView& view,
                                           const Rigid3d& cam_from_world,
                                           const std::vector<int>& landmarks, double radius_px,
                                           const DescriptorMatchOptions& options,
                                           std::vector<int>* in_view) {
-  const std::vector<ProjectedLandmark> projected =
-      ProjectLandmarks(state, view, cam_from_world, landmarks);
-  if (in_view) {
-    in_view->clear();
-    for (const ProjectedLandmark& p : projected) in_view->push_back(p.landmark);
-  }
+  if (in_view) in_view->clear();
   std::vector<GuidedQuery> queries;
-  queries.reserve(projected.size());
-  for (const ProjectedLandmark& p : projected) {
-    const auto& [k, i] = state.landmarks[p.landmark].observations.back();
-    queries.push_back({&state.keyframes[k].features.descriptors, i, p.pixel});
+  std::vector<int> query_landmark;
+  for (int l : landmarks) {
+    const Landmark& landmark = state.landmarks[l];
+    const Eigen::Vector3d p = cam_from_world * landmark.position_in_world;
+    if (p.z() < 0.1) continue;  // Behind, or too close to project stably.
+    Eigen::Vector2d projected;
+    if (!view.camera.Project(p, &projected) || !view.region.contains(projected)) continue;
+    if (in_view) in_view->push_back(l);
+    const auto& [k, i] = landmark.observations.back();
+    queries.push_back({&state.keyframes[k].features.descriptors, i, projected});
+    query_landmark.push_back(l);
   }
   std::vector<LandmarkMatch> matches;
   for (const GuidedMatch& m : MatchGuided(queries, grid, descriptors, radius_px, options)) {
-    matches.push_back({projected[m.query].landmark, m.keypoint});
+    matches.push_back({query_landmark[m.query], m.keypoint});
   }
   return matches;
 }

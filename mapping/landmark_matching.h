@@ -30,16 +30,6 @@ struct RectifiedView {
 };
 RectifiedView ViewOf(const StereoRectifier& rectifier);
 
-struct ProjectedLandmark {
-  int landmark;
-  Eigen::Vector2d pixel;  // Rectified left image.
-};
-// The `landmarks` that lie in front of the view at `cam_from_world` and project into its region,
-// in their order.
-std::vector<ProjectedLandmark> ProjectLandmarks(const SlamState& state, const RectifiedView& view,
-                                                const Rigid3d& cam_from_world,
-                                                const std::vector<int>& landmarks);
-
 // `grid` holds the view's rectified keypoints and `descriptors` their descriptors. When
 // `in_view` is given, it receives the landmarks that project into the view's region.
 std::vector<LandmarkMatch> MatchLandmarks(const SlamState& state, const KeypointGrid& grid,
