@@ -278,10 +278,14 @@ TEST(HarrisSurf16Test, DescriptorsEqualTheirDefinitionInsideAndAtTheBorder) {
   const cv::Mat& image = Views().first;
   const HarrisSurf16Extractor extractor(HarrisSurf16Options{});
   std::vector<Keypoint> keypoints;
+  // Inside, across the border, and inside but within a few pixels of the left and right
+  // edges (where the larger wavelets' rows are computed in whole vectors moved off the edge).
   for (float scale : {1.2f, 2.0f, 3.2f}) {  // Wavelet half sizes 1, 2 and 3.
     for (const Eigen::Vector2f& pixel :
          {Eigen::Vector2f(100.3f, 80.6f), Eigen::Vector2f(200.5f, 150.5f),
-          Eigen::Vector2f(2.2f, 3.7f), Eigen::Vector2f(318.6f, 120.0f)}) {
+          Eigen::Vector2f(2.2f, 3.7f), Eigen::Vector2f(318.6f, 120.0f),
+          Eigen::Vector2f(297.0f, 100.0f), Eigen::Vector2f(306.0f, 60.0f),
+          Eigen::Vector2f(21.0f, 90.0f), Eigen::Vector2f(14.0f, 200.0f)}) {
       keypoints.push_back({pixel, scale, 1.0f});
     }
   }

@@ -711,12 +711,12 @@ struct DescriptorPattern {
   int half_haar = 1;  // Haar wavelet half size (the wavelet is 2 s wide, rounded to even).
   std::array<double, kSamplesPerSide> offsets{};
   std::array<float, kSamplesPerSide * kSamplesPerSide> weights{};
-  // The same for DescribeOneSmall's steps: for row sy and step i, sixteen lanes holding the
+  // The same for DescribeFromWords's steps: for row sy and step i, sixteen lanes holding the
   // weights of samples 2i, 2i + 1, 6 + 2i and 7 + 2i, four lanes each.
   std::array<float, kSamplesPerSide * 3 * 16> lane_weights{};
 };
 
-// The samples DescribeOneSmall takes at step i of a row: 2i and 2i + 1 of the left sub-region,
+// The samples DescribeFromWords takes at step i of a row: 2i and 2i + 1 of the left sub-region,
 // the same of the right one.
 constexpr std::array<int, 4> SmallStepSamples(int i) {
   return {2 * i, 2 * i + 1, 6 + 2 * i, 7 + 2 * i};
@@ -765,6 +765,9 @@ class BoxSums {
     return data_[y1 * stride_ + x1] - data_[y0 * stride_ + x1] - data_[y1 * stride_ + x0] +
            data_[y0 * stride_ + x0];
   }
+  // Row y of the integral image: entry x is the sum over [0, x) x [0, y).
+  const int* Row(int y) const { return data_ + y * stride_; }
+  int max_x() const { return max_x_; }  // The image's width: the last integral column.
   // True when [x0, x1) x [y0, y1) lies inside the image, so no coordinate needs clamping.
   bool Contains(int x0, int y0, int x1, int y1) const {
     return x0 >= 0 && y0 >= 0 && x1 <= max_x_ && y1 <= max_y_;
@@ -794,6 +797,19 @@ class BoxSums {
   int stride_ = 0, max_x_ = 0, max_y_ = 0;
 };
 
+// Row y of SmallHaar's table from image rows y - 1 (`above`) and y. Restricted: the pairs never
+// overlap the image (8-bit pointers may alias anything).
+VISLOC_SIMD_CLONES void SmallHaarRow(const uint8_t* __restrict above, const uint8_t* __restrict row,
+                                     int cols, int16_t* __restrict pairs) {
+  pairs[0] = pairs[1] = 0;
+  for (int x = 1; x < cols; ++x) {
+    // Pixels a b / c d around the sample point (x, y), which is d's top-left corner.
+    const int a = above[x - 1], b = above[x], c = row[x - 1], d = row[x];
+    pairs[2 * x] = static_cast<int16_t>((b + d) - (a + c));
+    pairs[2 * x + 1] = static_cast<int16_t>((c + d) - (a + b));
+  }
+}
+
 // Haar responses of the smallest wavelet (half size 1: 2x2 pixels) at every pixel, from the
 // image directly. The finest scale's samples (most of a query's) then read two values instead
 // of eight integral-image entries. The values are the integers BoxSums::HaarInside gives, so
@@ -804,7 +820,8 @@ class SmallHaar {
   explicit SmallHaar(const cv::Mat& grey) : pairs_(grey.size(), CV_16SC2) {
     pairs_.row(0).setTo(0);
     for (int y = 1; y < grey.rows; ++y) {
-      Row(grey.ptr<uint8_t>(y - 1), grey.ptr<uint8_t>(y), grey.cols, pairs_.ptr<int16_t>(y));
+      SmallHaarRow(grey.ptr<uint8_t>(y - 1), grey.ptr<uint8_t>(y), grey.cols,
+                   pairs_.ptr<int16_t>(y));
     }
   }
   // True when samples at x in [x0, x1] and y in [y0, y1] have their whole wavelet inside.
@@ -815,18 +832,6 @@ class SmallHaar {
   const int32_t* PairRow(int y) const { return pairs_.ptr<int32_t>(y); }
 
  private:
-  // Restricted: the pairs never overlap the image (8-bit pointers may alias anything).
-  static void Row(const uint8_t* __restrict above, const uint8_t* __restrict row, int cols,
-                  int16_t* __restrict pairs) {
-    pairs[0] = pairs[1] = 0;
-    for (int x = 1; x < cols; ++x) {
-      // Pixels a b / c d around the sample point (x, y), which is d's top-left corner.
-      const int a = above[x - 1], b = above[x], c = row[x - 1], d = row[x];
-      pairs[2 * x] = static_cast<int16_t>((b + d) - (a + c));
-      pairs[2 * x + 1] = static_cast<int16_t>((c + d) - (a + b));
-    }
-  }
-
   cv::Mat pairs_;
 };
 
@@ -891,18 +896,18 @@ inline void FourSamples(const int32_t* row, const int* x, Floats16* out) {
   *out = reinterpret_cast<Floats16>(reinterpret_cast<Ints16>(spread) & keep_sign);
 }
 
-// DescribeOne for the smallest wavelet, four samples at a time in sixteen lanes: per row of
-// the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of the
-// right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the lanes
-// are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each value
-// goes through DescribeOne's operations in its order, so the descriptor has the same bits.
-VISLOC_SIMD_CLONES void DescribeOneSmall(const DescriptorPattern& pattern,
-                                         const std::array<int, kSamplesPerSide>& xs,
-                                         const std::array<int, kSamplesPerSide>& ys,
-                                         const SmallHaar& small, float* descriptor) {
+// DescribeOne from wavelet responses given as words (dx | dy << 16, SmallHaar's layout): sample
+// (sx, sy) of the pattern is rows[sy][xs[sx]]. Four samples at a time in sixteen lanes: per row
+// of the pattern, step i (0 to 2) takes the samples 2i and 2i + 1 of the left sub-region and of
+// the right one, each sample's four values (dx, dy, |dx|, |dy|) in its own four lanes, so the
+// lanes are DescribeOne's four accumulators (left even, left odd, right even, right odd). Each
+// value goes through DescribeOne's operations in its order, so the descriptor has the same bits.
+VISLOC_SIMD_CLONES void DescribeFromWords(const DescriptorPattern& pattern,
+                                          const std::array<int, kSamplesPerSide>& xs,
+                                          const int32_t* const* rows, float* descriptor) {
   std::array<float, 16> sums{};
   for (int sy = 0; sy < kSamplesPerSide; ++sy) {
-    const int32_t* row = small.PairRow(ys[sy]);
+    const int32_t* row = rows[sy];
     Floats16 acc = {};
     for (int i = 0; i < 3; ++i) {
       const std::array<int, 4> sx = SmallStepSamples(i);
@@ -922,6 +927,58 @@ VISLOC_SIMD_CLONES void DescribeOneSmall(const DescriptorPattern& pattern,
     std::memcpy(cells, &both, sizeof both);
   }
   Normalize(sums, descriptor);
+}
+
+// Larger wavelets (half size 2 and up) are computed from the integral image a row of the pattern
+// at a time: the samples of a row lie s apart and their wavelets 2 half wide overlap, so the
+// responses at every column of the row's span (11 s + 1 columns) cost fewer reads than eight
+// per sample, and the loop over consecutive columns vectorizes. Within these bounds a response
+// fits the words' 16 bits (at most 2 half^2 255) and the span the scratch rows.
+constexpr int kMaxSpanHalf = 8;
+constexpr int kMaxSpan = 64;
+
+// The words of BoxSums::HaarInside's responses of half size `half` at columns x0 ... x0 + span -
+// 1 of each pattern row ys[sy], into row sy of `words` (kMaxSpan apart): the same integers.
+VISLOC_SIMD_CLONES void HaarWordsOfRows(const BoxSums& boxes,
+                                        const std::array<int, kSamplesPerSide>& ys, int half,
+                                        int x0, int span, int32_t* __restrict words) {
+  for (int sy = 0; sy < kSamplesPerSide; ++sy) {
+    const int* __restrict top = boxes.Row(ys[sy] - half) + x0;
+    const int* __restrict mid = boxes.Row(ys[sy]) + x0;
+    const int* __restrict bottom = boxes.Row(ys[sy] + half) + x0;
+    int32_t* __restrict out = words + sy * kMaxSpan;
+    for (int i = 0; i < span; ++i) {
+      const int dx = bottom[i + half] - top[i + half] + bottom[i - half] - top[i - half] -
+                     2 * (bottom[i] - top[i]);
+      const int dy = bottom[i + half] + top[i + half] - bottom[i - half] - top[i - half] -
+                     2 * (mid[i + half] - mid[i - half]);
+      out[i] = static_cast<int32_t>((static_cast<uint32_t>(dx) & 0xffffu) |
+                                    (static_cast<uint32_t>(dy) << 16));
+    }
+  }
+}
+
+// DescribeOne with BoxSums::HaarInside's responses (the window inside the image), through
+// HaarWordsOfRows and DescribeFromWords; false, describing nothing, beyond their bounds.
+bool DescribeOneFromRows(const DescriptorPattern& pattern,
+                         const std::array<int, kSamplesPerSide>& xs,
+                         const std::array<int, kSamplesPerSide>& ys, const BoxSums& boxes,
+                         float* descriptor) {
+  const int half = pattern.half_haar, span = xs.back() - xs.front() + 1;
+  if (half > kMaxSpanHalf || span > kMaxSpan) return false;
+  // Whole vectors of columns (the loop then has no scalar remainder), moved left where they
+  // would pass the image's right edge.
+  const int padded = (span + 15) / 16 * 16;
+  const int x0 = std::max(half, std::min(xs.front(), boxes.max_x() - half - padded + 1));
+  const int columns_computed = std::min(padded, boxes.max_x() - half - x0 + 1);
+  std::array<int32_t, kSamplesPerSide * kMaxSpan> words;
+  HaarWordsOfRows(boxes, ys, half, x0, columns_computed, words.data());
+  std::array<const int32_t*, kSamplesPerSide> rows;
+  for (int sy = 0; sy < kSamplesPerSide; ++sy) rows[sy] = &words[sy * kMaxSpan];
+  std::array<int, kSamplesPerSide> columns;
+  for (int sx = 0; sx < kSamplesPerSide; ++sx) columns[sx] = xs[sx] - x0;
+  DescribeFromWords(pattern, columns, rows.data(), descriptor);
+  return true;
 }
 
 }  // namespace
@@ -951,12 +1008,15 @@ cv::Mat HarrisSurf16Extractor::Describe(const cv::Mat& grey,
     if (half == 1) {
       if (!small) small.emplace(grey);
       if (small->Contains(xs.front(), ys.front(), xs.back(), ys.back())) {
-        DescribeOneSmall(*pattern, xs, ys, *small, d);
+        std::array<const int32_t*, kSamplesPerSide> rows;
+        for (int sy = 0; sy < kSamplesPerSide; ++sy) rows[sy] = small->PairRow(ys[sy]);
+        DescribeFromWords(*pattern, xs, rows.data(), d);
         continue;
       }
     }
     if (!boxes) boxes.emplace(grey);
     if (boxes->Contains(xs.front() - half, ys.front() - half, xs.back() + half, ys.back() + half)) {
+      if (DescribeOneFromRows(*pattern, xs, ys, *boxes, d)) continue;
       DescribeOne(
           *pattern, xs, ys,
           [&](int x, int y, float* dx, float* dy) { boxes->HaarInside(x, y, half, dx, dy); }, d);
