@@ -69,7 +69,7 @@ struct StepTimings {
 };
 
 struct FrameStats {
-  int features = 0;
+  int features = 0;  // Tracking's (none when the frame went straight to relocalization).
   int predicted = 0;
   int putatives = 0;
   int inliers = 0;
@@ -139,7 +139,9 @@ class Localizer {
   QueryFrame Extract(const cv::Mat& image, FrameStats* stats) const;
   // The motion since the last frame, applied to the filter and to a held fix.
   Motion Predict(const FrameInput& input);
-  // 3. Guided tracking from the filter's pose (or from an external hint when there is none).
+  // The pose to track from: the filter's, or the frame's external hint when the filter has none.
+  std::optional<Rigid3d> Prior(const FrameInput& input) const;
+  // 3. Guided tracking from Prior.
   bool TrackFromPrior(const QueryFrame& frame, const FrameInput& input, const Motion& motion,
                       LocalizationResult* result);
   // A fix held since the last frame (a jump, or a weakly supported relocalization), confirmed
