@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/estimators/inlier_counter.h"
 #include "core/estimators/p3p.h"
 #include "core/util/check.h"
 #include "core/util/random.h"
@@ -50,6 +51,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
   const int n = static_cast<int>(observations.size());
   if (n < std::max(4, options.min_inliers)) return result;
   Rng rng(options.seed);
+  const InlierCounter counter(observations, options.refine);
   int best_inliers = 0;
   Rigid3d best_pose;
   int needed = options.max_iterations;
@@ -68,7 +70,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
                                                      observations[picks[1]].normalized,
                                                      observations[picks[2]].normalized};
     for (const Rigid3d& candidate : SolveP3P(points, bearings)) {
-      const int inliers = CountInliers(candidate, observations, options, nullptr);
+      const int inliers = counter.Count(candidate, options.max_error_px);
       if (inliers > best_inliers) {
         best_inliers = inliers;
         best_pose = candidate;

@@ -1,0 +1,33 @@
+#pragma once
+// Counting a pose hypothesis's inliers, the inner loop of PnP RANSAC: every hypothesis is scored
+// against every observation, so on a frame whose matches hold no pose (a lost robot's, where
+// RANSAC runs its whole budget) this is most of relocalization's time.
+
+#include <vector>
+
+#include "core/estimators/pose_refinement.h"
+#include "core/geometry/rigid3.h"
+
+namespace visloc {
+
+class InlierCounter {
+ public:
+  // Copies the observations by field (one array per coordinate) so that eight are scored at a
+  // time; `options` gives the focal length, the baseline and the disparity weight.
+  InlierCounter(const std::vector<PoseObservation>& observations, const PoseRefineOptions& options);
+
+  // The observations whose PoseProjector::SquaredErrorPx under `cam_from_world` is at most
+  // `max_error_px` squared, counted with its operations in its order: the same count, to the
+  // last rounding.
+  int Count(const Rigid3d& cam_from_world, double max_error_px) const;
+
+ private:
+  std::vector<double> x_, y_, z_;     // Points in the world frame.
+  std::vector<double> nx_, ny_;       // Normalized left observations.
+  std::vector<double> scale_sq_;      // pixel_scale squared.
+  std::vector<double> disparity_;     // nx - right_x_normalized.
+  std::vector<long long> has_right_;  // All bits set where there is a right observation.
+  double focal_sq_, baseline_m_, disparity_weight_;
+};
+
+}  // namespace visloc
