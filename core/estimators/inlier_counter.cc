@@ -1,7 +1,7 @@
 #include "core/estimators/inlier_counter.h"
 
-#include <algorithm>
 #include <cstring>
+#include <limits>
 
 #include "core/util/cpu_dispatch.h"
 
@@ -20,24 +20,22 @@ struct CountInput {
   const double* scale_sq = nullptr;
   const double* disparity = nullptr;
   const long long* has_right = nullptr;
-  int n = 0;
+  int n = 0;                    // A multiple of kLanes.
   double r[9] = {}, t[3] = {};  // Row-major rotation and translation of cam_from_world.
   double focal_sq = 0, baseline_m = 0, disparity_weight = 0, threshold_sq = 0;
 };
 
 inline void Load(const double* p, Doubles8* v) { std::memcpy(v, p, sizeof *v); }
 
-// The observations within the threshold: PoseProjector::SquaredErrorPx, eight observations at
-// a time, each lane with the scalar's
-// operations in the scalar's order: Eigen's 3x3 product (as the library is compiled, SSE2)
-// sums the first two rows left to right and the third as r6 x + (r7 y + r8 z), then adds the
-// translation (inlier_counter_test.cc holds it to that); nothing is contracted into fused
-// multiply-adds (CMakeLists.txt). (Inputs by reference: vector arguments differ between the
-// clones' conventions.)
+// The observations within the threshold: PoseProjector::SquaredErrorPx eight observations at
+// a time, each lane with its operations in its order. Eigen's 3x3 product (as the library is
+// compiled, SSE2) sums the first two rows left to right and the third as r6 x + (r7 y + r8 z),
+// then adds the translation (inlier_counter_test.cc holds it to that); nothing is contracted
+// into fused multiply-adds (CMakeLists.txt). (Inputs by reference: vector arguments differ
+// between the clones' conventions.)
 VISLOC_SIMD_CLONES int CountLanes(const CountInput& in) {
   long long count = 0;
-  int j = 0;
-  for (; j + kLanes <= in.n; j += kLanes) {
+  for (int j = 0; j < in.n; j += kLanes) {
     Doubles8 x, y, z, nx, ny, scale_sq, disparity;
     Load(in.x + j, &x);
     Load(in.y + j, &y);
@@ -64,21 +62,6 @@ VISLOC_SIMD_CLONES int CountLanes(const CountInput& in) {
     // case, and an eight-lane sum of them cost more than the arithmetic (BM_PnpRansac).
     for (int l = 0; l < kLanes; ++l) count += (pz[l] > 1e-6) & (scaled[l] <= in.threshold_sq);
   }
-  // The remainder, as PoseProjector::SquaredErrorPx writes it.
-  for (; j < in.n; ++j) {
-    const double px = ((in.r[0] * in.x[j] + in.r[1] * in.y[j]) + in.r[2] * in.z[j]) + in.t[0];
-    const double py = ((in.r[3] * in.x[j] + in.r[4] * in.y[j]) + in.r[5] * in.z[j]) + in.t[1];
-    const double pz = (in.r[6] * in.x[j] + (in.r[7] * in.y[j] + in.r[8] * in.z[j])) + in.t[2];
-    if (pz <= 1e-6) continue;
-    const double iz = 1.0 / pz;
-    const double ex = px * iz - in.nx[j], ey = py * iz - in.ny[j];
-    double squared = (ex * ex + ey * ey) * in.scale_sq[j];
-    if (in.has_right[j]) {
-      const double ed = in.disparity_weight * (in.baseline_m * iz - in.disparity[j]);
-      squared = std::max(squared, ed * ed);
-    }
-    count += squared * in.focal_sq <= in.threshold_sq;
-  }
   return static_cast<int>(count);
 }
 
@@ -98,6 +81,15 @@ InlierCounter::InlierCounter(const std::vector<PoseObservation>& observations,
     scale_sq_.push_back(o.pixel_scale * o.pixel_scale);
     disparity_.push_back(o.has_right ? o.normalized.x() - o.right_x_normalized : 0.0);
     has_right_.push_back(o.has_right ? -1 : 0);
+  }
+  // Whole vectors: padding points at NaN are behind no camera and in front of none (every
+  // comparison with NaN is false), so they are never counted.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  while (x_.size() % kLanes != 0) {
+    for (std::vector<double>* column : {&x_, &y_, &z_, &nx_, &ny_, &scale_sq_, &disparity_}) {
+      column->push_back(nan);
+    }
+    has_right_.push_back(0);
   }
 }
 
