@@ -1,7 +1,7 @@
 #pragma once
 // Counting a pose hypothesis's inliers, the inner loop of PnP RANSAC: every hypothesis is scored
 // against every observation, so on a frame whose matches hold no pose (a lost robot's, where
-// RANSAC runs its whole budget) this is most of relocalization's time.
+// RANSAC runs its whole budget) this was the largest part of relocalization's time.
 
 #include <vector>
 

@@ -256,8 +256,8 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   const bool had_held_fix = pending_.has_value();
   const Motion motion = Predict(input);
   // The tracking features only when there is a pose to track from: a robot that is lost or not
-  // yet found goes straight to relocalization, which extracts its own (a quarter of its time
-  // at 752x480 was the tracking features, unused).
+  // yet found goes straight to relocalization, which extracts its own (at 752x480 the tracking
+  // features were half a millisecond of such a frame, unused).
   std::optional<QueryFrame> frame;
   if (Prior(input) || had_held_fix) frame.emplace(Extract(input.image, &result.stats));
   const bool taken = (frame && TrackFromPrior(*frame, input, motion, &result)) ||
