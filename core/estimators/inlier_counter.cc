@@ -72,38 +72,37 @@ InlierCounter::InlierCounter(const std::vector<PoseObservation>& observations,
     : focal_sq_(options.focal_px * options.focal_px),
       baseline_m_(options.baseline_m),
       disparity_weight_(options.disparity_weight) {
-  for (const PoseObservation& o : observations) {
-    x_.push_back(o.point_in_world.x());
-    y_.push_back(o.point_in_world.y());
-    z_.push_back(o.point_in_world.z());
-    nx_.push_back(o.normalized.x());
-    ny_.push_back(o.normalized.y());
-    scale_sq_.push_back(o.pixel_scale * o.pixel_scale);
-    disparity_.push_back(o.has_right ? o.normalized.x() - o.right_x_normalized : 0.0);
-    has_right_.push_back(o.has_right ? -1 : 0);
-  }
+  const int n = static_cast<int>(observations.size());
+  padded_ = (n + kLanes - 1) / kLanes * kLanes;
   // Whole vectors: padding points at NaN are behind no camera and in front of none (every
   // comparison with NaN is false), so they are never counted.
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  while (x_.size() % kLanes != 0) {
-    for (std::vector<double>* column : {&x_, &y_, &z_, &nx_, &ny_, &scale_sq_, &disparity_}) {
-      column->push_back(nan);
-    }
-    has_right_.push_back(0);
+  columns_.assign(kColumns * static_cast<size_t>(padded_),
+                  std::numeric_limits<double>::quiet_NaN());
+  has_right_.assign(padded_, 0);
+  for (int i = 0; i < n; ++i) {
+    const PoseObservation& o = observations[i];
+    column(kX)[i] = o.point_in_world.x();
+    column(kY)[i] = o.point_in_world.y();
+    column(kZ)[i] = o.point_in_world.z();
+    column(kNx)[i] = o.normalized.x();
+    column(kNy)[i] = o.normalized.y();
+    column(kScaleSq)[i] = o.pixel_scale * o.pixel_scale;
+    column(kDisparity)[i] = o.has_right ? o.normalized.x() - o.right_x_normalized : 0.0;
+    has_right_[i] = o.has_right ? -1 : 0;
   }
 }
 
 int InlierCounter::Count(const Rigid3d& cam_from_world, double max_error_px) const {
   CountInput in;
-  in.x = x_.data();
-  in.y = y_.data();
-  in.z = z_.data();
-  in.nx = nx_.data();
-  in.ny = ny_.data();
-  in.scale_sq = scale_sq_.data();
-  in.disparity = disparity_.data();
+  in.x = column(kX);
+  in.y = column(kY);
+  in.z = column(kZ);
+  in.nx = column(kNx);
+  in.ny = column(kNy);
+  in.scale_sq = column(kScaleSq);
+  in.disparity = column(kDisparity);
   in.has_right = has_right_.data();
-  in.n = static_cast<int>(x_.size());
+  in.n = padded_;
   const Eigen::Matrix3d rotation = cam_from_world.rotation.toRotationMatrix();
   for (int row = 0; row < 3; ++row) {
     for (int col = 0; col < 3; ++col) in.r[3 * row + col] = rotation(row, col);

@@ -22,10 +22,15 @@ class InlierCounter {
   int Count(const Rigid3d& cam_from_world, double max_error_px) const;
 
  private:
-  std::vector<double> x_, y_, z_;     // Points in the world frame.
-  std::vector<double> nx_, ny_;       // Normalized left observations.
-  std::vector<double> scale_sq_;      // pixel_scale squared.
-  std::vector<double> disparity_;     // nx - right_x_normalized.
+  // The fields, one after the other in one allocation (a counter is built per RANSAC call, on
+  // every tracked frame), each `padded_` long.
+  enum Column { kX, kY, kZ, kNx, kNy, kScaleSq, kDisparity, kColumns };
+  const double* column(Column c) const { return &columns_[c * static_cast<size_t>(padded_)]; }
+  double* column(Column c) { return &columns_[c * static_cast<size_t>(padded_)]; }
+
+  int padded_ = 0;                    // The observations' count rounded up to whole vectors.
+  std::vector<double> columns_;       // World point x y z, normalized left x y, pixel_scale
+                                      // squared, disparity (nx - right_x_normalized).
   std::vector<long long> has_right_;  // All bits set where there is a right observation.
   double focal_sq_, baseline_m_, disparity_weight_;
 };

@@ -89,6 +89,9 @@ TEST(LocalizerTest, OptionsAreChecked) {
   options.min_tracking_inliers = 5;  // Below the limited threshold.
   EXPECT_THROW(Localizer(map, map->map().camera, options), CheckError);
   options = LocalizerOptions{};
+  options.resample_ratio = 0.9;  // Would resample a camera of the map's own focal length.
+  EXPECT_THROW(Localizer(map, map->map().camera, options), CheckError);
+  options = LocalizerOptions{};
   options.motion.plane_sigma_m = 0.02;  // The synthetic keyframes lie on a circle: a plane.
   EXPECT_NO_THROW(Localizer(map, map->map().camera, options));
 }
