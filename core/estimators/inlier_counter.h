@@ -23,10 +23,13 @@ class InlierCounter {
 
  private:
   // The fields, one after the other in one allocation (a counter is built per RANSAC call, on
-  // every tracked frame), each `padded_` long.
+  // every tracked frame), each `padded_` long. Through data(): with no observations there is no
+  // element to index.
   enum Column { kX, kY, kZ, kNx, kNy, kScaleSq, kDisparity, kColumns };
-  const double* column(Column c) const { return &columns_[c * static_cast<size_t>(padded_)]; }
-  double* column(Column c) { return &columns_[c * static_cast<size_t>(padded_)]; }
+  const double* column(Column c) const {
+    return columns_.data() + c * static_cast<size_t>(padded_);
+  }
+  double* column(Column c) { return columns_.data() + c * static_cast<size_t>(padded_); }
 
   int padded_ = 0;                    // The observations' count rounded up to whole vectors.
   std::vector<double> columns_;       // World point x y z, normalized left x y, pixel_scale
