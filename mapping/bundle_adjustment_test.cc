@@ -35,8 +35,8 @@ SlamState WithLandmarksSeenOnce() {
   SlamState state;
   for (int k = 0; k < 4; ++k) {
     SlamKeyframe keyframe;
-    keyframe.cam_from_world = Rigid3d(Eigen::Quaterniond::Identity(),
-                                      Eigen::Vector3d(0.01 * (k > 0), 0.0, -0.3 * k));
+    keyframe.cam_from_world =
+        Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.01 * (k > 0), 0.0, -0.3 * k));
     state.keyframes.push_back(keyframe);
   }
   for (int l = 0; l < 110; ++l) {
@@ -90,8 +90,9 @@ TEST(BundleAdjustmentTest, ALandmarkSeenOnceChangesNothingAndEndsOnItsObservatio
       EXPECT_EQ(with.landmarks[l].position_in_world, without.landmarks[l].position_in_world);
     }
     // The moved keyframes moved the landmarks they alone see with them, onto their observations.
-    EXPECT_GT((with.keyframes[1].cam_from_world.translation - Eigen::Vector3d(0.01, 0, -0.3)).norm(),
-              1e-3);
+    EXPECT_GT(
+        (with.keyframes[1].cam_from_world.translation - Eigen::Vector3d(0.01, 0, -0.3)).norm(),
+        1e-3);
     for (int l = 80; l < 110; ++l) {
       ASSERT_EQ(with.landmarks[l].observations.size(), 1u) << "landmark " << l << " was culled";
       const auto [k, i] = with.landmarks[l].observations[0];
