@@ -147,7 +147,27 @@ VISLOC_SIMD_CLONES int ColumnArgMin(const float* query, const float* columns, in
   return best;
 }
 
+// Float16Columns::SquaredDistances: whole vectors while sixteen columns from j lie within the
+// array (the lanes past the range are computed and dropped), then one at a time.
+VISLOC_SIMD_CLONES void ColumnSquaredDistances(const float* query, const float* columns, int count,
+                                               int first, int n, float* out) {
+  int j = first;
+  for (; j < first + n && j + kLanes <= count; j += kLanes) {
+    Floats16 squared;
+    SquaredDistancesOfLanes(query, columns, count, j, &squared);
+    const int lanes = std::min(kLanes, first + n - j);
+    for (int l = 0; l < lanes; ++l) out[j - first + l] = squared[l];
+  }
+  for (; j < first + n; ++j) out[j - first] = SquaredDistance(query, columns, count, j);
+}
+
 }  // namespace
+
+void Float16Columns::SquaredDistances(const float* query, int first, int n, float* out) const {
+  VISLOC_CHECK(first >= 0 && n >= 0 && first + n <= count_, "descriptor range ", first, " + ", n,
+               " of ", count_);
+  ColumnSquaredDistances(query, columns_.data(), count_, first, n, out);
+}
 
 int Float16Columns::NearestOf(const float* query, int first, int count) const {
   VISLOC_CHECK(first >= 0 && count >= 0 && first + count <= count_, "descriptor range ", first,

@@ -57,6 +57,10 @@ class Float16Columns {
   // distances, each distance DescriptorDistance's bit for bit (vocabulary lookups: a node's
   // children are consecutive rows); -1 when count is 0.
   int NearestOf(const float* query, int first, int count) const;
+  // The squared distances of `query` to descriptors [first, first + n) into out[0, n): the
+  // value DescriptorDistance takes the root of, bit for bit, sixteen at a time (guided matching
+  // offers a keypoint's neighbours in runs of consecutive descriptors).
+  void SquaredDistances(const float* query, int first, int n, float* out) const;
 
  private:
   int count_ = 0;

@@ -1,6 +1,8 @@
 #include "core/features/descriptor_matching.h"
 
+#include <cmath>
 #include <limits>
+#include <optional>
 
 #include "core/features/descriptor.h"
 #include "core/util/check.h"
@@ -9,8 +11,8 @@ namespace visloc {
 
 KeypointGrid::KeypointGrid(std::vector<Eigen::Vector2f> pixels, int width, int height, int cell_px)
     : pixels_(std::move(pixels)), cell_px_(cell_px) {
-  VISLOC_CHECK(cell_px > 0 && width > 0 && height > 0, "grid cell ", cell_px, " image ", width,
-               "x", height);
+  VISLOC_CHECK(cell_px > 0 && width > 0 && height > 0, "grid cell ", cell_px, " image ", width, "x",
+               height);
   cols_ = width / cell_px_ + 1;
   rows_ = height / cell_px_ + 1;
   const int n = static_cast<int>(pixels_.size());
@@ -29,21 +31,75 @@ KeypointGrid::KeypointGrid(std::vector<Eigen::Vector2f> pixels, int width, int h
   for (int i = 0; i < n; ++i) cell_items_[fill[cell_of[i]]++] = i;
 }
 
+namespace {
+
+// The keypoints' 16-float descriptors in the grid's cell order, as columns, so that the
+// neighbours of a prediction (a few runs of consecutive positions, ForEachRunNear) are measured
+// sixteen at a time. A run also holds keypoints of its cells outside the disc: they are
+// measured and not offered.
+class GuidedColumns {
+ public:
+  // The columns when the descriptors are 16 floats on both sides, else none.
+  static std::optional<GuidedColumns> For(const std::vector<GuidedQuery>& queries,
+                                          const KeypointGrid& grid, const cv::Mat& descriptors) {
+    if (descriptors.type() != CV_32F || descriptors.cols != 16 || grid.size() == 0) return {};
+    for (const GuidedQuery& query : queries) {
+      VISLOC_CHECK(query.descriptors->type() == CV_32F && query.descriptors->cols == 16,
+                   "guided matching: query and keypoint descriptors differ in type or width");
+    }
+    const std::vector<int>& order = grid.cell_order();
+    return GuidedColumns(Float16Columns(descriptors, {order.begin(), order.end()}));
+  }
+
+  // Offers `query` the keypoints within `radius_px` of its prediction in ForEachWithin's order,
+  // each at its squared distance, and leaves `nearest` with the roots: as offering
+  // DescriptorDistance itself would (Float16Columns::Nearest says why squares choose the same).
+  void Offer(const GuidedQuery& query, const KeypointGrid& grid, double radius_px,
+             std::vector<float>* squared, NearestTwo* nearest) const {
+    const float* row = query.descriptors->ptr<float>(query.row);
+    const std::vector<int>& order = grid.cell_order();
+    grid.ForEachRunNear(query.pixel, radius_px, [&](int begin, int end) {
+      squared->resize(end - begin);
+      columns_.SquaredDistances(row, begin, end - begin, squared->data());
+      for (int j = begin; j < end; ++j) {
+        if (grid.Within(order[j], query.pixel, radius_px)) {
+          nearest->Offer((*squared)[j - begin], order[j]);
+        }
+      }
+    });
+    constexpr float kNone = std::numeric_limits<float>::max();
+    if (nearest->best < kNone) nearest->best = std::sqrt(nearest->best);
+    if (nearest->second < kNone) nearest->second = std::sqrt(nearest->second);
+  }
+
+ private:
+  explicit GuidedColumns(Float16Columns columns) : columns_(std::move(columns)) {}
+  Float16Columns columns_;
+};
+
+}  // namespace
+
 std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
-                                     const KeypointGrid& grid,
-                                     const cv::Mat& keypoint_descriptors, double radius_px,
-                                     const DescriptorMatchOptions& options) {
-  const float max_distance = options.MaxDistance(keypoint_descriptors.type() == CV_8U
-                                                     ? DescriptorType::kBinary
-                                                     : DescriptorType::kFloat32);
+                                     const KeypointGrid& grid, const cv::Mat& keypoint_descriptors,
+                                     double radius_px, const DescriptorMatchOptions& options) {
+  const float max_distance = options.MaxDistance(
+      keypoint_descriptors.type() == CV_8U ? DescriptorType::kBinary : DescriptorType::kFloat32);
   // Per keypoint, the closest query that claimed it.
   std::vector<GuidedMatch> claims(grid.size(), {-1, 0, std::numeric_limits<float>::max()});
+  const std::optional<GuidedColumns> columns =
+      GuidedColumns::For(queries, grid, keypoint_descriptors);
+  std::vector<float> squared;
   for (int q = 0; q < static_cast<int>(queries.size()); ++q) {
     const GuidedQuery& query = queries[q];
     NearestTwo nearest;
-    grid.ForEachWithin(query.pixel, radius_px, [&](int i) {
-      nearest.Offer(DescriptorDistance(*query.descriptors, query.row, keypoint_descriptors, i), i);
-    });
+    if (columns) {
+      columns->Offer(query, grid, radius_px, &squared, &nearest);
+    } else {
+      grid.ForEachWithin(query.pixel, radius_px, [&](int i) {
+        nearest.Offer(DescriptorDistance(*query.descriptors, query.row, keypoint_descriptors, i),
+                      i);
+      });
+    }
     if (!nearest.Distinctive(options.ratio, max_distance)) continue;
     GuidedMatch& claim = claims[nearest.best_index];
     if (nearest.best < claim.distance) claim = {q, nearest.best_index, nearest.best};

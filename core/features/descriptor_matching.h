@@ -29,9 +29,24 @@ class KeypointGrid {
   size_t size() const { return pixels_.size(); }
   const Eigen::Vector2f& pixel(int i) const { return pixels_[i]; }
 
-  // Calls visit(i) for every keypoint within `radius_px` of `center_px`.
+  // Calls visit(i) for every keypoint within `radius_px` of `center_px`, in cell order (cells
+  // row by row, a cell's keypoints by index).
   template <typename Visit>
   void ForEachWithin(const Eigen::Vector2d& center_px, double radius_px, Visit&& visit) const;
+
+  // The keypoints in cell order: keypoint cell_order()[j] is the j-th.
+  const std::vector<int>& cell_order() const { return cell_items_; }
+  // Calls visit(begin, end) for each row of cells the disc of `radius_px` around `center_px`
+  // touches: the keypoints of that row's cells under the disc are positions [begin, end) of
+  // cell_order(), consecutive. They include keypoints outside the disc (Within tells).
+  template <typename VisitRun>
+  void ForEachRunNear(const Eigen::Vector2d& center_px, double radius_px, VisitRun&& visit) const;
+  // Whether keypoint i lies within `radius_px` of `center_px` (ForEachWithin's test).
+  bool Within(int i, const Eigen::Vector2d& center_px, double radius_px) const {
+    const float dx = pixels_[i].x() - static_cast<float>(center_px.x());
+    const float dy = pixels_[i].y() - static_cast<float>(center_px.y());
+    return dx * dx + dy * dy <= static_cast<float>(radius_px * radius_px);
+  }
 
  private:
   std::vector<Eigen::Vector2f> pixels_;
@@ -59,36 +74,36 @@ struct GuidedMatch {
 // predicted pixel. Results are ordered by keypoint. Query and keypoint descriptors must be of
 // the same type and width.
 std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
-                                     const KeypointGrid& grid,
-                                     const cv::Mat& keypoint_descriptors, double radius_px,
-                                     const DescriptorMatchOptions& options);
+                                     const KeypointGrid& grid, const cv::Mat& keypoint_descriptors,
+                                     double radius_px, const DescriptorMatchOptions& options);
 
 // Pairs (a, b) of rows of `a` and `b` that are each other's nearest neighbour and pass
 // DescriptorMatchOptions in both directions. Brute force: for diagnostics, not per-frame work.
 std::vector<std::pair<int, int>> MatchMutualNearest(const cv::Mat& a, const cv::Mat& b,
                                                     const DescriptorMatchOptions& options);
 
-template <typename Visit>
-void KeypointGrid::ForEachWithin(const Eigen::Vector2d& center_px, double radius_px,
-                                 Visit&& visit) const {
+template <typename VisitRun>
+void KeypointGrid::ForEachRunNear(const Eigen::Vector2d& center_px, double radius_px,
+                                  VisitRun&& visit) const {
   if (cols_ == 0) return;
   const int x0 = std::max(0, static_cast<int>((center_px.x() - radius_px) / cell_px_));
   const int x1 = std::min(cols_ - 1, static_cast<int>((center_px.x() + radius_px) / cell_px_));
   const int y0 = std::max(0, static_cast<int>((center_px.y() - radius_px) / cell_px_));
   const int y1 = std::min(rows_ - 1, static_cast<int>((center_px.y() + radius_px) / cell_px_));
-  const float cx = static_cast<float>(center_px.x()), cy = static_cast<float>(center_px.y());
-  const float r2 = static_cast<float>(radius_px * radius_px);
-  for (int y = y0; y <= y1; ++y) {
-    for (int x = x0; x <= x1; ++x) {
-      const int cell = y * cols_ + x;
-      for (int j = cell_start_[cell]; j < cell_start_[cell + 1]; ++j) {
-        const int i = cell_items_[j];
-        const Eigen::Vector2f& p = pixels_[i];
-        const float dx = p.x() - cx, dy = p.y() - cy;
-        if (dx * dx + dy * dy <= r2) visit(i);
-      }
-    }
+  for (int y = y0; y <= y1 && x0 <= x1; ++y) {
+    const int begin = cell_start_[y * cols_ + x0], end = cell_start_[y * cols_ + x1 + 1];
+    if (begin < end) visit(begin, end);
   }
+}
+
+template <typename Visit>
+void KeypointGrid::ForEachWithin(const Eigen::Vector2d& center_px, double radius_px,
+                                 Visit&& visit) const {
+  ForEachRunNear(center_px, radius_px, [&](int begin, int end) {
+    for (int j = begin; j < end; ++j) {
+      if (Within(cell_items_[j], center_px, radius_px)) visit(cell_items_[j]);
+    }
+  });
 }
 
 }  // namespace visloc

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "core/features/descriptor.h"
 #include "core/features/descriptor_matching.h"
 #include "core/util/check.h"
@@ -91,6 +93,68 @@ TEST(GuidedMatchingTest, OneQueryPerKeypointTheClosestWins) {
   ASSERT_EQ(matches.size(), 1u);
   EXPECT_EQ(matches[0].query, 0);
   EXPECT_NEAR(matches[0].distance, 0.1f, 1e-6);
+}
+
+// MatchGuided measures the neighbours of a prediction sixteen at a time, as squares; it must
+// choose what offering each DescriptorDistance in ForEachWithin's order chooses, ties and the
+// distances' last bits included (the oracle below is that definition).
+TEST(GuidedMatchingTest, MatchesAsOfferingEachDistanceInOrderBitForBit) {
+  cv::RNG rng(3);
+  constexpr int kKeypoints = 700, kQueries = 500;
+  std::vector<Eigen::Vector2f> pixels;
+  for (int i = 0; i < kKeypoints; ++i) {
+    pixels.emplace_back(rng.uniform(0.0f, 320.0f), rng.uniform(0.0f, 240.0f));
+  }
+  cv::Mat keypoint_descriptors(kKeypoints, 16, CV_32F);
+  rng.fill(keypoint_descriptors, cv::RNG::UNIFORM, 0.0f, 0.3f);
+  // Look-alike twins (exact ties) and near twins, some close together in the image.
+  for (int i = 0; i < kKeypoints; i += 7)
+    keypoint_descriptors.row(i).copyTo(keypoint_descriptors.row(i + 1));
+  for (int i = 3; i + 20 < kKeypoints; i += 11) {
+    keypoint_descriptors.row(i).copyTo(keypoint_descriptors.row(i + 20));
+    keypoint_descriptors.at<float>(i + 20, 5) += 1e-7f;
+    pixels[i + 20] = pixels[i] + Eigen::Vector2f(3.0f, -2.0f);
+  }
+  cv::Mat query_descriptors(kQueries, 16, CV_32F);
+  std::vector<GuidedQuery> queries;
+  for (int q = 0; q < kQueries; ++q) {
+    const int near = rng.uniform(0, kKeypoints);
+    for (int d = 0; d < 16; ++d) {
+      query_descriptors.at<float>(q, d) =
+          keypoint_descriptors.at<float>(near, d) + rng.uniform(-0.05f, 0.05f) * (q % 3);
+    }
+    queries.push_back({&query_descriptors, q,
+                       pixels[near].cast<double>() +
+                           Eigen::Vector2d(rng.uniform(-8.0, 8.0), rng.uniform(-8.0, 8.0))});
+  }
+  const KeypointGrid grid(pixels, 320, 240, 16);
+  const DescriptorMatchOptions options;
+  const float max_distance = options.MaxDistance(DescriptorType::kFloat32);
+  for (double radius_px : {4.0, 15.0, 40.0}) {
+    std::vector<GuidedMatch> claims(kKeypoints, {-1, 0, std::numeric_limits<float>::max()});
+    for (int q = 0; q < kQueries; ++q) {
+      NearestTwo nearest;
+      grid.ForEachWithin(queries[q].pixel, radius_px, [&](int i) {
+        nearest.Offer(DescriptorDistance(query_descriptors, q, keypoint_descriptors, i), i);
+      });
+      if (!nearest.Distinctive(options.ratio, max_distance)) continue;
+      GuidedMatch& claim = claims[nearest.best_index];
+      if (nearest.best < claim.distance) claim = {q, nearest.best_index, nearest.best};
+    }
+    std::vector<GuidedMatch> expected;
+    for (const GuidedMatch& claim : claims) {
+      if (claim.query >= 0) expected.push_back(claim);
+    }
+    const std::vector<GuidedMatch> matches =
+        MatchGuided(queries, grid, keypoint_descriptors, radius_px, options);
+    ASSERT_EQ(matches.size(), expected.size()) << radius_px << " px";
+    EXPECT_GT(matches.size(), 50u);
+    for (size_t m = 0; m < matches.size(); ++m) {
+      EXPECT_EQ(matches[m].query, expected[m].query);
+      EXPECT_EQ(matches[m].keypoint, expected[m].keypoint);
+      EXPECT_EQ(matches[m].distance, expected[m].distance);
+    }
+  }
 }
 
 TEST(MutualNearestTest, KeepsPairsThatChooseEachOther) {
