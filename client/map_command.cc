@@ -1,9 +1,11 @@
 // visloc map info|verify|export|list|delete|rename: offline management of map files and of a
 // maps folder. (The --server forms arrive with the gRPC service.)
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 
 #include "client/commands.h"
 #include "client/map_report.h"
@@ -135,6 +137,21 @@ int RunExport(const Args& args) {
                        {"ply", ply_path}});
 }
 
+// --disparity-correction OFFSET_PX,YAW_DEG: a correction known for the rig.
+std::optional<mapping::DisparityCorrection> ParseDisparityCorrection(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  const std::vector<std::string> parts = Split(text, ',');
+  const std::optional<double> offset_px = parts.size() == 2 ? ParseDouble(parts[0]) : std::nullopt;
+  const std::optional<double> yaw_deg = parts.size() == 2 ? ParseDouble(parts[1]) : std::nullopt;
+  if (!offset_px || !yaw_deg) {
+    throw UsageError(
+        "--disparity-correction wants OFFSET_PX,YAW_DEG (a build's "
+        "disparity_offset_px and right_camera_yaw_deg), got '" +
+        text + "'");
+  }
+  return mapping::DisparityCorrection{*offset_px, *yaw_deg * M_PI / 180.0};
+}
+
 int RunBuild(const Args& args) {
   std::string dataset_dir, format, out, name, features = "harris_surf16", trajectory, frames;
   bool json = false;
@@ -193,6 +210,12 @@ int RunBuild(const Args& args) {
                  "1 to estimate the rig's disparity bias (a right camera turned or its principal "
                  "point moved against the calibration) from the first frames' motion, 0 to trust "
                  "the calibration");
+  std::string known_correction;
+  parser.AddFlag("disparity-correction", &known_correction,
+                 "OFFSET_PX,YAW_DEG: the rig's disparity correction as an earlier build "
+                 "estimated it (its disparity_offset_px, right_camera_yaw_deg), taken off from "
+                 "the first frame and not estimated again: each frame mapped once, and a run "
+                 "too short to estimate it from mapped metrically");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features, "corners per image");
   parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");
@@ -216,7 +239,10 @@ int RunBuild(const Args& args) {
   }
   CheckFlags(options.builder);  // --threads, and what the checks above leave.
   options.builder.loop_closure.enabled = loop_closure != 0;
-  options.builder.disparity_calibration.enabled = disparity_calibration != 0;
+  options.builder.disparity_calibration.known = ParseDisparityCorrection(known_correction);
+  options.builder.disparity_calibration.enabled =
+      disparity_calibration != 0 && !options.builder.disparity_calibration.known;
+  CheckFlags(options.builder);  // The correction's range.
   server.ApplyEnvironment();
   if (server.server.empty() == out.empty()) {
     throw UsageError(
@@ -257,7 +283,12 @@ int RunBuild(const Args& args) {
     remote.wire.set_keyframe_translation_m(options.builder.keyframes.translation_m);
     remote.wire.set_keyframe_rotation_deg(options.builder.keyframes.rotation_deg);
     remote.wire.set_loop_closure(loop_closure != 0);
-    remote.wire.set_disparity_calibration(disparity_calibration != 0);
+    remote.wire.set_disparity_calibration(options.builder.disparity_calibration.enabled);
+    if (const auto& known = options.builder.disparity_calibration.known) {
+      remote.wire.mutable_disparity_correction()->set_offset_px(known->offset_px);
+      remote.wire.mutable_disparity_correction()->set_right_camera_yaw_deg(known->yaw_rad * 180.0 /
+                                                                           M_PI);
+    }
     remote.wire.set_min_points(static_cast<uint32_t>(options.min_points));
     if (!cameras.empty()) {
       if (range.begin != 0 || range.step != 1) throw UsageError("with --camera, --frames is N");

@@ -19,6 +19,15 @@ void DisparityCalibrationOptions::Check() const {
                converged_px, " px");
   VISLOC_CHECK(offset_sigma_px > 0 && yaw_sigma_deg > 0, "disparity calibration priors ",
                offset_sigma_px, " px, ", yaw_sigma_deg, " deg");
+  if (!known) return;
+  VISLOC_CHECK(!enabled,
+               "a known disparity correction is not estimated again: disable the "
+               "calibration to give one");
+  // Beyond these the rig needs calibrating again, not correcting: 5 deg of yaw is 60 px of
+  // disparity at KITTI's focal length.
+  VISLOC_CHECK(std::abs(known->offset_px) <= 20.0 && std::abs(known->yaw_rad) <= 5.0 * M_PI / 180.0,
+               "disparity correction ", known->offset_px, " px, ", known->yaw_rad * 180.0 / M_PI,
+               " deg: at most 20 px and 5 deg (calibrate the rig again)");
 }
 
 void MapBuilderOptions::Check() const {
@@ -70,7 +79,10 @@ MapBuilder::MapBuilder(const Camera& left, const Camera& right, const Rigid3d& r
                options.local_ba.disparity_weight),
       loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_,
                    options_.local_ba),
-      calibrating_(options.disparity_calibration.enabled) {}
+      correction_(options.disparity_calibration.known.value_or(DisparityCorrection{})),
+      calibrating_(options.disparity_calibration.enabled) {
+  stats_.disparity_correction = correction_;
+}
 
 Rigid3d MapBuilder::MapFromWorld() const {
   return RotationOnly(rectifier_.rect_from_left().conjugate());

@@ -13,6 +13,7 @@
 // The builder takes frames, not datasets: dataset_mapping.h feeds it a recorded sequence.
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "core/camera/stereo_rectifier.h"
@@ -41,8 +42,14 @@ namespace visloc::mapping {
 // only part of the way (a 0.1 deg yaw in a rendered drive: 0.083 deg first; on KITTI 01 about
 // half of what is left each time): the tracks and keyframes it adjusts were made with the old
 // correction, and adjusting them again finds no more, so the frames are mapped again.
+//
+// A rig's correction, once estimated, belongs to the rig (until its mount moves): `known` takes
+// one (a previous build's estimate, its stats' disparity_correction) off from the first frame
+// instead, so a build maps every frame once, and a recording too short to estimate it from is
+// metric too. `enabled` must then be false.
 struct DisparityCalibrationOptions {
   bool enabled = true;
+  std::optional<DisparityCorrection> known;
   double travel_baselines = 90.0;
   double min_travel_baselines = 40.0;
   int max_frames = 150;
@@ -86,7 +93,8 @@ struct MapBuildStats {
   int loop_adjustments = 0;           // Closures large enough to re-adjust every keyframe at once.
   double reprojection_rmse_px = 0.0;  // Left image, after global BA.
   double disparity_rmse_px = 0.0;     // Predicted vs measured disparity, after global BA.
-  DisparityCorrection disparity_correction;  // The rig's, as estimated (DisparityCalibration).
+  // The rig's, as estimated (DisparityCalibrationOptions) or as given (its `known`).
+  DisparityCorrection disparity_correction;
   int calibration_passes = 0;  // Adjustments that estimated it (each but the last remaps).
   VisibilityLearningStats visibility;
   double features_ms = 0, tracking_ms = 0, local_ba_ms = 0, loop_ms = 0, global_ba_ms = 0,

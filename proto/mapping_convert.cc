@@ -1,5 +1,7 @@
 #include "proto/mapping_convert.h"
 
+#include <cmath>
+
 #include "core/features/features.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
@@ -55,6 +57,20 @@ MappingJobOptions FromProto(const v1::MappingOptions& options) {
   if (options.has_loop_closure()) job.builder.loop_closure.enabled = options.loop_closure();
   if (options.has_disparity_calibration()) {
     job.builder.disparity_calibration.enabled = options.disparity_calibration();
+  }
+  if (options.has_disparity_correction()) {
+    if (options.has_disparity_calibration() && options.disparity_calibration()) {
+      throw InputError(
+          "options.disparity_correction is a known correction: it is not estimated again "
+          "(disparity_calibration must be unset or false)");
+    }
+    const v1::DisparityCorrection& known = options.disparity_correction();
+    RequireRange("options.disparity_correction.offset_px", known.offset_px(), -20.0, 20.0, " px");
+    RequireRange("options.disparity_correction.right_camera_yaw_deg", known.right_camera_yaw_deg(),
+                 -5.0, 5.0, " deg");
+    job.builder.disparity_calibration.enabled = false;
+    job.builder.disparity_calibration.known = mapping::DisparityCorrection{
+        known.offset_px(), known.right_camera_yaw_deg() * M_PI / 180.0};
   }
   if (options.min_points() != 0) job.min_points = static_cast<int>(options.min_points());
   return job;

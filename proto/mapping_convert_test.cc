@@ -26,6 +26,15 @@ std::string RefusalOf(const v1::StereoRig& rig) {
   return "";
 }
 
+std::string RefusalOf(const v1::MappingOptions& options) {
+  try {
+    proto::FromProto(options);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
 TEST(MappingConvertTest, TheRigRoundTripsToTheRightCameraFromTheLeft) {
   const Rigid3d body_from_left(Eigen::Quaterniond(0.7, 0.1, -0.1, 0.7).normalized(),
                                Eigen::Vector3d(-0.02, -0.06, 0.01));
@@ -78,6 +87,25 @@ TEST(MappingConvertTest, ZeroOptionsAreMapBuildsDefaultsAndBadOnesAreNamed) {
   wire.set_keyframe_translation_m(0);
   wire.set_features("sift");
   EXPECT_THROW(proto::FromProto(wire), InputError);
+}
+
+TEST(MappingConvertTest, AKnownDisparityCorrectionIsTakenAndNotEstimatedAgain) {
+  v1::MappingOptions wire;
+  wire.mutable_disparity_correction()->set_offset_px(-0.12);
+  wire.mutable_disparity_correction()->set_right_camera_yaw_deg(-0.075);
+  const proto::MappingJobOptions job = proto::FromProto(wire);
+  ASSERT_TRUE(job.builder.disparity_calibration.known.has_value());
+  EXPECT_EQ(job.builder.disparity_calibration.known->offset_px, -0.12);
+  EXPECT_NEAR(job.builder.disparity_calibration.known->yaw_rad, -0.075 * M_PI / 180.0, 1e-15);
+  EXPECT_FALSE(job.builder.disparity_calibration.enabled);
+  EXPECT_NO_THROW(job.builder.Check());
+  wire.set_disparity_calibration(false);
+  EXPECT_NO_THROW(proto::FromProto(wire));
+  wire.set_disparity_calibration(true);
+  EXPECT_THAT(RefusalOf(wire), HasSubstr("not estimated again"));
+  wire.clear_disparity_calibration();
+  wire.mutable_disparity_correction()->set_right_camera_yaw_deg(8.0);
+  EXPECT_THAT(RefusalOf(wire), HasSubstr("options.disparity_correction.right_camera_yaw_deg"));
 }
 
 TEST(MappingConvertTest, ALostFrameSaysWhatTheMapperSaw) {
