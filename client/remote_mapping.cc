@@ -185,6 +185,12 @@ int Report(const Connection& server, const RemoteBuildOptions& options,
     sentence += StrCat("; the link broke and the job was resumed ", stats.resumes,
                        stats.resumes == 1 ? " time" : " times");
   }
+  const v1::DisparityCorrection& correction = done.disparity_correction();
+  if (correction.offset_px() != 0 || correction.right_camera_yaw_deg() != 0) {
+    sentence += StrCat("; the rig's disparity correction ", FormatFixed(correction.offset_px(), 3),
+                       " px, right camera turned ",
+                       FormatFixed(correction.right_camera_yaw_deg(), 4), " deg");
+  }
   sentence +=
       StrCat("; mapped at ", FormatFixed(rate, 1), " frames a second, each answered in ",
              FormatFixed(median_ms, 0), " ms (median), ", FormatFixed(max_ms, 0), " ms at most");
@@ -200,6 +206,8 @@ int Report(const Connection& server, const RemoteBuildOptions& options,
                        {"frames", static_cast<int64_t>(done.frame_index())},
                        {"keyframes", static_cast<int64_t>(done.keyframes())},
                        {"points", static_cast<int64_t>(done.points())},
+                       {"disparity_offset_px", correction.offset_px()},
+                       {"right_camera_yaw_deg", correction.right_camera_yaw_deg()},
                        {"lost_frames", static_cast<int64_t>(stats.lost)},
                        {"refused_frames", static_cast<int64_t>(stats.frame_errors)},
                        {"resumes", static_cast<int64_t>(stats.resumes)},

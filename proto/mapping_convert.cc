@@ -69,11 +69,19 @@ MappingJobOptions FromProto(const v1::MappingOptions& options) {
     RequireRange("options.disparity_correction.right_camera_yaw_deg", known.right_camera_yaw_deg(),
                  -5.0, 5.0, " deg");
     job.builder.disparity_calibration.enabled = false;
-    job.builder.disparity_calibration.known = mapping::DisparityCorrection{
-        known.offset_px(), known.right_camera_yaw_deg() * M_PI / 180.0};
+    job.builder.disparity_calibration.known = FromProto(known);
   }
   if (options.min_points() != 0) job.min_points = static_cast<int>(options.min_points());
   return job;
+}
+
+void ToProto(const mapping::DisparityCorrection& correction, v1::DisparityCorrection* out) {
+  out->set_offset_px(correction.offset_px);
+  out->set_right_camera_yaw_deg(correction.yaw_rad * 180.0 / M_PI);
+}
+
+mapping::DisparityCorrection FromProto(const v1::DisparityCorrection& correction) {
+  return {correction.offset_px(), correction.right_camera_yaw_deg() * M_PI / 180.0};
 }
 
 std::string MappingStateText(v1::MappingState state) {

@@ -328,6 +328,7 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
   answer.set_points(map.points.size());
   answer.set_tracking_failures(static_cast<uint32_t>(job->builder.stats().tracking_failures));
   answer.set_loop_closures(static_cast<uint32_t>(job->builder.stats().loop_closures));
+  proto::ToProto(job->builder.stats().disparity_correction, answer.mutable_disparity_correction());
   answer.set_frame_ms(timer.ElapsedMs());
   job->registry->Update(job->id, answer);
   job->registry->End(job->id, v1::MAPPING_PUBLISHED, "");

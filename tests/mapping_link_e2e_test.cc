@@ -109,6 +109,35 @@ TEST_F(MappingLinkE2eTest, AStreamedRunBecomesTheMapAnOfflineBuildMakesAndRobots
   EXPECT_THAT(again.err, HasSubstr("a map named 'hall' already exists"));
 }
 
+// A rig's disparity correction known from an earlier build reaches the server's builder, which
+// maps with it as a build here does, and the published answer reports the one it used.
+TEST_F(MappingLinkE2eTest, AKnownDisparityCorrectionIsTheServersToo) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const std::vector<std::string> known = {"--frames", "0:15", "--disparity-correction", "0.2,0.01"};
+  std::vector<std::string> remote = {"map",  "build",     "--server", server.address(), "--name",
+                                     "hall", "--dataset", kRun,       "--json"};
+  remote.insert(remote.end(), known.begin(), known.end());
+  const ProcessResult built = Visloc(remote);
+  ASSERT_EQ(built.exit_code, 0) << built.err;
+  EXPECT_NEAR(JsonNumber(built.out, "disparity_offset_px"), 0.2, 1e-12);
+  EXPECT_NEAR(JsonNumber(built.out, "right_camera_yaw_deg"), 0.01, 1e-12);
+  std::vector<std::string> here = {"map", "build", "--dataset",
+                                   kRun,  "--out", work_.File("offline.db")};
+  here.insert(here.end(), known.begin(), known.end());
+  ASSERT_EQ(Visloc(here).exit_code, 0);
+  for (const auto& [map, tum] : {std::pair{maps_.File("hall.db"), work_.File("link.tum")},
+                                 std::pair{work_.File("offline.db"), work_.File("offline.tum")}}) {
+    ASSERT_EQ(Visloc({"map", "export", map, "--keyframes", tum}).exit_code, 0);
+  }
+  const Trajectory over_link = testing::ReadTumLines(work_.File("link.tum"));
+  const Trajectory offline = testing::ReadTumLines(work_.File("offline.tum"));
+  ASSERT_EQ(over_link.size(), offline.size());
+  for (size_t k = 0; k < offline.size(); ++k) {
+    EXPECT_LT((over_link[k].pose.translation - offline[k].pose.translation).norm(), 1e-3)
+        << "keyframe " << k;
+  }
+}
+
 // The link is cut for two seconds while frames stream: the client reconnects and resumes the
 // job where the server has it, and the map is the one an unbroken run makes.
 TEST_F(MappingLinkE2eTest, AShortCutIsResumedAndTheMapIsTheSame) {
