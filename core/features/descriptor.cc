@@ -147,16 +147,16 @@ VISLOC_SIMD_CLONES int ColumnArgMin(const float* query, const float* columns, in
   return best;
 }
 
-// Float16Columns::SquaredDistances: whole vectors while sixteen columns from j lie within the
-// array (the lanes past the range are computed and dropped), then one at a time.
+// Float16Columns::SquaredDistances: whole vectors, stored whole, while sixteen columns from j
+// lie within the array (out has room: the lanes past the range are computed and left there),
+// then one at a time.
 VISLOC_SIMD_CLONES void ColumnSquaredDistances(const float* query, const float* columns, int count,
                                                int first, int n, float* out) {
   int j = first;
   for (; j < first + n && j + kLanes <= count; j += kLanes) {
     Floats16 squared;
     SquaredDistancesOfLanes(query, columns, count, j, &squared);
-    const int lanes = std::min(kLanes, first + n - j);
-    for (int l = 0; l < lanes; ++l) out[j - first + l] = squared[l];
+    __builtin_memcpy(out + (j - first), &squared, sizeof squared);
   }
   for (; j < first + n; ++j) out[j - first] = SquaredDistance(query, columns, count, j);
 }

@@ -21,19 +21,22 @@ namespace visloc {
 // Hamming distance of two binary rows of `bytes` bytes.
 float HammingDistance(const uchar* a, const uchar* b, int bytes);
 
+// The squared L2 distance of two 16-float descriptors, which DescriptorDistance takes the root
+// of. Four independent partial sums, one SIMD register: a single running sum would be a chain
+// of 16 dependent additions, which the compiler may not reorder.
+inline float SquaredDistance16(const float* x, const float* y) {
+  float lanes[4] = {0, 0, 0, 0};
+  for (int i = 0; i < 16; i += 4) {
+    for (int j = 0; j < 4; ++j) lanes[j] += (x[i + j] - y[i + j]) * (x[i + j] - y[i + j]);
+  }
+  return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+}
+
 inline float DescriptorDistance(const cv::Mat& a, int row_a, const cv::Mat& b, int row_b) {
   if (a.type() == CV_8U) return HammingDistance(a.ptr<uchar>(row_a), b.ptr<uchar>(row_b), a.cols);
   const float* x = a.ptr<float>(row_a);
   const float* y = b.ptr<float>(row_b);
-  if (a.cols == 16) {
-    // Four independent partial sums, one SIMD register: a single running sum would be a chain
-    // of 16 dependent additions, which the compiler may not reorder.
-    float lanes[4] = {0, 0, 0, 0};
-    for (int i = 0; i < 16; i += 4) {
-      for (int j = 0; j < 4; ++j) lanes[j] += (x[i + j] - y[i + j]) * (x[i + j] - y[i + j]);
-    }
-    return std::sqrt((lanes[0] + lanes[1]) + (lanes[2] + lanes[3]));
-  }
+  if (a.cols == 16) return std::sqrt(SquaredDistance16(x, y));
   float sum = 0;
   for (int i = 0; i < a.cols; ++i) sum += (x[i] - y[i]) * (x[i] - y[i]);
   return std::sqrt(sum);
@@ -57,9 +60,10 @@ class Float16Columns {
   // distances, each distance DescriptorDistance's bit for bit (vocabulary lookups: a node's
   // children are consecutive rows); -1 when count is 0.
   int NearestOf(const float* query, int first, int count) const;
-  // The squared distances of `query` to descriptors [first, first + n) into out[0, n): the
-  // value DescriptorDistance takes the root of, bit for bit, sixteen at a time (guided matching
-  // offers a keypoint's neighbours in runs of consecutive descriptors).
+  // The squared distances of `query` to descriptors [first, first + n) into out[0, n):
+  // SquaredDistance16's, bit for bit, sixteen at a time (guided matching offers a keypoint's
+  // neighbours in runs of consecutive descriptors). `out` must have room for n + 15 floats: a
+  // vector is stored whole, past n.
   void SquaredDistances(const float* query, int first, int n, float* out) const;
 
  private:

@@ -33,48 +33,56 @@ KeypointGrid::KeypointGrid(std::vector<Eigen::Vector2f> pixels, int width, int h
 
 namespace {
 
-// The keypoints' 16-float descriptors in the grid's cell order, as columns, so that the
-// neighbours of a prediction (a few runs of consecutive positions, ForEachRunNear) are measured
-// sixteen at a time. A run also holds keypoints of its cells outside the disc: they are
-// measured and not offered.
-class GuidedColumns {
+// Guided matching of 16-float descriptors. The keypoints of a row of grid cells are consecutive
+// in the grid's cell order (ForEachRunNear); a long run is measured sixteen at a time from the
+// descriptors laid out as columns in that order (built on the first long run), a short one
+// keypoint by keypoint, those inside the disc only. The disc holds a third of the cells it
+// touches at 15 px and 16 px cells (a 320x240 query) and two thirds at 58 px (a KITTI-wide map
+// build's search), so only wide searches make runs worth a vector.
+class GuidedFloat16 {
  public:
-  // The columns when the descriptors are 16 floats on both sides, else none.
-  static std::optional<GuidedColumns> For(const std::vector<GuidedQuery>& queries,
-                                          const KeypointGrid& grid, const cv::Mat& descriptors) {
-    if (descriptors.type() != CV_32F || descriptors.cols != 16 || grid.size() == 0) return {};
-    for (const GuidedQuery& query : queries) {
-      VISLOC_CHECK(query.descriptors->type() == CV_32F && query.descriptors->cols == 16,
-                   "guided matching: query and keypoint descriptors differ in type or width");
-    }
-    const std::vector<int>& order = grid.cell_order();
-    return GuidedColumns(Float16Columns(descriptors, {order.begin(), order.end()}));
-  }
+  GuidedFloat16(const KeypointGrid& grid, const cv::Mat& descriptors)
+      : grid_(grid), descriptors_(descriptors) {}
 
   // Offers `query` the keypoints within `radius_px` of its prediction in ForEachWithin's order,
   // each at its squared distance, and leaves `nearest` with the roots: as offering
   // DescriptorDistance itself would (Float16Columns::Nearest says why squares choose the same).
-  void Offer(const GuidedQuery& query, const KeypointGrid& grid, double radius_px,
-             std::vector<float>* squared, NearestTwo* nearest) const {
+  NearestTwo Nearest(const GuidedQuery& query, double radius_px) {
     const float* row = query.descriptors->ptr<float>(query.row);
-    const std::vector<int>& order = grid.cell_order();
-    grid.ForEachRunNear(query.pixel, radius_px, [&](int begin, int end) {
-      squared->resize(end - begin);
-      columns_.SquaredDistances(row, begin, end - begin, squared->data());
+    const std::vector<int>& order = grid_.cell_order();
+    NearestTwo nearest;
+    grid_.ForEachRunNear(query.pixel, radius_px, [&](int begin, int end) {
+      if (end - begin < kLongRun) {
+        for (int j = begin; j < end; ++j) {
+          const int i = order[j];
+          if (grid_.Within(i, query.pixel, radius_px)) {
+            nearest.Offer(SquaredDistance16(row, descriptors_.ptr<float>(i)), i);
+          }
+        }
+        return;
+      }
+      if (!columns_)
+        columns_.emplace(descriptors_, std::vector<uint32_t>(order.begin(), order.end()));
+      squared_.resize(end - begin + 15);  // Float16Columns::SquaredDistances stores vectors.
+      columns_->SquaredDistances(row, begin, end - begin, squared_.data());
       for (int j = begin; j < end; ++j) {
-        if (grid.Within(order[j], query.pixel, radius_px)) {
-          nearest->Offer((*squared)[j - begin], order[j]);
+        if (grid_.Within(order[j], query.pixel, radius_px)) {
+          nearest.Offer(squared_[j - begin], order[j]);
         }
       }
     });
     constexpr float kNone = std::numeric_limits<float>::max();
-    if (nearest->best < kNone) nearest->best = std::sqrt(nearest->best);
-    if (nearest->second < kNone) nearest->second = std::sqrt(nearest->second);
+    if (nearest.best < kNone) nearest.best = std::sqrt(nearest.best);
+    if (nearest.second < kNone) nearest.second = std::sqrt(nearest.second);
+    return nearest;
   }
 
  private:
-  explicit GuidedColumns(Float16Columns columns) : columns_(std::move(columns)) {}
-  Float16Columns columns_;
+  static constexpr int kLongRun = 16;  // A vector's worth.
+  const KeypointGrid& grid_;
+  const cv::Mat& descriptors_;
+  std::optional<Float16Columns> columns_;
+  std::vector<float> squared_;
 };
 
 }  // namespace
@@ -84,16 +92,19 @@ std::vector<GuidedMatch> MatchGuided(const std::vector<GuidedQuery>& queries,
                                      double radius_px, const DescriptorMatchOptions& options) {
   const float max_distance = options.MaxDistance(
       keypoint_descriptors.type() == CV_8U ? DescriptorType::kBinary : DescriptorType::kFloat32);
+  if (grid.size() == 0) return {};
   // Per keypoint, the closest query that claimed it.
   std::vector<GuidedMatch> claims(grid.size(), {-1, 0, std::numeric_limits<float>::max()});
-  const std::optional<GuidedColumns> columns =
-      GuidedColumns::For(queries, grid, keypoint_descriptors);
-  std::vector<float> squared;
+  const bool float16 = keypoint_descriptors.type() == CV_32F && keypoint_descriptors.cols == 16;
+  GuidedFloat16 guided(grid, keypoint_descriptors);
   for (int q = 0; q < static_cast<int>(queries.size()); ++q) {
     const GuidedQuery& query = queries[q];
+    VISLOC_CHECK(query.descriptors->type() == keypoint_descriptors.type() &&
+                     query.descriptors->cols == keypoint_descriptors.cols,
+                 "guided matching: query and keypoint descriptors differ in type or width");
     NearestTwo nearest;
-    if (columns) {
-      columns->Offer(query, grid, radius_px, &squared, &nearest);
+    if (float16) {
+      nearest = guided.Nearest(query, radius_px);
     } else {
       grid.ForEachWithin(query.pixel, radius_px, [&](int i) {
         nearest.Offer(DescriptorDistance(*query.descriptors, query.row, keypoint_descriptors, i),

@@ -95,9 +95,10 @@ TEST(GuidedMatchingTest, OneQueryPerKeypointTheClosestWins) {
   EXPECT_NEAR(matches[0].distance, 0.1f, 1e-6);
 }
 
-// MatchGuided measures the neighbours of a prediction sixteen at a time, as squares; it must
-// choose what offering each DescriptorDistance in ForEachWithin's order chooses, ties and the
-// distances' last bits included (the oracle below is that definition).
+// MatchGuided measures the neighbours of a prediction as squares, one at a time or, in runs of
+// sixteen and more (here from 40 px on), sixteen at a time; it must choose what offering each
+// DescriptorDistance in ForEachWithin's order chooses, ties and the distances' last bits
+// included (the oracle below is that definition).
 TEST(GuidedMatchingTest, MatchesAsOfferingEachDistanceInOrderBitForBit) {
   cv::RNG rng(3);
   constexpr int kKeypoints = 700, kQueries = 500;
@@ -130,7 +131,7 @@ TEST(GuidedMatchingTest, MatchesAsOfferingEachDistanceInOrderBitForBit) {
   const KeypointGrid grid(pixels, 320, 240, 16);
   const DescriptorMatchOptions options;
   const float max_distance = options.MaxDistance(DescriptorType::kFloat32);
-  for (double radius_px : {4.0, 15.0, 40.0}) {
+  for (double radius_px : {4.0, 15.0, 40.0, 90.0}) {
     std::vector<GuidedMatch> claims(kKeypoints, {-1, 0, std::numeric_limits<float>::max()});
     for (int q = 0; q < kQueries; ++q) {
       NearestTwo nearest;
