@@ -237,12 +237,11 @@ int RunBuild(const Args& args) {
   if (max_features < 0 || options.min_points < 0 || options.check_frames < 0) {
     throw UsageError("--max-features, --min-points and --check-frames must not be negative");
   }
-  CheckFlags(options.builder);  // --threads, and what the checks above leave.
   options.builder.loop_closure.enabled = loop_closure != 0;
   options.builder.disparity_calibration.known = ParseDisparityCorrection(known_correction);
   options.builder.disparity_calibration.enabled =
       disparity_calibration != 0 && !options.builder.disparity_calibration.known;
-  CheckFlags(options.builder);  // The correction's range.
+  CheckFlags(options.builder);  // --threads, the correction's range, what the checks above leave.
   server.ApplyEnvironment();
   if (server.server.empty() == out.empty()) {
     throw UsageError(
@@ -360,11 +359,12 @@ int RunBuild(const Args& args) {
       stats.loop_closures, stats.loop_adjustments, stats.tracking_failures,
       stats.reprojection_rmse_px, stats.disparity_rmse_px, stats.visibility.final_rmse,
       stats.visibility.pairs);
-  std::printf(
-      "  the rig's disparities: %.2f px offset, right camera turned %.3f deg (estimated over %d "
-      "adjustments)\n",
-      stats.disparity_correction.offset_px, stats.disparity_correction.yaw_rad * 180.0 / M_PI,
-      stats.calibration_passes);
+  const std::string how = options.builder.disparity_calibration.known
+                              ? std::string("given")
+                              : StrCat("estimated over ", stats.calibration_passes, " adjustments");
+  std::printf("  the rig's disparities: %.2f px offset, right camera turned %.3f deg (%s)\n",
+              stats.disparity_correction.offset_px,
+              stats.disparity_correction.yaw_rad * 180.0 / M_PI, how.c_str());
   std::printf(
       "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
       "%.1f s, "
