@@ -25,6 +25,7 @@
 #include "mapping/dataset_mapping.h"
 #include "mapstore/map_directory.h"
 #include "mapstore/map_store.h"
+#include "proto/mapping_convert.h"
 
 namespace visloc::cli {
 namespace {
@@ -284,9 +285,7 @@ int RunBuild(const Args& args) {
     remote.wire.set_loop_closure(loop_closure != 0);
     remote.wire.set_disparity_calibration(options.builder.disparity_calibration.enabled);
     if (const auto& known = options.builder.disparity_calibration.known) {
-      remote.wire.mutable_disparity_correction()->set_offset_px(known->offset_px);
-      remote.wire.mutable_disparity_correction()->set_right_camera_yaw_deg(known->yaw_rad * 180.0 /
-                                                                           M_PI);
+      proto::ToProto(*known, remote.wire.mutable_disparity_correction());
     }
     remote.wire.set_min_points(static_cast<uint32_t>(options.min_points));
     if (!cameras.empty()) {

@@ -23,11 +23,11 @@ void DisparityCalibrationOptions::Check() const {
   VISLOC_CHECK(!enabled,
                "a known disparity correction is not estimated again: disable the "
                "calibration to give one");
-  // Beyond these the rig needs calibrating again, not correcting: 5 deg of yaw is 60 px of
-  // disparity at KITTI's focal length.
-  VISLOC_CHECK(std::abs(known->offset_px) <= 20.0 && std::abs(known->yaw_rad) <= 5.0 * M_PI / 180.0,
+  VISLOC_CHECK(std::abs(known->offset_px) <= kMaxKnownOffsetPx &&
+                   std::abs(known->yaw_rad) <= kMaxKnownYawDeg * M_PI / 180.0,
                "disparity correction ", known->offset_px, " px, ", known->yaw_rad * 180.0 / M_PI,
-               " deg: at most 20 px and 5 deg (calibrate the rig again)");
+               " deg: at most ", kMaxKnownOffsetPx, " px and ", kMaxKnownYawDeg,
+               " deg (calibrate the rig again)");
 }
 
 void MapBuilderOptions::Check() const {

@@ -48,6 +48,10 @@ namespace visloc::mapping {
 // instead, so a build maps every frame once, and a recording too short to estimate it from is
 // metric too. `enabled` must then be false.
 struct DisparityCalibrationOptions {
+  // The largest known correction taken (Check): beyond these the rig needs calibrating again,
+  // not correcting (5 deg of yaw is 60 px of disparity at KITTI's focal length).
+  static constexpr double kMaxKnownOffsetPx = 20.0;
+  static constexpr double kMaxKnownYawDeg = 5.0;
   bool enabled = true;
   std::optional<DisparityCorrection> known;
   double travel_baselines = 90.0;

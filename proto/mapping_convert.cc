@@ -65,9 +65,11 @@ MappingJobOptions FromProto(const v1::MappingOptions& options) {
           "(disparity_calibration must be unset or false)");
     }
     const v1::DisparityCorrection& known = options.disparity_correction();
-    RequireRange("options.disparity_correction.offset_px", known.offset_px(), -20.0, 20.0, " px");
+    using Limits = mapping::DisparityCalibrationOptions;
+    RequireRange("options.disparity_correction.offset_px", known.offset_px(),
+                 -Limits::kMaxKnownOffsetPx, Limits::kMaxKnownOffsetPx, " px");
     RequireRange("options.disparity_correction.right_camera_yaw_deg", known.right_camera_yaw_deg(),
-                 -5.0, 5.0, " deg");
+                 -Limits::kMaxKnownYawDeg, Limits::kMaxKnownYawDeg, " deg");
     job.builder.disparity_calibration.enabled = false;
     job.builder.disparity_calibration.known = FromProto(known);
   }
