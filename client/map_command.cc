@@ -19,10 +19,12 @@
 #include "core/util/strings.h"
 #include "core/util/version.h"
 #include "dataset/dataset.h"
+#include "dataset/euroc.h"
 #include "dataset/frame_range.h"
 #include "dataset/ply.h"
 #include "dataset/tum.h"
 #include "mapping/dataset_mapping.h"
+#include "mapping/map_merge.h"
 #include "mapstore/map_directory.h"
 #include "mapstore/map_store.h"
 #include "proto/mapping_convert.h"
@@ -139,7 +141,7 @@ int RunExport(const Args& args) {
 }
 
 // --disparity-correction OFFSET_PX,YAW_DEG: a correction known for the rig.
-std::optional<mapping::DisparityCorrection> ParseDisparityCorrection(const std::string& text) {
+std::optional<DisparityCorrection> ParseDisparityCorrection(const std::string& text) {
   if (text.empty()) return std::nullopt;
   const std::vector<std::string> parts = Split(text, ',');
   const std::optional<double> offset_px = parts.size() == 2 ? ParseDouble(parts[0]) : std::nullopt;
@@ -150,7 +152,30 @@ std::optional<mapping::DisparityCorrection> ParseDisparityCorrection(const std::
         "disparity_offset_px and right_camera_yaw_deg), got '" +
         text + "'");
   }
-  return mapping::DisparityCorrection{*offset_px, *yaw_deg * M_PI / 180.0};
+  return DisparityCorrection{*offset_px, *yaw_deg * M_PI / 180.0};
+}
+
+// --disparity-correction-from MAP.db: the correction a map of the same rig records.
+DisparityCorrection RecordedDisparityCorrection(const std::string& path, Camera* map_camera) {
+  const Map map = mapstore::LoadMap(path);
+  if (!map.metadata.disparity_correction) {
+    throw InputError(path +
+                     " records no disparity correction (its build neither estimated nor was "
+                     "given one, or an older visloc built it): give --disparity-correction "
+                     "OFFSET_PX,YAW_DEG");
+  }
+  *map_camera = map.camera;
+  return *map.metadata.disparity_correction;
+}
+
+// A correction belongs to its rig: the map it came from must have the build's left camera.
+void RequireCorrectionCamera(const std::string& path, const Camera& map_camera,
+                             const Camera& left) {
+  if (!mapping::SameCamera(map_camera, left)) {
+    throw InputError(StrCat("--disparity-correction-from ", path, ": the map's camera (",
+                            ToString(map_camera), ") is not this dataset's left camera (",
+                            ToString(left), "): its correction is another rig's"));
+  }
 }
 
 int RunBuild(const Args& args) {
@@ -217,6 +242,10 @@ int RunBuild(const Args& args) {
                  "estimated it (its disparity_offset_px, right_camera_yaw_deg), taken off from "
                  "the first frame and not estimated again: each frame mapped once, and a run "
                  "too short to estimate it from mapped metrically");
+  std::string correction_map;
+  parser.AddFlag("disparity-correction-from", &correction_map,
+                 "MAP.db: take the rig's disparity correction from a map an earlier build of "
+                 "the same rig wrote (`map info` shows it), as --disparity-correction would");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features, "corners per image");
   parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");
@@ -240,6 +269,15 @@ int RunBuild(const Args& args) {
   }
   options.builder.loop_closure.enabled = loop_closure != 0;
   options.builder.disparity_calibration.known = ParseDisparityCorrection(known_correction);
+  std::optional<Camera> correction_camera;
+  if (!correction_map.empty()) {
+    if (!known_correction.empty()) {
+      throw UsageError("give --disparity-correction or --disparity-correction-from, not both");
+    }
+    correction_camera.emplace();
+    options.builder.disparity_calibration.known =
+        RecordedDisparityCorrection(correction_map, &*correction_camera);
+  }
   options.builder.disparity_calibration.enabled =
       disparity_calibration != 0 && !options.builder.disparity_calibration.known;
   CheckFlags(options.builder);  // --threads, the correction's range, what the checks above leave.
@@ -265,6 +303,15 @@ int RunBuild(const Args& args) {
     }
   }
   const FrameRange range = ParseFrameRange(frames);
+  std::optional<Dataset> dataset;
+  if (!dataset_dir.empty()) {
+    dataset = SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
+  }
+  if (correction_camera) {
+    RequireCorrectionCamera(
+        correction_map, *correction_camera,
+        dataset ? dataset->left.camera : ReadSensorYaml(camera_yamls[0]).camera);
+  }
   if (!server.server.empty()) {
     if (!trajectory.empty() || max_features > 0) {
       throw UsageError("--trajectory and --max-features are for builds here (--out)");
@@ -293,12 +340,8 @@ int RunBuild(const Args& args) {
       const int pairs = range.all() ? 0 : static_cast<int>(std::min<size_t>(range.end, 1 << 30));
       return RemoteMapBuildFromCameras(server, cameras, camera_yamls, pairs, remote);
     }
-    return RemoteMapBuild(
-        server, SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range),
-        remote);
+    return RemoteMapBuild(server, *dataset, remote);
   }
-  const Dataset dataset =
-      SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
   options.builder.features = DefaultFeatureSettings(features);
   if (max_features > 0) {
     options.builder.features = WithMaxFeatures(options.builder.features, max_features);
@@ -310,7 +353,7 @@ int RunBuild(const Args& args) {
   mapping::MapBuildStats stats;
   Trajectory frame_trajectory;
   const bool progress = ShowProgress() && !json;
-  const Map map = mapping::BuildMap(dataset, options, metadata, &stats, &frame_trajectory,
+  const Map map = mapping::BuildMap(*dataset, options, metadata, &stats, &frame_trajectory,
                                     [&](int done, int total, const std::string& status) {
                                       if (progress)
                                         std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done,

@@ -60,7 +60,16 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
       .Field("source_dataset", info.metadata.source_dataset)
       .Field("builder", info.metadata.builder)
       .Field("lineage", info.metadata.lineage)
-      .Key("camera")
+      .Key("disparity_correction");
+  if (const auto& correction = info.metadata.disparity_correction) {
+    json.BeginObject()
+        .Field("offset_px", correction->offset_px)
+        .Field("right_camera_yaw_deg", correction->yaw_rad * 180.0 / M_PI)
+        .EndObject();
+  } else {
+    json.Null();
+  }
+  json.Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
       .Field("lens_model", LensModelName(c.lens().model))
@@ -104,6 +113,12 @@ void PrintInfo(const MapInfo& info) {
     std::printf("lineage       %s\n", info.metadata.lineage.c_str());
   }
   std::printf("camera        %s\n", ToString(info.camera).c_str());
+  if (const auto& correction = info.metadata.disparity_correction) {
+    std::printf(
+        "stereo rig    disparity offset %.3f px, right camera yaw %.4f deg (taken off its "
+        "disparities; map build --disparity-correction-from takes it)\n",
+        correction->offset_px, correction->yaw_rad * 180.0 / M_PI);
+  }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);
   std::printf("keyframes     %zu, centres %s\n", info.keyframes,

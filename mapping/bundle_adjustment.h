@@ -16,10 +16,10 @@ struct BundleAdjustmentOptions {
   double disparity_weight = 8.0;  // sigma_keypoint / sigma_disparity (see reprojection_cost.h).
   int max_iterations = 15;
   double cull_error_px = 3.0;  // Afterwards: drop observations above this; paper: 3 px.
-  // Also estimate a change of the rig's disparity correction (disparity_correction.h) with the
-  // poses and points, under a zero-mean prior of these sigmas (what keeps it where it is when
-  // the motion cannot tell: a camera standing still). The change is applied to every keyframe's
-  // stereo matches, since it belongs to the rig.
+  // Also estimate a change of the rig's disparity correction (core/camera/disparity_correction.h)
+  // with the poses and points, under a zero-mean prior of these sigmas (what keeps it where it is
+  // when the motion cannot tell: a camera standing still). The change is applied to every
+  // keyframe's stereo matches, since it belongs to the rig.
   bool estimate_disparity_correction = false;
   double correction_offset_sigma_px = 2.0;
   double correction_yaw_sigma_deg = 0.3;

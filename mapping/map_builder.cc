@@ -331,7 +331,11 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
   stats_.global_ba_ms += timer.ElapsedMs();
   timer.Restart();
   AssemblyStats assembly;
-  Map map = AssembleMap(state_, left_, extractor_->settings(), metadata, MapFromWorld(),
+  MapMetadata recorded = metadata;
+  if (options_.disparity_calibration.known || stats_.calibration_passes > 0) {
+    recorded.disparity_correction = correction_;
+  }
+  Map map = AssembleMap(state_, left_, extractor_->settings(), recorded, MapFromWorld(),
                         RectFromRaw(), intrinsics_, options_.assembly, &assembly);
   stats_.learning_ms = timer.ElapsedMs();
   stats_.keyframes = n;

@@ -30,11 +30,11 @@
 
 namespace visloc::mapping {
 
-// The rig's disparity correction (disparity_correction.h), estimated while mapping. What
-// observes it is the parallax the camera's own motion adds to the stereo baseline, so the first
-// frames are mapped until the camera has travelled `travel_baselines` stereo baselines (KITTI:
-// 48 m; EuRoC: 10 m), or for `max_frames` frames, or to the end of a shorter sequence. Then,
-// when it has travelled at least `min_travel_baselines` (less says little: KITTI 00's first
+// The rig's disparity correction (core/camera/disparity_correction.h), estimated while mapping.
+// What observes it is the parallax the camera's own motion adds to the stereo baseline, so the
+// first frames are mapped until the camera has travelled `travel_baselines` stereo baselines
+// (KITTI: 48 m; EuRoC: 10 m), or for `max_frames` frames, or to the end of a shorter sequence.
+// Then, when it has travelled at least `min_travel_baselines` (less says little: KITTI 00's first
 // 7.5 m put the offset at -0.4 px, its first 30 m at -0.6), a bundle adjustment of all their
 // keyframes estimates a change of the correction with the poses and points, under priors of the
 // given sigmas, and the frames are mapped again with it, until a change moves no disparity by

@@ -3,10 +3,10 @@
 //
 // Parameter blocks, in order: [0] rotation cam_from_world as an Eigen quaternion (x, y, z, w;
 // EigenQuaternionManifold), [1] translation cam_from_world (3), [2] point in world (3);
-// StereoReprojectionCost only: [3] a change of the rig's disparity correction (offset px, yaw rad, and a third entry
-// that nothing depends on and a prior holds at zero: three wide, like the pose's blocks, the
-// correction leaves Ceres's fixed-size Schur code in use while it is estimated;
-// disparity_correction.h), held constant unless bundle adjustment estimates it.
+// StereoReprojectionCost only: [3] a change of the rig's disparity correction (offset px, yaw rad,
+// and a third entry that nothing depends on and a prior holds at zero: three wide, like the pose's
+// blocks, the correction leaves Ceres's fixed-size Schur code in use while it is estimated;
+// core/camera/disparity_correction.h), held constant unless bundle adjustment estimates it.
 // With p = R X + t in the rectified left camera:
 //   mono:   r = (f p.x / p.z + cx - u, f p.y / p.z + cy - v)
 //   stereo: the mono residual plus w (f B / p.z - d + b), the disparity residual, with
@@ -25,8 +25,8 @@
 
 #include <Eigen/Core>
 
+#include "core/camera/disparity_correction.h"
 #include "core/geometry/rigid3.h"
-#include "mapping/disparity_correction.h"
 
 namespace visloc::mapping {
 

@@ -41,14 +41,20 @@ auto NamingTheSession(const StereoSource& session, Step&& step) -> decltype(step
   }
 }
 
-// The session mapped on its own, with the existing map's detector, as `map build` would;
-// `frame_trajectory`: where its mapping placed each image.
-Map MapSession(const Map& existing, const StereoSource& session, SessionMergeKind kind,
-               int threads, MapBuildStats* stats, Trajectory* frame_trajectory,
+// The session mapped on its own, with the existing map's detector, as `map build` would, and
+// with the rig's disparity correction the map records (RequireMapCamera: the same rig), so a
+// session too short to estimate it maps as metrically as the map did; `frame_trajectory`:
+// where its mapping placed each image.
+Map MapSession(const Map& existing, const StereoSource& session, SessionMergeKind kind, int threads,
+               MapBuildStats* stats, Trajectory* frame_trajectory,
                const std::function<void(const SessionMergeProgress&)>& progress) {
   MapBuilderOptions builder;
   builder.features = DefaultFeatureSettings(existing.features.kind);
   builder.threads = threads;
+  if (existing.metadata.disparity_correction) {
+    builder.disparity_calibration.known = existing.metadata.disparity_correction;
+    builder.disparity_calibration.enabled = false;
+  }
   const MapMetadata metadata{"session", static_cast<int64_t>(std::time(nullptr)), session.origin(),
                              StrCat("visloc ", VislocVersion(), " map ", VerbOf(kind)), ""};
   return session.BuildMap(
@@ -74,9 +80,8 @@ Map MergeSession(const Map& existing, const StereoSource& session, SessionMergeK
         });
   });
   Trajectory session_from_cam;
-  const Map session_map =
-      MapSession(existing, session, kind, options.threads, &stats->session_build,
-                 &session_from_cam, progress);
+  const Map session_map = MapSession(existing, session, kind, options.threads,
+                                     &stats->session_build, &session_from_cam, progress);
   stats->map_from_session = NamingTheSession(session, [&] {
     return FitMapFromSession(session_from_cam, map_from_cam, options.registration,
                              &stats->registration);

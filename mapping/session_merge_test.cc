@@ -73,8 +73,11 @@ class SessionMergeTest : public ::testing::Test {
 Dataset* SessionMergeTest::dataset_ = nullptr;
 
 TEST_F(SessionMergeTest, ASessionOfFramesInMemoryExtendsTheMapWhereGroundTruthPlacesIt) {
-  const Map map = MapStereoFrames(Frames("first", 0, 50), MapBuilderOptions{},
-                                  MapMetadata{"square", 0, "memory", "test", ""});
+  Map map = MapStereoFrames(Frames("first", 0, 50), MapBuilderOptions{},
+                            MapMetadata{"square", 0, "memory", "test", ""});
+  // The rig's disparity correction as an earlier build recorded it (a small one: this rig has
+  // none): the session, of the same rig, is mapped with it rather than estimating its own.
+  map.metadata.disparity_correction = DisparityCorrection{0.05, 1e-5};
   SessionMergeStats stats;
   std::vector<SessionMergeProgress::Stage> stages;
   const Map extended =
@@ -89,6 +92,9 @@ TEST_F(SessionMergeTest, ASessionOfFramesInMemoryExtendsTheMapWhereGroundTruthPl
   EXPECT_GE(stats.registration.agreeing_frames, 3);
   EXPECT_THAT(extended.metadata.lineage, HasSubstr("extend("));
   EXPECT_THAT(extended.metadata.lineage, HasSubstr("later"));
+  EXPECT_EQ(stats.session_build.disparity_correction, *map.metadata.disparity_correction);
+  EXPECT_EQ(stats.session_build.calibration_passes, 0);
+  EXPECT_EQ(extended.metadata.disparity_correction, map.metadata.disparity_correction);
   EXPECT_EQ(stages,
             (std::vector<SessionMergeProgress::Stage>{SessionMergeProgress::Stage::kLocalizing,
                                                       SessionMergeProgress::Stage::kMapping}));

@@ -19,10 +19,10 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "core/camera/disparity_correction.h"
 #include "core/camera/stereo_rectifier.h"
 #include "core/features/descriptor_matching.h"
 #include "core/features/features.h"
-#include "mapping/disparity_correction.h"
 
 namespace visloc::mapping {
 
@@ -86,8 +86,8 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& r
 void CorrectStereoFrame(const DisparityCorrection& change, const StereoRectifier& rectifier,
                         const StereoMatchOptions& options, StereoFrame* frame);
 
-// `correction` is the rig's disparity bias (disparity_correction.h), taken off every measured
-// disparity: right_x_rect and point_in_rect hold corrected values.
+// `correction` is the rig's disparity bias (core/camera/disparity_correction.h), taken off every
+// measured disparity: right_x_rect and point_in_rect hold corrected values.
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options,

@@ -16,6 +16,11 @@ void ChecksumHead(const Map& map, Crc& crc) {
   crc.Text(map.metadata.builder);
   // Maps of one build checksum as before lineage existed.
   if (!map.metadata.lineage.empty()) crc.Text(map.metadata.lineage);
+  // And as before the rig's correction was recorded, for maps without one.
+  if (const auto& correction = map.metadata.disparity_correction) {
+    crc.Pod(correction->offset_px);
+    crc.Pod(correction->yaw_rad);
+  }
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());

@@ -18,6 +18,28 @@ void CheckFileExists(const std::string& path) {
     throw InputError(StrCat(path, ": empty file, not a visloc map"));
 }
 
+// The meta keys 'disparity_offset_px' and 'right_camera_yaw_rad': both or neither, finite.
+std::optional<DisparityCorrection> ReadDisparityCorrection(
+    const Database& db, const std::vector<std::pair<std::string, std::string>>& rows) {
+  std::optional<std::string> offset, yaw;
+  for (const auto& [k, v] : rows) {
+    if (k == "disparity_offset_px") offset = v;
+    if (k == "right_camera_yaw_rad") yaw = v;
+  }
+  if (!offset && !yaw) return std::nullopt;
+  if (!offset || !yaw) {
+    throw InputError(StrCat(
+        db.path(), ": meta has ", offset ? "'disparity_offset_px'" : "'right_camera_yaw_rad'",
+        " without ", offset ? "'right_camera_yaw_rad'" : "'disparity_offset_px'"));
+  }
+  const auto offset_px = ParseDouble(*offset), yaw_rad = ParseDouble(*yaw);
+  if (!offset_px || !yaw_rad || !std::isfinite(*offset_px) || !std::isfinite(*yaw_rad)) {
+    throw InputError(StrCat(db.path(), ": malformed disparity correction in meta ('", *offset,
+                            "', '", *yaw, "')"));
+  }
+  return DisparityCorrection{*offset_px, *yaw_rad};
+}
+
 Meta ReadMeta(Database& db, Map* map) {
   if (!db.HasTable("meta")) throw InputError(db.path() + ": not a visloc map (no 'meta' table)");
   std::vector<std::pair<std::string, std::string>> rows;
@@ -52,6 +74,7 @@ Meta ReadMeta(Database& db, Map* map) {
   for (const auto& [k, v] : rows) {
     if (k == "lineage") map->metadata.lineage = v;  // Schema 2; optional.
   }
+  map->metadata.disparity_correction = ReadDisparityCorrection(db, rows);  // Schema 3; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

@@ -21,7 +21,10 @@ const char* CameraModelName(LensModel model) {
   return model == LensModel::kEquidistant ? "pinhole-equidistant" : "pinhole-radtan";
 }
 
-int SchemaVersionOf(const Map& map) { return map.metadata.lineage.empty() ? 1 : 2; }
+int SchemaVersionOf(const Map& map) {
+  if (map.metadata.disparity_correction) return 3;
+  return map.metadata.lineage.empty() ? 1 : 2;
+}
 
 namespace internal {
 

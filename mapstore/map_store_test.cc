@@ -98,6 +98,36 @@ TEST(MapStoreTest, SummaryAndVerifyOfASoundMap) {
   EXPECT_TRUE(VerifyMapFile(path).ok());
 }
 
+// The rig's disparity correction is kept to the bit, covered by the checksum, and raises the
+// schema only for maps that have one: a map without one is the schema-1 file it always was.
+TEST(MapStoreTest, TheRigsDisparityCorrectionIsKeptExactlyAndOnlyWhereThereIsOne) {
+  TempDir dir;
+  const std::string plain = dir.File("plain.db"), rig = dir.File("rig.db");
+  SaveMap(SmallMap(), plain);
+  EXPECT_FALSE(LoadMap(plain).metadata.disparity_correction.has_value());
+  EXPECT_EQ(SummarizeMap(LoadMap(plain), plain).schema_version, 1);
+  Map map = SmallMap();
+  map.metadata.disparity_correction = DisparityCorrection{-0.123456789012345, 0.001953125};
+  SaveMap(map, rig);
+  const Map loaded = LoadMap(rig);
+  EXPECT_TRUE(MapsEqual(loaded, map));
+  ASSERT_TRUE(loaded.metadata.disparity_correction.has_value());
+  EXPECT_EQ(*loaded.metadata.disparity_correction, *map.metadata.disparity_correction);
+  EXPECT_EQ(SummarizeMap(loaded, rig).schema_version, 3);
+  EXPECT_TRUE(VerifyMapFile(rig).ok());
+
+  Database db = Database::OpenForWriting(rig);
+  db.Exec("UPDATE meta SET value = '0.5' WHERE key = 'disparity_offset_px'");
+  EXPECT_EQ(LoadError(rig),
+            rig + ": content checksum mismatch: the file is corrupt or was modified");
+  db.Exec("UPDATE meta SET value = 'west' WHERE key = 'disparity_offset_px'");
+  EXPECT_EQ(LoadError(rig),
+            rig + ": malformed disparity correction in meta ('west', '0.001953125')");
+  db.Exec("DELETE FROM meta WHERE key = 'right_camera_yaw_rad'");
+  EXPECT_EQ(LoadError(rig),
+            rig + ": meta has 'disparity_offset_px' without 'right_camera_yaw_rad'");
+}
+
 // Each kind of bad file gets its own clear message.
 class BadMapFileTest : public ::testing::Test {
  protected:
@@ -139,11 +169,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '3' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '4' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 3; this visloc reads up to 2): upgrade visloc");
+          ": written by a newer visloc (map schema 4; this visloc reads up to 3): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {

@@ -3,6 +3,8 @@
 
 #include <fcntl.h>
 
+#include <cstdio>
+
 #include <filesystem>
 
 #include "mapstore/file_sync.h"
@@ -30,6 +32,14 @@ void WriteMeta(Database& db, const Map& map) {
   for (const auto& [key, value] : rows) insert.Bind(1, key).Bind(2, value).Run();
   if (!map.metadata.lineage.empty())
     insert.Bind(1, std::string("lineage")).Bind(2, map.metadata.lineage).Run();
+  if (const auto& correction = map.metadata.disparity_correction) {
+    // 17 significant digits: the text reads back to the same doubles, which the checksum covers.
+    char text[32];
+    std::snprintf(text, sizeof text, "%.17g", correction->offset_px);
+    insert.Bind(1, std::string("disparity_offset_px")).Bind(2, std::string(text)).Run();
+    std::snprintf(text, sizeof text, "%.17g", correction->yaw_rad);
+    insert.Bind(1, std::string("right_camera_yaw_rad")).Bind(2, std::string(text)).Run();
+  }
 }
 
 void WriteCameraAndFeatures(Database& db, const Map& map) {

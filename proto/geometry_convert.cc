@@ -1,6 +1,7 @@
 #include "proto/geometry_convert.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/util/check.h"
 
@@ -92,6 +93,15 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
   for (double k : lens.coefficients) RequireRange("camera.distortion", k, -100.0, 100.0);
   return Camera(static_cast<int>(c.width()), static_cast<int>(c.height()), c.fx(), c.fy(), c.cx(),
                 c.cy(), lens);
+}
+
+void ToProto(const DisparityCorrection& correction, v1::DisparityCorrection* out) {
+  out->set_offset_px(correction.offset_px);
+  out->set_right_camera_yaw_deg(correction.yaw_rad * 180.0 / M_PI);
+}
+
+DisparityCorrection FromProto(const v1::DisparityCorrection& correction) {
+  return {correction.offset_px(), correction.right_camera_yaw_deg() * M_PI / 180.0};
 }
 
 }  // namespace visloc::proto

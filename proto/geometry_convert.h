@@ -5,6 +5,7 @@
 // Invalid wire data throws InputError naming the field.
 
 #include "core/camera/camera.h"
+#include "core/camera/disparity_correction.h"
 #include "core/geometry/rigid3.h"
 #include "visloc/v1/visloc.pb.h"
 
@@ -25,6 +26,10 @@ Rigid3d FromProto(const v1::Pose& pose, const char* field);
 
 void ToProto(const Camera& camera, v1::CameraModel* out);
 Camera FromProto(const v1::CameraModel& camera, const WireLimits& limits);
+
+// A rig's disparity correction on the wire: its yaw in degrees.
+void ToProto(const DisparityCorrection& correction, v1::DisparityCorrection* out);
+DisparityCorrection FromProto(const v1::DisparityCorrection& correction);
 
 // Refuses a wire value outside [low, high] (NaN too), naming the field, the value and the range.
 void RequireRange(const char* field, double value, double low, double high, const char* unit = "");

@@ -54,6 +54,9 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
   out->set_source_dataset(info.metadata.source_dataset);
   out->set_created_unix_s(info.metadata.created_unix_s);
   out->set_lineage(info.metadata.lineage);
+  if (info.metadata.disparity_correction) {
+    ToProto(*info.metadata.disparity_correction, out->mutable_disparity_correction());
+  }
   DetailsToProto(info, out->mutable_details());
 }
 
@@ -72,6 +75,9 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
   info.schema_version = static_cast<int>(wire.schema_version());
   info.metadata = {wire.name(), wire.created_unix_s(), wire.source_dataset(), wire.builder(),
                    wire.lineage()};
+  if (wire.has_disparity_correction()) {
+    info.metadata.disparity_correction = FromProto(wire.disparity_correction());
+  }
   info.features.kind = wire.feature_kind();
   info.keyframes = wire.keyframes();
   info.points = wire.points();

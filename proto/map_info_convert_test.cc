@@ -14,7 +14,9 @@ namespace {
 
 TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   TempDir dir;
-  mapstore::SaveMap(MakeSyntheticMap({}), dir.File("lab.db"));
+  Map map = MakeSyntheticMap({});
+  map.metadata.disparity_correction = DisparityCorrection{-0.6, 1.2e-3};
+  mapstore::SaveMap(map, dir.File("lab.db"));
   const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
   ASSERT_TRUE(local.info.has_value()) << local.error;
   v1::MapInfo wire;
@@ -45,6 +47,16 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_EQ(b.kernel.default_k, a.kernel.default_k);
   EXPECT_EQ(b.vocabulary_words, a.vocabulary_words);
   EXPECT_EQ(b.memory_bytes, a.memory_bytes);
+  ASSERT_TRUE(b.metadata.disparity_correction.has_value());
+  EXPECT_EQ(b.metadata.disparity_correction->offset_px, -0.6);
+  EXPECT_NEAR(b.metadata.disparity_correction->yaw_rad, 1.2e-3, 1e-15);
+
+  // A map that records none says so on the wire too (not a zero correction).
+  mapstore::SaveMap(MakeSyntheticMap({}), dir.File("plain.db"));
+  v1::MapInfo plain;
+  proto::ToProto(mapstore::MapDirectory(dir.path()).Describe("plain"), &plain);
+  EXPECT_FALSE(plain.has_disparity_correction());
+  EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.disparity_correction.has_value());
 }
 
 TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {

@@ -77,15 +77,6 @@ MappingJobOptions FromProto(const v1::MappingOptions& options) {
   return job;
 }
 
-void ToProto(const mapping::DisparityCorrection& correction, v1::DisparityCorrection* out) {
-  out->set_offset_px(correction.offset_px);
-  out->set_right_camera_yaw_deg(correction.yaw_rad * 180.0 / M_PI);
-}
-
-mapping::DisparityCorrection FromProto(const v1::DisparityCorrection& correction) {
-  return {correction.offset_px(), correction.right_camera_yaw_deg() * M_PI / 180.0};
-}
-
 std::string MappingStateText(v1::MappingState state) {
   std::string name = v1::MappingState_Name(state);
   if (StartsWith(name, "MAPPING_")) name = name.substr(8);

@@ -36,10 +36,6 @@ struct MappingJobOptions {
 // or thresholds out of range.
 MappingJobOptions FromProto(const v1::MappingOptions& options);
 
-// A rig's disparity correction on the wire: its yaw in degrees.
-void ToProto(const mapping::DisparityCorrection& correction, v1::DisparityCorrection* out);
-mapping::DisparityCorrection FromProto(const v1::DisparityCorrection& correction);
-
 // "MAPPING_FRAME_ERROR" -> "frame_error": how logs, job lists and the operator page name a state.
 std::string MappingStateText(v1::MappingState state);
 

@@ -128,34 +128,52 @@ TEST(OutdoorMapE2eTest, ARigWhoseRightCameraIsTurnedIsCalibratedByItsMotionAndMa
   EXPECT_LT(median, 0.005);  // Measured 0.11%.
   EXPECT_LT(end, 0.01);
 
+  // The map records the correction it was built with; `map info` shows it.
+  const ProcessResult info = Visloc({"map", "info", dir.File("drive.db"), "--json"});
+  ASSERT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NEAR(JsonNumber(info.out, "disparity_correction", "right_camera_yaw_deg"), yaw_deg, 1e-9);
+  EXPECT_NEAR(JsonNumber(info.out, "disparity_correction", "offset_px"), offset_px, 1e-9);
+  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 3);
+  EXPECT_FALSE(mapstore::LoadMap(dir.File("trusting.db")).metadata.disparity_correction);
+
   // The rig's correction, once known, is taken off from the first frame: the first 12 m, too
-  // short to estimate it from (less than 40 baselines), map once and metrically.
+  // short to estimate it from (less than 40 baselines), map once and metrically, whether it is
+  // given as numbers or taken from the map an earlier build of the rig wrote.
   char known[64];
   std::snprintf(known, sizeof known, "%.6f,%.6f", offset_px, yaw_deg);
-  for (const bool given : {false, true}) {
-    std::vector<std::string> args = {"map",          "build",
-                                     "--dataset",    drive,
-                                     "--frames",     "12",
-                                     "--out",        dir.File(given ? "known.db" : "short.db"),
-                                     "--trajectory", dir.File("short.tum"),
-                                     "--json"};
-    if (given) args.insert(args.end(), {"--disparity-correction", known});
+  const std::vector<std::vector<std::string>> ways = {
+      {}, {"--disparity-correction", known}, {"--disparity-correction-from", dir.File("drive.db")}};
+  for (size_t way = 0; way < ways.size(); ++way) {
+    const std::vector<std::string>& given = ways[way];
+    const std::string out = dir.File("short" + std::to_string(way) + ".db");
+    std::vector<std::string> args = {
+        "map",   "build", "--dataset", drive,          "--frames",           "12",
+        "--out", out,     "--json",    "--trajectory", dir.File("short.tum")};
+    args.insert(args.end(), given.begin(), given.end());
     const ProcessResult short_build = Visloc(args);
     ASSERT_EQ(short_build.exit_code, 0) << short_build.err;
     EXPECT_EQ(JsonNumber(short_build.out, "calibration_passes"), 0);
-    EXPECT_NEAR(JsonNumber(short_build.out, "right_camera_yaw_deg"), given ? yaw_deg : 0.0, 1e-5);
+    EXPECT_NEAR(JsonNumber(short_build.out, "right_camera_yaw_deg"), given.empty() ? 0.0 : yaw_deg,
+                1e-5);
     const double short_median = testing::DriftShares(drive + "/groundtruth_map.tum",
                                                      dir.File("short.tum"), dir.File("last.tum"))
                                     .first;
     std::printf("first 12 m, %s: %.2f%% of the distance (median)\n",
-                given ? "with the rig's correction given" : "too short to estimate it",
-                100 * short_median);
-    if (given) {
-      EXPECT_LT(short_median, 0.005);
-    } else {
+                given.empty() ? "too short to estimate it" : given[0].c_str(), 100 * short_median);
+    // A map built with a given correction records it for the next build; one without, none.
+    EXPECT_EQ(mapstore::LoadMap(out).metadata.disparity_correction.has_value(), !given.empty());
+    if (given.empty()) {
       EXPECT_GT(short_median, 0.03);
+    } else {
+      EXPECT_LT(short_median, 0.005);
     }
   }
+  // The first short map records none: a build cannot take one from it, and says why.
+  const ProcessResult none =
+      Visloc({"map", "build", "--dataset", drive, "--frames", "4", "--out", dir.File("none.db"),
+              "--disparity-correction-from", dir.File("short0.db")});
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_THAT(none.err, ::testing::HasSubstr("records no disparity correction"));
 }
 
 // A rig whose calibration is wrong must be caught before a build, with the reason, and a map too

@@ -106,6 +106,10 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
   ProblemList problems(max_problems);
   if (map.metadata.name.empty()) problems.Add("map name is empty");
   if (map.camera.width() <= 0) problems.Add("map camera is not set");
+  if (const auto& correction = map.metadata.disparity_correction;
+      correction && !(std::isfinite(correction->offset_px) && std::isfinite(correction->yaw_rad))) {
+    problems.Add("the rig's disparity correction is not finite");
+  }
   for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
     if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
       problems.Add("keyframe ", i, " has a non-finite pose or a non-unit quaternion");
@@ -156,7 +160,8 @@ bool MapsEqual(const Map& a, const Map& b) {
   if (a.metadata.name != b.metadata.name ||
       a.metadata.created_unix_s != b.metadata.created_unix_s ||
       a.metadata.source_dataset != b.metadata.source_dataset ||
-      a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage) {
+      a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage ||
+      a.metadata.disparity_correction != b.metadata.disparity_correction) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

@@ -7,6 +7,7 @@
 // Pixels are in the map camera's raw, distorted image (Camera's convention).
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -15,6 +16,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera/camera.h"
+#include "core/camera/disparity_correction.h"
 #include "core/features/feature_types.h"
 #include "core/geometry/rigid3.h"
 
@@ -28,6 +30,11 @@ struct MapMetadata {
   // How the map came to be when it is more than one build: its sessions and merges, e.g.
   // "merge('lab' <- /data/mon; 'corridor' <- /data/tue)". Empty for a map of one build.
   std::string lineage;
+  // The stereo rig's disparity correction the build took off its disparities, estimated by it
+  // or given to it; none when it had neither (a run too short to estimate it from, a build that
+  // trusts the rig's calibration, maps made before it was recorded). Sessions that extend or
+  // update the map take it: they come from the same rig (its camera is checked).
+  std::optional<DisparityCorrection> disparity_correction = std::nullopt;
 };
 
 struct Keyframe {

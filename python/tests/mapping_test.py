@@ -7,6 +7,7 @@ The data folder is the localization test fixture (map_square/, a rendered stereo
 """
 
 import glob
+import json
 import os
 import subprocess
 import sys
@@ -18,6 +19,7 @@ import cv2
 
 from harness import start
 from visloc import MappingError, MappingOptions, MappingSession, stereo_rig_from_yaml
+from visloc.v1 import visloc_pb2 as pb
 
 SERVER, PROXY, CLI, DATA = sys.argv[1:5]
 del sys.argv[1:5]
@@ -48,8 +50,9 @@ class PythonMappingTest(unittest.TestCase):
         cls.server.terminate()
         cls.server.wait()
 
-    def stream(self, address, name, pace_s=0.0):
-        mapping = MappingSession(MappingOptions(server=address, map_name=name, rig=self.rig))
+    def stream(self, address, name, pace_s=0.0, options=None):
+        mapping = MappingSession(MappingOptions(server=address, map_name=name, rig=self.rig,
+                                                mapping=options or pb.MappingOptions()))
         for timestamp_ns, left, right in self.frames:
             mapping.submit(timestamp_ns, left, right)
             time.sleep(pace_s)
@@ -68,6 +71,20 @@ class PythonMappingTest(unittest.TestCase):
                         here], check=True, stdout=subprocess.DEVNULL)
         self.assertEqual(keyframes(os.path.join(self.maps, "py_hall.db"), here + ".link.tum"),
                          keyframes(here, here + ".tum"))
+
+    def test_a_known_disparity_correction_is_the_builds_and_the_maps(self):
+        known = pb.DisparityCorrection(offset_px=0.05, right_camera_yaw_deg=0.002)
+        _, published, _ = self.stream(self.address, "py_rig",
+                                      options=pb.MappingOptions(disparity_correction=known))
+        self.assertEqual(published.disparity_correction.offset_px, 0.05)
+        self.assertAlmostEqual(published.disparity_correction.right_camera_yaw_deg, 0.002,
+                               places=12)
+        info = json.loads(subprocess.run(
+            [CLI, "map", "info", os.path.join(self.maps, "py_rig.db"), "--json"], check=True,
+            stdout=subprocess.PIPE).stdout)
+        self.assertEqual(info["disparity_correction"]["offset_px"], 0.05)
+        self.assertAlmostEqual(info["disparity_correction"]["right_camera_yaw_deg"], 0.002,
+                               places=12)
 
     def test_a_cut_link_is_resumed(self):
         proxy, address = start([PROXY, "--upstream", self.address, "--cut-every-s", "1",

@@ -13,8 +13,11 @@
 // built with it is metrically wrong, most where points are far (KITTI 01 behaves as if its
 // right camera were turned by 0.1 degree: 1.3 px). Motion observes it: the same point seen
 // from places the camera drove between must have the depths its disparities say.
+//
+// A property of the rig, not of one build: a map records the correction it was built with
+// (MapMetadata), so the rig's next builds and the sessions that extend the map can take it.
 
-namespace visloc::mapping {
+namespace visloc {
 
 struct DisparityCorrection {
   double offset_px = 0.0;
@@ -26,6 +29,10 @@ struct DisparityCorrection {
     const double x = (right_x_px - cx_px) / f_px;
     return offset_px + f_px * yaw_rad * (1.0 + x * x);
   }
+  bool operator==(const DisparityCorrection& other) const {
+    return offset_px == other.offset_px && yaw_rad == other.yaw_rad;
+  }
+  bool operator!=(const DisparityCorrection& other) const { return !(*this == other); }
 };
 
 // Two small corrections, one after the other (exact for the offsets, first order in the yaws).
@@ -33,4 +40,4 @@ inline DisparityCorrection operator+(const DisparityCorrection& a, const Dispari
   return {a.offset_px + b.offset_px, a.yaw_rad + b.yaw_rad};
 }
 
-}  // namespace visloc::mapping
+}  // namespace visloc
