@@ -390,9 +390,12 @@ def part_node(a, work, map_db, figures):
                 o = nearest(odom, stamp)
                 if o is not None:
                     chain.append(np.linalg.norm((map_from_odom @ o)[:3, 3] - listener.poses[stamp][1][:3, 3]))
-        check(len(chain) >= frames - 2 and max(chain) < 1e-6,
-              "query: %d TF map -> odom, closing map -> odom -> camera on the pose within %.1e m"
-              % (len(chain), max(chain) if chain else -1))
+        # Every pose has its map -> odom. Counted against the poses, not the frames: a frame the
+        # node's link dropped under load (reported, checked above) has neither.
+        with_odometry = sum(1 for stamp in listener.poses if nearest(odom, stamp) is not None)
+        check(len(chain) >= with_odometry - 2 and len(chain) >= 0.8 * frames and max(chain) < 1e-6,
+              "query: %d TF map -> odom for %d poses, closing map -> odom -> camera on the pose within %.1e m"
+              % (len(chain), with_odometry, max(chain) if chain else -1))
         check(not any(child == "cam0" for _, child, _, _ in listener.tf), "query: no map -> camera TF with odometry")
         level, values = listener.diagnostics or (-1, {})
         check(level == 0 and values.get("status") == "STATUS_TRACKING" and int(values.get("inliers", 0)) > 100,
