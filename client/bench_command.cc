@@ -95,6 +95,13 @@ struct RelocalizationRun {
   ErrorStats ms;                   // Features + retrieval + verification, per query.
   std::vector<StepSummary> steps;  // The same apart (RelocalizationTimes).
   double found_fraction = 0.0;
+  // Queries the tracking features did not find, which took the second pass at every scale.
+  double second_pass_fraction = 0.0;
+  // The same queries with the full features alone (no tracking-features pass), interleaved:
+  // what a query costs without the first pass, and the second pass's share of a query that
+  // needs it.
+  ErrorStats full_features_ms;
+  double full_features_found_fraction = 0.0;
 };
 
 // Per step of RelocalizationTimes, its median and p95 over the queries.
@@ -116,24 +123,35 @@ std::vector<StepSummary> SummarizeRelocalizationSteps(
 }
 
 RelocalizationRun TimeRelocalization(const std::shared_ptr<const LocalizationMap>& map,
-                                     const Camera& camera,
-                                     const std::vector<cv::Mat>& images, int queries) {
+                                     const Camera& camera, const std::vector<cv::Mat>& images,
+                                     int queries) {
   const QueryPipeline pipeline(map, camera, LocalizerOptions{});  // As a session and the RPC.
-  std::vector<double> ms;
+  LocalizerOptions full_options;
+  full_options.relocalize_with_tracking_features_first = false;
+  const QueryPipeline full_features(map, camera, full_options);
+  std::vector<double> ms, full_ms;
   std::vector<RelocalizationTimes> times;
-  int found = 0;
+  int found = 0, second_passes = 0, full_found = 0;
   const size_t step = std::max<size_t>(1, images.size() / std::max(1, queries));
   for (size_t i = 0; i < images.size(); i += step) {
     Timer timer;
     const RelocalizationResult result = pipeline.RelocalizeImage(images[i]);
     ms.push_back(timer.ElapsedMs());
     found += result.success;
+    second_passes += result.feature_passes == 2;
     times.push_back(result.times);
+    timer.Restart();
+    full_found += full_features.RelocalizeImage(images[i]).success;
+    full_ms.push_back(timer.ElapsedMs());
   }
   RelocalizationRun run;
   run.ms = ComputeErrorStats(ms);
   run.steps = SummarizeRelocalizationSteps(times);
-  run.found_fraction = ms.empty() ? 0.0 : static_cast<double>(found) / ms.size();
+  const double n = std::max<size_t>(1, ms.size());
+  run.found_fraction = found / n;
+  run.second_pass_fraction = second_passes / n;
+  run.full_features_ms = ComputeErrorStats(full_ms);
+  run.full_features_found_fraction = full_found / n;
   return run;
 }
 
@@ -302,6 +320,10 @@ int RunBench(const Args& raw_args) {
         .Field("orb_reference_ms_per_frame_median", orb.median)
         .Field("relocalization_ms_median", relocalization.ms.median)
         .Field("relocalization_found_fraction", relocalization.found_fraction)
+        .Field("relocalization_second_pass_fraction", relocalization.second_pass_fraction)
+        .Field("relocalization_full_features_ms_median", relocalization.full_features_ms.median)
+        .Field("relocalization_full_features_found_fraction",
+               relocalization.full_features_found_fraction)
         .Field("localized_fraction", visibility.localized_fraction)
         .Field("no_visibility_localized_fraction", transparent.localized_fraction)
         .Field("brute_force_localized_fraction", brute.localized_fraction);
@@ -358,6 +380,13 @@ int RunBench(const Args& raw_args) {
     std::printf("  %-26s %10.3f %10s            (%.2fx one tracking frame)\n", step.name.c_str(),
                 step.ms.median, "", step.ms.median / ours);
   }
+  std::printf("  %-26s %10.0f%%\n", "second pass (every scale)",
+              100 * relocalization.second_pass_fraction);
+  std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.1fx one tracking frame)\n",
+              "  with full features alone", relocalization.full_features_ms.median,
+              relocalization.full_features_ms.median / orb.median,
+              100 * relocalization.full_features_found_fraction,
+              relocalization.full_features_ms.median / ours);
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;
     const double in_process = grpc->in_process_ms.median;

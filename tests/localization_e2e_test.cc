@@ -347,6 +347,12 @@ TEST(LocalizationE2eTest, BenchReportsEveryFigureInOneRun) {
   }
   EXPECT_EQ(JsonNumber(bench.out, "", "localized_fraction"), 1.0);
   EXPECT_EQ(JsonNumber(bench.out, "", "relocalization_found_fraction"), 1.0);
+  // The same queries with the full features alone, interleaved; the share the tracking features
+  // did not find.
+  EXPECT_EQ(JsonNumber(bench.out, "", "relocalization_full_features_found_fraction"), 1.0);
+  EXPECT_GT(JsonNumber(bench.out, "", "relocalization_full_features_ms_median"), 0.0);
+  const double second = JsonNumber(bench.out, "", "relocalization_second_pass_fraction");
+  EXPECT_TRUE(second >= 0.0 && second <= 1.0) << second;
   // Ratios within one run: brute force matches every keypoint against every map point.
   EXPECT_GT(JsonNumber(bench.out, "", "brute_force_ms_per_frame_median"),
             JsonNumber(bench.out, "", "ms_per_frame_median"));

@@ -30,8 +30,8 @@ namespace {
 // image, in clusters, so the detector's selection costs differently on them.
 cv::Mat RealImage(const std::string& recording) {
   const std::string dir = std::string(VISLOC_REAL_DATA) + "/" + recording;
-  for (const std::string& path : {dir + "/mav0/cam0/data/1403636584763555584.png",
-                                 dir + "/image_0/000000.png"}) {
+  for (const std::string& path :
+       {dir + "/mav0/cam0/data/1403636584763555584.png", dir + "/image_0/000000.png"}) {
     cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (!image.empty()) return image;
   }

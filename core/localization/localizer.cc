@@ -162,6 +162,10 @@ void Localizer::AddFixTimes(const PoseFix& fix, FrameStats* stats) {
   stats->times.pose_ms += fix.times.pose_ms;
 }
 
+bool Localizer::TrackingFeaturesFirst() const {
+  return options_.relocalize_with_tracking_features_first && !relocalization_failed_;
+}
+
 bool Localizer::Strong(const PoseFix& fix) const {
   return fix.inliers >= options_.min_tracking_inliers &&
          fix.inlier_ratio >= options_.min_tracking_inlier_ratio;
@@ -207,6 +211,7 @@ void Localizer::Accept(const PoseFix& fix, const FixDecision& decision, PoseSour
   last_fix_ns_ = timestamp_ns;
   last_fix_map_from_cam_ = measured;
   ever_localized_ = true;
+  relocalization_failed_ = false;
   pending_.reset();
   result->status = status;
   result->source = source;
@@ -215,14 +220,8 @@ void Localizer::Accept(const PoseFix& fix, const FixDecision& decision, PoseSour
   result->covariance = filter_.covariance() + systematic_;
 }
 
-PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
-                                 LocalizationResult* result) {
-  RelocalizationReport& report = result->relocalization;
-  const Timer extract;
-  const QueryFrame frame = pipeline_.ExtractForRelocalization(image);
-  const double extract_ms = extract.ElapsedMs();
-  report.ms += extract_ms;
-  result->stats.times.relocalize_ms += extract_ms;
+RelocalizationResult Localizer::RelocalizeFrame(const QueryFrame& frame, int64_t timestamp_ns,
+                                                RelocalizationReport* report) const {
   RelocalizationResult found;
   const bool local = ever_localized_ &&
                      NsToSeconds(timestamp_ns - last_fix_ns_) <= options_.local_relocalization_s;
@@ -231,17 +230,37 @@ PoseFix Localizer::TryRelocalize(const cv::Mat& image, int64_t timestamp_ns,
                                                          : last_fix_map_from_cam_.translation;
     found = pipeline_.relocalizer().Relocalize(
         frame, RelocalizationScope{center, options_.local_radius_m});
-    report.kind = RelocalizationReport::Kind::kLocal;
-    report.ms += found.ms;
-    report.candidates += static_cast<int>(found.candidates.size());
+    report->kind = RelocalizationReport::Kind::kLocal;
+    report->ms += found.ms;
+    report->candidates += static_cast<int>(found.candidates.size());
   }
   if (!found.success) {
     found = pipeline_.relocalizer().Relocalize(frame);
-    report.kind = RelocalizationReport::Kind::kGlobal;
-    report.ms += found.ms;
-    report.candidates += static_cast<int>(found.candidates.size());
+    report->kind = RelocalizationReport::Kind::kGlobal;
+    report->ms += found.ms;
+    report->candidates += static_cast<int>(found.candidates.size());
   }
-  result->stats.times.relocalize_ms += found.ms;
+  return found;
+}
+
+PoseFix Localizer::TryRelocalize(const cv::Mat& image, const QueryFrame* tracking_frame,
+                                 int64_t timestamp_ns, LocalizationResult* result) {
+  RelocalizationReport& report = result->relocalization;
+  const double report_ms_before = report.ms;
+  RelocalizationResult found;
+  if (tracking_frame) {
+    found = RelocalizeFrame(*tracking_frame, timestamp_ns, &report);
+    ++report.feature_passes;
+  }
+  if (!found.success) {
+    ++report.feature_passes;
+    const Timer extract;
+    const QueryFrame frame = pipeline_.ExtractForRelocalization(image);
+    report.ms += extract.ElapsedMs();
+    found = RelocalizeFrame(frame, timestamp_ns, &report);
+  }
+  result->stats.times.relocalize_ms += report.ms - report_ms_before;
+  relocalization_failed_ = !found.success;
   report.found = found.success;
   report.keyframe = found.keyframe;
   if (found.success) CopyFixStats(found.fix, &result->stats);
@@ -255,14 +274,18 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   result.timestamp_ns = input.timestamp_ns;
   const bool had_held_fix = pending_.has_value();
   const Motion motion = Predict(input);
-  // The tracking features only when there is a pose to track from: a robot that is lost or not
-  // yet found goes straight to relocalization, which extracts its own (at 752x480 the tracking
-  // features were half a millisecond of such a frame, unused).
+  // The tracking features when there is a pose to track from, or a relocalization to try them
+  // first; a robot that stays lost (relocalization_failed_) goes straight to the relocalization
+  // features (at 752x480 the tracking features were half a millisecond of such a frame, unused).
   std::optional<QueryFrame> frame;
-  if (Prior(input) || had_held_fix) frame.emplace(Extract(input.image, &result.stats));
-  const bool taken = (frame && TrackFromPrior(*frame, input, motion, &result)) ||
-                     (had_held_fix && ConfirmHeldFix(*frame, input.timestamp_ns, &result)) ||
-                     Relocalize(input, motion, &result);
+  const bool features_first = TrackingFeaturesFirst();
+  if (Prior(input) || had_held_fix || features_first) {
+    frame.emplace(Extract(input.image, &result.stats));
+  }
+  const bool taken =
+      (frame && TrackFromPrior(*frame, input, motion, &result)) ||
+      (had_held_fix && ConfirmHeldFix(*frame, input.timestamp_ns, &result)) ||
+      Relocalize(input, frame && features_first ? &*frame : nullptr, motion, &result);
   if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
   result.stats.times.total_ms = total.ElapsedMs();
   return result;
@@ -347,9 +370,9 @@ bool Localizer::ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns,
   return true;
 }
 
-bool Localizer::Relocalize(const FrameInput& input, const Motion& motion,
+bool Localizer::Relocalize(const FrameInput& input, const QueryFrame* frame, const Motion& motion,
                            LocalizationResult* result) {
-  const PoseFix fix = TryRelocalize(input.image, input.timestamp_ns, result);
+  const PoseFix fix = TryRelocalize(input.image, frame, input.timestamp_ns, result);
   if (!fix.success) return false;
   const FixDecision decision = DecideRelocalizedFix(EvidenceOf(fix, motion));
   if (decision.held()) {

@@ -86,6 +86,9 @@ struct RelocalizationReport {
   bool awaiting_confirmation = false;  // Found, but must be confirmed by the next frame.
   int keyframe = -1;
   int candidates = 0;
+  // Feature passes: 1 with the tracking features or the relocalization features alone, 2 when
+  // the tracking features found nothing and the relocalization features were extracted.
+  int feature_passes = 0;
   double ms = 0.0;
 };
 const char* RelocalizationKindName(RelocalizationReport::Kind kind);
@@ -147,8 +150,10 @@ class Localizer {
   // A fix held since the last frame (a jump, or a weakly supported relocalization), confirmed
   // by tracking from where the motion moved it.
   bool ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns, LocalizationResult* result);
-  // 4. Relocalization: local around the last pose, then global.
-  bool Relocalize(const FrameInput& input, const Motion& motion, LocalizationResult* result);
+  // 4. Relocalization: local around the last pose, then global; with the tracking features
+  // `frame` first when given (TrackingFeaturesFirst).
+  bool Relocalize(const FrameInput& input, const QueryFrame* frame, const Motion& motion,
+                  LocalizationResult* result);
   // 5. No visual fix: bridged with the motion prediction, or no pose.
   void BridgeOrLose(int64_t timestamp_ns, const Motion& motion, LocalizationResult* result);
 
@@ -156,8 +161,17 @@ class Localizer {
   // What is known of `fix` (found at `map_from_cam`) against the filter's pose.
   FixEvidence EvidenceOf(const PoseFix& fix, const Motion& motion) const;
   bool Strong(const PoseFix& fix) const;
-  // Local then global relocalization of `image`, with the relocalization features.
-  PoseFix TryRelocalize(const cv::Mat& image, int64_t timestamp_ns, LocalizationResult* result);
+  // Whether a relocalization this frame tries the tracking features first: the option, unless
+  // the last relocalization found nothing with either (relocalization_failed_).
+  bool TrackingFeaturesFirst() const;
+  // Relocalization of `image`: with `tracking_frame`'s features first when given, then with the
+  // relocalization features when that found nothing.
+  PoseFix TryRelocalize(const cv::Mat& image, const QueryFrame* tracking_frame,
+                        int64_t timestamp_ns, LocalizationResult* result);
+  // Local relocalization of `frame` around the last fix when that is recent, then global when
+  // that found nothing; the time and candidates go to `report`.
+  RelocalizationResult RelocalizeFrame(const QueryFrame& frame, int64_t timestamp_ns,
+                                       RelocalizationReport* report) const;
   // Takes a fix. Relocalized fixes, and any fix while the filter holds nothing, restart it.
   void Accept(const PoseFix& fix, const FixDecision& decision, PoseSource source,
               int64_t timestamp_ns, LocalizationResult* result);
@@ -178,6 +192,10 @@ class Localizer {
   // the same map's points again does not reduce.
   Matrix6d systematic_ = Matrix6d::Zero();
   bool ever_localized_ = false;
+  // The last relocalization found nothing with either features: the robot is out of the map or
+  // its camera covered, and until it is found its frames go to the full features directly (the
+  // tracking features' pass would fail again and cost a second pass every frame).
+  bool relocalization_failed_ = false;
   std::optional<int64_t> last_timestamp_ns_;
   std::optional<Rigid3d> last_odom_from_cam_;
   int64_t last_fix_ns_ = 0;

@@ -78,6 +78,15 @@ struct LocalizerOptions {
   // 1300 corners at all scales, 80-150 and 25-40 (71 of 75, and 75 of 75 with the RANSAC budget
   // below). Tracking keeps the cheaper query features: its prior finds the points by position.
   int max_relocalization_features = 0;
+  // Relocalize with the tracking features first (the finest scale, max_query_features) and with
+  // those above only when that verifies no candidate. A view close to a keyframe's is found with
+  // the cheap features, at half the cost of extracting at every scale; the views they miss (the
+  // comment above) get the full features next, so recall is that of the full features alone.
+  // The acceptance test (verified inliers and ratio) is the same for both passes, and a
+  // session's first frame is relocalized as the Relocalize RPC relocalizes its image. A session
+  // whose last relocalization found nothing with either (out of the map, camera covered) goes
+  // to the full features directly until it is found, so a robot that stays lost pays one pass.
+  bool relocalize_with_tracking_features_first = true;
   // A query camera whose focal length differs from the map camera's by more than this factor
   // (either way) has its images resampled to the map's focal length before detection. The
   // detector's scales are in pixels, so without it a corner the map described at one scale is

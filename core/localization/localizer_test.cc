@@ -62,25 +62,34 @@ TEST(LocalizerTest, ACoveredCameraGetsNoPose) {
   }
 }
 
-// With no pose to track from, a frame goes straight to relocalization, which extracts its own
-// features: the tracking features would be unused work (a quarter of a lost frame at 752x480).
-TEST(LocalizerTest, WithoutAPriorOnlyTheRelocalizationExtracts) {
+// A robot that is not found tries the tracking features first (as the Relocalize RPC does),
+// then the relocalization features. Once neither found it, its frames go straight to the
+// relocalization features until it is found: the tracking features would be unused work (a
+// quarter of a lost frame at 752x480) and their pass would fail again.
+TEST(LocalizerTest, ARobotThatStaysLostStopsTryingTheTrackingFeatures) {
   const auto map = SmallHarrisMap();
   cv::Mat texture(240, 320, CV_8UC1);
   cv::randu(texture, 0, 256);
   Localizer localizer(map, map->map().camera, LocalizerOptions{});
-  const LocalizationResult lost = localizer.Process(Frame(66'000'000LL, texture));
+  const LocalizationResult first = localizer.Process(Frame(66'000'000LL, texture));
+  EXPECT_EQ(first.status, TrackingStatus::kInitializing);
+  EXPECT_GT(first.stats.features, 100);
+  EXPECT_EQ(first.relocalization.feature_passes, 2);
+  EXPECT_FALSE(first.relocalization.found);
+  const LocalizationResult lost = localizer.Process(Frame(132'000'000LL, texture));
   EXPECT_EQ(lost.status, TrackingStatus::kInitializing);
   EXPECT_EQ(lost.stats.times.detect_ms, 0.0);
   EXPECT_EQ(lost.stats.times.describe_ms, 0.0);
   EXPECT_EQ(lost.stats.features, 0);
+  EXPECT_EQ(lost.relocalization.feature_passes, 1);
   EXPECT_GT(lost.stats.times.relocalize_ms, 0.0);
   // A hint is a prior: tracking is tried first, with its own features.
-  FrameInput hinted = Frame(132'000'000LL, texture);
+  FrameInput hinted = Frame(198'000'000LL, texture);
   hinted.map_from_cam_hint = map->map().keyframes.front().map_from_cam;
   const LocalizationResult tried = localizer.Process(hinted);
   EXPECT_GT(tried.stats.times.detect_ms, 0.0);
   EXPECT_GT(tried.stats.features, 100);
+  EXPECT_EQ(tried.relocalization.feature_passes, 1);  // Still lost: the full features only.
 }
 
 TEST(LocalizerTest, OptionsAreChecked) {

@@ -8,8 +8,8 @@
 #include <Eigen/Core>
 
 #include "core/camera/camera.h"
-#include "core/features/features.h"
 #include "core/features/descriptor_matching.h"
+#include "core/features/features.h"
 
 namespace visloc {
 

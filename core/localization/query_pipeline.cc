@@ -92,10 +92,28 @@ QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
 
 RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {
   const Timer timer;
-  const QueryFrame frame = ExtractForRelocalization(image);
-  const double features_ms = timer.ElapsedMs();
-  RelocalizationResult found = relocalizer_->Relocalize(frame);
-  found.times.features_ms = features_ms;
+  // One pass: the features `extract` gives, then the relocalizer on them.
+  const auto pass = [&](auto extract) {
+    const Timer features;
+    const QueryFrame frame = extract();
+    const double features_ms = features.ElapsedMs();
+    RelocalizationResult found = relocalizer_->Relocalize(frame);
+    found.times.features_ms = features_ms;
+    return found;
+  };
+  RelocalizationResult found;
+  if (options_.relocalize_with_tracking_features_first) {
+    found = pass([&] { return Extract(image); });
+    if (found.success) {
+      found.ms = timer.ElapsedMs();
+      return found;
+    }
+  }
+  const RelocalizationTimes first = found.times;
+  const bool second = options_.relocalize_with_tracking_features_first;
+  found = pass([&] { return ExtractForRelocalization(image); });
+  found.times += first;
+  found.feature_passes = second ? 2 : 1;
   found.ms = timer.ElapsedMs();
   return found;
 }

@@ -17,6 +17,15 @@ void RelocalizationOptions::Check() const {
   matching.Check();
 }
 
+RelocalizationTimes& RelocalizationTimes::operator+=(const RelocalizationTimes& other) {
+  features_ms += other.features_ms;
+  retrieval_ms += other.retrieval_ms;
+  matching_ms += other.matching_ms;
+  ransac_ms += other.ransac_ms;
+  verification_ms += other.verification_ms;
+  return *this;
+}
+
 Relocalizer::Relocalizer(const PoseTracker& tracker, const RelocalizationOptions& options)
     : tracker_(tracker), options_(options) {
   options_.Check();

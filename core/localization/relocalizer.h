@@ -53,11 +53,12 @@ struct RelocalizationCandidate {
 // Where a relocalization's time went, ms. The candidate steps are summed over the candidates
 // verified.
 struct RelocalizationTimes {
-  double features_ms = 0.0;      // Features at every scale, undistorted (RelocalizeImage only).
+  double features_ms = 0.0;      // Features, undistorted (RelocalizeImage only): both passes'.
   double retrieval_ms = 0.0;     // Bag of words, keyframe scores, ranking.
   double matching_ms = 0.0;      // Descriptor matching against each candidate's points.
   double ransac_ms = 0.0;        // PnP RANSAC on those matches.
   double verification_ms = 0.0;  // Re-matching by projection and refinement (Polish).
+  RelocalizationTimes& operator+=(const RelocalizationTimes& other);
 };
 
 struct RelocalizationResult {
@@ -67,6 +68,9 @@ struct RelocalizationResult {
   std::vector<RelocalizationCandidate> candidates;  // As tried, best appearance first.
   double ms = 0.0;
   RelocalizationTimes times;
+  // Feature passes it took (QueryPipeline::RelocalizeImage): 1 with the tracking features or
+  // the full ones alone, 2 when the tracking features verified nothing and the full ones ran.
+  int feature_passes = 1;
 };
 
 class Relocalizer {

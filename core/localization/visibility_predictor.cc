@@ -100,8 +100,7 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
   return predicted;
 }
 
-std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
-                                              const Camera& camera,
+std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map, const Camera& camera,
                                               const Rigid3d& map_from_cam) {
   const Rigid3d cam_from_map = map_from_cam.Inverse();
   std::vector<uint32_t> visible;

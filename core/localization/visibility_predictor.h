@@ -55,8 +55,7 @@ class VisibilityPredictor {
 
 // The transparent-world baseline: every point in front of `camera` at `map_from_cam` whose
 // projection falls inside the image.
-std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map,
-                                              const Camera& camera,
+std::vector<uint32_t> PredictTransparentWorld(const LocalizationMap& map, const Camera& camera,
                                               const Rigid3d& map_from_cam);
 
 }  // namespace visloc
