@@ -385,9 +385,10 @@ echo "== writing $REPORT"
     echo "the same acceptance test (LocalizerOptions::relocalize_with_tracking_features_first). These"
     echo "queries are frames of the mapped run; views farther from the keyframes need the second pass"
     echo "more often (MH_01's second half alone against a map of its first half: 15% of them on"
-    echo "2026-11-27, all found), and a query that needs it costs both passes. A session that loses"
-    echo "track from a prior has its tracking features already; one without a prior goes to the full"
-    echo "features directly, so a robot out of the map pays no second pass."
+    echo "2026-11-27, all found), and a query that needs it costs both passes. A session's first"
+    echo "frame takes the same passes as the RPC's image, and one that loses track from a prior has"
+    echo "its tracking features already. A session whose last relocalization found nothing with either"
+    echo "goes to the full features directly until it is found: a robot that stays lost pays one pass."
     echo
     echo "Where a map build's time goes (every core; shares of the total):"
     echo
