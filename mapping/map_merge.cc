@@ -293,6 +293,10 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   Map merged;
   merged.metadata = a.metadata;
   merged.metadata.lineage = MergedLineage(a.metadata, b.metadata);
+  // The rig's correction (one camera, checked): A's, else the one B's build recorded.
+  if (!merged.metadata.disparity_correction) {
+    merged.metadata.disparity_correction = b.metadata.disparity_correction;
+  }
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;

@@ -77,9 +77,12 @@ TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
   const Map a = MondayMap(1);
   const Rigid3d b_from_a(Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
                          Eigen::Vector3d(3.0, -1.0, 0.5));
-  const Map b = SecondSession(a, b_from_a, 0.005);
+  Map b = SecondSession(a, b_from_a, 0.005);
+  // Only B's build recorded the rig's disparity correction (the rig is the same: one camera).
+  b.metadata.disparity_correction = DisparityCorrection{0.1, 2e-4};
   MergeStats stats;
   const Map merged = MergeMaps(a, b, RigidOnlyMerge(), &stats);
+  EXPECT_EQ(merged.metadata.disparity_correction, b.metadata.disparity_correction);
   EXPECT_TRUE(ApproxEqual(stats.a_from_b, b_from_a.Inverse(), 0.005, 0.2));
   EXPECT_GT(stats.fused_points, 0.9 * b.points.size());
   EXPECT_EQ(stats.fused_points + stats.added_points, static_cast<int>(b.points.size()));
