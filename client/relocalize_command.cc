@@ -58,7 +58,9 @@ void WritePose(JsonWriter& out, const v1::Pose& p) {
 
 // The fields of one answer, inside an open JSON object.
 void WriteAnswer(JsonWriter& out, const v1::RelocalizeResponse& response) {
-  out.Field("localized", response.localized()).Field("ms", response.ms());
+  out.Field("localized", response.localized())
+      .Field("ms", response.ms())
+      .Field("feature_passes", static_cast<int64_t>(response.feature_passes()));
   if (response.localized()) {
     out.Field("inliers", static_cast<int64_t>(response.inliers()))
         .Field("inlier_ratio", response.inlier_ratio())

@@ -229,6 +229,7 @@ void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
     out->set_inlier_ratio(found.fix.inlier_ratio);
   }
   out->set_keyframe(found.keyframe);
+  out->set_feature_passes(static_cast<uint32_t>(found.feature_passes));
   for (const RelocalizationCandidate& c : found.candidates) {
     v1::RelocalizationCandidate* candidate = out->add_candidates();
     candidate->set_keyframe(c.keyframe);

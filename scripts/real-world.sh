@@ -85,7 +85,9 @@ subset() {
 }
 
 # relocalize_each BIN_DIR MAP SUBSET OUT: each image of SUBSET alone through the server
-# (SERVER_ADDRESS); OUT.tum gets the poses found, OUT.txt "found ms" per image.
+# (SERVER_ADDRESS); OUT.tum gets the poses found, OUT.txt "found ms passes" per image (passes:
+# the answer's feature_passes, 0 from a visloc before them).
+passes_of() { grep -q '"feature_passes"' "$1" && field "$1" feature_passes || echo 0; }
 relocalize_each() {
   local bin=$1 map=$2 sub=$3 out=$4 t path json
   : > "$out.txt"
@@ -95,16 +97,22 @@ relocalize_each() {
       --dataset "$sub" "$path" --json) || true
     echo "$json" > "$out.last.json"
     if grep -q '"localized":true' <<< "$json"; then
-      echo "1 $(field "$out.last.json" ms)" >> "$out.txt"
+      echo "1 $(field "$out.last.json" ms) $(passes_of "$out.last.json")" >> "$out.txt"
       awk -v t="$t" -v x="$(field "$out.last.json" tx)" -v y="$(field "$out.last.json" ty)" \
         -v z="$(field "$out.last.json" tz)" -v qx="$(field "$out.last.json" qx)" \
         -v qy="$(field "$out.last.json" qy)" -v qz="$(field "$out.last.json" qz)" \
         -v qw="$(field "$out.last.json" qw)" \
         'BEGIN { printf "%.9f %s %s %s %s %s %s %s\n", t / 1e9, x, y, z, qx, qy, qz, qw }' >> "$out.tum"
     else
-      echo "0 $(field "$out.last.json" ms)" >> "$out.txt"
+      echo "0 $(field "$out.last.json" ms) $(passes_of "$out.last.json")" >> "$out.txt"
     fi
   done < "$sub/frames.txt"
+}
+
+# The share of relocalize_each's images that took the second feature pass, %; "-" when the
+# answers do not say (a visloc before the two passes).
+second_pass_pct() {
+  awk '$3 == 0 { old = 1 } $3 == 2 { s++ } END { if (old) print "-"; else printf "%.1f", 100 * s / NR }' "$1"
 }
 
 # The median of a column of numbers on stdin.
@@ -175,6 +183,7 @@ measure() {
     SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
     relocalize_each "$bin" "${rec}_even" "$subs/odd" "$out/$rec.reloc"
     put relocalized_pct "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.reloc.txt")"
+    put relocalized_second_pass_pct "$(second_pass_pct "$out/$rec.reloc.txt")"
     put relocalization_ms "$(cut -d' ' -f2 "$out/$rec.reloc.txt" | median | xargs -I{} awk 'BEGIN { printf "%.1f", {} }')"
     eval_into relocalized "$out/$rec.reloc.tum"
     if [[ -d $d/mav0 ]]; then
@@ -188,6 +197,7 @@ measure() {
       SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
       relocalize_each "$bin" "${rec}_first_half" "$subs/second_half" "$out/$rec.half"
       put second_half_relocalized_pct "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.half.txt")"
+      put second_half_second_pass_pct "$(second_pass_pct "$out/$rec.half.txt")"
       eval_into second_half "$out/$rec.half.tum"
     fi
     stop_server
@@ -251,9 +261,11 @@ rows=(
   "relocalized_error_max_cm|... max error, cm"
   "relocalized_rotation_max_deg|... max rotation error, deg"
   "relocalization_ms|... server time, ms (median)"
+  "relocalized_second_pass_pct|... that took the second pass (features at every scale), %"
   "second_half_relocalized_pct|each frame of the second half alone, map of the first half: found, %"
   "second_half_error_max_cm|... max error, cm"
   "second_half_rotation_max_deg|... max rotation error, deg"
+  "second_half_second_pass_pct|... that took the second pass (features at every scale), %"
 )
 {
   echo "# visloc on real places"

@@ -199,6 +199,7 @@ TEST_F(ServerE2eTest, TheRpcAndASessionGiveTheSameFirstFixAt640x480) {
   ASSERT_FALSE(truth.empty());
   EXPECT_LT((truth[0].pose.translation - rpc_position).norm(), 0.005);
   EXPECT_GT(JsonNumber(rpc.out, "inliers"), 300);
+  EXPECT_EQ(JsonNumber(rpc.out, "feature_passes"), 1);  // Found with the tracking features.
   EXPECT_THAT(
       ReadFileBytes(out_.File("first.csv")),
       HasSubstr("," + std::to_string(static_cast<int>(JsonNumber(rpc.out, "inliers"))) + ","));
