@@ -155,25 +155,39 @@ std::optional<DisparityCorrection> ParseDisparityCorrection(const std::string& t
   return DisparityCorrection{*offset_px, *yaw_deg * M_PI / 180.0};
 }
 
-// --disparity-correction-from MAP.db: the correction a map of the same rig records.
-DisparityCorrection RecordedDisparityCorrection(const std::string& path, Camera* map_camera) {
-  const Map map = mapstore::LoadMap(path);
+// The rig's correction a build is given: as numbers (--disparity-correction OFFSET_PX,YAW_DEG)
+// or as the one a map of the same rig records (--disparity-correction-from MAP.db).
+struct GivenCorrection {
+  std::optional<DisparityCorrection> correction;
+  std::string map_path;              // --disparity-correction-from, else empty.
+  std::optional<Camera> map_camera;  // That map's camera.
+};
+
+GivenCorrection ParseGivenCorrection(const std::string& numbers, const std::string& map_path) {
+  GivenCorrection given;
+  given.correction = ParseDisparityCorrection(numbers);
+  if (map_path.empty()) return given;
+  if (given.correction) {
+    throw UsageError("give --disparity-correction or --disparity-correction-from, not both");
+  }
+  const Map map = mapstore::LoadMap(map_path);
   if (!map.metadata.disparity_correction) {
-    throw InputError(path +
+    throw InputError(map_path +
                      " records no disparity correction (its build neither estimated nor was "
                      "given one, or an older visloc built it): give --disparity-correction "
                      "OFFSET_PX,YAW_DEG");
   }
-  *map_camera = map.camera;
-  return *map.metadata.disparity_correction;
+  given.correction = map.metadata.disparity_correction;
+  given.map_path = map_path;
+  given.map_camera = map.camera;
+  return given;
 }
 
 // A correction belongs to its rig: the map it came from must have the build's left camera.
-void RequireCorrectionCamera(const std::string& path, const Camera& map_camera,
-                             const Camera& left) {
-  if (!mapping::SameCamera(map_camera, left)) {
-    throw InputError(StrCat("--disparity-correction-from ", path, ": the map's camera (",
-                            ToString(map_camera), ") is not this dataset's left camera (",
+void RequireCorrectionCamera(const GivenCorrection& given, const Camera& left) {
+  if (given.map_camera && !mapping::SameCamera(*given.map_camera, left)) {
+    throw InputError(StrCat("--disparity-correction-from ", given.map_path, ": the map's camera (",
+                            ToString(*given.map_camera), ") is not this dataset's left camera (",
                             ToString(left), "): its correction is another rig's"));
   }
 }
@@ -268,16 +282,8 @@ int RunBuild(const Args& args) {
     throw UsageError("--max-features, --min-points and --check-frames must not be negative");
   }
   options.builder.loop_closure.enabled = loop_closure != 0;
-  options.builder.disparity_calibration.known = ParseDisparityCorrection(known_correction);
-  std::optional<Camera> correction_camera;
-  if (!correction_map.empty()) {
-    if (!known_correction.empty()) {
-      throw UsageError("give --disparity-correction or --disparity-correction-from, not both");
-    }
-    correction_camera.emplace();
-    options.builder.disparity_calibration.known =
-        RecordedDisparityCorrection(correction_map, &*correction_camera);
-  }
+  const GivenCorrection given = ParseGivenCorrection(known_correction, correction_map);
+  options.builder.disparity_calibration.known = given.correction;
   options.builder.disparity_calibration.enabled =
       disparity_calibration != 0 && !options.builder.disparity_calibration.known;
   CheckFlags(options.builder);  // --threads, the correction's range, what the checks above leave.
@@ -307,10 +313,9 @@ int RunBuild(const Args& args) {
   if (!dataset_dir.empty()) {
     dataset = SelectFrames(ReadDataset(dataset_dir, ParseOptionalDatasetFormat(format)), range);
   }
-  if (correction_camera) {
+  if (given.map_camera) {
     RequireCorrectionCamera(
-        correction_map, *correction_camera,
-        dataset ? dataset->left.camera : ReadSensorYaml(camera_yamls[0]).camera);
+        given, dataset ? dataset->left.camera : ReadSensorYaml(camera_yamls[0]).camera);
   }
   if (!server.server.empty()) {
     if (!trajectory.empty() || max_features > 0) {
