@@ -152,7 +152,7 @@ std::optional<DisparityCorrection> ParseDisparityCorrection(const std::string& t
         "disparity_offset_px and right_camera_yaw_deg), got '" +
         text + "'");
   }
-  return DisparityCorrection{*offset_px, *yaw_deg * M_PI / 180.0};
+  return DisparityCorrection::FromDegrees(*offset_px, *yaw_deg);
 }
 
 // The rig's correction a build is given: as numbers (--disparity-correction OFFSET_PX,YAW_DEG)
@@ -381,7 +381,7 @@ int RunBuild(const Args& args) {
         .Field("reprojection_rmse_px", stats.reprojection_rmse_px)
         .Field("disparity_rmse_px", stats.disparity_rmse_px)
         .Field("disparity_offset_px", stats.disparity_correction.offset_px)
-        .Field("right_camera_yaw_deg", stats.disparity_correction.yaw_rad * 180.0 / M_PI)
+        .Field("right_camera_yaw_deg", stats.disparity_correction.yaw_deg())
         .Field("calibration_passes", stats.calibration_passes)
         .Field("visibility_fit_rmse", stats.visibility.final_rmse)
         .Field("features_ms", stats.features_ms)
@@ -410,8 +410,8 @@ int RunBuild(const Args& args) {
                               ? std::string("given")
                               : StrCat("estimated over ", stats.calibration_passes, " adjustments");
   std::printf("  the rig's disparities: %.2f px offset, right camera turned %.3f deg (%s)\n",
-              stats.disparity_correction.offset_px,
-              stats.disparity_correction.yaw_rad * 180.0 / M_PI, how.c_str());
+              stats.disparity_correction.offset_px, stats.disparity_correction.yaw_deg(),
+              how.c_str());
   std::printf(
       "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
       "%.1f s, "

@@ -64,7 +64,7 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   if (const auto& correction = info.metadata.disparity_correction) {
     json.BeginObject()
         .Field("offset_px", correction->offset_px)
-        .Field("right_camera_yaw_deg", correction->yaw_rad * 180.0 / M_PI)
+        .Field("right_camera_yaw_deg", correction->yaw_deg())
         .EndObject();
   } else {
     json.Null();
@@ -117,7 +117,7 @@ void PrintInfo(const MapInfo& info) {
     std::printf(
         "stereo rig    disparity offset %.3f px, right camera yaw %.4f deg (taken off its "
         "disparities; map build --disparity-correction-from takes it)\n",
-        correction->offset_px, correction->yaw_rad * 180.0 / M_PI);
+        correction->offset_px, correction->yaw_deg());
   }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);

@@ -24,8 +24,8 @@ void DisparityCalibrationOptions::Check() const {
                "a known disparity correction is not estimated again: disable the "
                "calibration to give one");
   VISLOC_CHECK(std::abs(known->offset_px) <= kMaxKnownOffsetPx &&
-                   std::abs(known->yaw_rad) <= kMaxKnownYawDeg * M_PI / 180.0,
-               "disparity correction ", known->offset_px, " px, ", known->yaw_rad * 180.0 / M_PI,
+                   std::abs(known->yaw_deg()) <= kMaxKnownYawDeg,
+               "disparity correction ", known->offset_px, " px, ", known->yaw_deg(),
                " deg: at most ", kMaxKnownOffsetPx, " px and ", kMaxKnownYawDeg,
                " deg (calibrate the rig again)");
 }

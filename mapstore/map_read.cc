@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <optional>
 
 #include "mapstore/map_file.h"
 #include "mapstore/map_store.h"
@@ -18,14 +20,19 @@ void CheckFileExists(const std::string& path) {
     throw InputError(StrCat(path, ": empty file, not a visloc map"));
 }
 
+// The meta table, key -> value (its key is the primary key: one row each).
+using MetaRows = std::map<std::string, std::string>;
+
+std::optional<std::string> Find(const MetaRows& rows, const std::string& key) {
+  const auto it = rows.find(key);
+  return it == rows.end() ? std::nullopt : std::optional<std::string>(it->second);
+}
+
 // The meta keys 'disparity_offset_px' and 'right_camera_yaw_rad': both or neither, finite.
-std::optional<DisparityCorrection> ReadDisparityCorrection(
-    const Database& db, const std::vector<std::pair<std::string, std::string>>& rows) {
-  std::optional<std::string> offset, yaw;
-  for (const auto& [k, v] : rows) {
-    if (k == "disparity_offset_px") offset = v;
-    if (k == "right_camera_yaw_rad") yaw = v;
-  }
+std::optional<DisparityCorrection> ReadDisparityCorrection(const Database& db,
+                                                           const MetaRows& rows) {
+  const std::optional<std::string> offset = Find(rows, "disparity_offset_px");
+  const std::optional<std::string> yaw = Find(rows, "right_camera_yaw_rad");
   if (!offset && !yaw) return std::nullopt;
   if (!offset || !yaw) {
     throw InputError(StrCat(
@@ -42,13 +49,11 @@ std::optional<DisparityCorrection> ReadDisparityCorrection(
 
 Meta ReadMeta(Database& db, Map* map) {
   if (!db.HasTable("meta")) throw InputError(db.path() + ": not a visloc map (no 'meta' table)");
-  std::vector<std::pair<std::string, std::string>> rows;
+  MetaRows rows;
   Statement query = db.Prepare("SELECT key, value FROM meta");
-  while (query.Step()) rows.emplace_back(query.ColumnText(0), query.ColumnText(1));
+  while (query.Step()) rows.emplace(query.ColumnText(0), query.ColumnText(1));
   auto value = [&](const std::string& key) -> std::string {
-    for (const auto& [k, v] : rows) {
-      if (k == key) return v;
-    }
+    if (auto found = Find(rows, key)) return *found;
     throw InputError(StrCat(db.path(), ": meta has no '", key, "'"));
   };
   if (value("format") != kFormatName) {
@@ -71,9 +76,7 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.name = value("name");
   map->metadata.source_dataset = value("source_dataset");
   map->metadata.builder = value("builder");
-  for (const auto& [k, v] : rows) {
-    if (k == "lineage") map->metadata.lineage = v;  // Schema 2; optional.
-  }
+  map->metadata.lineage = Find(rows, "lineage").value_or("");              // Schema 2; optional.
   map->metadata.disparity_correction = ReadDisparityCorrection(db, rows);  // Schema 3; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));

@@ -97,11 +97,12 @@ Camera FromProto(const v1::CameraModel& c, const WireLimits& limits) {
 
 void ToProto(const DisparityCorrection& correction, v1::DisparityCorrection* out) {
   out->set_offset_px(correction.offset_px);
-  out->set_right_camera_yaw_deg(correction.yaw_rad * 180.0 / M_PI);
+  out->set_right_camera_yaw_deg(correction.yaw_deg());
 }
 
 DisparityCorrection FromProto(const v1::DisparityCorrection& correction) {
-  return {correction.offset_px(), correction.right_camera_yaw_deg() * M_PI / 180.0};
+  return DisparityCorrection::FromDegrees(correction.offset_px(),
+                                          correction.right_camera_yaw_deg());
 }
 
 }  // namespace visloc::proto

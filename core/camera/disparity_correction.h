@@ -17,11 +17,19 @@
 // A property of the rig, not of one build: a map records the correction it was built with
 // (MapMetadata), so the rig's next builds and the sessions that extend the map can take it.
 
+#include <cmath>
+
 namespace visloc {
 
 struct DisparityCorrection {
   double offset_px = 0.0;
   double yaw_rad = 0.0;
+
+  // Users and the wire give the yaw in degrees (a build's right_camera_yaw_deg).
+  static DisparityCorrection FromDegrees(double offset_px, double yaw_deg) {
+    return {offset_px, yaw_deg * M_PI / 180.0};
+  }
+  double yaw_deg() const { return yaw_rad * 180.0 / M_PI; }
 
   // The bias of a disparity measured at right image column `right_x_px` (rectified pixels), for
   // the rectified focal length `f_px` and principal point `cx_px`.

@@ -102,18 +102,18 @@ RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const 
     return found;
   };
   RelocalizationResult found;
+  int passes = 0;
   if (options_.relocalize_with_tracking_features_first) {
     found = pass([&] { return Extract(image); });
-    if (found.success) {
-      found.ms = timer.ElapsedMs();
-      return found;
-    }
+    passes = 1;
   }
-  const RelocalizationTimes first = found.times;
-  const bool second = options_.relocalize_with_tracking_features_first;
-  found = pass([&] { return ExtractForRelocalization(image); });
-  found.times += first;
-  found.feature_passes = second ? 2 : 1;
+  if (!found.success) {
+    const RelocalizationTimes first = found.times;
+    found = pass([&] { return ExtractForRelocalization(image); });
+    found.times += first;
+    ++passes;
+  }
+  found.feature_passes = passes;
   found.ms = timer.ElapsedMs();
   return found;
 }
