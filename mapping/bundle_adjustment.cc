@@ -180,9 +180,9 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       problem.SetParameterBlockConstant(correction_change);
     }
   }
-  summary.iterations =
-      SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations,
-                   PointsFirst(problem, landmarks, state, poses, correction_change));
+  summary.iterations = SolveQuietly(
+      &problem, ceres::DENSE_SCHUR, options.max_iterations,
+      PointsFirst(problem, landmarks, state, poses, correction_change), options.function_tolerance);
   for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(*pose);
   summary.correction_change = {correction_change[0], correction_change[1]};
   if (options.estimate_disparity_correction) {

@@ -15,6 +15,9 @@ struct BundleAdjustmentOptions {
   double huber_px = 2.0;
   double disparity_weight = 8.0;  // sigma_keypoint / sigma_disparity (see reprojection_cost.h).
   int max_iterations = 15;
+  // The solver stops when an iteration lowers the cost by less than this fraction of it (Ceres's
+  // function tolerance; its default).
+  double function_tolerance = 1e-6;
   double cull_error_px = 3.0;  // Afterwards: drop observations above this; paper: 3 px.
   // Also estimate a change of the rig's disparity correction (core/camera/disparity_correction.h)
   // with the poses and points, under a zero-mean prior of these sigmas (what keeps it where it is

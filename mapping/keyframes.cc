@@ -12,6 +12,8 @@ void KeyframeOptions::Check() const {
                translation_m, " m, ", rotation_deg, " deg, ", min_tracked, " tracked");
   VISLOC_CHECK(window >= 2 && free >= 1 && free < window, "local BA window ", window, " free ",
                free);
+  VISLOC_CHECK(local_ba_function_tolerance > 0 && local_ba_function_tolerance < 1,
+               "local BA function tolerance ", local_ba_function_tolerance);
 }
 
 double AngleBetweenDeg(const Rigid3d& a, const Rigid3d& b) {
@@ -62,11 +64,11 @@ std::vector<int> RecentLandmarks(const SlamState& state, int window) {
   return {landmarks.begin(), landmarks.end()};
 }
 
-void LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
-                       const RectifiedIntrinsics& intrinsics,
-                       const BundleAdjustmentOptions& ba_options) {
+BundleAdjustmentSummary LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
+                                          const RectifiedIntrinsics& intrinsics,
+                                          const BundleAdjustmentOptions& ba_options) {
   const int n = static_cast<int>(state->keyframes.size());
-  if (n < 2) return;
+  if (n < 2) return {};
   std::vector<int> free, fixed;
   for (int k = std::max(0, n - options.window); k < n; ++k) {
     if (k > 0 && k >= n - options.free) {
@@ -75,7 +77,9 @@ void LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
       fixed.push_back(k);
     }
   }
-  BundleAdjust(state, free, fixed, intrinsics, ba_options);
+  BundleAdjustmentOptions local = ba_options;
+  local.function_tolerance = options.local_ba_function_tolerance;
+  return BundleAdjust(state, free, fixed, intrinsics, local);
 }
 
 }  // namespace visloc::mapping

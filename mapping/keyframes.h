@@ -24,6 +24,13 @@ struct KeyframeOptions {
   // the same window.
   int window = 10;
   int free = 3;
+  // The local adjustment stops once an iteration lowers its cost by less than this fraction
+  // (Ceres's function tolerance, 1e-6 by default). Each keyframe is adjusted again by the next
+  // `free` - 1 local adjustments and by the global one at the end, so polishing a window to the
+  // last digits is work the next adjustment redoes: at 1e-3 a KITTI 01 build's local adjustments
+  // take 35-40% less time, and the maps of the real recordings are as accurate (MH_01 0.28 cm
+  // median keyframe error either way; KITTI 01 1.19% of the distance against 1.21%).
+  double local_ba_function_tolerance = 1e-3;
   void Check() const;
 };
 
@@ -39,10 +46,10 @@ void AddKeyframe(SlamState* state, int64_t timestamp_ns, StereoFrame&& frame,
 std::vector<int> RecentLandmarks(const SlamState& state, int window);
 
 // Bundle adjustment of the last options.free keyframes (never the first keyframe, which fixes
-// the world frame), with the rest of the window held fixed.
-void LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
-                       const RectifiedIntrinsics& intrinsics,
-                       const BundleAdjustmentOptions& ba_options);
+// the world frame), with the rest of the window held fixed, to options.local_ba_function_tolerance.
+BundleAdjustmentSummary LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
+                                          const RectifiedIntrinsics& intrinsics,
+                                          const BundleAdjustmentOptions& ba_options);
 
 double AngleBetweenDeg(const Rigid3d& a, const Rigid3d& b);
 // The camera centre of a cam_from_world pose.

@@ -59,8 +59,10 @@ inline void SetUpPoseBlock(ceres::Problem* problem, PoseBlock* pose, bool fixed)
 // returns the iterations taken.
 inline int SolveQuietly(ceres::Problem* problem, ceres::LinearSolverType linear_solver,
                         int max_iterations,
-                        std::shared_ptr<ceres::ParameterBlockOrdering> ordering = nullptr) {
+                        std::shared_ptr<ceres::ParameterBlockOrdering> ordering = nullptr,
+                        double function_tolerance = 1e-6) {
   ceres::Solver::Options options;
+  options.function_tolerance = function_tolerance;
   options.linear_solver_type = linear_solver;
   options.linear_solver_ordering = std::move(ordering);
   options.max_num_iterations = max_iterations;
