@@ -1,12 +1,11 @@
 #include "mapping/bundle_adjustment.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <memory>
 #include <optional>
-#include <set>
 
 #include "core/util/timer.h"
 
@@ -48,6 +47,16 @@ bool WithinThreshold(const ObservationError& e, const BundleAdjustmentOptions& o
           options.disparity_weight * e.disparity_px <= options.cull_error_px);
 }
 
+// The keyframes an adjustment sees, ascending, and by keyframe index whether each is free and
+// its pose block (null outside the window). Flat arrays rather than ordered sets: an adjustment
+// looks a keyframe up for each of its thousands of observations.
+struct AdjustedWindow {
+  std::vector<int> keyframes;
+  std::vector<char> free;
+  std::vector<PoseBlock*> pose;
+  bool Contains(int k) const { return pose[k] != nullptr; }
+};
+
 // The elimination order for the Schur solver: points first, then the poses and the correction.
 // Ceres would find the same order itself, as an independent set of its graph, at a third of a
 // small adjustment's time. Ceres orders a group's blocks by address: the points lie in the
@@ -55,16 +64,17 @@ bool WithinThreshold(const ObservationError& e, const BundleAdjustmentOptions& o
 // so every solve sums in the same order whatever the allocator did before (the same map for
 // any thread count).
 std::shared_ptr<ceres::ParameterBlockOrdering> PointsFirst(const ceres::Problem& problem,
-                                                           const std::set<int>& landmarks,
+                                                           const std::vector<int>& landmarks,
                                                            SlamState* state,
-                                                           const std::map<int, PoseBlock*>& poses,
+                                                           const AdjustedWindow& window,
                                                            double* correction) {
   auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
   for (int l : landmarks) {
     double* point = state->landmarks[l].position_in_world.data();
     if (problem.HasParameterBlock(point)) ordering->AddElementToGroup(point, 0);
   }
-  for (const auto& [k, pose] : poses) {
+  for (int k : window.keyframes) {
+    PoseBlock* pose = window.pose[k];
     if (!problem.HasParameterBlock(pose->data())) continue;
     ordering->AddElementToGroup(pose->data(), 1);
     ordering->AddElementToGroup(pose->data() + 4, 1);
@@ -99,25 +109,35 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
                                      const BundleAdjustmentOptions& options) {
   Timer timer;
   BundleAdjustmentSummary summary;
-  const std::set<int> free(free_keyframes.begin(), free_keyframes.end());
-  std::set<int> window(free);
-  window.insert(fixed_keyframes.begin(), fixed_keyframes.end());
-  std::set<int> landmarks;
-  for (int k : free) {
+  const int keyframe_count = static_cast<int>(state->keyframes.size());
+  AdjustedWindow window;
+  window.free.assign(keyframe_count, 0);
+  window.pose.assign(keyframe_count, nullptr);
+  window.keyframes = fixed_keyframes;
+  for (int k : free_keyframes) {
+    window.free[k] = 1;
+    window.keyframes.push_back(k);
+  }
+  std::sort(window.keyframes.begin(), window.keyframes.end());
+  window.keyframes.erase(std::unique(window.keyframes.begin(), window.keyframes.end()),
+                         window.keyframes.end());
+  std::vector<int> landmarks;  // Those the free keyframes observe, ascending.
+  for (int k : free_keyframes) {
     for (int l : state->keyframes[k].landmark) {
-      if (l >= 0 && !state->landmarks[l].culled) landmarks.insert(l);
+      if (l >= 0 && !state->landmarks[l].culled) landmarks.push_back(l);
     }
   }
+  std::sort(landmarks.begin(), landmarks.end());
+  landmarks.erase(std::unique(landmarks.begin(), landmarks.end()), landmarks.end());
   // The parameters besides the points, copied in and written back afterwards: the window's
   // poses in keyframe order, then the change of the disparity correction (offset px, yaw rad,
   // the unused entry; reprojection_cost.h) in the first entries of one more block, all in one
   // allocation in index order (PointsFirst).
-  std::vector<PoseBlock> camera_blocks(window.size() + 1);
-  std::map<int, PoseBlock*> poses;
-  for (int k : window) {
-    PoseBlock* block = &camera_blocks[poses.size()];
-    *block = ToPoseBlock(state->keyframes[k].cam_from_world);
-    poses[k] = block;
+  std::vector<PoseBlock> camera_blocks(window.keyframes.size() + 1);
+  for (size_t j = 0; j < window.keyframes.size(); ++j) {
+    const int k = window.keyframes[j];
+    camera_blocks[j] = ToPoseBlock(state->keyframes[k].cam_from_world);
+    window.pose[k] = &camera_blocks[j];
   }
   static_assert(kCorrectionBlockSize <= std::tuple_size_v<PoseBlock>);
   camera_blocks.back().fill(0.0);
@@ -138,7 +158,7 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
     std::optional<std::pair<int, int>> only;
     int in_window = 0;
     for (const auto& [k, i] : landmark.observations) {
-      if (window.count(k) && ++in_window == 1) only.emplace(k, i);
+      if (window.Contains(k) && ++in_window == 1) only.emplace(k, i);
     }
     if (in_window == 1) {
       seen_once.push_back({l, only->first, only->second});
@@ -147,9 +167,9 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       continue;
     }
     for (const auto& [k, i] : landmark.observations) {
-      if (!window.count(k)) continue;
+      if (!window.Contains(k)) continue;
       const SlamKeyframe& keyframe = state->keyframes[k];
-      double* pose = poses[k]->data();
+      double* pose = window.pose[k]->data();
       const double right_x = keyframe.right_x_rect[i];
       // Every observation has the stereo layout, the left-only ones with a zero disparity row:
       // one row size lets Ceres eliminate the points with its fixed-size code.
@@ -165,11 +185,11 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       ++residual_count;
     }
   }
-  summary.keyframes = static_cast<int>(window.size());
+  summary.keyframes = static_cast<int>(window.keyframes.size());
   summary.landmarks = static_cast<int>(landmarks.size());
   summary.residual_blocks = residual_count;
   if (residual_count == 0) return summary;  // Nothing moves, so what fitted still fits.
-  for (auto& [k, pose] : poses) SetUpPoseBlock(&problem, pose, !free.count(k));
+  for (int k : window.keyframes) SetUpPoseBlock(&problem, window.pose[k], !window.free[k]);
   if (problem.HasParameterBlock(correction_change)) {
     if (options.estimate_disparity_correction) {
       problem.AddResidualBlock(
@@ -180,10 +200,13 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       problem.SetParameterBlockConstant(correction_change);
     }
   }
-  summary.iterations = SolveQuietly(
-      &problem, ceres::DENSE_SCHUR, options.max_iterations,
-      PointsFirst(problem, landmarks, state, poses, correction_change), options.function_tolerance);
-  for (auto& [k, pose] : poses) state->keyframes[k].cam_from_world = FromPoseBlock(*pose);
+  summary.iterations =
+      SolveQuietly(&problem, ceres::DENSE_SCHUR, options.max_iterations,
+                   PointsFirst(problem, landmarks, state, window, correction_change),
+                   options.function_tolerance);
+  for (int k : window.keyframes) {
+    state->keyframes[k].cam_from_world = FromPoseBlock(*window.pose[k]);
+  }
   summary.correction_change = {correction_change[0], correction_change[1]};
   if (options.estimate_disparity_correction) {
     ApplyDisparityCorrection(summary.correction_change, intrinsics, state);
@@ -197,7 +220,7 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
     std::vector<std::pair<int, int>> kept;
     for (const auto& [k, i] : landmark.observations) {
       const ObservationError e = ObservationErrors(*state, l, k, i, intrinsics);
-      if (window.count(k)) {
+      if (window.Contains(k)) {
         final_sq += std::min(e.left_px * e.left_px, 100.0);
         ++final_count;
       }

@@ -1,7 +1,6 @@
 #include "mapping/keyframes.h"
 
 #include <algorithm>
-#include <set>
 
 #include "core/util/check.h"
 
@@ -54,14 +53,16 @@ void AddKeyframe(SlamState* state, int64_t timestamp_ns, StereoFrame&& frame,
 }
 
 std::vector<int> RecentLandmarks(const SlamState& state, int window) {
-  std::set<int> landmarks;
+  std::vector<int> landmarks;
   const int n = static_cast<int>(state.keyframes.size());
   for (int k = std::max(0, n - window); k < n; ++k) {
     for (int l : state.keyframes[k].landmark) {
-      if (l >= 0 && !state.landmarks[l].culled) landmarks.insert(l);
+      if (l >= 0 && !state.landmarks[l].culled) landmarks.push_back(l);
     }
   }
-  return {landmarks.begin(), landmarks.end()};
+  std::sort(landmarks.begin(), landmarks.end());
+  landmarks.erase(std::unique(landmarks.begin(), landmarks.end()), landmarks.end());
+  return landmarks;
 }
 
 BundleAdjustmentSummary LocalBundleAdjust(SlamState* state, const KeyframeOptions& options,
