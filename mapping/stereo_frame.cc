@@ -30,6 +30,9 @@ namespace {
 
 // Cell of the frames' keypoint grids; radius searches of any size visit the cells they touch.
 constexpr int kGridCellPx = 16;
+// Keypoints a thread searches at a time (BuildStereoFrame): small enough to share the work out
+// evenly, large enough that taking the next is nothing beside searching them.
+constexpr int kSearchChunk = 32;
 
 inline float Bilinear(const cv::Mat& image, double x, double y) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -373,7 +376,9 @@ StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
   frame.stats.keypoints = static_cast<int>(n);
   std::vector<double> disparities(n, nan);
   std::mutex stats_mutex;
-  ParallelRanges(static_cast<int>(n), threads, [&](int begin, int end) {
+  // In chunks the threads take as they finish: a keypoint's search is as long as its row's
+  // disparity range, which grows across the image, so equal halves were not equal work.
+  ParallelChunks(static_cast<int>(n), threads, kSearchChunk, [&](int begin, int end) {
     std::vector<double> scores;
     StereoMatchStats stats;
     for (int i = begin; i < end; ++i) {

@@ -1,7 +1,9 @@
 #include "core/util/parallel.h"
 
 #include <algorithm>
+#include <atomic>
 #include <exception>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -33,8 +35,32 @@ void ParallelRanges(int n, int threads, const std::function<void(int begin, int 
   }
 }
 
-void RunBoth(int threads, const std::function<void()>& first,
-             const std::function<void()>& second) {
+void ParallelChunks(int n, int threads, int chunk,
+                    const std::function<void(int begin, int end)>& fn) {
+  if (n <= 0) return;
+  chunk = std::max(chunk, 1);
+  const int chunks = (n + chunk - 1) / chunk;
+  std::atomic<int> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const auto take = [&] {
+    for (int c = next++; c < chunks; c = next++) {
+      try {
+        fn(c * chunk, std::min(n, (c + 1) * chunk));
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (int t = 1; t < std::clamp(threads, 1, chunks); ++t) helpers.emplace_back(take);
+  take();
+  for (std::thread& helper : helpers) helper.join();
+  if (error) std::rethrow_exception(error);
+}
+
+void RunBoth(int threads, const std::function<void()>& first, const std::function<void()>& second) {
   ParallelRanges(2, threads, [&](int begin, int end) {
     for (int i = begin; i < end; ++i) (i == 0 ? first : second)();
   });

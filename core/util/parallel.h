@@ -17,6 +17,14 @@ int ResolveThreads(int requested);
 // rethrown here after all have finished.
 void ParallelRanges(int n, int threads, const std::function<void(int begin, int end)>& fn);
 
+// Calls fn(begin, end) on the consecutive ranges of `chunk` indices (the last one shorter) that
+// cover [0, n), which up to `threads` threads, the calling one among them, take in turn as each
+// finishes its last: where the cost varies along the indices, no thread is left with the slow
+// end alone. An exception thrown by any range is rethrown here after all have finished (the
+// other ranges still run).
+void ParallelChunks(int n, int threads, int chunk,
+                    const std::function<void(int begin, int end)>& fn);
+
 // Runs `first` on the calling thread and `second` beside it on another (one after the other
 // when threads < 2); returns when both have, rethrowing the first exception either threw.
 void RunBoth(int threads, const std::function<void()>& first, const std::function<void()>& second);
