@@ -19,6 +19,8 @@ void DisparityCalibrationOptions::Check() const {
                converged_px, " px");
   VISLOC_CHECK(offset_sigma_px > 0 && yaw_sigma_deg > 0, "disparity calibration priors ",
                offset_sigma_px, " px, ", yaw_sigma_deg, " deg");
+  VISLOC_CHECK(function_tolerance > 0 && function_tolerance < 1,
+               "disparity calibration function tolerance ", function_tolerance);
   if (!known) return;
   VISLOC_CHECK(!enabled,
                "a known disparity correction is not estimated again: disable the "
@@ -139,6 +141,7 @@ void MapBuilder::CalibrateDisparity() {
   adjustment.estimate_disparity_correction = true;
   adjustment.correction_offset_sigma_px = calibration.offset_sigma_px;
   adjustment.correction_yaw_sigma_deg = calibration.yaw_sigma_deg;
+  adjustment.function_tolerance = calibration.function_tolerance;
   std::optional<Eigen::Vector2d> previous_change;  // Offset and yaw, both in px.
   const bool observable = TravelledM() >= calibration.min_travel_baselines * intrinsics_.baseline_m;
   for (int pass = 1; observable && pass <= calibration.max_passes; ++pass) {
