@@ -64,8 +64,9 @@ struct DisparityCalibrationOptions {
   // Each pass's adjustment stops once an iteration lowers its cost by less than this fraction
   // (the global adjustment's is Ceres's 1e-6). A pass's estimate is not the last word: the frames
   // are mapped again with it and the next pass measures what is left, until a change falls below
-  // converged_px. On KITTI 01 the passes then take 580 ms instead of 770, and builds from its
-  // frames 0-4 on end 1.258% of the distance off at the median against 1.260%.
+  // converged_px. On KITTI 01 a build's global adjustments (the passes and the final one) then
+  // take 560-660 ms instead of 690-740, and builds from its frames 0-4 on end 1.258% of the
+  // distance off at the median against 1.260%.
   double function_tolerance = 1e-3;
   void Check() const;
 };
