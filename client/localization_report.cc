@@ -64,7 +64,9 @@ std::string StatsCsvHeader() {
       "timestamp_ns,status,source,features,predicted,putatives,inliers,inlier_ratio,"
       "ransac_iterations,reproj_rmse_px";
   for (const auto& [name, value] : StepColumns({})) header += StrCat(",", name);
-  header += ",relocalization,relocalization_keyframe,position_sigma_m";
+  // relocalization_feature_passes last: columns are only ever added at the end.
+  header +=
+      ",relocalization,relocalization_keyframe,position_sigma_m,relocalization_feature_passes";
   return header;
 }
 
@@ -75,8 +77,9 @@ std::string StatsCsvRow(const LocalizationResult& r) {
                            s.putatives, ",", s.inliers, ",", FormatFixed(s.inlier_ratio, 4), ",",
                            s.ransac_iterations, ",", FormatFixed(s.reproj_rmse_px, 4));
   for (const auto& [name, value] : StepColumns(s.times)) row += "," + FormatFixed(value, 4);
-  row += StrCat(",", RelocalizationKindName(r.relocalization.kind), ",", r.relocalization.keyframe,
-                ",", FormatFixed(r.PositionSigmaPerAxisM(), 5));
+  row +=
+      StrCat(",", RelocalizationKindName(r.relocalization.kind), ",", r.relocalization.keyframe,
+             ",", FormatFixed(r.PositionSigmaPerAxisM(), 5), ",", r.relocalization.feature_passes);
   return row;
 }
 

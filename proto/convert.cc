@@ -218,6 +218,7 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
   rel->set_keyframe(r.relocalization.keyframe);
   rel->set_candidates(r.relocalization.candidates);
   rel->set_ms(r.relocalization.ms);
+  rel->set_feature_passes(r.relocalization.feature_passes);
 }
 
 void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
@@ -277,6 +278,7 @@ LocalizationResult FromProto(const v1::LocalizeResponse& in) {
   r.relocalization.keyframe = in.relocalization().keyframe();
   r.relocalization.candidates = static_cast<int>(in.relocalization().candidates());
   r.relocalization.ms = in.relocalization().ms();
+  r.relocalization.feature_passes = static_cast<int>(in.relocalization().feature_passes());
   return r;
 }
 

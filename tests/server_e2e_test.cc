@@ -4,12 +4,14 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
 
+#include "core/util/strings.h"
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
@@ -64,6 +66,28 @@ TEST_F(ServerE2eTest, StreamsAKidnappingThroughTheServerLikeTheInProcessEngine) 
     };
     EXPECT_EQ(head(remote_rows[i].text), head(local_rows[i].text)) << "row " << i;
   }
+  // What relocalization did travels the wire too: the search's kind and its feature passes (the
+  // last column), none and 0 on frames without a search, 1 or 2 on the frames after the kidnapping
+  // that searched.
+  const std::vector<std::string> header = Split(remote_rows[0].text, ',');
+  ASSERT_EQ(header.back(), "relocalization_feature_passes");
+  const size_t kind = std::find(header.begin(), header.end(), "relocalization") - header.begin();
+  ASSERT_LT(kind, header.size());
+  int searched = 0;
+  for (size_t i = 1; i < remote_rows.size(); ++i) {
+    const std::vector<std::string> remote = Split(remote_rows[i].text, ',');
+    const std::vector<std::string> local = Split(local_rows[i].text, ',');
+    ASSERT_EQ(remote.size(), header.size()) << "row " << i;
+    EXPECT_EQ(remote[kind], local[kind]) << "row " << i;
+    EXPECT_EQ(remote.back(), local.back()) << "row " << i;
+    if (remote[kind] == "none") {
+      EXPECT_EQ(remote.back(), "0") << "row " << i;
+    } else {
+      EXPECT_THAT(remote.back(), ::testing::AnyOf("1", "2")) << "row " << i;
+      ++searched;
+    }
+  }
+  EXPECT_GT(searched, 0);
   EXPECT_EQ(server.Stop(), 0);
   const std::string log = server.Log();
   EXPECT_THAT(log, HasSubstr("event=session_start session=1 map=square"));
