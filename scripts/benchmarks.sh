@@ -348,14 +348,10 @@ echo "== writing $REPORT"
     row "tracking, ms a frame (median)" ms_per_frame_median 1 2 ""
     echo "| of which detection, ms | $(fmt "$(field_in "$m" detect median)" 1 2) | $(fmt "$(field_in "$k" detect median)" 1 2) | |"
     row "ORB(500) reference, ms" orb_reference_ms_per_frame_median 1 2 ""
-    # A figure of the last docs/real-world.md regeneration (scripts/real-world.sh writes the
-    # table beside it): RECORDING NAME, or "#" commit for the revision it measured; "?" if absent.
-    real_world_figure() {
-      awk -F'\t' -v r="$1" -v n="$2" '
-        r == "#" && $0 ~ "^# " n " " { split($0, w, " "); print w[3]; found = 1; exit }
-        $1 == r && $2 == n { print $3; found = 1; exit }
-        END { if (!found) print "?" }' docs/real-world.tsv 2>/dev/null || echo "?"
-    }
+    # The held-out relocalization figures: the last docs/real-world.md regeneration's (its
+    # table, docs/real-world.tsv, and the commit it measured).
+    rw=docs/real-world.tsv
+    rw_commit=$(sed -n 's/^# commit //p' "$rw" 2>/dev/null)
     # The seconds a build with the calibration takes beyond one without it (none when the motion
     # did not allow a pass; then the two differ by noise only).
     calibration_cost_s() {
@@ -392,13 +388,12 @@ echo "== writing $REPORT"
     echo "features at every scale (the map's corner count) only when those verify no candidate, with"
     echo "the same acceptance test (LocalizerOptions::relocalize_with_tracking_features_first). These"
     echo "queries are frames of the mapped run; views farther from the keyframes need the second pass"
-    echo "more often (MH_01's second half alone against a map of its first half: $(real_world_figure \
-      euroc_mh01_moving second_half_second_pass_pct)% of them, $(real_world_figure euroc_mh01_moving \
-      second_half_relocalized_pct)% found, docs/real-world.md at $(real_world_figure '#' commit)), and a"
-    echo "query that needs it costs both passes. A session's first"
-    echo "frame takes the same passes as the RPC's image, and one that loses track from a prior has"
-    echo "its tracking features already. A session whose last relocalization found nothing with either"
-    echo "goes to the full features directly until it is found: a robot that stays lost pays one pass."
+    echo "more often (MH_01's second half alone against a map of its first half, docs/real-world.md"
+    echo "at ${rw_commit:-?}: $(value "$rw" euroc_mh01_moving second_half_second_pass_pct)% of them took it, $(value "$rw" euroc_mh01_moving second_half_relocalized_pct)% were found), and a"
+    echo "query that needs it costs both passes. A session's first frame takes the same passes as the"
+    echo "RPC's image, and one that loses track from a prior has its tracking features already. A"
+    echo "session whose last relocalization found nothing with either goes to the full features"
+    echo "directly until it is found: a robot that stays lost pays one pass."
     echo
     echo "Where a map build's time goes (every core; shares of the total):"
     echo

@@ -232,7 +232,6 @@ now_commit=$(cat "$WORK/commit")
 
 echo "== report"
 # cell REC KEY: "now (before)", or "now" when the baseline lacks the figure.
-value() { awk -F'\t' -v r="$2" -v k="$3" '$1 == r && $2 == k { print $3 }' "$1"; }
 cell() {
   local now before
   now=$(value "$WORK/now/figures.tsv" "$1" "$2")

@@ -1,6 +1,10 @@
-# Helpers the report scripts (benchmarks.sh, real-cameras.sh) share: numbers out of visloc's
-# --json output, formatting, and a loopback visloc-server. Sourced, not run.
+# Helpers the report scripts (benchmarks.sh, real-cameras.sh, real-world.sh) share: numbers out of
+# visloc's --json output and figure tables, formatting, and a loopback visloc-server. Sourced,
+# not run.
 
+# The figure of recording REC named KEY in a figures table (FILE REC KEY; tab-separated lines
+# "REC KEY VALUE", as real-world.sh writes docs/real-world.tsv); empty when absent.
+value() { awk -F'\t' -v r="$2" -v k="$3" '$1 == r && $2 == k { print $3 }' "$1"; }
 # The number after "KEY": in a JSON file (the first occurrence).
 field() { sed -n "s/.*\"$2\":\([-0-9.e]*\).*/\1/p" "$1" | head -1; }
 # The number after "key": following the first occurrence of "section" in a JSON file (within
