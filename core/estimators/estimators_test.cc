@@ -134,6 +134,27 @@ TEST(PoseRefinementTest, ConvergesFromAPerturbedPoseAndGivesACovariance) {
   EXPECT_LT(std::sqrt(covariance(2, 2)), 0.05);
 }
 
+// Restarted at its own optimum, the refinement's next step is far below any measurable motion;
+// it stops there instead of shrinking that step through every remaining iteration (a
+// tracking frame's second refinement pass starts at the first one's optimum).
+TEST(PoseRefinementTest, StopsWhenTheStepIsBelowMeasurableMotion) {
+  Rng rng(2);
+  const auto observations = MakeObservations(kTruth, 150, 0.5, 0.0, false, rng);
+  const Rigid3d start =
+      Rigid3d(RotationFromRollPitchYaw(0.02, -0.01, 0.03), Eigen::Vector3d(0.05, -0.04, 0.1)) *
+      kTruth;
+  PoseRefineOptions options;
+  options.focal_px = kFocal;
+  PoseRefineStats first, again;
+  const Rigid3d optimum = RefinePose(start, observations, options, &first);
+  ASSERT_TRUE(first.converged);
+  EXPECT_LT(first.iterations, options.max_iterations);
+  const Rigid3d restarted = RefinePose(optimum, observations, options, &again);
+  EXPECT_TRUE(again.converged);
+  EXPECT_EQ(again.iterations, 1);
+  EXPECT_TRUE(ApproxEqual(restarted, optimum, 1e-8, 1e-8));
+}
+
 TEST(PoseRefinementTest, StereoResidualsTightenDepth) {
   Rng rng_mono(3), rng_stereo(3);
   const auto mono = MakeObservations(kTruth, 40, 0.5, 0.0, false, rng_mono);

@@ -19,6 +19,9 @@ namespace {
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
+// A pose step (metres and radians together) far below any measurable motion.
+constexpr double kNegligibleStep = 1e-8;
+
 Rigid3d ApplyUpdate(const Vector6d& delta, const Rigid3d& pose) {
   const Eigen::Vector3d phi = delta.tail<3>();
   const double angle = phi.norm();
@@ -120,13 +123,18 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
       damped.diagonal() += lambda * (h.diagonal().array() + 1e-9).matrix();
       const Vector6d delta = damped.ldlt().solve(-ne.g);
       if (!delta.allFinite()) break;
+      // Converged when the step is far below any measurable motion, taken or not: at the
+      // optimum such a step changes the cost only in its last bits, so it is as often refused,
+      // and raising the damping then only shrinks it through every remaining iteration.
+      if (delta.norm() < kNegligibleStep) {
+        local.converged = true;
+        break;
+      }
       const Rigid3d candidate = ApplyUpdate(delta, pose);
       const NormalEquations candidate_ne = Linearize(candidate, observations, options);
       if (candidate_ne.robust_cost < ne.robust_cost) {
-        // Converged when the step is far below any measurable motion (1e-8 m / rad) or the
-        // cost stopped decreasing in its 9th significant digit.
-        const bool converged = delta.norm() < 1e-8 ||
-                               ne.robust_cost - candidate_ne.robust_cost < 1e-9 * ne.robust_cost;
+        // Converged too when the cost stopped decreasing in its 9th significant digit.
+        const bool converged = ne.robust_cost - candidate_ne.robust_cost < 1e-9 * ne.robust_cost;
         pose = candidate;
         ne = candidate_ne;
         lambda = std::max(lambda / 10, 1e-9);
