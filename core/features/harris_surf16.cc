@@ -70,7 +70,7 @@ inline int RoundPixel(float x) {
 // The largest value of a float row (no NaN), sixteen lanes at a time: a maximum is exact in
 // any order, and the scalar form (std::max) is not vectorized by GCC and cost a tenth of
 // HarrisRows. Inlined into the clones, so each gets its own vector width.
-inline float RowMax(const float* row, int n) {
+__attribute__((always_inline)) inline float RowMax(const float* row, int n) {
   float best = row[0];
   int x = 0;
   if (n >= 16) {
@@ -142,66 +142,111 @@ inline void TensorRow(const cv::Mat& smoothed, int y, int half, int padded, floa
 
 constexpr int kMaxWindow = 41;  // Window taps: sigma up to 10 px (a 20 px scale at half size).
 
+// HarrisRows's ring rows hold the three filtered tensor planes interleaved in blocks of kLanes
+// columns (a vector's worth): block b is columns kLanes b ... of gx^2, then of gy^2, then of
+// gx gy. A pixel then reads each ring row through one pointer at three fixed offsets.
+constexpr int kLanes = 16;
+constexpr int kBlockFloats = 3 * kLanes;
+
+// The Harris response of the pixel at float `at` (block offset plus lane) of the ring rows whose
+// window is rows[0 ... 2 half]; every response is summed in this order.
+template <int kHalf>
+__attribute__((always_inline)) inline float ResponseAt(const float* const* rows, int half,
+                                                      const float* g, float k, float norm,
+                        int at) {
+  float sums[3];
+  for (int c = 0; c < 3; ++c) {
+    const int i = at + c * kLanes;
+    float acc = g[0] * rows[half][i];
+    for (int t = 1; t <= half; ++t) acc += g[t] * (rows[half - t][i] + rows[half + t][i]);
+    sums[c] = acc;
+  }
+  const float trace = sums[0] + sums[1];
+  return norm * (sums[0] * sums[1] - sums[2] * sums[2] - k * trace * trace);
+}
+
 // Harris response R = det(M) - k tr(M)^2 of the smoothed 8-bit image, M the structure tensor
 // of 3x3 Sobel gradients weighted by the symmetric window `taps` (centre first, `half` + 1 of
 // them), with reflect-101 borders at every stage as OpenCV's filters have; scaled by `norm`.
 // Returns the largest response. Streamed: each image row's tensor entries are computed once and
-// filtered along the row into a ring holding the last 2 half + 1 rows, and a response row is the
-// weighted sum down the ring. Only the response is image-sized, and every loop is contiguous,
-// for the vectorizer. kHalf > 0 fixes `half` at compile time, so the tap loops unroll.
+// filtered along the row into a ring holding the last 2 half + 2 rows, and response rows are
+// weighted sums down the ring, two at a time: the pair shares 2 half of its 2 half + 2 rows, so a
+// pixel loads 3 (half + 1) values instead of 3 (2 half + 1) (the sums were bound by loads), and
+// with the planes interleaved (kLanes) the pair's rows are one pointer each, which the registers
+// hold. Only the response is image-sized. kHalf > 0 fixes `half` at compile time, so the tap
+// loops unroll.
 template <int kHalf>
 VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<float>& taps,
                                     float k, float norm, cv::Mat* response) {
   const int half = kHalf > 0 ? kHalf : static_cast<int>(taps.size()) - 1;
   const int rows = smoothed.rows, cols = smoothed.cols, window = 2 * half + 1;
-  const int padded = cols + 2 * half;  // window <= kMaxWindow: HarrisResponse checks.
+  const int blocks = (cols + kLanes - 1) / kLanes, full_blocks = cols / kLanes;
+  // Tensor planes cover whole blocks, so the filter along the row reads past the image's last
+  // column into zeros (window <= kMaxWindow: HarrisResponse checks).
+  const int padded = blocks * kLanes + 2 * half;
+  const int slots = window + 1;  // The rows of a pair of output rows.
   const float* g = taps.data();
-  std::vector<float> tensor(3 * static_cast<size_t>(padded));
-  std::vector<float> ring(3 * static_cast<size_t>(window) * cols);
-  std::vector<int> ring_row(window, -1);             // Image row each ring slot holds.
-  std::vector<const float*> rows_in_window(window);  // Slots of rows y - half ... y + half.
+  std::vector<float> tensor(3 * static_cast<size_t>(padded), 0.0f);
+  std::vector<float> ring(static_cast<size_t>(slots) * blocks * kBlockFloats);
+  std::vector<int> ring_row(slots, -1);  // Image row each ring slot holds.
   response->create(rows, cols, CV_32F);
   float strongest = 0.0f;
-  for (int y = 0; y < rows; ++y) {
-    for (int j = -half; j <= half; ++j) {
-      // Rows a window needs at once are distinct modulo its size, reflected ones included.
-      const int image_row = Reflect101(y + j, rows), slot = image_row % window;
-      float* filtered = &ring[3 * static_cast<size_t>(slot) * cols];
+  for (int y = 0; y < rows; y += 2) {
+    const int pair = std::min(2, rows - y);  // Output rows y ... y + pair - 1.
+    const float* window_rows[kMaxWindow + 1];  // Ring rows of image rows y - half + j.
+    for (int j = 0; j < window + pair - 1; ++j) {
+      // The rows a pair needs at once are distinct modulo their count, reflected ones included.
+      const int image_row = Reflect101(y - half + j, rows), slot = image_row % slots;
+      float* filtered = &ring[static_cast<size_t>(slot) * blocks * kBlockFloats];
       if (ring_row[slot] != image_row) {
         TensorRow(smoothed, image_row, half, padded, tensor.data());
-        for (int c = 0; c < 3; ++c) {
-          const float* in = &tensor[c * static_cast<size_t>(padded) + half];
-          float* out = filtered + c * cols;
-          for (int x = 0; x < cols; ++x) {
-            float acc = g[0] * in[x];
-            for (int t = 1; t <= half; ++t) acc += g[t] * (in[x - t] + in[x + t]);
-            out[x] = acc;
+        for (int b = 0; b < blocks; ++b) {
+          for (int c = 0; c < 3; ++c) {
+            const float* in = &tensor[c * static_cast<size_t>(padded) + half];
+            float* out = filtered + b * kBlockFloats + c * kLanes;
+            // The tensor and the ring never overlap.
+#pragma GCC ivdep
+            for (int lane = 0; lane < kLanes; ++lane) {
+              const int x = b * kLanes + lane;
+              float acc = g[0] * in[x];
+              for (int t = 1; t <= half; ++t) acc += g[t] * (in[x - t] + in[x + t]);
+              out[lane] = acc;
+            }
           }
         }
         ring_row[slot] = image_row;
       }
-      rows_in_window[j + half] = filtered;
+      window_rows[j] = filtered;
     }
-    // in[c][half + t]: plane c of row y + t. The window's sums down the columns and the
-    // response in one pass, so the sums never go through memory; the ring and the response
-    // never overlap, which the vectorizer cannot otherwise know (ivdep).
-    const float* in[3][kMaxWindow];
-    for (int c = 0; c < 3; ++c) {
-      for (int j = 0; j < window; ++j) in[c][j] = rows_in_window[j] + c * cols;
-    }
-    float* r = response->ptr<float>(y);
+    const float* const* second = window_rows + 1;  // The window of output row y + 1.
+    float* r0 = response->ptr<float>(y);
+    float* r1 = pair == 2 ? response->ptr<float>(y + 1) : nullptr;
+    for (int b = 0; b < blocks; ++b) {
+      // The last block's columns past the image go to scratch, then its image columns out.
+      float scratch[2][kLanes];
+      float* out0 = b < full_blocks ? r0 + b * kLanes : scratch[0];
+      float* out1 = b < full_blocks && r1 ? r1 + b * kLanes : scratch[1];
+      // The ring and the response never overlap, which the vectorizer cannot otherwise know.
+      if (pair == 2) {
 #pragma GCC ivdep
-    for (int x = 0; x < cols; ++x) {
-      float sums[3];
-      for (int c = 0; c < 3; ++c) {
-        float acc = g[0] * in[c][half][x];
-        for (int t = 1; t <= half; ++t) acc += g[t] * (in[c][half - t][x] + in[c][half + t][x]);
-        sums[c] = acc;
+        for (int lane = 0; lane < kLanes; ++lane) {
+          out0[lane] = ResponseAt<kHalf>(window_rows, half, g, k, norm, b * kBlockFloats + lane);
+          out1[lane] = ResponseAt<kHalf>(second, half, g, k, norm, b * kBlockFloats + lane);
+        }
+      } else {
+#pragma GCC ivdep
+        for (int lane = 0; lane < kLanes; ++lane) {
+          out0[lane] = ResponseAt<kHalf>(window_rows, half, g, k, norm, b * kBlockFloats + lane);
+        }
       }
-      const float trace = sums[0] + sums[1];
-      r[x] = norm * (sums[0] * sums[1] - sums[2] * sums[2] - k * trace * trace);
+      if (b >= full_blocks) {
+        const int rest = cols - b * kLanes;
+        std::memcpy(r0 + b * kLanes, scratch[0], rest * sizeof(float));
+        if (r1) std::memcpy(r1 + b * kLanes, scratch[1], rest * sizeof(float));
+      }
     }
-    strongest = std::max(strongest, RowMax(r, cols));
+    strongest = std::max(strongest, RowMax(r0, cols));
+    if (r1) strongest = std::max(strongest, RowMax(r1, cols));
   }
   return strongest;
 }
