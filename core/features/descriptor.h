@@ -23,11 +23,18 @@ float HammingDistance(const uchar* a, const uchar* b, int bytes);
 
 // The squared L2 distance of two 16-float descriptors, which DescriptorDistance takes the root
 // of. Four independent partial sums, one SIMD register: a single running sum would be a chain
-// of 16 dependent additions, which the compiler may not reorder.
+// of 16 dependent additions, which the compiler may not reorder. Lane j sums dimensions j, j + 4,
+// j + 8 and j + 12 in that order. Written as 4-float vectors (SSE2, every x86-64): GCC left the
+// plain loop scalar, 48 operations where 12 do, in guided matching's innermost loop.
 inline float SquaredDistance16(const float* x, const float* y) {
-  float lanes[4] = {0, 0, 0, 0};
+  typedef float Floats4 __attribute__((vector_size(16)));
+  Floats4 lanes = {0, 0, 0, 0};
   for (int i = 0; i < 16; i += 4) {
-    for (int j = 0; j < 4; ++j) lanes[j] += (x[i + j] - y[i + j]) * (x[i + j] - y[i + j]);
+    Floats4 a, b;
+    __builtin_memcpy(&a, x + i, sizeof a);
+    __builtin_memcpy(&b, y + i, sizeof b);
+    const Floats4 d = a - b;
+    lanes += d * d;
   }
   return (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
 }
