@@ -279,6 +279,20 @@ VISLOC_SIMD_CLONES void LocalMaxima(const float* __restrict up, const float* __r
   }
 }
 
+constexpr int kSpanFlags = 32;  // Candidate flags FindMaxima tests at once (a multiple of 8).
+
+// The sub-pixel peak (x + ox, y + oy) of the response maximum at column x of row y (`mid`), from
+// a separable quadratic fit to its 4-neighbours; each offset within half a pixel.
+inline Eigen::Vector2f SubPixelPeak(const float* up, const float* mid, const float* down, int x,
+                                    int y) {
+  const float v = mid[x];
+  const float dx = 0.5f * (mid[x + 1] - mid[x - 1]), dxx = mid[x + 1] - 2 * v + mid[x - 1];
+  const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * v + up[x];
+  const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
+  const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
+  return Eigen::Vector2f(x + ox, y + oy);
+}
+
 // Local maxima above `threshold` (no 8-neighbour is larger), refined to sub-pixel by a separable
 // quadratic fit. The response may come from a level of the image pyramid `level_scale` times
 // smaller than the image; positions are returned in full-resolution pixels (pixel centres:
@@ -300,8 +314,8 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
     positive_maxima->setTo(0);
   }
   if (scan_x1 <= scan_x0) return;
-  // Padded by a word of zeros, so the scan below reads whole 8-byte words.
-  std::vector<uint8_t> strong(cols + 8, 0);
+  // Padded by a span of zeros, so the scan below reads whole spans.
+  std::vector<uint8_t> strong(cols + kSpanFlags, 0);
   std::vector<float> column_max(cols);
   for (int y = scan_y0; y < scan_y1; ++y) {
     const float* r = response.ptr<float>(y);
@@ -310,24 +324,27 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
     LocalMaxima(up, r, down, scan_x0, scan_x1, threshold, column_max.data(), strong.data(),
                 positive_maxima ? positive_maxima->ptr<uint8_t>(y) : nullptr);
     if (y < border || y >= rows - border) continue;
-    // About 1% of pixels pass: a word of eight flags at a time, in column order.
-    for (int group = x0; group < x1; group += 8) {
-      uint64_t word;
-      std::memcpy(&word, &strong[group], sizeof word);
-      if (group + 8 > x1) word &= (uint64_t{1} << (8 * (x1 - group))) - 1;  // Little-endian.
-      for (; word != 0; word &= word - 1) {
-        const int x = group + __builtin_ctzll(word) / 8;
-        const float v = r[x];
-        const float dx = 0.5f * (r[x + 1] - r[x - 1]), dxx = r[x + 1] - 2 * v + r[x - 1];
-        const float dy = 0.5f * (down[x] - up[x]), dyy = down[x] - 2 * v + up[x];
-        const float ox = dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f;
-        const float oy = dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f;
-        Keypoint keypoint;
-        keypoint.pixel =
-            Eigen::Vector2f((x + ox) * level_scale + offset, (y + oy) * level_scale + offset);
-        keypoint.scale_px = static_cast<float>(sigma);
-        keypoint.response = v;
-        out->push_back(keypoint);
+    // About 1% of pixels pass: a word of eight flags at a time, in column order, skipping
+    // spans of kSpanFlags without one (most of them).
+    for (int span = x0; span < x1; span += kSpanFlags) {
+      uint64_t words[kSpanFlags / 8];
+      std::memcpy(words, &strong[span], sizeof words);
+      uint64_t any = 0;
+      for (uint64_t w : words) any |= w;
+      if (any == 0) continue;
+      for (int group = span; group < std::min(span + kSpanFlags, x1); group += 8) {
+        uint64_t word;
+        std::memcpy(&word, &strong[group], sizeof word);
+        if (group + 8 > x1) word &= (uint64_t{1} << (8 * (x1 - group))) - 1;  // Little-endian.
+        for (; word != 0; word &= word - 1) {
+          const int x = group + __builtin_ctzll(word) / 8;
+          Keypoint keypoint;
+          keypoint.pixel = SubPixelPeak(up, r, down, x, y) * static_cast<float>(level_scale) +
+                           Eigen::Vector2f::Constant(offset);
+          keypoint.scale_px = static_cast<float>(sigma);
+          keypoint.response = r[x];
+          out->push_back(keypoint);
+        }
       }
     }
   }
@@ -371,15 +388,8 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
       }
     }
     if (best_x < 0) continue;
-    const float* up = fine_response.ptr<float>(best_y - 1);
-    const float* mid = fine_response.ptr<float>(best_y);
-    const float* down = fine_response.ptr<float>(best_y + 1);
-    const float dx = 0.5f * (mid[best_x + 1] - mid[best_x - 1]),
-                dxx = mid[best_x + 1] - 2 * mid[best_x] + mid[best_x - 1];
-    const float dy = 0.5f * (down[best_x] - up[best_x]),
-                dyy = down[best_x] - 2 * mid[best_x] + up[best_x];
-    k.pixel = Eigen::Vector2f(best_x + (dxx < 0 ? std::clamp(-dx / dxx, -0.5f, 0.5f) : 0.0f),
-                              best_y + (dyy < 0 ? std::clamp(-dy / dyy, -0.5f, 0.5f) : 0.0f));
+    k.pixel = SubPixelPeak(fine_response.ptr<float>(best_y - 1), fine_response.ptr<float>(best_y),
+                           fine_response.ptr<float>(best_y + 1), best_x, best_y);
   }
 }
 
