@@ -11,6 +11,7 @@
 
 #include "core/util/check.h"
 #include "core/util/cpu_dispatch.h"
+#include "core/util/radix_sort.h"
 #include "core/util/timer.h"
 
 namespace visloc {
@@ -393,21 +394,6 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
   }
 }
 
-// `keys` in ascending order, by least-significant-digit radix sort on bytes: a corner set is
-// thousands of distinct keys, which eight linear passes order several times faster than
-// comparisons; a byte that every key shares (the index's high bytes, say) costs no pass.
-void RadixSort(std::vector<uint64_t>* keys) {
-  std::vector<uint64_t> scratch(keys->size());
-  for (int shift = 0; shift < 64; shift += 8) {
-    std::array<size_t, 257> start{};
-    for (uint64_t key : *keys) ++start[((key >> shift) & 0xff) + 1];
-    if (std::find(start.begin() + 1, start.end(), keys->size()) != start.end()) continue;
-    for (int b = 1; b <= 256; ++b) start[b] += start[b - 1];
-    for (uint64_t key : *keys) scratch[start[(key >> shift) & 0xff]++] = key;
-    keys->swap(scratch);
-  }
-}
-
 // Removes corners that a stronger corner (at another scale) already covers.
 // Strongest first; equal responses in the order found (a stable order, so the result never
 // depends on the sort's implementation). Sorted as 64-bit keys, response bits then index: the
@@ -415,9 +401,7 @@ void RadixSort(std::vector<uint64_t>* keys) {
 std::vector<Keypoint> SortedByResponse(const std::vector<Keypoint>& keypoints) {
   std::vector<uint64_t> keys(keypoints.size());
   for (size_t i = 0; i < keypoints.size(); ++i) {
-    uint32_t bits;
-    std::memcpy(&bits, &keypoints[i].response, sizeof bits);
-    keys[i] = (static_cast<uint64_t>(~bits) << 32) | static_cast<uint32_t>(i);
+    keys[i] = DescendingKey(keypoints[i].response, static_cast<uint32_t>(i));
   }
   RadixSort(&keys);
   std::vector<Keypoint> sorted;

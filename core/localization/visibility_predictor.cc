@@ -4,6 +4,7 @@
 
 #include "core/map/visibility_kernel.h"
 #include "core/util/check.h"
+#include "core/util/radix_sort.h"
 
 namespace visloc {
 
@@ -82,16 +83,20 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
     }
     votes.resize(out);
   }
-  std::vector<PredictedPoint> predicted;
+  // Most probable first, ties by point id: radix-sorted keys, several times faster than
+  // comparisons for a frame's thousand points. Probabilities are never negative.
+  std::vector<uint64_t> order;
   for (const auto& [point, vote] : votes) {
     const float probability = total > 0 ? static_cast<float>(vote / total) : 0.0f;
-    if (probability > threshold_) predicted.push_back({point, probability});
+    if (probability > threshold_) order.push_back(DescendingKey(probability, point));
   }
-  std::sort(predicted.begin(), predicted.end(),
-            [](const PredictedPoint& a, const PredictedPoint& b) {
-              return a.probability > b.probability ||
-                     (a.probability == b.probability && a.point < b.point);
-            });
+  RadixSort(&order);
+  std::vector<PredictedPoint> predicted;
+  predicted.reserve(order.size());
+  for (uint64_t key : order) {
+    const uint32_t point = static_cast<uint32_t>(key);
+    predicted.push_back({point, DescendingKeyValue(key)});
+  }
   if (stats) {
     stats->keyframes_used = static_cast<int>(nearest.size());
     stats->candidates = static_cast<int>(votes.size());
