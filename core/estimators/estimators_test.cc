@@ -114,12 +114,20 @@ TEST(P3PTest, CollinearPointsGiveNoSolution) {
   EXPECT_TRUE(SolveP3P(points, bearings).empty());
 }
 
-TEST(PoseRefinementTest, ConvergesFromAPerturbedPoseAndGivesACovariance) {
+// 150 points seen by one camera at kTruth with 0.5 px noise, and a start a few centimetres and
+// degrees from it.
+std::vector<PoseObservation> MonocularObservations() {
   Rng rng(2);
-  const auto observations = MakeObservations(kTruth, 150, 0.5, 0.0, false, rng);
-  const Rigid3d start =
-      Rigid3d(RotationFromRollPitchYaw(0.02, -0.01, 0.03), Eigen::Vector3d(0.05, -0.04, 0.1)) *
-      kTruth;
+  return MakeObservations(kTruth, 150, 0.5, 0.0, false, rng);
+}
+Rigid3d PerturbedStart() {
+  return Rigid3d(RotationFromRollPitchYaw(0.02, -0.01, 0.03), Eigen::Vector3d(0.05, -0.04, 0.1)) *
+         kTruth;
+}
+
+TEST(PoseRefinementTest, ConvergesFromAPerturbedPoseAndGivesACovariance) {
+  const auto observations = MonocularObservations();
+  const Rigid3d start = PerturbedStart();
   PoseRefineOptions options;
   options.focal_px = kFocal;
   PoseRefineStats stats;
@@ -138,11 +146,8 @@ TEST(PoseRefinementTest, ConvergesFromAPerturbedPoseAndGivesACovariance) {
 // it stops there instead of shrinking that step through every remaining iteration (a
 // tracking frame's second refinement pass starts at the first one's optimum).
 TEST(PoseRefinementTest, StopsWhenTheStepIsBelowMeasurableMotion) {
-  Rng rng(2);
-  const auto observations = MakeObservations(kTruth, 150, 0.5, 0.0, false, rng);
-  const Rigid3d start =
-      Rigid3d(RotationFromRollPitchYaw(0.02, -0.01, 0.03), Eigen::Vector3d(0.05, -0.04, 0.1)) *
-      kTruth;
+  const auto observations = MonocularObservations();
+  const Rigid3d start = PerturbedStart();
   PoseRefineOptions options;
   options.focal_px = kFocal;
   PoseRefineStats first, again;

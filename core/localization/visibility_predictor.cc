@@ -86,6 +86,7 @@ std::vector<PredictedPoint> VisibilityPredictor::Predict(const Rigid3d& map_from
   // Most probable first, ties by point id: radix-sorted keys, several times faster than
   // comparisons for a frame's thousand points. Probabilities are never negative.
   std::vector<uint64_t> order;
+  order.reserve(votes.size());
   for (const auto& [point, vote] : votes) {
     const float probability = total > 0 ? static_cast<float>(vote / total) : 0.0f;
     if (probability > threshold_) order.push_back(DescendingKey(probability, point));

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
-#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -14,25 +13,37 @@ int ResolveThreads(int requested) {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-void ParallelRanges(int n, int threads, const std::function<void(int begin, int end)>& fn) {
-  if (n <= 0) return;
-  const int parts = std::clamp(threads, 1, n);
-  std::vector<std::exception_ptr> errors(parts);
-  const auto run = [&](int part) {
+namespace {
+
+// Runs body(0) on the calling thread and body(1) ... body(count - 1) on as many helpers; returns
+// when all have, rethrowing the exception of the lowest-numbered body that threw.
+void RunOnThreads(int count, const std::function<void(int thread)>& body) {
+  std::vector<std::exception_ptr> errors(count);
+  const auto run = [&](int thread) {
     try {
-      fn(static_cast<int>(static_cast<long>(n) * part / parts),
-         static_cast<int>(static_cast<long>(n) * (part + 1) / parts));
+      body(thread);
     } catch (...) {
-      errors[part] = std::current_exception();
+      errors[thread] = std::current_exception();
     }
   };
   std::vector<std::thread> helpers;
-  for (int part = 1; part < parts; ++part) helpers.emplace_back(run, part);
+  for (int thread = 1; thread < count; ++thread) helpers.emplace_back(run, thread);
   run(0);
   for (std::thread& helper : helpers) helper.join();
   for (const std::exception_ptr& error : errors) {
     if (error) std::rethrow_exception(error);
   }
+}
+
+}  // namespace
+
+void ParallelRanges(int n, int threads, const std::function<void(int begin, int end)>& fn) {
+  if (n <= 0) return;
+  const int parts = std::clamp(threads, 1, n);
+  RunOnThreads(parts, [&](int part) {
+    fn(static_cast<int>(static_cast<long>(n) * part / parts),
+       static_cast<int>(static_cast<long>(n) * (part + 1) / parts));
+  });
 }
 
 void ParallelChunks(int n, int threads, int chunk,
@@ -41,23 +52,19 @@ void ParallelChunks(int n, int threads, int chunk,
   chunk = std::max(chunk, 1);
   const int chunks = (n + chunk - 1) / chunk;
   std::atomic<int> next{0};
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  const auto take = [&] {
+  RunOnThreads(std::clamp(threads, 1, chunks), [&](int) {
+    // A range that throws does not stop this thread taking the rest; its first error is
+    // rethrown once they are done.
+    std::exception_ptr error;
     for (int c = next++; c < chunks; c = next++) {
       try {
         fn(c * chunk, std::min(n, (c + 1) * chunk));
       } catch (...) {
-        const std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
       }
     }
-  };
-  std::vector<std::thread> helpers;
-  for (int t = 1; t < std::clamp(threads, 1, chunks); ++t) helpers.emplace_back(take);
-  take();
-  for (std::thread& helper : helpers) helper.join();
-  if (error) std::rethrow_exception(error);
+    if (error) std::rethrow_exception(error);
+  });
 }
 
 void RunBoth(int threads, const std::function<void()>& first, const std::function<void()>& second) {
