@@ -11,6 +11,7 @@
 
 #include "core/util/check.h"
 #include "core/util/cpu_dispatch.h"
+#include "core/util/memory.h"
 #include "core/util/radix_sort.h"
 #include "core/util/timer.h"
 
@@ -189,7 +190,8 @@ VISLOC_SIMD_CLONES float HarrisRows(const cv::Mat& smoothed, const std::vector<f
   const int slots = window + 1;  // The rows of a pair of output rows.
   const float* g = taps.data();
   std::vector<float> tensor(3 * static_cast<size_t>(padded), 0.0f);
-  std::vector<float> ring(static_cast<size_t>(slots) * blocks * kBlockFloats);
+  // Ring rows are whole blocks of 48 floats, so each starts on a cache line.
+  CacheLineVector<float> ring(static_cast<size_t>(slots) * blocks * kBlockFloats);
   std::vector<int> ring_row(slots, -1);  // Image row each ring slot holds.
   response->create(rows, cols, CV_32F);
   float strongest = 0.0f;
@@ -317,8 +319,8 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
   }
   if (scan_x1 <= scan_x0) return;
   // Padded by a span of zeros, so the scan below reads whole spans.
-  std::vector<uint8_t> strong(cols + kSpanFlags, 0);
-  std::vector<float> column_max(cols);
+  CacheLineVector<uint8_t> strong(cols + kSpanFlags, 0);
+  CacheLineVector<float> column_max(cols);
   for (int y = scan_y0; y < scan_y1; ++y) {
     const float* r = response.ptr<float>(y);
     const float* up = response.ptr<float>(y - 1);
@@ -556,8 +558,7 @@ inline void BlurDownColumns(const float* const* in, const uint16_t* __restrict k
   }
 }
 
-constexpr int kRowsAhead = 2;   // Image rows fetched ahead of the blur.
-constexpr int kCacheLine = 64;  // Bytes.
+constexpr int kRowsAhead = 2;  // Image rows fetched ahead of the blur.
 
 // cv::GaussianBlur of an 8-bit image with `taps` (FixedPointGaussianTaps) and OpenCV's default
 // border (reflect-101), bit for bit: OpenCV sums sum_i taps_i p_i along the row exactly (8
@@ -573,14 +574,16 @@ VISLOC_SIMD_CLONES void GaussianBlur8u(const cv::Mat& grey, const std::vector<ui
   const int half = window / 2;
   const int rows = grey.rows, cols = grey.cols;
   std::vector<uint8_t> padded(cols + 2 * static_cast<size_t>(half));
-  std::vector<float> ring(static_cast<size_t>(window) * cols);
+  // Rows a whole number of cache lines apart, each starting on one.
+  const int stride = (cols + kLanes - 1) / kLanes * kLanes;
+  CacheLineVector<float> ring(static_cast<size_t>(window) * stride);
   std::vector<int> ring_row(window, -1);
   std::vector<const float*> rows_in_window(window);
   smoothed->create(rows, cols, CV_8UC1);
   for (int y = 0; y < rows; ++y) {
     for (int j = -half; j <= half; ++j) {
       const int image_row = Reflect101(y + j, rows), slot = image_row % window;
-      float* filtered = &ring[static_cast<size_t>(slot) * cols];
+      float* filtered = &ring[static_cast<size_t>(slot) * stride];
       if (ring_row[slot] != image_row) {
         const uint8_t* in = grey.ptr<uint8_t>(image_row);
         // The image is read once, here, a row at a time, and often straight from memory (a
@@ -588,7 +591,9 @@ VISLOC_SIMD_CLONES void GaussianBlur8u(const cv::Mat& grey, const std::vector<ui
         // this one is filtered saved a twentieth of a KITTI detection.
         if (image_row + kRowsAhead < rows) {
           const uint8_t* ahead = grey.ptr<uint8_t>(image_row + kRowsAhead);
-          for (int x = 0; x < cols; x += kCacheLine) __builtin_prefetch(ahead + x);
+          for (size_t x = 0; x < static_cast<size_t>(cols); x += kCacheLineBytes) {
+            __builtin_prefetch(ahead + x);
+          }
         }
         std::memcpy(&padded[half], in, cols);
         for (int t = 1; t <= half; ++t) {
