@@ -414,14 +414,22 @@ std::vector<Keypoint> ReferenceCorners(const cv::Mat& grey, double sigma, double
 }
 
 TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
-  // The detector scans flags eight columns at a time: widths whose scanned span is and is not a
-  // multiple of eight, so the last partial word is exercised; and both relative thresholds.
-  // Blurred noise: corners everywhere, of every strength.
+  // The detector packs flags 64 columns to a word: widths whose scanned span (width - 16) is
+  // and is not a multiple of 64, so the last partial word is exercised; and both relative
+  // thresholds. Blurred noise: corners everywhere, of every strength, up to eight in a word;
+  // dots: more (past FlaggedColumns's unconditional part).
   cv::Mat noise(67, 203, CV_8UC1);
   cv::RNG(7).fill(noise, cv::RNG::UNIFORM, 0, 256);
-  cv::GaussianBlur(noise, noise, cv::Size(7, 7), 1.5);
-  for (int width : {61, 64, 203}) {
-    const cv::Mat image = noise.colRange(0, width).clone();
+  cv::Mat blurred;
+  cv::GaussianBlur(noise, blurred, cv::Size(7, 7), 1.5);
+  cv::Mat dots = blurred / 8;  // Dots every 4 px on faint noise: 16 corners in some words.
+  for (int y = 2; y < dots.rows; y += 4) {
+    for (int x = 2; x < dots.cols; x += 4) dots.at<uint8_t>(y, x) = 255;
+  }
+  for (const auto& [source, width] :
+       {std::pair(blurred, 61), std::pair(blurred, 80), std::pair(blurred, 203),
+        std::pair(dots, 144), std::pair(dots, 203)}) {
+    const cv::Mat image = source.colRange(0, width).clone();
     for (double relative : {1e-5, 0.02}) {
       HarrisSurf16Options options;
       options.scales_px = {1.2};

@@ -9,6 +9,10 @@
 
 #include <opencv2/imgproc.hpp>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "core/util/check.h"
 #include "core/util/cpu_dispatch.h"
 #include "core/util/memory.h"
@@ -283,7 +287,56 @@ VISLOC_SIMD_CLONES void LocalMaxima(const float* __restrict up, const float* __r
   }
 }
 
-constexpr int kSpanFlags = 32;  // Candidate flags FindMaxima tests at once (a multiple of 8).
+constexpr int kFlagWord = 64;  // Candidate flags FlaggedColumns packs into a word.
+
+// The 64 flags (0 or 1 bytes) from `flags` on as the bits of a word, flag i in bit i.
+inline uint64_t PackFlags(const uint8_t* flags) {
+  uint64_t bits = 0;
+#if defined(__SSE2__)
+  const __m128i zero = _mm_setzero_si128();
+  for (int i = 0; i < kFlagWord; i += 16) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(flags + i));
+    const uint64_t is_zero = static_cast<uint32_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, zero)));
+    bits |= (~is_zero & 0xFFFF) << i;
+  }
+#else
+  for (int i = 0; i < kFlagWord; i += 8) {
+    uint64_t word;
+    std::memcpy(&word, flags + i, sizeof word);
+    // Byte j's low bit to bit 56 + j of the product (the partial products never carry).
+    bits |= (((word & 0x0101010101010101ull) * 0x0102040810204080ull) >> 56) << i;
+  }
+#endif
+  return bits;
+}
+
+// The columns x in [x0, x1) whose flag is set (0 or 1 bytes, readable a word past x1), written
+// to `columns` in increasing order (room for x1 - x0 + kFlagWord); returns their count. About
+// 1% of pixels are candidates and where is unpredictable: a bit-by-bit scan mispredicted a
+// branch about once a candidate. Here a word's first eight set bits are written whether there
+// are that many or not, so only words with more than eight branch.
+VISLOC_SIMD_CLONES int FlaggedColumns(const uint8_t* flags, int x0, int x1, int* columns) {
+  constexpr int kUnconditional = 8;
+  int count = 0;
+  for (int base = x0; base < x1; base += kFlagWord) {
+    uint64_t bits = PackFlags(flags + base);
+    if (x1 - base < kFlagWord) bits &= (uint64_t{1} << (x1 - base)) - 1;
+    const int set = __builtin_popcountll(bits);
+    int* out = columns + count;
+    for (int i = 0; i < kUnconditional; ++i) {
+      // The top bit stands in once `bits` runs out (ctz of 0 is undefined); those entries lie
+      // past `set`, where they are overwritten or ignored.
+      out[i] = base + __builtin_ctzll(bits | (uint64_t{1} << 63));
+      bits &= bits - 1;
+    }
+    for (int i = kUnconditional; i < set; ++i) {
+      out[i] = base + __builtin_ctzll(bits);
+      bits &= bits - 1;
+    }
+    count += set;
+  }
+  return count;
+}
 
 // The sub-pixel peak (x + ox, y + oy) of the response maximum at column x of row y (`mid`), from
 // a separable quadratic fit to its 4-neighbours; each offset within half a pixel.
@@ -318,9 +371,10 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
     positive_maxima->setTo(0);
   }
   if (scan_x1 <= scan_x0) return;
-  // Padded by a span of zeros, so the scan below reads whole spans.
-  CacheLineVector<uint8_t> strong(cols + kSpanFlags, 0);
+  // Padded by a word of zeros, so FlaggedColumns reads whole words.
+  CacheLineVector<uint8_t> strong(cols + kFlagWord, 0);
   CacheLineVector<float> column_max(cols);
+  std::vector<int> columns(cols + kFlagWord);
   for (int y = scan_y0; y < scan_y1; ++y) {
     const float* r = response.ptr<float>(y);
     const float* up = response.ptr<float>(y - 1);
@@ -328,28 +382,15 @@ void FindMaxima(const cv::Mat& response, float threshold, double sigma, int bord
     LocalMaxima(up, r, down, scan_x0, scan_x1, threshold, column_max.data(), strong.data(),
                 positive_maxima ? positive_maxima->ptr<uint8_t>(y) : nullptr);
     if (y < border || y >= rows - border) continue;
-    // About 1% of pixels pass: a word of eight flags at a time, in column order, skipping
-    // spans of kSpanFlags without one (most of them).
-    for (int span = x0; span < x1; span += kSpanFlags) {
-      uint64_t words[kSpanFlags / 8];
-      std::memcpy(words, &strong[span], sizeof words);
-      uint64_t any = 0;
-      for (uint64_t w : words) any |= w;
-      if (any == 0) continue;
-      for (int group = span; group < std::min(span + kSpanFlags, x1); group += 8) {
-        uint64_t word;
-        std::memcpy(&word, &strong[group], sizeof word);
-        if (group + 8 > x1) word &= (uint64_t{1} << (8 * (x1 - group))) - 1;  // Little-endian.
-        for (; word != 0; word &= word - 1) {
-          const int x = group + __builtin_ctzll(word) / 8;
-          Keypoint keypoint;
-          keypoint.pixel = SubPixelPeak(up, r, down, x, y) * static_cast<float>(level_scale) +
-                           Eigen::Vector2f::Constant(offset);
-          keypoint.scale_px = static_cast<float>(sigma);
-          keypoint.response = r[x];
-          out->push_back(keypoint);
-        }
-      }
+    const int count = FlaggedColumns(strong.data(), x0, x1, columns.data());
+    for (int i = 0; i < count; ++i) {
+      const int x = columns[i];
+      Keypoint keypoint;
+      keypoint.pixel = SubPixelPeak(up, r, down, x, y) * static_cast<float>(level_scale) +
+                       Eigen::Vector2f::Constant(offset);
+      keypoint.scale_px = static_cast<float>(sigma);
+      keypoint.response = r[x];
+      out->push_back(keypoint);
     }
   }
 }
