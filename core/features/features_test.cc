@@ -416,7 +416,7 @@ std::vector<Keypoint> ReferenceCorners(const cv::Mat& grey, double sigma, double
 TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
   // The detector packs flags 64 columns to a word: widths whose scanned span (width - 16) is
   // and is not a multiple of 64, so the last partial word is exercised; and both relative
-  // thresholds. Blurred noise: corners everywhere, of every strength, up to eight in a word;
+  // thresholds. Blurred noise: corners everywhere, of every strength, a few in a word;
   // dots: more (past FlaggedColumns's unconditional part).
   cv::Mat noise(67, 203, CV_8UC1);
   cv::RNG(7).fill(noise, cv::RNG::UNIFORM, 0, 256);

@@ -313,10 +313,11 @@ inline uint64_t PackFlags(const uint8_t* flags) {
 // The columns x in [x0, x1) whose flag is set (0 or 1 bytes, readable a word past x1), written
 // to `columns` in increasing order (room for x1 - x0 + kFlagWord); returns their count. About
 // 1% of pixels are candidates and where is unpredictable: a bit-by-bit scan mispredicted a
-// branch about once a candidate. Here a word's first eight set bits are written whether there
-// are that many or not, so only words with more than eight branch.
+// branch about once a candidate. Here a word's first four set bits are written whether there
+// are that many or not (a word holds less than one on average), so only words with more than
+// four branch.
 VISLOC_SIMD_CLONES int FlaggedColumns(const uint8_t* flags, int x0, int x1, int* columns) {
-  constexpr int kUnconditional = 8;
+  constexpr int kUnconditional = 4;
   int count = 0;
   for (int base = x0; base < x1; base += kFlagWord) {
     uint64_t bits = PackFlags(flags + base);
