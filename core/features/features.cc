@@ -13,32 +13,47 @@
 
 namespace visloc {
 
+GridSpread::GridSpread(const cv::Size& image_size, int grid_cols, int grid_rows, int max_items)
+    : image_size_(image_size),
+      grid_cols_(grid_cols),
+      grid_rows_(grid_rows),
+      max_items_(max_items),
+      quota_(std::max(1, max_items / (grid_cols * grid_rows))),
+      used_(grid_cols * grid_rows, 0) {}
+
+int GridSpread::Cell(const Eigen::Vector2f& pixel) const {
+  const int cx =
+      std::clamp(static_cast<int>(pixel.x() * grid_cols_ / image_size_.width), 0, grid_cols_ - 1);
+  const int cy =
+      std::clamp(static_cast<int>(pixel.y() * grid_rows_ / image_size_.height), 0, grid_rows_ - 1);
+  return cy * grid_cols_ + cx;
+}
+
+void GridSpread::Offer(int index, int cell) {
+  int& count = used_[cell];
+  // With fewer items wanted than cells, the quota of 1 would otherwise take one per cell.
+  if (count < quota_ && static_cast<int>(chosen_.size()) < max_items_) {
+    ++count;
+    chosen_.push_back(index);
+  } else if (static_cast<int>(rest_.size()) < max_items_) {  // More could never be taken.
+    rest_.push_back(index);
+  }
+}
+
+std::vector<int> GridSpread::Chosen() const {
+  std::vector<int> chosen = chosen_;
+  for (size_t i = 0; i < rest_.size() && static_cast<int>(chosen.size()) < max_items_; ++i) {
+    chosen.push_back(rest_[i]);
+  }
+  return chosen;
+}
+
 std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
                                 const cv::Size& image_size, int grid_cols, int grid_rows,
                                 int max_items) {
-  const int cells = grid_cols * grid_rows;
-  const int quota = std::max(1, max_items / cells);
-  std::vector<int> used(cells, 0);
-  std::vector<int> selected, rest;
-  for (int i = 0; i < static_cast<int>(pixels.size()); ++i) {
-    const Eigen::Vector2f& p = pixels[i];
-    const int cx =
-        std::clamp(static_cast<int>(p.x() * grid_cols / image_size.width), 0, grid_cols - 1);
-    const int cy =
-        std::clamp(static_cast<int>(p.y() * grid_rows / image_size.height), 0, grid_rows - 1);
-    int& count = used[cy * grid_cols + cx];
-    // With fewer items wanted than cells, the quota of 1 would otherwise take one per cell.
-    if (count < quota && static_cast<int>(selected.size()) < max_items) {
-      ++count;
-      selected.push_back(i);
-    } else {
-      rest.push_back(i);
-    }
-  }
-  for (size_t i = 0; i < rest.size() && static_cast<int>(selected.size()) < max_items; ++i) {
-    selected.push_back(rest[i]);
-  }
-  return selected;
+  GridSpread spread(image_size, grid_cols, grid_rows, max_items);
+  for (int i = 0; i < static_cast<int>(pixels.size()); ++i) spread.Offer(i, spread.Cell(pixels[i]));
+  return spread.Chosen();
 }
 
 // 1 rather than 0: both run every call on the caller, but 0 makes Debian's OpenCV set up its TBB

@@ -66,6 +66,25 @@ std::vector<int> SpreadOverGrid(const std::vector<Eigen::Vector2f>& pixels,
                                 const cv::Size& image_size, int grid_cols, int grid_rows,
                                 int max_items);
 
+// SpreadOverGrid with the items offered one at a time, best first, for a caller that finds them
+// in that order and would rather not list them first.
+class GridSpread {
+ public:
+  GridSpread(const cv::Size& image_size, int grid_cols, int grid_rows, int max_items);
+  // The cell (row-major) of a pixel; pixels outside the image count in the nearest cell.
+  int Cell(const Eigen::Vector2f& pixel) const;
+  // Offers item `index`, in `cell`, worse than every item offered before.
+  void Offer(int index, int cell);
+  // SpreadOverGrid's answer for the items offered.
+  std::vector<int> Chosen() const;
+
+ private:
+  cv::Size image_size_;
+  int grid_cols_, grid_rows_, max_items_, quota_;
+  std::vector<int> used_;  // Items chosen per cell.
+  std::vector<int> chosen_, rest_;
+};
+
 // Makes OpenCV run every call on the calling thread. visloc parallelizes across sessions (one
 // engine worker per core); OpenCV's own thread pool on top of that oversubscribes the cores, and
 // on 320x240 images its hand-off costs more than the work it spreads (measured: 10% of a

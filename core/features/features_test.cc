@@ -458,6 +458,51 @@ TEST(HarrisSurf16Test, SingleScaleCornersAreTheResponsesMergedLocalMaxima) {
   }
 }
 
+TEST(HarrisSurf16Test, DetectionKeepsTheStrongOfEachCellThenSpreadsThemOverTheGrid) {
+  // Detect merges, thresholds by cell and selects in one pass; by definition it is the three
+  // steps in turn: the merged corners, those reaching `cell_relative` of the strongest merged
+  // corner of their cell, then SelectEvenlyIndices's choice. Noise whose contrast falls from left
+  // to right, so the cell threshold removes corners in some cells and not in others; as many
+  // wanted as there are, and fewer.
+  cv::Mat noise(96, 160, CV_8UC1);
+  cv::RNG(3).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, cv::Size(5, 5), 1.0);
+  for (int x = 0; x < noise.cols; ++x) noise.col(x) *= 1.0 - 0.9 * x / noise.cols;
+  const cv::Size size = noise.size();
+  HarrisSurf16Options options;
+  options.scales_px = {1.2};
+  options.grid_cols = 4;
+  options.grid_rows = 3;
+  options.cell_relative_threshold = 0.05;
+  const std::vector<Keypoint> merged =
+      ReferenceCorners(noise, 1.2, options.relative_threshold, options.border_px);
+  const auto cell_of = [&](const Keypoint& k) {
+    return std::clamp(static_cast<int>(k.pixel.x() * 4 / size.width), 0, 3) +
+           4 * std::clamp(static_cast<int>(k.pixel.y() * 3 / size.height), 0, 2);
+  };
+  std::vector<float> strongest(12, 0.0f);
+  for (const Keypoint& k : merged)
+    strongest[cell_of(k)] = std::max(strongest[cell_of(k)], k.response);
+  std::vector<Keypoint> strong;
+  for (const Keypoint& k : merged) {
+    if (k.response >= options.cell_relative_threshold * strongest[cell_of(k)]) strong.push_back(k);
+  }
+  ASSERT_LT(strong.size(), merged.size());
+  ASSERT_GT(strong.size(), 60u);
+  for (int wanted : {static_cast<int>(strong.size()), 60, 13}) {
+    options.max_features = wanted;
+    int detected = 0;
+    const std::vector<Keypoint> selected = HarrisSurf16Extractor(options).Detect(noise, &detected);
+    EXPECT_EQ(detected, static_cast<int>(strong.size()));
+    const std::vector<int> expected = SelectEvenlyIndices(strong, size, 4, 3, wanted);
+    ASSERT_EQ(selected.size(), expected.size()) << wanted;
+    for (size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_EQ(selected[i].pixel, strong[expected[i]].pixel) << wanted << " " << i;
+      EXPECT_EQ(selected[i].response, strong[expected[i]].response) << wanted << " " << i;
+    }
+  }
+}
+
 TEST(HarrisSurf16Test, MergeKeepsTheStrongestOfCloseCornersAnywhereInTheImage) {
   // Dense random corners, so that discs overlap everywhere: across the 64-pixel words of the
   // merge's bit mask, along every edge and in the corners of the image; some responses tie.

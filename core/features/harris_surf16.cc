@@ -494,29 +494,30 @@ class PixelDiscMask {
   std::vector<uint64_t> words_;
 };
 
-// The keypoints whose response reaches `relative` of the strongest in their grid cell.
-std::vector<Keypoint> KeepStrongInCell(std::vector<Keypoint> keypoints, const cv::Size& size,
-                                       int grid_cols, int grid_rows, double relative) {
-  if (relative <= 0) return keypoints;
-  const auto cell_of = [&](const Keypoint& k) {
-    const int cx = std::clamp(static_cast<int>(k.pixel.x() * grid_cols / size.width), 0,
-                              grid_cols - 1);
-    const int cy = std::clamp(static_cast<int>(k.pixel.y() * grid_rows / size.height), 0,
-                              grid_rows - 1);
-    return cy * grid_cols + cx;
-  };
-  std::vector<float> strongest(grid_cols * grid_rows, 0.0f);
-  for (const Keypoint& k : keypoints) {
-    float& s = strongest[cell_of(k)];
-    s = std::max(s, k.response);
+// MergeAcrossScales a corner at a time, strongest first: whether a stronger corner kept already
+// covers this one (then it goes), else it is kept and covers its own disc.
+class CornerMerger {
+ public:
+  explicit CornerMerger(const cv::Size& size)
+      : taken_(size), size_(size), max_x_(size.width - 0.5f), max_y_(size.height - 0.5f) {}
+
+  bool Keep(const Keypoint& k) {
+    // Rounding to a pixel of the image (the mask has no room beyond it); NaN fails too.
+    VISLOC_CHECK(k.pixel.x() > -0.5f && k.pixel.x() < max_x_ && k.pixel.y() > -0.5f &&
+                     k.pixel.y() < max_y_,
+                 "a corner at (", k.pixel.x(), ", ", k.pixel.y(), ") lies outside the ",
+                 size_.width, "x", size_.height, " image");
+    const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
+    if (taken_.Test(x, y)) return false;
+    taken_.MarkDisc(x, y);
+    return true;
   }
-  std::vector<Keypoint> kept;
-  kept.reserve(keypoints.size());
-  for (const Keypoint& k : keypoints) {
-    if (k.response >= relative * strongest[cell_of(k)]) kept.push_back(k);
-  }
-  return kept;
-}
+
+ private:
+  PixelDiscMask taken_;
+  cv::Size size_;
+  float max_x_, max_y_;
+};
 
 // OpenCV's 8-bit Gaussian kernel in fixed point (cv::GaussianBlur on CV_8U, OpenCV 4.x): the
 // normalized Gaussian of `window` taps times 256, rounded with error diffusion from the outer
@@ -655,21 +656,11 @@ VISLOC_SIMD_CLONES void GaussianBlur8u(const cv::Mat& grey, const std::vector<ui
 }  // namespace
 
 std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const cv::Size& size) {
-  keypoints = SortedByResponse(keypoints);
-  PixelDiscMask taken(size);
+  CornerMerger merger(size);
   std::vector<Keypoint> kept;
   kept.reserve(keypoints.size());
-  const float max_x = size.width - 0.5f, max_y = size.height - 0.5f;
-  for (const Keypoint& k : keypoints) {
-    // Rounding to a pixel of the image (the mask has no room beyond it); NaN fails too.
-    VISLOC_CHECK(k.pixel.x() > -0.5f && k.pixel.x() < max_x && k.pixel.y() > -0.5f &&
-                     k.pixel.y() < max_y,
-                 "a corner at (", k.pixel.x(), ", ", k.pixel.y(), ") lies outside the ",
-                 size.width, "x", size.height, " image");
-    const int x = RoundPixel(k.pixel.x()), y = RoundPixel(k.pixel.y());
-    if (taken.Test(x, y)) continue;
-    kept.push_back(k);
-    taken.MarkDisc(x, y);
+  for (const Keypoint& k : SortedByResponse(keypoints)) {
+    if (merger.Keep(k)) kept.push_back(k);
   }
   return kept;
 }
@@ -728,7 +719,6 @@ std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   if (static_cast<int>(keypoints.size()) <= max_features) return order;
   const auto stronger = [&](int a, int b) { return keypoints[a].response > keypoints[b].response; };
-  // Detection hands them over sorted already (MergeAcrossScales).
   if (!std::is_sorted(order.begin(), order.end(), stronger)) {
     std::sort(order.begin(), order.end(), stronger);
   }
@@ -738,15 +728,6 @@ std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
   std::vector<int> selected =
       SpreadOverGrid(pixels, image_size, grid_cols, grid_rows, max_features);
   for (int& i : selected) i = order[i];
-  return selected;
-}
-
-std::vector<Keypoint> SelectEvenly(std::vector<Keypoint> keypoints, const cv::Size& image_size,
-                                   int grid_cols, int grid_rows, int max_features) {
-  std::vector<Keypoint> selected;
-  for (int i : SelectEvenlyIndices(keypoints, image_size, grid_cols, grid_rows, max_features)) {
-    selected.push_back(keypoints[i]);
-  }
   return selected;
 }
 
@@ -788,12 +769,35 @@ std::vector<Keypoint> HarrisSurf16Extractor::Detect(const cv::Mat& grey, int* de
   if (coarse_scales) {
     LocalizeAtFinestScale(responses[finest], fine_maxima, &keypoints, options_.scales_px[finest]);
   }
-  keypoints = MergeAcrossScales(std::move(keypoints), grey.size());
-  keypoints = KeepStrongInCell(std::move(keypoints), grey.size(), options_.grid_cols,
-                               options_.grid_rows, options_.cell_relative_threshold);
-  if (detected) *detected = static_cast<int>(keypoints.size());
-  return SelectEvenly(std::move(keypoints), grey.size(), options_.grid_cols, options_.grid_rows,
-                      options_.max_features);
+  return MergeAndSelect(keypoints, grey.size(), detected);
+}
+
+// MergeAcrossScales, the cell threshold, then SelectEvenlyIndices's choice, in one pass over the
+// candidates strongest first (a few thousand a frame, of which 600 are kept). A cell's
+// strongest corner is the first one kept there, so the threshold is known when the next comes.
+std::vector<Keypoint> HarrisSurf16Extractor::MergeAndSelect(const std::vector<Keypoint>& candidates,
+                                                            const cv::Size& size,
+                                                            int* detected) const {
+  const std::vector<Keypoint> sorted = SortedByResponse(candidates);
+  CornerMerger merger(size);
+  GridSpread spread(size, options_.grid_cols, options_.grid_rows, options_.max_features);
+  std::vector<float> cell_strongest(options_.grid_cols * options_.grid_rows, -1.0f);  // -1: none.
+  std::vector<int> kept;  // Indices into `sorted`.
+  kept.reserve(sorted.size());
+  for (int i = 0; i < static_cast<int>(sorted.size()); ++i) {
+    const Keypoint& k = sorted[i];
+    if (!merger.Keep(k)) continue;
+    const int cell = spread.Cell(k.pixel);
+    if (cell_strongest[cell] < 0) cell_strongest[cell] = k.response;
+    if (k.response < options_.cell_relative_threshold * cell_strongest[cell]) continue;
+    kept.push_back(i);
+    spread.Offer(i, cell);
+  }
+  if (detected) *detected = static_cast<int>(kept.size());
+  std::vector<Keypoint> selected;
+  const bool all = static_cast<int>(kept.size()) <= options_.max_features;
+  for (int i : all ? kept : spread.Chosen()) selected.push_back(sorted[i]);
+  return selected;
 }
 
 namespace {

@@ -57,6 +57,10 @@ class HarrisSurf16Extractor final : public FeatureExtractor {
   cv::Mat Describe(const cv::Mat& grey, const std::vector<Keypoint>& keypoints) const;
 
  private:
+  // Detect's last step: `candidates` (unordered) merged, thresholded by cell and selected.
+  std::vector<Keypoint> MergeAndSelect(const std::vector<Keypoint>& candidates,
+                                       const cv::Size& size, int* detected) const;
+
   HarrisSurf16Options options_;
   FeatureSettings settings_;
 };
@@ -84,8 +88,5 @@ std::vector<Keypoint> MergeAcrossScales(std::vector<Keypoint> keypoints, const c
 std::vector<int> SelectEvenlyIndices(const std::vector<Keypoint>& keypoints,
                                      const cv::Size& image_size, int grid_cols, int grid_rows,
                                      int max_features);
-// The keypoints SelectEvenlyIndices chooses.
-std::vector<Keypoint> SelectEvenly(std::vector<Keypoint> keypoints, const cv::Size& image_size,
-                                   int grid_cols, int grid_rows, int max_features);
 
 }  // namespace visloc
