@@ -21,14 +21,6 @@ GridSpread::GridSpread(const cv::Size& image_size, int grid_cols, int grid_rows,
       quota_(std::max(1, max_items / (grid_cols * grid_rows))),
       used_(grid_cols * grid_rows, 0) {}
 
-int GridSpread::Cell(const Eigen::Vector2f& pixel) const {
-  const int cx =
-      std::clamp(static_cast<int>(pixel.x() * grid_cols_ / image_size_.width), 0, grid_cols_ - 1);
-  const int cy =
-      std::clamp(static_cast<int>(pixel.y() * grid_rows_ / image_size_.height), 0, grid_rows_ - 1);
-  return cy * grid_cols_ + cx;
-}
-
 void GridSpread::Offer(int index, int cell) {
   int& count = used_[cell];
   // With fewer items wanted than cells, the quota of 1 would otherwise take one per cell.

@@ -11,6 +11,7 @@
 // Both spread features evenly over the image (per-cell quotas), as the paper's "intelligent
 // management" of features does.
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -72,7 +73,14 @@ class GridSpread {
  public:
   GridSpread(const cv::Size& image_size, int grid_cols, int grid_rows, int max_items);
   // The cell (row-major) of a pixel; pixels outside the image count in the nearest cell.
-  int Cell(const Eigen::Vector2f& pixel) const;
+  // Inline: detection asks for thousands of corners a frame.
+  int Cell(const Eigen::Vector2f& pixel) const {
+    const int cx = std::clamp(static_cast<int>(pixel.x() * grid_cols_ / image_size_.width), 0,
+                              grid_cols_ - 1);
+    const int cy = std::clamp(static_cast<int>(pixel.y() * grid_rows_ / image_size_.height), 0,
+                              grid_rows_ - 1);
+    return cy * grid_cols_ + cx;
+  }
   // Offers item `index`, in `cell`, worse than every item offered before.
   void Offer(int index, int cell);
   // SpreadOverGrid's answer for the items offered.
