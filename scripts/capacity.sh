@@ -21,7 +21,8 @@ REC=$REAL/euroc_mh01_moving
 WORK=${1:-out/capacity}
 REPORT=docs/capacity.md
 DURATION_S=${VISLOC_CAPACITY_DURATION_S:-10}
-MAX_ROBOTS=${VISLOC_CAPACITY_MAX_ROBOTS:-64}  # The sweep: 4, 8, ... robots, to the second load not held.
+# The sweep: 4, 8, ... robots, up to the second load not held or MAX_ROBOTS.
+MAX_ROBOTS=${VISLOC_CAPACITY_MAX_ROBOTS:-64}
 mkdir -p "$WORK/maps"
 [[ -d $REC ]] || { echo "no $REC: the capacity needs the real recordings" >&2; exit 1; }
 

@@ -1,5 +1,6 @@
 #pragma once
-// Process-wide allocator tuning for frame-rate work.
+// Memory for frame-rate work: process-wide allocator tuning, and cache-line aligned buffers for
+// the vectorized loops (CacheLineVector).
 //
 // Every frame allocates and frees a few image-sized buffers (~300 KB at 320x240). With glibc's
 // defaults the freed top of the heap is returned to the kernel and the next frame faults the
