@@ -439,9 +439,8 @@ void LocalizeAtFinestScale(const cv::Mat& fine_response, const cv::Mat& is_max,
   }
 }
 
-// Removes corners that a stronger corner (at another scale) already covers.
-// Strongest first; equal responses in the order found (a stable order, so the result never
-// depends on the sort's implementation). Sorted as 64-bit keys, response bits then index: the
+// The keypoints strongest first; equal responses in the order given (a stable order, so the
+// result never depends on the sort's implementation). Sorted as 64-bit keys, response bits then index: the
 // responses are positive, so their IEEE bits order as they do.
 std::vector<Keypoint> SortedByResponse(const std::vector<Keypoint>& keypoints) {
   std::vector<uint64_t> keys(keypoints.size());
