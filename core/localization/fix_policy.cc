@@ -44,7 +44,7 @@ FixDecision DecideTrackedFix(const FixEvidence& e) {
   if (!e.has_pose) {
     return e.strong ? Take(TrackingStatus::kRelocalized, FilterUpdate::kRestart) : kReject;
   }
-  if (e.within_gate) {
+  if (e.within_gate && e.agrees) {
     return Take(e.strong ? TrackingStatus::kTracking : TrackingStatus::kLimited,
                 FilterUpdate::kFuse);
   }

@@ -3,9 +3,10 @@
 // Localizer::Process as pure functions of what it knows when a fix arrives (no images, no map),
 // so each rule is tested alone.
 //
-//   tracked from the prior    within the jump gate: tracking (strong) or limited; beyond it,
-//                             held for the next frame to confirm, unless the prior knew no motion
-//                             and the fix is strongly supported (a car's first frames);
+//   tracked from the prior    within the jump gate and agreeing with the prediction: tracking
+//                             (strong) or limited; else held for the next frame to confirm,
+//                             unless the prior knew no motion and the fix is strongly supported
+//                             (a car's first frames);
 //                             with no prior pose: a strong fix is a relocalization.
 //   relocalized               within the gate of the prior, or strongly supported while nothing
 //                             (no pose, no motion) says where the camera went: taken; else held.
@@ -36,6 +37,7 @@ bool WithinJumpGate(const Rigid3d& found, const Rigid3d& expected, double sigma_
 struct FixEvidence {
   bool has_pose = false;            // The filter holds a pose (tracking, limited or bridging).
   bool within_gate = false;         // Of that pose (false without one).
+  bool agrees = true;               // With the filter's prediction (max_innovation_chi2).
   bool limited_support = false;     // min_limited_inliers.
   bool strong = false;              // min_tracking_inliers and min_tracking_inlier_ratio.
   bool strongly_supported = false;  // relocalization.strong_inliers.

@@ -48,8 +48,8 @@ void LocalizerOptions::Check() const {
                    min_tracking_inliers >= min_limited_inliers,
                "inlier thresholds: ransac ", tracker.ransac.min_inliers, ", limited ",
                min_limited_inliers, ", tracking ", min_tracking_inliers);
-  VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0, "jump gate ", max_jump_m, " m ", max_jump_deg,
-               " deg");
+  VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0 && max_innovation_chi2 > 0, "jump gate ",
+               max_jump_m, " m ", max_jump_deg, " deg, innovation chi2 ", max_innovation_chi2);
   VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
   VISLOC_CHECK(max_query_features >= 0 && max_relocalization_features >= 0,
                "keypoint counts: query ", max_query_features, ", relocalization ",
@@ -181,6 +181,11 @@ FixEvidence Localizer::EvidenceOf(const PoseFix& fix, const Motion& motion) cons
   evidence.strong = Strong(fix);
   evidence.strongly_supported = fix.inliers >= options_.relocalization.strong_inliers;
   evidence.motion_known = velocity_valid_ || motion.from_sensors;
+  // Without a known motion the prediction is only the last pose: a moving robot's fix would
+  // disagree with it for no fault of its own.
+  evidence.agrees = !evidence.motion_known || !evidence.has_pose || !fix.success ||
+                    filter_.InnovationDistanceSq(fix.cam_from_map.Inverse(), fix.covariance) <=
+                        options_.max_innovation_chi2;
   return evidence;
 }
 

@@ -63,6 +63,12 @@ double MotionFilter::UpdatePose(const Rigid3d& measured, const Matrix6d& noise) 
   return innovation.dot(s_ldlt.solve(innovation));
 }
 
+double MotionFilter::InnovationDistanceSq(const Rigid3d& measured, const Matrix6d& noise) const {
+  VISLOC_CHECK(initialized_, "MotionFilter::InnovationDistanceSq before Reset");
+  const Vector6d innovation = LogSe3(map_from_cam_.Inverse() * measured);
+  return innovation.dot((covariance_ + noise).ldlt().solve(innovation));
+}
+
 void MotionFilter::UpdateHeight(const Eigen::Vector3d& normal, double offset, double height_m,
                                 double sigma_m) {
   VISLOC_CHECK(initialized_, "MotionFilter::UpdateHeight before Reset");

@@ -39,6 +39,9 @@ class MotionFilter {
   // Fuses a measured map_from_cam with covariance `noise` (same perturbation). Returns the
   // squared Mahalanobis distance of the innovation (6 degrees of freedom), for gating.
   double UpdatePose(const Rigid3d& measured_map_from_cam, const Matrix6d& noise);
+  // That squared Mahalanobis distance, without the update: how far a fix lies from the
+  // prediction, in the two uncertainties together.
+  double InnovationDistanceSq(const Rigid3d& measured_map_from_cam, const Matrix6d& noise) const;
 
   // Fuses "the camera centre is `height_m` above the plane {x : normal . x = offset}" (map
   // frame, unit normal) with standard deviation sigma_m.

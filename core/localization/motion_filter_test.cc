@@ -49,8 +49,12 @@ TEST(MotionFilterTest, PoseUpdateWeighsPriorAndMeasurementByTheirCovariances) {
   EXPECT_NEAR(filter.map_from_cam().translation.x(), 0.1, 1e-9);
   EXPECT_NEAR(filter.covariance()(0, 0), 0.005, 1e-9);
   EXPECT_NEAR(d2, 0.2 * 0.2 / 0.02, 1e-9);
+  // The distance alone, the state untouched: the next update's own.
+  const Rigid3d before = filter.map_from_cam();
+  const double next = filter.InnovationDistanceSq(measured, Matrix6d::Identity() * 1e-8);
+  EXPECT_TRUE(ApproxEqual(filter.map_from_cam(), before, 0, 0));
   // A far more precise measurement wins.
-  filter.UpdatePose(measured, Matrix6d::Identity() * 1e-8);
+  EXPECT_DOUBLE_EQ(filter.UpdatePose(measured, Matrix6d::Identity() * 1e-8), next);
   EXPECT_NEAR(filter.map_from_cam().translation.x(), 0.2, 1e-5);
 }
 
