@@ -50,7 +50,7 @@ void MotionFilter::Predict(const Rigid3d& cam_prev_from_cam_cur, const Matrix6d&
 
 double MotionFilter::UpdatePose(const Rigid3d& measured, const Matrix6d& noise) {
   VISLOC_CHECK(initialized_, "MotionFilter::UpdatePose before Reset");
-  const Vector6d innovation = LogSe3(map_from_cam_.Inverse() * measured);
+  const Vector6d innovation = Innovation(measured);
   const Matrix6d s = covariance_ + noise;
   const Eigen::LDLT<Matrix6d> s_ldlt = s.ldlt();
   // K = P S^-1 (S and P symmetric).
@@ -63,9 +63,13 @@ double MotionFilter::UpdatePose(const Rigid3d& measured, const Matrix6d& noise) 
   return innovation.dot(s_ldlt.solve(innovation));
 }
 
+Vector6d MotionFilter::Innovation(const Rigid3d& measured) const {
+  return LogSe3(map_from_cam_.Inverse() * measured);
+}
+
 double MotionFilter::InnovationDistanceSq(const Rigid3d& measured, const Matrix6d& noise) const {
   VISLOC_CHECK(initialized_, "MotionFilter::InnovationDistanceSq before Reset");
-  const Vector6d innovation = LogSe3(map_from_cam_.Inverse() * measured);
+  const Vector6d innovation = Innovation(measured);
   return innovation.dot((covariance_ + noise).ldlt().solve(innovation));
 }
 

@@ -53,6 +53,9 @@ class MotionFilter {
   double PositionSigmaM() const;
 
  private:
+  // The measurement's difference from the state, in the state's perturbation.
+  Vector6d Innovation(const Rigid3d& measured_map_from_cam) const;
+
   bool initialized_ = false;
   Rigid3d map_from_cam_;
   Matrix6d covariance_ = Matrix6d::Identity();
