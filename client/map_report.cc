@@ -69,6 +69,15 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   } else {
     json.Null();
   }
+  json.Key("rig_error");
+  if (const auto& rig = info.metadata.rig_error) {
+    json.BeginObject()
+        .Field("floor_m", rig->floor_m)
+        .Field("drift_fraction", rig->drift_fraction)
+        .EndObject();
+  } else {
+    json.Null();
+  }
   json.Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
@@ -118,6 +127,11 @@ void PrintInfo(const MapInfo& info) {
         "stereo rig    disparity offset %.3f px, right camera yaw %.4f deg (taken off its "
         "disparities; map build --disparity-correction-from takes it)\n",
         correction->offset_px, correction->yaw_deg());
+  }
+  if (const auto& rig = info.metadata.rig_error) {
+    std::printf("rig error     %.2f mm + %.2f%% of the distance from the origin, per axis (its "
+                "calibration's, in every fix's covariance)\n",
+                1e3 * rig->floor_m, 100 * rig->drift_fraction);
   }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);

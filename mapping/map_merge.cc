@@ -293,10 +293,12 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   Map merged;
   merged.metadata = a.metadata;
   merged.metadata.lineage = MergedLineage(a.metadata, b.metadata);
-  // The rig's correction (one camera, checked): A's, else the one B's build recorded.
+  // The rig's correction and calibration error (one camera, checked): A's, else the ones B's
+  // build recorded.
   if (!merged.metadata.disparity_correction) {
     merged.metadata.disparity_correction = b.metadata.disparity_correction;
   }
+  if (!merged.metadata.rig_error) merged.metadata.rig_error = b.metadata.rig_error;
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;

@@ -21,6 +21,10 @@ void ChecksumHead(const Map& map, Crc& crc) {
     crc.Pod(correction->offset_px);
     crc.Pod(correction->yaw_rad);
   }
+  if (const auto& rig = map.metadata.rig_error) {
+    crc.Pod(rig->floor_m);
+    crc.Pod(rig->drift_fraction);
+  }
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());

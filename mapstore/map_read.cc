@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <map>
 #include <optional>
+#include <utility>
 
 #include "mapstore/map_file.h"
 #include "mapstore/map_store.h"
@@ -29,22 +30,42 @@ std::optional<std::string> Find(const MetaRows& rows, const std::string& key) {
 }
 
 // The meta keys 'disparity_offset_px' and 'right_camera_yaw_rad': both or neither, finite.
+// Two finite numbers that meta holds both or neither of: `what` names them in errors.
+std::optional<std::pair<double, double>> ReadNumberPair(const Database& db, const MetaRows& rows,
+                                                        const std::string& key_a,
+                                                        const std::string& key_b,
+                                                        const std::string& what) {
+  const std::optional<std::string> a = Find(rows, key_a);
+  const std::optional<std::string> b = Find(rows, key_b);
+  if (!a && !b) return std::nullopt;
+  if (!a || !b) {
+    throw InputError(StrCat(db.path(), ": meta has '", a ? key_a : key_b, "' without '",
+                            a ? key_b : key_a, "'"));
+  }
+  const auto value_a = ParseDouble(*a), value_b = ParseDouble(*b);
+  if (!value_a || !value_b || !std::isfinite(*value_a) || !std::isfinite(*value_b)) {
+    throw InputError(StrCat(db.path(), ": malformed ", what, " in meta ('", *a, "', '", *b, "')"));
+  }
+  return std::make_pair(*value_a, *value_b);
+}
+
 std::optional<DisparityCorrection> ReadDisparityCorrection(const Database& db,
                                                            const MetaRows& rows) {
-  const std::optional<std::string> offset = Find(rows, "disparity_offset_px");
-  const std::optional<std::string> yaw = Find(rows, "right_camera_yaw_rad");
-  if (!offset && !yaw) return std::nullopt;
-  if (!offset || !yaw) {
-    throw InputError(StrCat(
-        db.path(), ": meta has ", offset ? "'disparity_offset_px'" : "'right_camera_yaw_rad'",
-        " without ", offset ? "'right_camera_yaw_rad'" : "'disparity_offset_px'"));
+  const auto pair = ReadNumberPair(db, rows, "disparity_offset_px", "right_camera_yaw_rad",
+                                   "disparity correction");
+  if (!pair) return std::nullopt;
+  return DisparityCorrection{pair->first, pair->second};
+}
+
+std::optional<RigError> ReadRigError(const Database& db, const MetaRows& rows) {
+  const auto pair = ReadNumberPair(db, rows, "rig_error_floor_m", "rig_error_drift_fraction",
+                                   "rig calibration error");
+  if (!pair) return std::nullopt;
+  if (pair->first < 0 || pair->second < 0) {
+    throw InputError(StrCat(db.path(), ": negative rig calibration error in meta (", pair->first,
+                            " m, ", pair->second, ")"));
   }
-  const auto offset_px = ParseDouble(*offset), yaw_rad = ParseDouble(*yaw);
-  if (!offset_px || !yaw_rad || !std::isfinite(*offset_px) || !std::isfinite(*yaw_rad)) {
-    throw InputError(StrCat(db.path(), ": malformed disparity correction in meta ('", *offset,
-                            "', '", *yaw, "')"));
-  }
-  return DisparityCorrection{*offset_px, *yaw_rad};
+  return RigError{pair->first, pair->second};
 }
 
 Meta ReadMeta(Database& db, Map* map) {
@@ -78,6 +99,7 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.builder = value("builder");
   map->metadata.lineage = Find(rows, "lineage").value_or("");              // Schema 2; optional.
   map->metadata.disparity_correction = ReadDisparityCorrection(db, rows);  // Schema 3; optional.
+  map->metadata.rig_error = ReadRigError(db, rows);                          // Schema 4; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

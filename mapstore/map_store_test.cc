@@ -128,6 +128,40 @@ TEST(MapStoreTest, TheRigsDisparityCorrectionIsKeptExactlyAndOnlyWhereThereIsOne
             rig + ": meta has 'disparity_offset_px' without 'right_camera_yaw_rad'");
 }
 
+// The rig's calibration error likewise: kept to the bit, checksummed, schema 4 only where a
+// builder was told one, and a file whose pair is broken or negative is refused by name.
+TEST(MapStoreTest, TheRigsCalibrationErrorIsKeptExactlyAndOnlyWhereThereIsOne) {
+  TempDir dir;
+  const std::string plain = dir.File("plain.db"), exact = dir.File("exact.db");
+  SaveMap(SmallMap(), plain);
+  EXPECT_FALSE(LoadMap(plain).metadata.rig_error.has_value());
+  Map map = SmallMap();
+  map.metadata.rig_error = RigError{0.0, 0.0};
+  SaveMap(map, exact);
+  Map loaded = LoadMap(exact);
+  EXPECT_TRUE(MapsEqual(loaded, map));
+  ASSERT_TRUE(loaded.metadata.rig_error.has_value());
+  EXPECT_EQ(*loaded.metadata.rig_error, RigError{});
+  EXPECT_EQ(SummarizeMap(loaded, exact).schema_version, 4);
+  map.metadata.rig_error = RigError{0.0023, 1.0 / 3.0};
+  SaveMap(map, exact);
+  loaded = LoadMap(exact);
+  EXPECT_EQ(*loaded.metadata.rig_error, *map.metadata.rig_error);
+  EXPECT_FALSE(MapsEqual(loaded, LoadMap(plain)));
+  EXPECT_TRUE(VerifyMapFile(exact).ok());
+
+  Database db = Database::OpenForWriting(exact);
+  db.Exec("UPDATE meta SET value = '0.001' WHERE key = 'rig_error_floor_m'");
+  EXPECT_EQ(LoadError(exact),
+            exact + ": content checksum mismatch: the file is corrupt or was modified");
+  db.Exec("UPDATE meta SET value = '-0.001' WHERE key = 'rig_error_floor_m'");
+  EXPECT_EQ(LoadError(exact),
+            exact + ": negative rig calibration error in meta (-0.001 m, 0.333333)");
+  db.Exec("DELETE FROM meta WHERE key = 'rig_error_drift_fraction'");
+  EXPECT_EQ(LoadError(exact),
+            exact + ": meta has 'rig_error_floor_m' without 'rig_error_drift_fraction'");
+}
+
 // Each kind of bad file gets its own clear message.
 class BadMapFileTest : public ::testing::Test {
  protected:
@@ -169,11 +203,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '4' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '5' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 4; this visloc reads up to 3): upgrade visloc");
+          ": written by a newer visloc (map schema 5; this visloc reads up to 4): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {

@@ -32,13 +32,19 @@ void WriteMeta(Database& db, const Map& map) {
   for (const auto& [key, value] : rows) insert.Bind(1, key).Bind(2, value).Run();
   if (!map.metadata.lineage.empty())
     insert.Bind(1, std::string("lineage")).Bind(2, map.metadata.lineage).Run();
-  if (const auto& correction = map.metadata.disparity_correction) {
-    // 17 significant digits: the text reads back to the same doubles, which the checksum covers.
+  // 17 significant digits: the text reads back to the same doubles, which the checksum covers.
+  auto insert_double = [&](const char* key, double value) {
     char text[32];
-    std::snprintf(text, sizeof text, "%.17g", correction->offset_px);
-    insert.Bind(1, std::string("disparity_offset_px")).Bind(2, std::string(text)).Run();
-    std::snprintf(text, sizeof text, "%.17g", correction->yaw_rad);
-    insert.Bind(1, std::string("right_camera_yaw_rad")).Bind(2, std::string(text)).Run();
+    std::snprintf(text, sizeof text, "%.17g", value);
+    insert.Bind(1, std::string(key)).Bind(2, std::string(text)).Run();
+  };
+  if (const auto& correction = map.metadata.disparity_correction) {
+    insert_double("disparity_offset_px", correction->offset_px);
+    insert_double("right_camera_yaw_rad", correction->yaw_rad);
+  }
+  if (const auto& rig = map.metadata.rig_error) {
+    insert_double("rig_error_floor_m", rig->floor_m);
+    insert_double("rig_error_drift_fraction", rig->drift_fraction);
   }
 }
 

@@ -57,6 +57,10 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
   if (info.metadata.disparity_correction) {
     ToProto(*info.metadata.disparity_correction, out->mutable_disparity_correction());
   }
+  if (const auto& rig = info.metadata.rig_error) {
+    out->mutable_rig_error()->set_floor_m(rig->floor_m);
+    out->mutable_rig_error()->set_drift_fraction(rig->drift_fraction);
+  }
   DetailsToProto(info, out->mutable_details());
 }
 
@@ -77,6 +81,9 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
                    wire.lineage()};
   if (wire.has_disparity_correction()) {
     info.metadata.disparity_correction = FromProto(wire.disparity_correction());
+  }
+  if (wire.has_rig_error()) {
+    info.metadata.rig_error = RigError{wire.rig_error().floor_m(), wire.rig_error().drift_fraction()};
   }
   info.features.kind = wire.feature_kind();
   info.keyframes = wire.keyframes();

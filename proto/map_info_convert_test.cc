@@ -16,6 +16,7 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   TempDir dir;
   Map map = MakeSyntheticMap({});
   map.metadata.disparity_correction = DisparityCorrection{-0.6, 1.2e-3};
+  map.metadata.rig_error = RigError{0.0, 0.0};
   mapstore::SaveMap(map, dir.File("lab.db"));
   const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
   ASSERT_TRUE(local.info.has_value()) << local.error;
@@ -50,6 +51,8 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   ASSERT_TRUE(b.metadata.disparity_correction.has_value());
   EXPECT_EQ(b.metadata.disparity_correction->offset_px, -0.6);
   EXPECT_NEAR(b.metadata.disparity_correction->yaw_rad, 1.2e-3, 1e-15);
+  ASSERT_TRUE(b.metadata.rig_error.has_value());  // An exact rig is not "none".
+  EXPECT_EQ(*b.metadata.rig_error, RigError{});
 
   // A map that records none says so on the wire too (not a zero correction).
   mapstore::SaveMap(MakeSyntheticMap({}), dir.File("plain.db"));
@@ -57,6 +60,8 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   proto::ToProto(mapstore::MapDirectory(dir.path()).Describe("plain"), &plain);
   EXPECT_FALSE(plain.has_disparity_correction());
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.disparity_correction.has_value());
+  EXPECT_FALSE(plain.has_rig_error());
+  EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.rig_error.has_value());
 }
 
 TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {

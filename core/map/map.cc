@@ -110,6 +110,11 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
       correction && !(std::isfinite(correction->offset_px) && std::isfinite(correction->yaw_rad))) {
     problems.Add("the rig's disparity correction is not finite");
   }
+  if (const auto& rig = map.metadata.rig_error;
+      rig && !(rig->floor_m >= 0 && std::isfinite(rig->floor_m) && rig->drift_fraction >= 0 &&
+               std::isfinite(rig->drift_fraction))) {
+    problems.Add("the rig's calibration error is negative or not finite");
+  }
   for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
     if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
       problems.Add("keyframe ", i, " has a non-finite pose or a non-unit quaternion");
@@ -161,7 +166,8 @@ bool MapsEqual(const Map& a, const Map& b) {
       a.metadata.created_unix_s != b.metadata.created_unix_s ||
       a.metadata.source_dataset != b.metadata.source_dataset ||
       a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage ||
-      a.metadata.disparity_correction != b.metadata.disparity_correction) {
+      a.metadata.disparity_correction != b.metadata.disparity_correction ||
+      a.metadata.rig_error != b.metadata.rig_error) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

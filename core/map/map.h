@@ -22,6 +22,21 @@
 
 namespace visloc {
 
+// A stereo rig's calibration error as the map inherits it: the systematic position error (per
+// axis, m) of a fix in the map, `floor_m` plus `drift_fraction` of the distance from the map's
+// origin, in quadrature. A wrong baseline or focal length scales the whole map, and a distortion
+// model's residual bends it; the images cannot show either (a map scaled by 0.3% is as
+// consistent as the true one), so whoever calibrated the rig must say how well. Zero for a
+// generated sequence, whose calibration is exact.
+struct RigError {
+  double floor_m = 0.0;
+  double drift_fraction = 0.0;
+  bool operator==(const RigError& other) const {
+    return floor_m == other.floor_m && drift_fraction == other.drift_fraction;
+  }
+  bool operator!=(const RigError& other) const { return !(*this == other); }
+};
+
 struct MapMetadata {
   std::string name;
   int64_t created_unix_s = 0;
@@ -35,6 +50,9 @@ struct MapMetadata {
   // trusts the rig's calibration, maps made before it was recorded). Sessions that extend or
   // update the map take it: they come from the same rig (its camera is checked).
   std::optional<DisparityCorrection> disparity_correction = std::nullopt;
+  // The rig's calibration error, when its builder was told it; none: a real rig's, which the
+  // localizer assumes (PoseTrackerOptions::rig_floor_m and rig_drift_fraction).
+  std::optional<RigError> rig_error = std::nullopt;
 };
 
 struct Keyframe {
