@@ -140,19 +140,34 @@ int RunExport(const Args& args) {
                        {"ply", ply_path}});
 }
 
+// A flag's A,B: two finite numbers, or a usage error that says what the flag `wants`.
+std::pair<double, double> ParseNumberPair(const std::string& text, const std::string& wants) {
+  const std::vector<std::string> parts = Split(text, ',');
+  const std::optional<double> a = parts.size() == 2 ? ParseDouble(parts[0]) : std::nullopt;
+  const std::optional<double> b = parts.size() == 2 ? ParseDouble(parts[1]) : std::nullopt;
+  if (!a || !b || !std::isfinite(*a) || !std::isfinite(*b)) {
+    throw UsageError(StrCat(wants, ", got '", text, "'"));
+  }
+  return {*a, *b};
+}
+
 // --disparity-correction OFFSET_PX,YAW_DEG: a correction known for the rig.
 std::optional<DisparityCorrection> ParseDisparityCorrection(const std::string& text) {
   if (text.empty()) return std::nullopt;
-  const std::vector<std::string> parts = Split(text, ',');
-  const std::optional<double> offset_px = parts.size() == 2 ? ParseDouble(parts[0]) : std::nullopt;
-  const std::optional<double> yaw_deg = parts.size() == 2 ? ParseDouble(parts[1]) : std::nullopt;
-  if (!offset_px || !yaw_deg) {
-    throw UsageError(
-        "--disparity-correction wants OFFSET_PX,YAW_DEG (a build's "
-        "disparity_offset_px and right_camera_yaw_deg), got '" +
-        text + "'");
-  }
-  return DisparityCorrection::FromDegrees(*offset_px, *yaw_deg);
+  const auto [offset_px, yaw_deg] = ParseNumberPair(
+      text,
+      "--disparity-correction wants OFFSET_PX,YAW_DEG (a build's disparity_offset_px and "
+      "right_camera_yaw_deg)");
+  return DisparityCorrection::FromDegrees(offset_px, yaw_deg);
+}
+
+// --rig-error FLOOR_M,DRIFT_FRACTION: how well the rig is calibrated (RigError, core/map/map.h).
+std::optional<RigError> ParseRigError(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  const std::string wants = "--rig-error wants FLOOR_M,DRIFT_FRACTION, both at least 0";
+  const auto [floor_m, drift_fraction] = ParseNumberPair(text, wants);
+  if (floor_m < 0 || drift_fraction < 0) throw UsageError(StrCat(wants, ", got '", text, "'"));
+  return RigError{floor_m, drift_fraction};
 }
 
 // The rig's correction a build is given: as numbers (--disparity-correction OFFSET_PX,YAW_DEG)
@@ -260,6 +275,13 @@ int RunBuild(const Args& args) {
   parser.AddFlag("disparity-correction-from", &correction_map,
                  "MAP.db: take the rig's disparity correction from a map an earlier build of "
                  "the same rig wrote (`map info` shows it), as --disparity-correction would");
+  std::string rig_error;
+  parser.AddFlag("rig-error", &rig_error,
+                 "FLOOR_M,DRIFT_FRACTION: how well the rig is calibrated, as the position error "
+                 "(per axis) it leaves in the map: a floor plus a fraction of the distance from "
+                 "the map's origin. The map records it, and every pose in the map reports it in "
+                 "its covariance. 0,0 for a generated sequence, whose calibration is exact");
+  parser.SetDefaultText("rig-error", "a real rig's, measured on EuRoC MH_01: 0.0023,0.0026");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features, "corners per image");
   parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");
@@ -283,6 +305,7 @@ int RunBuild(const Args& args) {
   }
   options.builder.loop_closure.enabled = loop_closure != 0;
   const GivenCorrection given = ParseGivenCorrection(known_correction, correction_map);
+  const std::optional<RigError> given_rig_error = ParseRigError(rig_error);
   options.builder.disparity_calibration.known = given.correction;
   options.builder.disparity_calibration.enabled =
       disparity_calibration != 0 && !options.builder.disparity_calibration.known;
@@ -318,8 +341,8 @@ int RunBuild(const Args& args) {
         given, dataset ? dataset->left.camera : ReadSensorYaml(camera_yamls[0]).camera);
   }
   if (!server.server.empty()) {
-    if (!trajectory.empty() || max_features > 0) {
-      throw UsageError("--trajectory and --max-features are for builds here (--out)");
+    if (!trajectory.empty() || max_features > 0 || given_rig_error) {
+      throw UsageError("--trajectory, --max-features and --rig-error are for builds here (--out)");
     }
     RemoteBuildOptions remote;
     remote.name = name;
@@ -355,6 +378,7 @@ int RunBuild(const Args& args) {
   MapMetadata metadata{name, static_cast<int64_t>(std::time(nullptr)),
                        fs::absolute(dataset_dir).string(),
                        StrCat("visloc ", VislocVersion(), " map build"), ""};
+  metadata.rig_error = given_rig_error;
   mapping::MapBuildStats stats;
   Trajectory frame_trajectory;
   const bool progress = ShowProgress() && !json;

@@ -28,7 +28,7 @@ echo "== data (320x240)"
     --frames "$FRAMES" --no-contact-sheet > /dev/null
   touch "$WORK/seq320/done"
 }
-[[ -f $WORK/map320.db ]] || $V map build --dataset "$WORK/seq320/map_square" --out "$WORK/map320.db" --json > "$WORK/map320.json"
+[[ -f $WORK/map320.db ]] || $V map build --dataset "$WORK/seq320/map_square" --out "$WORK/map320.db" --rig-error 0,0 --json > "$WORK/map320.json"
 echo "== data (320x240, the five-room suite)"
 [[ -f $WORK/suite320/done ]] || {
   rm -rf "$WORK/suite320"
@@ -36,7 +36,7 @@ echo "== data (320x240, the five-room suite)"
     --no-contact-sheet > /dev/null
   touch "$WORK/suite320/done"
 }
-[[ -f $WORK/suite320.db ]] || $V map build --dataset "$WORK/suite320/map_suite" --out "$WORK/suite320.db" --json > "$WORK/suite320.json"
+[[ -f $WORK/suite320.db ]] || $V map build --dataset "$WORK/suite320/map_suite" --out "$WORK/suite320.db" --rig-error 0,0 --json > "$WORK/suite320.json"
 echo "== data (640x480)"
 [[ -f $WORK/seq640/done ]] || {
   rm -rf "$WORK/seq640"
@@ -44,7 +44,7 @@ echo "== data (640x480)"
     --frames "$FRAMES" --no-contact-sheet > /dev/null
   touch "$WORK/seq640/done"
 }
-[[ -f $WORK/map640.db ]] || $V map build --dataset "$WORK/seq640/map_square" --out "$WORK/map640.db" --json > "$WORK/map640.json"
+[[ -f $WORK/map640.db ]] || $V map build --dataset "$WORK/seq640/map_square" --out "$WORK/map640.db" --rig-error 0,0 --json > "$WORK/map640.json"
 
 # Google Benchmark families of build/core/localization/localization_benchmark in the report.
 families=(ExtractHarrisSurf16 DetectHarrisSurf16 DescribeHarrisSurf16 DetectRealFrame ExtractRealFrameAllScales

@@ -32,9 +32,13 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
                 .exit_code,
             0);
   const std::string map_path = dir.File("square.db");
-  const ProcessResult build =
-      Visloc({"map", "build", "--dataset", dir.File("map_square"), "--out", map_path, "--json"});
+  // The generated rig's calibration is exact, and the map records that.
+  const ProcessResult build = Visloc({"map", "build", "--dataset", dir.File("map_square"), "--out",
+                                      map_path, "--rig-error", "0,0", "--json"});
   ASSERT_EQ(build.exit_code, 0) << build.err;
+  const ProcessResult info = Visloc({"map", "info", map_path, "--json"});
+  EXPECT_THAT(info.out, HasSubstr("\"rig_error\":{\"floor_m\":0,\"drift_fraction\":0}"));
+  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 4);
   EXPECT_THAT(build.out, HasSubstr("\"frames\":150"));
   // Each key once (disparity_rmse_px was written twice).
   for (const char* key : {"\"disparity_rmse_px\"", "\"loop_closures\"", "\"loop_adjustments\""}) {
@@ -83,6 +87,14 @@ TEST(MapBuildE2eTest, MonocularOrMissingDatasetsAreRefusedClearly) {
       {"map", "build", "--dataset", dir.path(), "--out", dir.File("m.db"), "--name", "../x"});
   EXPECT_EQ(bad_name.exit_code, 1);
   EXPECT_THAT(bad_name.err, HasSubstr("invalid map name '../x'"));
+  for (const char* bad : {"-0.001,0", "0.002", "0.002,x", "nan,0"}) {
+    const ProcessResult bad_rig = Visloc(
+        {"map", "build", "--dataset", dir.path(), "--out", dir.File("m.db"), "--rig-error", bad});
+    EXPECT_EQ(bad_rig.exit_code, 2) << bad;
+    EXPECT_THAT(bad_rig.err, HasSubstr(std::string("--rig-error wants FLOOR_M,DRIFT_FRACTION, both "
+                                                   "at least 0, got '") +
+                                       bad + "'"));
+  }
 }
 
 // A car's drive with KITTI's geometry (1241x376, a 719 px focal length, a 0.54 m baseline, points

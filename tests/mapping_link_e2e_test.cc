@@ -283,7 +283,14 @@ TEST_F(MappingLinkE2eTest, TheCommandSaysWhereTheMapGoes) {
       Visloc({"map", "build", "--dataset", kRun, "--server", "127.0.0.1:1", "--name", "x",
               "--trajectory", work_.File("t.tum")});
   EXPECT_EQ(trajectory.exit_code, 2);
-  EXPECT_THAT(trajectory.err, HasSubstr("--trajectory and --max-features are for builds here"));
+  EXPECT_THAT(trajectory.err,
+              HasSubstr("--trajectory, --max-features and --rig-error are for builds here (--out)"));
+  const ProcessResult rig_error =
+      Visloc({"map", "build", "--dataset", kRun, "--server", "127.0.0.1:1", "--name", "x",
+              "--rig-error", "0,0"});
+  EXPECT_EQ(rig_error.exit_code, 2);
+  EXPECT_THAT(rig_error.err,
+              HasSubstr("--trajectory, --max-features and --rig-error are for builds here (--out)"));
 }
 
 // What the CLI never sends, from a raw gRPC client.

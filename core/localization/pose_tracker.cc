@@ -39,6 +39,8 @@ void PoseTrackerOptions::Check() const {
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
   VISLOC_CHECK(map_error_px >= 0 && map_floor_m >= 0 && map_drift_fraction >= 0,
                "map error: ", map_error_px, " px, ", map_floor_m, " m, drift ", map_drift_fraction);
+  VISLOC_CHECK(rig_floor_m >= 0 && rig_drift_fraction >= 0, "rig error: ", rig_floor_m, " m, drift ",
+               rig_drift_fraction);
 }
 
 PoseTracker::PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
@@ -97,9 +99,12 @@ Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
   const double median_depth_m = depths.empty() ? 0.0 : depths[depths.size() / 2];
   const double angle_rad = options_.map_error_px / camera_.fx();
   const double from_origin_m = cam_from_map.Inverse().translation.norm();
-  const double position_variance = std::pow(angle_rad * median_depth_m, 2) +
-                                   std::pow(options_.map_floor_m, 2) +
-                                   std::pow(options_.map_drift_fraction * from_origin_m, 2);
+  const RigError rig = map_->map().metadata.rig_error.value_or(
+      RigError{options_.rig_floor_m, options_.rig_drift_fraction});
+  const double floor_sq = std::pow(options_.map_floor_m, 2) + std::pow(rig.floor_m, 2);
+  const double drift_sq = std::pow(options_.map_drift_fraction, 2) + std::pow(rig.drift_fraction, 2);
+  const double position_variance =
+      std::pow(angle_rad * median_depth_m, 2) + floor_sq + drift_sq * from_origin_m * from_origin_m;
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();
   covariance.diagonal() << Eigen::Vector3d::Constant(position_variance),
       Eigen::Vector3d::Constant(angle_rad * angle_rad);

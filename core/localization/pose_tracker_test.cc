@@ -179,6 +179,42 @@ TEST(PoseTrackerTest, PolishVerifiesAPoseNearTheTruthAndNotAFarOne) {
   EXPECT_FALSE(tracker.Polish(frame, off).success);
 }
 
+// A fix's systematic covariance holds the rig calibration's error the map records, and a real
+// rig's when it records none: per position axis, floors and drifts (times the distance from the
+// map's origin) in quadrature with the map error's angle at the inliers' depth.
+TEST(PoseTrackerTest, TheSystematicCovarianceHoldsTheRigErrorTheMapRecords) {
+  SyntheticMapOptions map_options;
+  map_options.keyframes = 40;
+  map_options.points = 4000;
+  Map map = MakeSyntheticMap(map_options);
+  PoseTrackerOptions options;
+  options.map_error_px = 0.0;  // The depth term apart: floors and drifts only.
+  options.map_drift_fraction = 0.002;
+  options.rig_floor_m = 0.004;
+  options.rig_drift_fraction = 0.003;
+  const auto position_variance = [&](const std::optional<RigError>& rig) {
+    map.metadata.rig_error = rig;
+    const auto located = std::make_shared<const LocalizationMap>(map);
+    const Rigid3d truth = TruePose(*located);
+    const View view = RenderView(*located, truth, 0, 7);
+    const PoseTracker tracker(located, map.camera, options);
+    const PoseFix fix = tracker.Polish(QueryFrame(view.features, map.camera), truth);
+    EXPECT_TRUE(fix.success);
+    const double from_origin_m = fix.cam_from_map.Inverse().translation.norm();
+    EXPECT_GT(from_origin_m, 0.5);
+    // Isotropic: the same on every axis; the rotation holds the (zero) angle only.
+    EXPECT_DOUBLE_EQ(fix.systematic_covariance(0, 0), fix.systematic_covariance(2, 2));
+    EXPECT_EQ(fix.systematic_covariance(3, 3), 0.0);
+    return std::make_pair(fix.systematic_covariance(0, 0), from_origin_m);
+  };
+  const auto [exact, d_exact] = position_variance(RigError{0.0, 0.0});
+  EXPECT_NEAR(exact, std::pow(0.002 * d_exact, 2), 1e-12);
+  const auto [told, d_told] = position_variance(RigError{0.001, 0.01});
+  EXPECT_NEAR(told, 0.001 * 0.001 + (0.002 * 0.002 + 0.01 * 0.01) * d_told * d_told, 1e-12);
+  const auto [real, d_real] = position_variance(std::nullopt);
+  EXPECT_NEAR(real, 0.004 * 0.004 + (0.002 * 0.002 + 0.003 * 0.003) * d_real * d_real, 1e-12);
+}
+
 TEST(PoseTrackerTest, PredictionModesParseByName) {
   EXPECT_EQ(ParsePredictionMode("brute_force"), PredictionMode::kBruteForce);
   EXPECT_THROW(ParsePredictionMode("magic"), InputError);
