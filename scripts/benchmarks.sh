@@ -63,7 +63,8 @@ for s in "${sequences[@]}"; do
   $V localize --map "$WORK/map320.db" --dataset "$WORK/seq320/$s" --trajectory "$WORK/$s.tum" \
     --stats "$WORK/$s.csv" --json > "$WORK/$s.localize.json"
   if [[ $(grep -vc '^#' "$WORK/$s.tum") -gt 0 ]]; then
-    $V eval --gt "$WORK/seq320/$s/groundtruth_map.tum" --est "$WORK/$s.tum" --json > "$WORK/$s.eval.json"
+    $V eval --gt "$WORK/seq320/$s/groundtruth_map.tum" --est "$WORK/$s.tum" --stats "$WORK/$s.csv" \
+      --json > "$WORK/$s.eval.json"
   else
     echo '{}' > "$WORK/$s.eval.json"
   fi
@@ -71,7 +72,7 @@ done
 $V localize --map "$WORK/suite320.db" --dataset "$WORK/suite320/query_suite" \
   --trajectory "$WORK/query_suite.tum" --stats "$WORK/query_suite.csv" --json > "$WORK/query_suite.localize.json"
 $V eval --gt "$WORK/suite320/query_suite/groundtruth_map.tum" --est "$WORK/query_suite.tum" \
-  --json > "$WORK/query_suite.eval.json"
+  --stats "$WORK/query_suite.csv" --json > "$WORK/query_suite.eval.json"
 $V plot --map "$WORK/map320.db" --trajectory "$WORK/kidnap.tum" --stats "$WORK/kidnap.csv" \
   --gt "$WORK/seq320/kidnap/groundtruth_map.tum" --out docs/img/kidnap.png > /dev/null
 $V plot --map "$WORK/map320.db" --trajectory "$WORK/circle.tum" --stats "$WORK/circle.csv" \
@@ -193,21 +194,23 @@ echo "== writing $REPORT"
   echo "## Accuracy (paper Tables 3-4, Fig. 10), 320x240, map of the full 2 m square"
   echo
   echo "Per sequence: \`visloc localize --map map320.db --dataset seq320/S --trajectory S.tum --stats S.csv\`,"
-  echo "then \`visloc eval --gt seq320/S/groundtruth_map.tum --est S.tum --json\`. Map: $(field "$WORK/map320.json" keyframes) keyframes, $(field "$WORK/map320.json" points) points."
+  echo "then \`visloc eval --gt seq320/S/groundtruth_map.tum --est S.tum --stats S.csv --json\`. Map (\`map build --rig-error 0,0\`: the generated rig is exact): $(field "$WORK/map320.json" keyframes) keyframes, $(field "$WORK/map320.json" points) points."
   echo
   echo "Errors are the absolute trajectory error (ATE) in the map frame, no alignment: each pose against"
-  echo "ground truth at its timestamp."
+  echo "ground truth at its timestamp. Error / sigma: each pose's position error in units of the per-axis"
+  echo "sigma it reported (the stats CSV's position_sigma_m), the median and the share beyond 3 (an honest"
+  echo "Gaussian: 1.54 and 2.9%)."
   echo
-  echo "| sequence | frames | localized | median error | max error | median rotation | mean inlier ratio | mean RANSAC iterations |"
-  echo "|---|---|---|---|---|---|---|---|"
+  echo "| sequence | frames | localized | median error | max error | median rotation | error / sigma, median | beyond 3 sigma | mean inlier ratio | mean RANSAC iterations |"
+  echo "|---|---|---|---|---|---|---|---|---|---|"
   accuracy_row() {  # NAME [LABEL]
     local j=$WORK/$1.localize.json e=$WORK/$1.eval.json means
     means=$(awk -F, 'NR > 1 && ($3 == "tracking" || $3 == "relocalization") { r += $8; i += $9; n++ }
                      END { if (n) printf "%.3f | %.1f", r / n, i / n; else printf "- | -" }' "$WORK/$1.csv")
     if [[ -n $(field "$e" coverage) ]]; then
-      echo "| ${2:-$1} | $(field "$j" frames) | $(fmt "$(field "$j" localized_fraction)" 100 1)% | $(fmt "$(field_in "$e" translation_m median)" 100) cm | $(fmt "$(field_in "$e" translation_m max)" 100) cm | $(fmt "$(field_in "$e" rotation_deg median)" 1 3) deg | $means |"
+      echo "| ${2:-$1} | $(field "$j" frames) | $(fmt "$(field "$j" localized_fraction)" 100 1)% | $(fmt "$(field_in "$e" translation_m median)" 100) cm | $(fmt "$(field_in "$e" translation_m max)" 100) cm | $(fmt "$(field_in "$e" rotation_deg median)" 1 3) deg | $(fmt "$(field_in "$e" normalized_error median)" 1 2) | $(fmt "$(field_in "$e" consistency beyond_3_sigma)" 100 1)% | $means |"
     else
-      echo "| ${2:-$1} | $(field "$j" frames) | $(fmt "$(field "$j" localized_fraction)" 100 1)% | - | - | - | $means |"
+      echo "| ${2:-$1} | $(field "$j" frames) | $(fmt "$(field "$j" localized_fraction)" 100 1)% | - | - | - | - | - | $means |"
     fi
   }
   for s in "${sequences[@]}"; do accuracy_row "$s"; done

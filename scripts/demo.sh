@@ -42,7 +42,9 @@ echo "== 4. Streaming the kidnap sequence through the server at 15 fps (monocula
 echo "-- per frame, where the status changes (frame, status, inliers/putatives, relocalization):"
 awk -F, 'NR > 1 { s = $2; if (s != prev || s == "relocalized") printf "  frame %4d  %-12s %4s/%-4s %s\n", NR - 2, s, $7, $6, $20; prev = s }' \
   "$OUT/kidnap_stats.csv"
-"$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap_localized.tum"
+# With the stats, eval also checks the sigmas the server reported against the errors.
+"$VISLOC" eval --gt "$OUT/kidnap/groundtruth_map.tum" --est "$OUT/kidnap_localized.tum" \
+  --stats "$OUT/kidnap_stats.csv"
 "$VISLOC" plot --map "$OUT/maps/square.db" --trajectory "$OUT/kidnap_localized.tum" \
   --stats "$OUT/kidnap_stats.csv" --gt "$OUT/kidnap/groundtruth_map.tum" --out "$OUT/kidnap.png"
 
