@@ -281,7 +281,7 @@ int RunBuild(const Args& args) {
                  "(per axis) it leaves in the map: a floor plus a fraction of the distance from "
                  "the map's origin. The map records it, and every pose in the map reports it in "
                  "its covariance. 0,0 for a generated sequence, whose calibration is exact");
-  parser.SetDefaultText("rig-error", "a real rig's, measured on EuRoC MH_01: 0.0023,0.0026");
+  parser.SetDefaultText("rig-error", "a real rig's, measured on EuRoC MH_01: 0.0025,0.0026");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features, "corners per image");
   parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");

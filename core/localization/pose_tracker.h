@@ -44,15 +44,16 @@ struct PoseTrackerOptions {
   // of a fix averages out over its inliers and, in a session, over frames; this does not, since
   // every frame that sees the same points sees the same error. A fix's systematic covariance
   // holds, per position axis, in quadrature: map_error_px (at 320 px of width) as an angle at the
-  // inliers' median depth, the mapping's absolute registration map_floor_m and its drift,
-  // map_drift_fraction of the distance from the map's origin, and the rig calibration's own
-  // floor and drift (RigError, core/map/map.h); and map_error_px as an angle for the rotation.
-  // The mapping's share is measured where the calibration is exact and the ground truth too:
-  // on the rendered query sequences (scripts/benchmarks.sh) the median error is then 1.1-1.3 of
-  // the per-axis sigma, at most 0.5% of frames beyond 3. A real rig's share, for maps that do
-  // not say theirs, is what EuRoC MH_01 needs on top (docs/real-world.md: median 1.5, none beyond
-  // 3). A map whose calibration is worse than it says (KITTI 01's, off by 1.2% of the distance)
-  // is not covered: nothing in the images shows a map scaled as a whole.
+  // inliers' median depth, the mapping's absolute registration map_floor_m (none: the map frame
+  // is its first keyframe) and its drift, map_drift_fraction of the distance from the map's
+  // origin, and the rig calibration's own floor and drift (RigError, core/map/map.h); and
+  // map_error_px as an angle for the rotation. The mapping's share is measured where the
+  // calibration is exact and the ground truth too: on the rendered query sequences
+  // (docs/benchmarks.md) the median error is then 1.1-1.3 of the per-axis sigma, at most 1% of
+  // frames beyond 3. A real rig's share, for maps that do not say theirs, is what EuRoC MH_01
+  // needs on top (docs/real-world.md: median 1.5, none beyond 3). A map whose calibration is
+  // worse than it says (KITTI 01's, off by 1.2% of the distance) is not covered: nothing in the
+  // images shows a map scaled as a whole.
   double map_error_px = 0.1;
   double map_floor_m = 0.0;
   double map_drift_fraction = 0.0015;
