@@ -29,7 +29,6 @@ std::optional<std::string> Find(const MetaRows& rows, const std::string& key) {
   return it == rows.end() ? std::nullopt : std::optional<std::string>(it->second);
 }
 
-// The meta keys 'disparity_offset_px' and 'right_camera_yaw_rad': both or neither, finite.
 // Two finite numbers that meta holds both or neither of: `what` names them in errors.
 std::optional<std::pair<double, double>> ReadNumberPair(const Database& db, const MetaRows& rows,
                                                         const std::string& key_a,
@@ -49,6 +48,7 @@ std::optional<std::pair<double, double>> ReadNumberPair(const Database& db, cons
   return std::make_pair(*value_a, *value_b);
 }
 
+// The meta keys 'disparity_offset_px' and 'right_camera_yaw_rad': both or neither, finite.
 std::optional<DisparityCorrection> ReadDisparityCorrection(const Database& db,
                                                            const MetaRows& rows) {
   const auto pair = ReadNumberPair(db, rows, "disparity_offset_px", "right_camera_yaw_rad",
@@ -57,6 +57,8 @@ std::optional<DisparityCorrection> ReadDisparityCorrection(const Database& db,
   return DisparityCorrection{pair->first, pair->second};
 }
 
+// The meta keys 'rig_error_floor_m' and 'rig_error_drift_fraction': both or neither, finite, and
+// neither negative.
 std::optional<RigError> ReadRigError(const Database& db, const MetaRows& rows) {
   const auto pair = ReadNumberPair(db, rows, "rig_error_floor_m", "rig_error_drift_fraction",
                                    "rig calibration error");

@@ -32,8 +32,8 @@ namespace visloc::mapstore {
 constexpr int kMapSchemaVersion = 4;
 
 // The schema a map is written in: the lowest that holds what it has, so older visloc versions
-// read every map they can: 1 without a lineage or a disparity correction, 2 with a lineage,
-// 3 with a disparity correction, 4 with a rig error.
+// read every map they can: 1 without a lineage, a disparity correction or a rig error, 2 with a
+// lineage, 3 with a disparity correction, 4 with a rig error.
 int SchemaVersionOf(const Map& map);
 
 // The camera table's model column: "pinhole-radtan" (k1 k2 p1 p2 in the k1, k2, p1, p2
