@@ -7,7 +7,8 @@
 #     error per distance travelled), and the last frame's error as a share of the path (drift);
 #   - held-apart frames: a map of the even frames, the odd frames localized in it as a sequence
 #     (`localize`): share localized, error, ms a frame, and whether the reported covariance
-#     tells the truth (`eval --stats`: error / per-axis sigma);
+#     tells the truth (`eval --stats`: error / per-axis sigma); for a camera at rest, how far its
+#     ground truth scatters by itself (`eval --spread`), the floor of those errors;
 #   - a kidnapped robot's first image: each odd frame alone through the real server
 #     (`relocalize`, no session, no prior): recall, error, server time; for an EuRoC recording
 #     (one place throughout) also each frame of its second half alone against a map of its
@@ -179,6 +180,16 @@ measure() {
       put covariance_beyond_3_sigma_pct "$(fmt "$(field_in "$e" consistency beyond_3_sigma)" 100 1)"
       put covariance_beyond_6_sigma_pct "$(fmt "$(field_in "$e" consistency beyond_6_sigma)" 100 1)"
     fi
+    # A camera at rest (its ground truth within 1 cm of its mean): how far the ground truth itself
+    # scatters, the floor of any error measured against it.
+    if [[ -f $gt ]]; then
+      $T eval --spread --est "$gt" --json > "$out/$rec.gt_spread.json"
+      local scatter_max
+      scatter_max=$(field_in "$out/$rec.gt_spread.json" position_m max)
+      if awk -v m="$scatter_max" 'BEGIN { exit !(m < 0.01) }'; then
+        put ground_truth_scatter_mm "$(fmt "$(field_in "$out/$rec.gt_spread.json" position_m median)" 1000 2) / $(fmt "$scatter_max" 1000 2)"
+      fi
+    fi
     # A kidnapped robot's first image: each odd frame alone, through the server.
     SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
     relocalize_each "$bin" "${rec}_even" "$subs/odd" "$out/$rec.reloc"
@@ -256,6 +267,7 @@ rows=(
   "covariance_median_sigmas|covariance: median error / per-axis sigma (honest 1.54)"
   "covariance_beyond_3_sigma_pct|covariance: poses beyond 3 sigma, % (honest 2.9)"
   "covariance_beyond_6_sigma_pct|covariance: poses beyond 6 sigma, % (honest 0)"
+  "ground_truth_scatter_mm|at rest: the ground truth's own scatter about its mean, median / max, mm"
   "relocalized_pct|each odd frame alone through the server (relocalize): found, %"
   "relocalized_error_max_cm|... max error, cm"
   "relocalized_rotation_max_deg|... max rotation error, deg"
