@@ -41,6 +41,18 @@ std::string LoadError(const std::string& path) {
   return "(loaded)";
 }
 
+// LoadError after meta's `key` in the map at `path` is set to `value`, or deleted when `value`
+// is empty.
+std::string LoadErrorWithMeta(const std::string& path, const std::string& key,
+                              const std::string& value) {
+  {
+    Database db = Database::OpenForWriting(path);
+    db.Exec(value.empty() ? "DELETE FROM meta WHERE key = '" + key + "'"
+                          : "UPDATE meta SET value = '" + value + "' WHERE key = '" + key + "'");
+  }
+  return LoadError(path);
+}
+
 std::string ReadBytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), {});
@@ -116,15 +128,11 @@ TEST(MapStoreTest, TheRigsDisparityCorrectionIsKeptExactlyAndOnlyWhereThereIsOne
   EXPECT_EQ(SummarizeMap(loaded, rig).schema_version, 3);
   EXPECT_TRUE(VerifyMapFile(rig).ok());
 
-  Database db = Database::OpenForWriting(rig);
-  db.Exec("UPDATE meta SET value = '0.5' WHERE key = 'disparity_offset_px'");
-  EXPECT_EQ(LoadError(rig),
+  EXPECT_EQ(LoadErrorWithMeta(rig, "disparity_offset_px", "0.5"),
             rig + ": content checksum mismatch: the file is corrupt or was modified");
-  db.Exec("UPDATE meta SET value = 'west' WHERE key = 'disparity_offset_px'");
-  EXPECT_EQ(LoadError(rig),
+  EXPECT_EQ(LoadErrorWithMeta(rig, "disparity_offset_px", "west"),
             rig + ": malformed disparity correction in meta ('west', '0.001953125')");
-  db.Exec("DELETE FROM meta WHERE key = 'right_camera_yaw_rad'");
-  EXPECT_EQ(LoadError(rig),
+  EXPECT_EQ(LoadErrorWithMeta(rig, "right_camera_yaw_rad", ""),
             rig + ": meta has 'disparity_offset_px' without 'right_camera_yaw_rad'");
 }
 
@@ -150,15 +158,11 @@ TEST(MapStoreTest, TheRigsCalibrationErrorIsKeptExactlyAndOnlyWhereThereIsOne) {
   EXPECT_FALSE(MapsEqual(loaded, LoadMap(plain)));
   EXPECT_TRUE(VerifyMapFile(exact).ok());
 
-  Database db = Database::OpenForWriting(exact);
-  db.Exec("UPDATE meta SET value = '0.001' WHERE key = 'rig_error_floor_m'");
-  EXPECT_EQ(LoadError(exact),
+  EXPECT_EQ(LoadErrorWithMeta(exact, "rig_error_floor_m", "0.001"),
             exact + ": content checksum mismatch: the file is corrupt or was modified");
-  db.Exec("UPDATE meta SET value = '-0.001' WHERE key = 'rig_error_floor_m'");
-  EXPECT_EQ(LoadError(exact),
+  EXPECT_EQ(LoadErrorWithMeta(exact, "rig_error_floor_m", "-0.001"),
             exact + ": negative rig calibration error in meta (-0.001 m, 0.333333)");
-  db.Exec("DELETE FROM meta WHERE key = 'rig_error_drift_fraction'");
-  EXPECT_EQ(LoadError(exact),
+  EXPECT_EQ(LoadErrorWithMeta(exact, "rig_error_drift_fraction", ""),
             exact + ": meta has 'rig_error_floor_m' without 'rig_error_drift_fraction'");
 }
 
