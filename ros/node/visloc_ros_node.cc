@@ -45,6 +45,7 @@
 #include "ros/node/mapping_node.h"
 #include "ros/node/pose_output.h"
 #include "ros/node/ros_camera_info.h"
+#include "ros/node/sensor_sync.h"
 #include "visloc/client/session.h"
 
 namespace visloc::ros_node {
@@ -88,6 +89,8 @@ void ToRos(const Rigid3d& pose, geometry_msgs::Transform* t) {
   ToRos(pose, &t->rotation, &t->translation);
 }
 
+double WallNowS() { return ros::WallTime::now().toSec(); }
+
 ros::Time StampOf(int64_t ns) {
   ros::Time t;
   t.fromNSec(static_cast<uint64_t>(ns));
@@ -113,6 +116,12 @@ class LocalizationNode {
     }
     if (use_odometry_) odom_sub_ = nh_.subscribe("odom", 50, &LocalizationNode::OnOdometry, this);
     if (use_imu_) imu_sub_ = nh_.subscribe("imu", 400, &LocalizationNode::OnImu, this);
+    sync_.emplace(SyncOptions());
+    if (use_odometry_ || use_imu_) {
+      // Images held for their odometry or IMU go when the wait runs out, even with no message.
+      sync_timer_ = nh_.createWallTimer(ros::WallDuration(0.02),
+                                        [this](const ros::WallTimerEvent&) { SendReady(); });
+    }
     relocalize_srv_ = pnh_.advertiseService("relocalize", &LocalizationNode::OnRelocalize, this);
     diagnostics_timer_ = nh_.createWallTimer(
         ros::WallDuration(1.0), [this](const ros::WallTimerEvent&) { PublishDiagnostics(); });
@@ -153,6 +162,15 @@ class LocalizationNode {
     publish_tf_ = pnh_.param("publish_tf", true);
     use_odometry_ = pnh_.param("use_odometry", false);
     use_imu_ = pnh_.param("use_imu", false);
+    sensor_wait_s_ = pnh_.param("sensor_wait_s", 0.1);
+  }
+
+  SensorSyncOptions SyncOptions() const {
+    SensorSyncOptions sync;
+    sync.odometry = use_odometry_;
+    sync.imu = use_imu_;
+    sync.max_wait_s = sensor_wait_s_;
+    return sync;
   }
 
   // The first camera_info opens the session (the server needs the camera model), and the
@@ -160,7 +178,7 @@ class LocalizationNode {
   void OnCameraInfo(const sensor_msgs::CameraInfo& msg) {
     std::optional<vc::Frame> early;
     vc::Session* session = OpenSession(msg, &early);
-    if (session && early) Submit(early->timestamp_ns, std::move(*early));
+    if (session && early) Receive(early->timestamp_ns, std::move(*early));
   }
 
   vc::Session* OpenSession(const sensor_msgs::CameraInfo& msg, std::optional<vc::Frame>* early) {
@@ -185,6 +203,7 @@ class LocalizationNode {
       ROS_WARN("visloc: no IMU message with a TF to %s within 1 s: IMU samples are not used",
                msg.header.frame_id.c_str());
       use_imu_ = false;
+      sync_.emplace(SyncOptions());  // Nothing is waiting yet: no session before this.
     }
     options_.on_event = [this](const vc::Event& event) { OnEvent(event); };
     session_ = vc::Session::Open(options_);
@@ -214,31 +233,40 @@ class LocalizationNode {
   }
 
   void OnOdometry(const nav_msgs::Odometry& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    odom_frame_ = msg.header.frame_id;
-    odom_child_frame_ = msg.child_frame_id;
-    odometry_.Add(static_cast<int64_t>(msg.header.stamp.toNSec()), FromRos(msg.pose.pose));
-    // Answers that came back before the odometry of their stamp get their map -> odom now.
-    while (!waiting_for_odometry_.empty() &&
-           odometry_.At(waiting_for_odometry_.front().timestamp_ns, 0)) {
-      PublishTransform(waiting_for_odometry_.front().timestamp_ns,
-                       waiting_for_odometry_.front().pose);
-      waiting_for_odometry_.pop_front();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      odom_frame_ = msg.header.frame_id;
+      odom_child_frame_ = msg.child_frame_id;
+      const auto stamp_ns = static_cast<int64_t>(msg.header.stamp.toNSec());
+      odometry_.Add(stamp_ns, FromRos(msg.pose.pose));
+      sync_->gate().OnOdometry(stamp_ns, WallNowS());
+      // Answers that came back before the odometry of their stamp get their map -> odom now.
+      while (!waiting_for_odometry_.empty() &&
+             odometry_.At(waiting_for_odometry_.front().timestamp_ns, 0)) {
+        PublishTransform(waiting_for_odometry_.front().timestamp_ns,
+                         waiting_for_odometry_.front().pose);
+        waiting_for_odometry_.pop_front();
+      }
     }
+    SendReady();
   }
 
   void OnImu(const sensor_msgs::Imu& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    imu_frame_ = msg.header.frame_id;
-    v1::ImuSample sample;
-    sample.set_timestamp_ns(static_cast<int64_t>(msg.header.stamp.toNSec()));
-    sample.set_gyro_x(msg.angular_velocity.x);
-    sample.set_gyro_y(msg.angular_velocity.y);
-    sample.set_gyro_z(msg.angular_velocity.z);
-    sample.set_accel_x(msg.linear_acceleration.x);
-    sample.set_accel_y(msg.linear_acceleration.y);
-    sample.set_accel_z(msg.linear_acceleration.z);
-    if (imu_.size() < 2000) imu_.push_back(sample);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      imu_frame_ = msg.header.frame_id;
+      v1::ImuSample sample;
+      sample.set_timestamp_ns(static_cast<int64_t>(msg.header.stamp.toNSec()));
+      sample.set_gyro_x(msg.angular_velocity.x);
+      sample.set_gyro_y(msg.angular_velocity.y);
+      sample.set_gyro_z(msg.angular_velocity.z);
+      sample.set_accel_x(msg.linear_acceleration.x);
+      sample.set_accel_y(msg.linear_acceleration.y);
+      sample.set_accel_z(msg.linear_acceleration.z);
+      if (imu_.size() < 2000) imu_.push_back(sample);
+      sync_->gate().OnImu(sample.timestamp_ns(), WallNowS());
+    }
+    SendReady();
   }
 
   void OnImage(const sensor_msgs::ImageConstPtr& msg) {
@@ -251,38 +279,66 @@ class LocalizationNode {
       ROS_ERROR_THROTTLE(5.0, "visloc: image refused: %s", e.what());
       return;
     }
-    Submit(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
+    Receive(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
   }
 
   void OnCompressedImage(const sensor_msgs::CompressedImageConstPtr& msg) {
     vc::Frame frame;
     frame.encoded.assign(msg->data.begin(), msg->data.end());
-    Submit(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
+    Receive(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
   }
 
-  void Submit(int64_t stamp_ns, vc::Frame frame) {
-    vc::Session* session = PrepareFrame(stamp_ns, frame);
+  // An image waits (sensor_sync.h) until its odometry and IMU have come; before camera_info,
+  // the newest one is kept for the session's first frame.
+  void Receive(int64_t stamp_ns, vc::Frame frame) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++images_received_;
+      frame.timestamp_ns = stamp_ns;
+      if (!session_) {
+        before_session_ = std::move(frame);
+        return;
+      }
+      sync_->Add(stamp_ns, std::move(frame), WallNowS());
+    }
+    SendReady();
+  }
+
+  // Sends the images whose sensors have caught up (or waited long enough), in the order they
+  // came: one sender at a time, so two callback threads never swap two frames.
+  void SendReady() {
+    std::lock_guard<std::mutex> one_sender(send_mutex_);
+    std::vector<vc::Frame> ready;
+    vc::Session* session = nullptr;  // Lives as long as the node.
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!session_) return;
+      ready = sync_->TakeReady(WallNowS());
+      for (vc::Frame& frame : ready) AttachSensors(frame);
+      session = session_.get();
+    }
     std::string why_not;
-    // Outside the lock: the session may report a dropped frame (OnEvent) from this thread.
-    if (session && !session->Submit(frame, &why_not)) {
-      ROS_WARN_THROTTLE(5.0, "visloc: frame not sent: %s", why_not.c_str());
+    for (const vc::Frame& frame : ready) {
+      // Outside mutex_: the session may report a dropped frame (OnEvent) from this thread.
+      if (!session->Submit(frame, &why_not)) {
+        ROS_WARN_THROTTLE(5.0, "visloc: frame not sent: %s", why_not.c_str());
+      }
     }
   }
 
-  // Adds odometry, IMU and a pending hint to a frame; the session to send it on (null before
-  // camera_info). The session lives as long as the node.
-  vc::Session* PrepareFrame(int64_t stamp_ns, vc::Frame& frame) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++images_received_;
-    frame.timestamp_ns = stamp_ns;
-    if (!session_) {
-      before_session_ = frame;
-      return nullptr;
-    }
+  // Adds odometry, IMU and a pending hint to a frame about to be sent.
+  void AttachSensors(vc::Frame& frame) {
+    const int64_t stamp_ns = frame.timestamp_ns;
     if (use_odometry_) {
-      // The motion prior may use odometry up to 100 ms older than the image (it lags a little).
-      if (const auto odom_from_child = odometry_.At(stamp_ns)) {
+      // Interpolated at the image's own stamp, never an earlier sample in its place: that would
+      // leave a frame's motion out of the prior. Without it (the wait ran out) the engine
+      // predicts from its velocity for this frame.
+      if (const auto odom_from_child = odometry_.At(stamp_ns, 0)) {
         ToProto(*odom_from_child * BaseFromCamera(), &frame.odom_from_cam.emplace());
+      } else {
+        ++frames_without_odometry_;
+        ROS_WARN_THROTTLE(5.0, "visloc: no odometry at an image's stamp within %.2f s: sent "
+                          "without it", sensor_wait_s_);
       }
     }
     if (use_imu_) {
@@ -302,7 +358,6 @@ class LocalizationNode {
       pending_hint_.reset();
     }
     last_frame_ = frame;
-    return session_.get();
   }
 
   // The camera's pose on the odometry's child frame, from TF (static on a robot); identity
@@ -438,6 +493,7 @@ class LocalizationNode {
     add("frames_dropped", std::to_string(frames_dropped_));
     add("frames_late", std::to_string(frames_late_));
     add("imu_samples_sent", std::to_string(imu_samples_sent_));
+    add("frames_without_odometry", std::to_string(frames_without_odometry_));
     array.status.push_back(status);
     diagnostics_pub_.publish(array);
   }
@@ -491,7 +547,9 @@ class LocalizationNode {
   ros::Subscriber info_sub_, compressed_sub_, odom_sub_, imu_sub_;
   image_transport::Subscriber image_sub_;
   ros::ServiceServer relocalize_srv_;
-  ros::WallTimer diagnostics_timer_;
+  ros::WallTimer diagnostics_timer_, sync_timer_;
+
+  std::mutex send_mutex_;  // One SendReady at a time (taken before mutex_, never inside it).
 
   std::mutex mutex_;  // Guards everything below: ROS callbacks and the session's events.
   vc::SessionOptions options_;
@@ -500,6 +558,8 @@ class LocalizationNode {
   std::string map_frame_, camera_frame_, camera_frame_override_;
   std::string odom_frame_, odom_child_frame_, imu_frame_;
   bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
+  double sensor_wait_s_ = 0.1;
+  std::optional<SensorSync<vc::Frame>> sync_;  // Images waiting for their odometry and IMU.
   double first_camera_info_s_ = 0.0;  // Wall time, while waiting for the IMU.
   OdometryBuffer odometry_;
   std::optional<Rigid3d> base_from_camera_;
@@ -514,7 +574,7 @@ class LocalizationNode {
   std::string link_state_ = "connecting", last_status_;
   double last_latency_ms_ = 0.0;
   uint64_t images_received_ = 0, frames_answered_ = 0, poses_published_ = 0, frames_dropped_ = 0,
-           frames_late_ = 0, imu_samples_sent_ = 0;
+           frames_late_ = 0, imu_samples_sent_ = 0, frames_without_odometry_ = 0;
 };
 
 }  // namespace

@@ -3,7 +3,7 @@
 python3-rosbag: the independent side of visloc's bag import and ROS node tests.
 
   euroc_to_rosbag.py DIR OUT.bag [--mono] [--right-compressed] [--left-compressed]
-                     [--odometry] [--imu] [--drop-right N]
+                     [--odometry] [--odometry-lag-ms MS] [--imu] [--drop-right N]
 
 Topics: /cam0/image_raw (sensor_msgs/Image mono8, or .../compressed JPEG), /cam0/camera_info,
 /cam1/image_raw (or /cam1/image_raw/compressed, PNG), /cam1/camera_info, /odom
@@ -11,7 +11,9 @@ Topics: /cam0/image_raw (sensor_msgs/Image mono8, or .../compressed JPEG), /cam0
 (sensor_msgs/Imu in frame "imu", the EuRoC body) with /tf_static imu -> cam0. The camera_info
 of a stereo pair is written the way ROS's stereo calibration writes it: the rectified frame is
 the left camera's, R of the right camera turns it into that frame, P[3] = -fx * baseline.
-Every --drop-right'th right image is left out, to exercise pairing reports.
+Every --drop-right'th right image is left out, to exercise pairing reports. With
+--odometry-lag-ms, every other odometry message is recorded (so played) that long after its own
+stamp, as odometry from another node arrives after the image of the same instant.
 """
 import argparse
 import csv
@@ -125,6 +127,7 @@ def main():
     p.add_argument("--left-compressed", action="store_true")
     p.add_argument("--right-compressed", action="store_true")
     p.add_argument("--odometry", action="store_true")
+    p.add_argument("--odometry-lag-ms", type=float, default=0.0)
     p.add_argument("--drop-right", type=int, default=0)
     p.add_argument("--imu", action="store_true")
     a = p.parse_args()
@@ -162,9 +165,8 @@ def main():
         odometry = os.path.join(mav0, "odometry0", "data.csv")
         if a.odometry and os.path.exists(odometry):
             with open(odometry) as f:
-                for row in csv.reader(f):
-                    if not row or row[0].startswith("#"):
-                        continue
+                rows = [row for row in csv.reader(f) if row and not row[0].startswith("#")]
+                for i, row in enumerate(rows):
                     t = to_time(int(row[0]))
                     msg = Odometry()
                     msg.header.stamp, msg.header.frame_id, msg.child_frame_id = t, "odom", "cam0"
@@ -172,7 +174,8 @@ def main():
                     msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = x, y, z
                     o = msg.pose.pose.orientation
                     o.x, o.y, o.z, o.w = qx, qy, qz, qw
-                    bag.write("/odom", msg, t)
+                    lag_ns = int(a.odometry_lag_ms * 1e6) if i % 2 else 0
+                    bag.write("/odom", msg, to_time(int(row[0]) + lag_ns))
     finally:
         bag.close()
     print("wrote %s: %d frames%s" % (a.out, len(stamps), " (stereo)" if stereo else ""))
