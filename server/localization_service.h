@@ -49,9 +49,10 @@ class LocalizationService final : public v1::Localization::Service {
   // Sessions closed for idleness since the start.
   int idle_sessions_closed() const { return idle_closed_.load(); }
 
-  // Fault injection for tests: called inside a session before the engine sees each frame, so a
-  // test can make the engine's side throw what it never should. Set it before serving.
-  void SetBeforeFrameHookForTesting(std::function<void()> hook) { before_frame_ = std::move(hook); }
+  // For tests: called inside a session with each frame before the engine sees it, so a test can
+  // make the engine's side throw what it never should, or see what the engine gets. Set it
+  // before serving.
+  void SetBeforeFrameHookForTesting(BeforeFrameHook hook) { before_frame_ = std::move(hook); }
   // The most frames ever processed at once, across sessions (at most limits.workers).
   int peak_frames_in_work() const { return workers_.peak_in_use(); }
 
@@ -62,7 +63,7 @@ class LocalizationService final : public v1::Localization::Service {
   WorkPermits workers_;
   std::atomic<int> active_sessions_{0};
   SessionRegistry registry_;
-  std::function<void()> before_frame_;
+  BeforeFrameHook before_frame_;
 
   std::atomic<int> idle_closed_{0};
 };

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <functional>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -21,7 +22,7 @@ namespace {
 class ServiceFixture : public ::testing::Test {
  protected:
   // `before_frame` is the fault-injection hook, installed before the server starts serving.
-  void Start(const ServiceLimits& limits, std::function<void()> before_frame = nullptr) {
+  void Start(const ServiceLimits& limits, BeforeFrameHook before_frame = nullptr) {
     testing::WriteLabMap(maps_dir_.path());
     maps_ = std::make_unique<MapCache>(maps_dir_.path(), std::chrono::seconds(60));
     service_ = std::make_unique<LocalizationService>(maps_.get(), limits, &auth_);
@@ -88,7 +89,7 @@ class EngineFaultTest : public ServiceFixture,
 // exception is raised while the live reader thread runs: it must not unwind past it.
 TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
   std::atomic<int> calls{0};
-  Start(ServiceLimits{}, [&calls] {
+  Start(ServiceLimits{}, [&calls](const v1::Frame&) {
     if (calls++ % 2 == 0) throw std::runtime_error("injected fault at engine.cc:42");
   });
   for (int session = 0; session < 2; ++session) {
@@ -117,6 +118,47 @@ TEST_P(EngineFaultTest, AnExceptionInTheEngineIsOneFramesErrorNotTheServers) {
 
 INSTANTIATE_TEST_SUITE_P(BothDropPolicies, EngineFaultTest,
                          ::testing::Values(v1::PROCESS_ALL, v1::NEWEST_ONLY));
+
+// Frames the server skips (NEWEST_ONLY behind a slow engine) hand their gyro samples to the
+// next frame it answers: each frame's samples cover only the time since the frame before it, and
+// the engine integrates the rotation since the last frame it saw. Without the hand-over the
+// engine would hold one rate across the whole gap.
+TEST_F(ServiceFixture, SkippedFramesHandTheirGyroSamplesToTheNextFrameAnswered) {
+  std::mutex mutex;
+  std::vector<int64_t> seen_ns;  // The sample stamps the engine got, in order.
+  Start(ServiceLimits{}, [&](const v1::Frame& frame) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const v1::ImuSample& sample : frame.imu()) seen_ns.push_back(sample.timestamp_ns());
+  });
+  grpc::ClientContext context;
+  auto stream = OpenSession(&context, v1::NEWEST_ONLY);
+  constexpr int kFrames = 20;
+  std::vector<int64_t> sent_ns;
+  for (int i = 0; i < kFrames; ++i) {
+    v1::LocalizeRequest request = testing::FrameRequest(i);
+    for (int64_t before_ns : {10'000'000, 5'000'000, 0}) {  // A 200 Hz gyro.
+      v1::ImuSample* sample = request.mutable_frame()->add_imu();
+      sample->set_timestamp_ns(request.frame().timestamp_ns() - before_ns);
+      sample->set_gyro_z(0.5);
+      sent_ns.push_back(sample->timestamp_ns());
+    }
+    ASSERT_TRUE(stream->Write(request));
+  }
+  stream->WritesDone();
+  int skipped = 0;
+  v1::LocalizeResponse response;
+  while (stream->Read(&response)) {
+    EXPECT_NE(response.status(), v1::STATUS_ERROR) << response.error();
+    if (response.status() == v1::STATUS_SKIPPED) ++skipped;
+  }
+  EXPECT_TRUE(stream->Finish().ok());
+  ASSERT_GT(skipped, 0) << "the engine kept up: nothing was carried";
+  // The last frame is always answered (the newest of its batch): every sample reached the
+  // engine, once, in order.
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(seen_ns, sent_ns) << skipped << " of " << kFrames << " frames skipped";
+}
 
 // A robot whose link froze keeps its stream open and sends nothing: after the idle timeout the
 // server ends the session with a last STATUS_CLOSED answer naming the timeout, and its slot (the

@@ -61,7 +61,7 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
                                          const v1::SessionStart& start,
                                          const proto::WireLimits& limits, WorkPermits* workers,
                                          SessionRegistry* registry,
-                                         const std::function<void()>& before_frame)
+                                         const BeforeFrameHook& before_frame)
     : workers_(workers),
       registry_(registry),
       before_frame_(before_frame),
@@ -89,8 +89,10 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
     // Decoding and the engine are the CPU work: one permit per core across all sessions.
     const WorkPermit permit(workers_);
-    if (before_frame_) before_frame_();
-    answered = localizer_.Process(proto::FromProto(request.frame(), camera_));
+    v1::Frame merged;
+    const v1::Frame& frame = WithCarriedImu(request.frame(), &merged);
+    if (before_frame_) before_frame_(frame);
+    answered = localizer_.Process(proto::FromProto(frame, camera_));
     proto::ToProto(*answered, index, &response);
   } catch (const InputError& e) {
     Refuse(request, index, RedactForClient(e.what()), &response);
@@ -152,6 +154,15 @@ v1::LocalizeResponse LocalizationSession::Skipped(const v1::LocalizeRequest& req
   response.set_timestamp_ns(request.has_frame() ? request.frame().timestamp_ns() : 0);
   response.set_status(v1::STATUS_SKIPPED);
   if (!reason.empty()) response.set_error(reason);
+  if (request.has_frame()) {
+    const auto& imu = request.frame().imu();
+    carried_imu_.insert(carried_imu_.end(), imu.begin(), imu.end());
+    // 10 s of a 200 Hz IMU at most: beyond that the rotation is lost anyway (max_bridge_s).
+    constexpr size_t kMaxCarried = 2000;
+    if (carried_imu_.size() > kMaxCarried) {
+      carried_imu_.erase(carried_imu_.begin(), carried_imu_.end() - kMaxCarried);
+    }
+  }
   const double rate_hz = ArrivalRateHz(std::chrono::steady_clock::now());
   Record([rate_hz](SessionStatus* s) {
     ++s->frames;
@@ -160,6 +171,18 @@ v1::LocalizeResponse LocalizationSession::Skipped(const v1::LocalizeRequest& req
   });
   registry_->Count(tally_.map, {"skipped", std::nullopt});
   return response;
+}
+
+// `frame` with the carried gyro samples in front of its own; `storage` holds the copy when there
+// is something to carry (only after skipped frames).
+const v1::Frame& LocalizationSession::WithCarriedImu(const v1::Frame& frame, v1::Frame* storage) {
+  if (carried_imu_.empty()) return frame;
+  *storage = frame;
+  storage->clear_imu();
+  for (v1::ImuSample& sample : carried_imu_) *storage->add_imu() = std::move(sample);
+  for (const v1::ImuSample& sample : frame.imu()) *storage->add_imu() = sample;
+  carried_imu_.clear();
+  return *storage;
 }
 
 double LocalizationSession::ArrivalRateHz(std::chrono::steady_clock::time_point now) {

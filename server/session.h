@@ -52,20 +52,25 @@ class SessionRegistry {
   FrameCounters counters_;
 };
 
+// Called inside a session with each frame just before the engine sees it (tests: fault
+// injection, and what reaches the engine).
+using BeforeFrameHook = std::function<void(const v1::Frame& frame)>;
+
 class LocalizationSession {
  public:
   // Throws InputError for a camera or options the wire cannot carry (named). Once
   // constructed, the session is listed in `registry` until it is destroyed.
   LocalizationSession(std::shared_ptr<const LocalizationMap> map, const v1::SessionStart& start,
                       const proto::WireLimits& limits, WorkPermits* workers,
-                      SessionRegistry* registry, const std::function<void()>& before_frame);
+                      SessionRegistry* registry, const BeforeFrameHook& before_frame);
   ~LocalizationSession();
   LocalizationSession(const LocalizationSession&) = delete;
   LocalizationSession& operator=(const LocalizationSession&) = delete;
 
   // One response per frame, never an exception: a bad frame gets STATUS_ERROR.
   v1::LocalizeResponse Answer(const v1::LocalizeRequest& request);
-  // `reason` is empty for a frame dropped by NEWEST_ONLY (the client asked for that).
+  // `reason` is empty for a frame dropped by NEWEST_ONLY (the client asked for that). Its gyro
+  // samples go to the engine with the next frame answered.
   v1::LocalizeResponse Skipped(const v1::LocalizeRequest& request, const std::string& reason = "");
 
   uint64_t id() const { return tally_.id; }
@@ -78,10 +83,14 @@ class LocalizationSession {
   void Refuse(const v1::LocalizeRequest& request, uint64_t index, const std::string& why,
               v1::LocalizeResponse* response);
   void Record(const std::function<void(SessionStatus*)>& update);
+  const v1::Frame& WithCarriedImu(const v1::Frame& frame, v1::Frame* storage);
 
   WorkPermits* workers_;
   SessionRegistry* registry_;
-  const std::function<void()>& before_frame_;
+  const BeforeFrameHook& before_frame_;
+  // Gyro samples of the frames skipped since the last one answered (bounded): a frame's samples
+  // cover the time since the frame before it, and the engine integrates from the last it saw.
+  std::vector<v1::ImuSample> carried_imu_;
   Camera camera_;
   Localizer localizer_;
   // A frame arrived now: the arrival rate over the last 2 s.

@@ -112,6 +112,9 @@ class SessionImpl final : public Session {
   bool closing_ = false;
   Clock::time_point drain_until_;
   std::string refused_;  // Why the server refused the session for good.
+  // Gyro samples of the frames dropped since the last one sent (bounded): a frame's samples
+  // cover the time since the frame before it, and the engine integrates from the last it saw.
+  std::vector<v1::ImuSample> carried_imu_;
   // The last answer with a pose, for resuming: its pose and the odometry of its frame.
   std::optional<v1::Pose> last_map_from_cam_, last_odom_from_cam_;
   std::thread worker_;
@@ -209,13 +212,20 @@ void SessionImpl::Close(std::chrono::milliseconds drain) {
   if (worker_.joinable()) worker_.join();
 }
 
-// Removes the oldest waiting frame and reports it (kDropped: never silent). Under mutex_.
+// Removes the oldest waiting frame and reports it (kDropped: never silent); its gyro samples go
+// with the next frame sent. Under mutex_.
 void SessionImpl::DropOldestQueued(const std::string& why, Events* events) {
   Event dropped;
   dropped.kind = Event::Kind::kDropped;
   dropped.timestamp_ns = queue_.front().frame.timestamp_ns;
   dropped.detail = why;
   events->push_back(std::move(dropped));
+  const std::vector<v1::ImuSample>& imu = queue_.front().frame.imu;
+  carried_imu_.insert(carried_imu_.end(), imu.begin(), imu.end());
+  constexpr size_t kMaxCarried = 2000;  // 10 s of a 200 Hz IMU (the engine bridges 3 s at most).
+  if (carried_imu_.size() > kMaxCarried) {
+    carried_imu_.erase(carried_imu_.begin(), carried_imu_.end() - kMaxCarried);
+  }
   queue_.pop_front();
   ++stats_.dropped;
 }
@@ -387,6 +397,7 @@ void SessionImpl::EndStream(Events* events, bool* permanent) {
 // Sends the oldest queued frame. Called with no lock held; false when the write failed.
 bool SessionImpl::SendNext() {
   Queued next;
+  std::vector<v1::ImuSample> carried;
   Stream* stream;
   bool resume_hint = false;
   v1::Pose hint;
@@ -407,6 +418,7 @@ bool SessionImpl::SendNext() {
       resume_hint = true;
     }
     in_flight_.push_back({next.frame.timestamp_ns, next.submitted, next.frame.odom_from_cam});
+    carried.swap(carried_imu_);
   }
   v1::LocalizeRequest request;
   v1::Frame* f = request.mutable_frame();
@@ -423,6 +435,7 @@ bool SessionImpl::SendNext() {
     f->set_encoded(EncodeImage(next.frame.image, options_.encoding, options_.jpeg_quality));
   }
   if (next.frame.odom_from_cam) *f->mutable_odom_from_cam() = *next.frame.odom_from_cam;
+  for (const v1::ImuSample& s : carried) *f->add_imu() = s;  // Older: dropped frames'.
   for (const v1::ImuSample& s : next.frame.imu) *f->add_imu() = s;
   if (next.frame.map_from_cam_hint) {
     *f->mutable_map_from_cam_hint() = *next.frame.map_from_cam_hint;

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <mutex>
 #include <thread>
 
 #include "core/util/temp_dir.h"
@@ -28,8 +29,10 @@ class ClientSessionTest : public ::testing::Test {
     service_ =
         std::make_unique<server::LocalizationService>(maps_.get(), server::ServiceLimits{}, &auth_);
     // A slow engine on demand (set before serving; tests change only the atomic delay).
-    service_->SetBeforeFrameHookForTesting([this] {
+    service_->SetBeforeFrameHookForTesting([this](const v1::Frame& frame) {
       std::this_thread::sleep_for(std::chrono::milliseconds(engine_delay_ms_.load()));
+      std::lock_guard<std::mutex> lock(engine_mutex_);
+      for (const v1::ImuSample& s : frame.imu()) engine_imu_ns_.push_back(s.timestamp_ns());
     });
     grpc::ServerBuilder builder;
     builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &port_);
@@ -76,6 +79,8 @@ class ClientSessionTest : public ::testing::Test {
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
   std::atomic<int> engine_delay_ms_{0};
+  std::mutex engine_mutex_;
+  std::vector<int64_t> engine_imu_ns_;  // The gyro sample stamps the engine got, in order.
 };
 
 TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
@@ -134,6 +139,38 @@ TEST_F(ClientSessionTest, ASlowLinkDropsTheOldestFramesOnTheRobotSide) {
       EXPECT_THAT(e.detail, HasSubstr("slower than the camera"));
     }
   }
+}
+
+// The frames a slow link drops on the robot side hand their gyro samples to the next frame sent:
+// each frame's samples cover only the time since the frame before it, and the engine integrates
+// the rotation since the last frame it saw. Without the hand-over it would hold one rate across
+// the gap.
+TEST_F(ClientSessionTest, DroppedFramesHandTheirGyroSamplesToTheNextFrameSent) {
+  engine_delay_ms_ = 100;
+  SessionOptions options = Options();
+  options.frame_deadline = std::chrono::milliseconds(5000);
+  auto session = Session::Open(options);
+  std::vector<int64_t> sent_ns;
+  for (int i = 0; i < 20; ++i) {
+    Frame frame = MakeFrame(i);
+    for (int64_t before_ns : {10'000'000, 5'000'000, 0}) {  // A 200 Hz gyro.
+      v1::ImuSample sample;
+      sample.set_timestamp_ns(frame.timestamp_ns - before_ns);
+      sample.set_gyro_z(0.5);
+      frame.imu.push_back(sample);
+      sent_ns.push_back(sample.timestamp_ns());
+    }
+    ASSERT_TRUE(session->Submit(frame));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  session->Close(std::chrono::milliseconds(3000));
+  const std::vector<Event> events = Collect(session.get(), 1, [](const auto&) { return false; });
+  const int dropped = Count(events, Event::Kind::kDropped);
+  ASSERT_GT(dropped, 0) << "the link kept up: nothing was carried";
+  EXPECT_EQ(Count(events, Event::Kind::kResult) + dropped, 20);
+  // The newest frame is never the one dropped: every sample reached the engine, once, in order.
+  std::lock_guard<std::mutex> lock(engine_mutex_);
+  EXPECT_EQ(engine_imu_ns_, sent_ns) << dropped << " of 20 frames dropped";
 }
 
 TEST_F(ClientSessionTest, ARefusedSessionFailsOnceWithTheServersReason) {

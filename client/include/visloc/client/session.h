@@ -14,7 +14,8 @@
 // What the library does about the link (WiFi that stalls, access points that go away):
 // - at most `max_in_flight` frames are on the wire; frames the link cannot take yet wait in a
 //   queue of `max_queued`, and the oldest waiting frame is dropped when a newer one arrives or
-//   when it has waited longer than `frame_deadline` (a kDropped event, never silent);
+//   when it has waited longer than `frame_deadline` (a kDropped event, never silent); its gyro
+//   samples go with the next frame sent, so the server's rotation covers the whole gap;
 // - an answer arriving later than `frame_deadline` after its frame was submitted is reported
 //   kLate, not as a pose to steer on;
 // - gRPC keepalive pings find dead connections; no answer for `stall_timeout` while frames are
@@ -129,7 +130,8 @@ struct Frame {
   int64_t timestamp_ns = 0;
   cv::Mat image;  // 8-bit grey or BGR (converted to grey), the camera's size.
   std::optional<v1::Pose> odom_from_cam;      // Odometry (only its motion is used).
-  std::vector<v1::ImuSample> imu;             // Samples since the previous frame.
+  std::vector<v1::ImuSample> imu;             // Samples since the previous frame (a dropped
+                                              // frame's go with the next one sent).
   std::optional<v1::Pose> map_from_cam_hint;  // An external guess.
   // Already encoded PNG/JPEG bytes (sent as they are; `image` is then ignored).
   std::string encoded;
