@@ -35,10 +35,10 @@ class OdometryBuffer {
  public:
   explicit OdometryBuffer(int64_t keep_ns = 5'000'000'000) : keep_ns_(keep_ns) {}
   void Add(int64_t stamp_ns, const Rigid3d& odom_from_child);
-  // Interpolated between the neighbouring samples; the newest sample when `stamp_ns` is at
-  // most `max_extrapolation_ns` past it (odometry that lags the camera a little; 0: only an
-  // exact or interpolated pose); nothing otherwise.
-  std::optional<Rigid3d> At(int64_t stamp_ns, int64_t max_extrapolation_ns = 100'000'000) const;
+  // Interpolated between the neighbouring samples; nothing past the newest sample unless
+  // `max_extrapolation_ns` allows holding it that long. The node never does: an earlier sample
+  // standing in for the image's own leaves a frame's motion out of the prior (sensor_sync.h).
+  std::optional<Rigid3d> At(int64_t stamp_ns, int64_t max_extrapolation_ns = 0) const;
 
  private:
   int64_t keep_ns_;

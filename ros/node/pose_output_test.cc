@@ -56,8 +56,10 @@ TEST(PoseOutputTest, OdometryBufferInterpolatesAndDoesNotInvent) {
   buffer.Add(1'000'000'000, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, 0)));
   buffer.Add(1'100'000'000, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 0, 0)));
   EXPECT_NEAR(buffer.At(1'050'000'000)->translation.x(), 0.5, 1e-9);
-  EXPECT_NEAR(buffer.At(1'150'000'000)->translation.x(), 1.0, 1e-9);  // Newest, 50 ms old.
-  EXPECT_FALSE(buffer.At(1'500'000'000).has_value());                 // 400 ms past: unknown.
+  constexpr int64_t kHoldNs = 100'000'000;  // Held 100 ms past the newest sample, when asked.
+  EXPECT_NEAR(buffer.At(1'150'000'000, kHoldNs)->translation.x(), 1.0, 1e-9);  // 50 ms old.
+  EXPECT_FALSE(buffer.At(1'500'000'000, kHoldNs).has_value());  // 400 ms past: unknown.
+  EXPECT_FALSE(buffer.At(1'150'000'000).has_value());           // By default, never held.
   EXPECT_FALSE(buffer.At(900'000'000).has_value());                   // Before the first.
 }
 

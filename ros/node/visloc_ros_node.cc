@@ -242,7 +242,7 @@ class LocalizationNode {
       sync_->gate().OnOdometry(stamp_ns, WallNowS());
       // Answers that came back before the odometry of their stamp get their map -> odom now.
       while (!waiting_for_odometry_.empty() &&
-             odometry_.At(waiting_for_odometry_.front().timestamp_ns, 0)) {
+             odometry_.At(waiting_for_odometry_.front().timestamp_ns)) {
         PublishTransform(waiting_for_odometry_.front().timestamp_ns,
                          waiting_for_odometry_.front().pose);
         waiting_for_odometry_.pop_front();
@@ -333,7 +333,7 @@ class LocalizationNode {
       // Interpolated at the image's own stamp, never an earlier sample in its place: that would
       // leave a frame's motion out of the prior. Without it (the wait ran out) the engine
       // predicts from its velocity for this frame.
-      if (const auto odom_from_child = odometry_.At(stamp_ns, 0)) {
+      if (const auto odom_from_child = odometry_.At(stamp_ns)) {
         ToProto(*odom_from_child * BaseFromCamera(), &frame.odom_from_cam.emplace());
       } else {
         ++frames_without_odometry_;
@@ -432,7 +432,7 @@ class LocalizationNode {
     t.header.frame_id = map_frame_;
     // map -> odom needs the odometry at the image's own stamp, interpolated, never an older
     // sample: by the time the answer is back, the odometry has usually caught up.
-    const auto odom_from_child = use_odometry_ ? odometry_.At(stamp_ns, 0) : std::nullopt;
+    const auto odom_from_child = use_odometry_ ? odometry_.At(stamp_ns) : std::nullopt;
     if (odom_from_child && !odom_frame_.empty()) {
       t.child_frame_id = odom_frame_;
       ToRos(MapFromOdom(map_from_cam, *odom_from_child * BaseFromCamera()), &t.transform);
