@@ -20,6 +20,11 @@ VISLOC, SERVER, PRODUCT = sys.argv[1:4]
 NOT_YET = {
     ("visloc", "jobs"): "issue 36 (mapping over the link)",
     ("visloc map build", "--server"): "issue 36 (mapping over the link)",
+    ("visloc localize", "--cameras"): "issue 56 (the robot's whole rig)",
+}
+NOT_YET_VERBS = {
+    "visloc map align": "issue 57 (the site: a site frame)",
+    "visloc map localizability": "issue 57 (the site: where robots will localize)",
 }
 BINARIES = {"visloc": VISLOC, "visloc-server": SERVER}
 
@@ -76,6 +81,9 @@ def main():
         print(f"skipped: no product contract at {PRODUCT}")
         return 77
     for command, flags in contract_commands(contract):
+        if command in NOT_YET_VERBS:
+            skipped.append(f"{command}: {NOT_YET_VERBS[command]}")
+            continue
         if (command.split()[0], command.split()[-1]) in NOT_YET and len(command.split()) == 2:
             skipped.append(f"{command}: {NOT_YET[(command.split()[0], command.split()[-1])]}")
             continue
