@@ -79,8 +79,9 @@ RigOptions CarRig(const RigOptions& base) {
 
 const std::vector<std::string>& SequenceNames() {
   static const std::vector<std::string> names = {
-      "map_square", "query_square", "straight", "circle",    "kidnap",      "lowlight",
-      "occluders",  "changed",      "outofmap", "map_suite", "query_suite", "drive"};
+      "map_square", "query_square", "straight",  "circle",      "outward", "glances",
+      "kidnap",     "lowlight",     "occluders", "changed",     "outofmap", "map_suite",
+      "query_suite", "drive"};
   return names;
 }
 
@@ -136,6 +137,19 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
     spec.description = "3 m diameter circle: viewing directions the map never saw";
     spec.path = WalkingPath({0.0, -1.5, 0.0}, gait);
     spec.path.Arc(1.5, 2 * M_PI);
+  } else if (name == "outward") {
+    spec.description = "0.8 m circle inside the mapped square, facing out: views the map never had";
+    GaitOptions facing_out = gait;
+    facing_out.head_yaw_rad = -M_PI / 2;  // Walking counter-clockwise, the outside is right.
+    spec.path = WalkingPath({0.0, -0.8, 0.0}, facing_out);
+    spec.path.Arc(0.8, 2 * M_PI);
+  } else if (name == "glances") {
+    spec.description = "offset square, glancing 110 deg over the left shoulder every 6 s";
+    GaitOptions glancing = gait;
+    glancing.glance_yaw_rad = 110.0 * M_PI / 180.0;
+    glancing.glance_period_s = 6.0;
+    glancing.glance_s = 2.5;
+    spec.path = SquarePath(-0.7, -0.8, glancing);
   } else if (name == "kidnap") {
     spec.description = "walks, camera covered ~1.2 s while carried 1.4 m left, walks on";
     spec.path = WalkingPath({-1.0, -1.0, 0.0}, gait);

@@ -11,6 +11,10 @@ WalkingPath::WalkingPath(const PlanarPose& start, const GaitOptions& gait)
     : gait_(gait), start_(start) {
   VISLOC_CHECK(gait.speed_mps > 0 && gait.turn_rate_radps > 0 && gait.ramp_s >= 0,
                "gait speeds must be positive");
+  VISLOC_CHECK(gait.glance_period_s >= 0 &&
+                   (gait.glance_period_s == 0 ||
+                    (gait.glance_s > 0 && gait.glance_s <= gait.glance_period_s)),
+               "glances of ", gait.glance_s, " s every ", gait.glance_period_s, " s");
 }
 
 double WalkingPath::ProfileDuration(double amount, double rate) const {
@@ -143,6 +147,25 @@ const WalkingPath::Segment& WalkingPath::SegmentAt(double time_s) const {
 }
 
 PlanarPose WalkingPath::PlannedAt(double time_s) const {
+  PlanarPose pose = WalkingAt(time_s);
+  pose.yaw += HeadYawAt(time_s);
+  return pose;
+}
+
+double WalkingPath::HeadYawAt(double time_s) const {
+  double yaw = gait_.head_yaw_rad;
+  if (gait_.glance_period_s > 0) {
+    // The glance takes the last glance_s of each period: the first comes after a period's walk.
+    const double into_glance = std::fmod(std::max(time_s, 0.0), gait_.glance_period_s) -
+                               (gait_.glance_period_s - gait_.glance_s);
+    if (into_glance > 0) {
+      yaw += gait_.glance_yaw_rad * 0.5 * (1.0 - std::cos(2.0 * M_PI * into_glance / gait_.glance_s));
+    }
+  }
+  return yaw;
+}
+
+PlanarPose WalkingPath::WalkingAt(double time_s) const {
   if (segments_.empty()) return start_;
   time_s = std::clamp(time_s, 0.0, duration_s());
   const Segment& s = SegmentAt(time_s);
@@ -210,7 +233,7 @@ Rigid3d WalkingPath::PlannedWorldFromBody(double time_s) const {
 }
 
 Rigid3d WalkingPath::WorldFromBody(double time_s) const {
-  const PlanarPose p = PlannedAt(time_s);
+  const PlanarPose p = WalkingAt(time_s);
   // The gait fades in and out with the stepping. `share` is the share of [t - w, t + w] spent
   // stepping (w = ramp_s), and the gait phase advances at the step rate times that share, so bob,
   // sway, roll and pitch are smooth (C1): a robot that starts or stops does not jerk, and the IMU
@@ -228,9 +251,9 @@ Rigid3d WalkingPath::WorldFromBody(double time_s) const {
   const double sway = envelope * gait_.sway_amplitude_m * std::sin(0.5 * phase);
   const double roll = envelope * gait_.roll_amplitude_deg * M_PI / 180 * std::sin(0.5 * phase);
   const double pitch = envelope * gait_.pitch_amplitude_deg * M_PI / 180 * std::sin(phase + 0.6);
-  // Sway is sideways with respect to the heading.
+  // Sway is sideways with respect to the walking direction; the head turns on top of it.
   return BodyPose(p.x - sway * std::sin(p.yaw), p.y + sway * std::cos(p.yaw),
-                  gait_.camera_height_m + bob, roll, pitch, p.yaw);
+                  gait_.camera_height_m + bob, roll, pitch, p.yaw + HeadYawAt(time_s));
 }
 
 }  // namespace visloc::sim

@@ -34,6 +34,15 @@ struct GaitOptions {
   double sway_amplitude_m = 0.008;  // Lateral sway.
   double roll_amplitude_deg = 1.0;
   double pitch_amplitude_deg = 0.6;
+  // Where the head (and the cameras with it) looks, relative to the walking direction: a
+  // constant yaw (positive: to the left), plus glances over the shoulder, every
+  // glance_period_s a smooth turn out to glance_yaw_rad and back (a raised cosine) lasting
+  // glance_s. The plan, and so the planner's odometry, includes the head's turn, as a
+  // humanoid's kinematics report the head's motion.
+  double head_yaw_rad = 0.0;
+  double glance_yaw_rad = 0.0;
+  double glance_period_s = 0.0;  // 0: no glances.
+  double glance_s = 2.0;
 };
 
 class WalkingPath {
@@ -51,7 +60,8 @@ class WalkingPath {
   double duration_s() const;
   double length_m() const;  // Walked distance (carrying not included).
 
-  // The planned floor pose at time t (clamped to [0, duration]).
+  // The planned floor pose at time t (clamped to [0, duration]), its yaw the head's
+  // (GaitOptions::head_yaw_rad and the glances added to the walking direction).
   PlanarPose PlannedAt(double time_s) const;
   // True while the robot steps (walking or turning), false while standing or carried.
   bool SteppingAt(double time_s) const;
@@ -65,10 +75,15 @@ class WalkingPath {
   // The body's true pose in the world (plan + gait), and the plan alone at head height.
   Rigid3d WorldFromBody(double time_s) const;
   Rigid3d PlannedWorldFromBody(double time_s) const;
+  // The head's yaw relative to the walking direction at t (GaitOptions::head_yaw_rad, glances).
+  double HeadYawAt(double time_s) const;
 
   const GaitOptions& gait() const { return gait_; }
 
  private:
+  // The walking plan alone: where the feet take the body, its yaw the walking direction.
+  PlanarPose WalkingAt(double time_s) const;
+
   enum class Kind { kWalk, kTurn, kArc, kStand, kCarry };
   struct Segment {
     Kind kind;
