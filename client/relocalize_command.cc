@@ -9,6 +9,7 @@
 
 #include "client/commands.h"
 #include "client/connection.h"
+#include "client/relocalization_evidence.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
@@ -27,6 +28,7 @@ namespace {
 
 struct RelocalizeArgs {
   std::string map_name, image_path, dataset_dir, sensor_path, frames, trajectory_path;
+  std::string map_file, evidence_path;
   Connection server;
   bool json = false;
 };
@@ -74,6 +76,10 @@ void WriteAnswer(JsonWriter& out, const v1::RelocalizeResponse& response) {
         .Field("score", c.score())
         .Field("matches", static_cast<int64_t>(c.matches()))
         .Field("verified_inliers", static_cast<int64_t>(c.verified_inliers()))
+        .Field("verified_putatives", static_cast<int64_t>(c.verified_putatives()))
+        .Field("verified_inlier_ratio", c.verified_inlier_ratio())
+        .Field("inlier_cells", static_cast<int64_t>(c.inlier_cells()))
+        .Field("significance", c.significance())
         .Field("accepted", c.accepted())
         .EndObject();
   }
@@ -93,9 +99,11 @@ void PrintAnswer(const v1::RelocalizeResponse& response) {
                 response.candidates_size());
   }
   for (const auto& c : response.candidates()) {
-    std::printf("  candidate keyframe %4d  score %.3f  matches %3u  verified inliers %3u%s\n",
-                c.keyframe(), c.score(), c.matches(), c.verified_inliers(),
-                c.accepted() ? "  accepted" : "");
+    std::printf(
+        "  candidate keyframe %4d  score %.3f  matches %3u  verified inliers %3u of %3u, "
+        "%2u cells, significance %.1f%s\n",
+        c.keyframe(), c.score(), c.matches(), c.verified_inliers(), c.verified_putatives(),
+        c.inlier_cells(), c.significance(), c.accepted() ? "  accepted" : "");
   }
 }
 
@@ -176,8 +184,14 @@ int RunRelocalize(const Args& raw_args) {
                    "left camera took it, or --camera-yaml the camera's sensor.yaml. With --frames, "
                    "each of those frames of the --dataset is "
                    "asked alone, and --trajectory keeps the poses found.");
-  args.server.AddFlags(parser);
-  parser.AddFlag("map", &args.map_name, "map name on the server", true);
+  args.server.AddFlags(parser, /*server_required=*/false);  // Not with --evidence.
+  parser.AddFlag("map", &args.map_name, "map name on the server");
+  parser.AddFlag("map-file", &args.map_file,
+                 "with --evidence: the map file, in process (no server)");
+  parser.AddFlag("evidence", &args.evidence_path,
+                 "with --map-file, --dataset and --frames: write every candidate of both feature "
+                 "passes, verified under no acceptance rule, as TSV (for choosing the rule: "
+                 "scripts/relocalization-rule.sh)");
   parser.AddFlag("dataset", &args.dataset_dir, "dataset whose left camera took the image(s)");
   parser.AddFlag("camera-yaml", &args.sensor_path,
                  "or the camera's sensor.yaml (EuRoC's, as visloc calibrate writes it)");
@@ -190,6 +204,19 @@ int RunRelocalize(const Args& raw_args) {
   parser.AddSwitch("json", &args.json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
   const bool many = !args.frames.empty();
+  if (!args.evidence_path.empty()) {
+    if (args.map_file.empty() || args.dataset_dir.empty() || !many) {
+      throw UsageError("--evidence needs --map-file, --dataset and --frames");
+    }
+    WriteRelocalizationEvidence(
+        args.map_file,
+        SelectFrames(ReadDataset(args.dataset_dir),
+                     ParseFrameRange(args.frames == "all" ? "" : args.frames)),
+        args.evidence_path);
+    return 0;
+  }
+  if (args.map_name.empty()) throw UsageError("--map is required");
+  if (args.server.server.empty()) throw UsageError("--server is required");
   if (many == !args.image_path.empty()) {
     throw UsageError("give either IMAGE or --frames (with --dataset)");
   }

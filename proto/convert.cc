@@ -239,6 +239,11 @@ void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
     candidate->set_ransac_inliers(c.ransac_inliers);
     candidate->set_verified_inliers(c.verified_inliers);
     candidate->set_accepted(c.accepted);
+    candidate->set_verified_putatives(c.verified_putatives);
+    candidate->set_verified_inlier_ratio(c.verified_inlier_ratio);
+    candidate->set_inlier_cells(c.inlier_cells);
+    candidate->set_significance(c.significance);
+    if (c.verified) ToProto(c.map_from_cam, candidate->mutable_map_from_cam());
   }
 }
 

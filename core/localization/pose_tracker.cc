@@ -1,6 +1,7 @@
 #include "core/localization/pose_tracker.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -144,6 +145,21 @@ void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& fr
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
   fix->systematic_covariance =
       SystematicCovariance(observations, refined.inlier_mask, fix->cam_from_map);
+  fix->inlier_cells = InlierCells(frame, matches, refined.inlier_mask);
+}
+
+int PoseTracker::InlierCells(const QueryFrame& frame, const std::vector<PointMatch>& matches,
+                             const std::vector<char>& inliers) const {
+  constexpr int kCols = PoseFix::kCoverageCols, kRows = PoseFix::kCoverageRows;
+  std::array<bool, kCols * kRows> occupied{};
+  for (size_t m = 0; m < matches.size(); ++m) {
+    if (!inliers[m]) continue;
+    const Eigen::Vector2f& pixel = frame.features().keypoints[matches[m].feature].pixel;
+    const int col = std::clamp(static_cast<int>(pixel.x() * kCols / camera_.width()), 0, kCols - 1);
+    const int row = std::clamp(static_cast<int>(pixel.y() * kRows / camera_.height()), 0, kRows - 1);
+    occupied[row * kCols + col] = true;
+  }
+  return static_cast<int>(std::count(occupied.begin(), occupied.end(), true));
 }
 
 const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(

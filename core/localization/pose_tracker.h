@@ -84,6 +84,11 @@ struct PoseFix {
   double inlier_ratio = 0.0;  // inliers / putatives.
   int ransac_iterations = 0;
   double reproj_rmse_px = 0.0;  // Over the inliers.
+  // Cells of a kCoverageCols x kCoverageRows grid over the image that hold an inlier: a fix
+  // whose inliers crowd one corner of the image constrains the pose far less than its count says.
+  int inlier_cells = 0;
+  static constexpr int kCoverageCols = 8;
+  static constexpr int kCoverageRows = 6;
   PoseStepTimes times;
 };
 
@@ -122,6 +127,9 @@ class PoseTracker {
   Eigen::Matrix<double, 6, 6> SystematicCovariance(const std::vector<PoseObservation>& observations,
                                                    const std::vector<char>& inliers,
                                                    const Rigid3d& cam_from_map) const;
+  // PoseFix::inlier_cells of the inlier `matches` (the mask is per match).
+  int InlierCells(const QueryFrame& frame, const std::vector<PointMatch>& matches,
+                  const std::vector<char>& inliers) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
   void RefineAround(const PointView& map_points, const QueryFrame& frame,
                     const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,

@@ -6,6 +6,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <Eigen/Eigenvalues>
 
 #include "core/localization/relocalizer.h"
@@ -251,6 +253,30 @@ TEST(RelocalizerTest, FindsTheCameraWithoutAPriorAndRefusesClutter) {
       *map, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0, 0, -100)), 600, 4);
   ASSERT_EQ(clutter.point_of_feature.size(), 600u);
   EXPECT_FALSE(relocalizer.Relocalize(QueryFrame(clutter.features, map->map().camera)).success);
+}
+
+// The chance of k or more inliers among n putatives at p = (inlier / radius)^2, against the
+// binomial tail summed term by term.
+TEST(RelocalizerTest, SignificanceIsTheBinomialTailOfTheInliers) {
+  const auto tail = [](int n, int k, double p) {
+    double sum = 0.0;
+    for (int j = k; j <= n; ++j) {
+      sum += std::exp(std::lgamma(n + 1.0) - std::lgamma(j + 1.0) - std::lgamma(n - j + 1.0) +
+                      j * std::log(p) + (n - j) * std::log(1 - p));
+    }
+    return -std::log10(sum);
+  };
+  EXPECT_NEAR(ChanceInliersNegLog10(10, 10, 2.0, 4.0), -10 * std::log10(0.25), 1e-9);
+  for (auto [n, k] : {std::pair{20, 5}, {50, 20}, {120, 70}, {300, 126}}) {
+    EXPECT_NEAR(ChanceInliersNegLog10(n, k, 2.0, 4.0), tail(n, k, 0.25), 1e-6) << k << " of " << n;
+  }
+  // As many as chance gives is no evidence; far more is overwhelming; a wider search radius
+  // makes the same count rarer by chance.
+  EXPECT_LT(ChanceInliersNegLog10(200, 50, 2.0, 4.0), 0.5);
+  EXPECT_GT(ChanceInliersNegLog10(200, 126, 2.0, 4.0), 20.0);
+  EXPECT_GT(ChanceInliersNegLog10(200, 60, 2.0, 9.4), ChanceInliersNegLog10(200, 60, 2.0, 4.0));
+  EXPECT_EQ(ChanceInliersNegLog10(0, 0, 2.0, 4.0), 0.0);
+  EXPECT_THROW(ChanceInliersNegLog10(10, 11, 2.0, 4.0), CheckError);
 }
 
 }  // namespace

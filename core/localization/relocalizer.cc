@@ -1,6 +1,7 @@
 #include "core/localization/relocalizer.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "core/map/vocabulary.h"
 #include "core/util/check.h"
@@ -14,7 +15,35 @@ void RelocalizationOptions::Check() const {
                "relocalization thresholds");
   VISLOC_CHECK(min_verified_inlier_ratio >= 0 && min_verified_inlier_ratio <= 1,
                "relocalization inlier ratio ", min_verified_inlier_ratio);
+  constexpr int kCells = PoseFix::kCoverageCols * PoseFix::kCoverageRows;
+  VISLOC_CHECK(min_significance >= 0 && min_inlier_cells >= 0 && min_inlier_cells <= kCells,
+               "relocalization significance ", min_significance, ", cells ", min_inlier_cells);
   matching.Check();
+}
+
+double ChanceInliersNegLog10(int putatives, int inliers, double inlier_px,
+                             double search_radius_px) {
+  VISLOC_CHECK(putatives >= 0 && inliers >= 0 && inliers <= putatives && inlier_px > 0 &&
+                   search_radius_px > 0,
+               "chance model: ", inliers, " of ", putatives, ", ", inlier_px, " px in ",
+               search_radius_px, " px");
+  if (inliers == 0) return 0.0;
+  const double p = std::min(1.0, std::pow(inlier_px / search_radius_px, 2));
+  if (p >= 1.0) return 0.0;
+  // log P[X = j], summed from j = inliers up with log-sum-exp (the terms span hundreds of
+  // decades for a few hundred putatives).
+  const auto log_term = [&](int j) {
+    return std::lgamma(putatives + 1.0) - std::lgamma(j + 1.0) - std::lgamma(putatives - j + 1.0) +
+           j * std::log(p) + (putatives - j) * std::log1p(-p);
+  };
+  const double first = log_term(inliers);
+  double sum = 0.0;
+  for (int j = inliers; j <= putatives; ++j) {
+    const double ratio = std::exp(log_term(j) - first);
+    sum += ratio;
+    if (ratio < 1e-17 * sum) break;  // Past the mode the terms only shrink.
+  }
+  return -(first + std::log(sum)) / std::log(10.0);
 }
 
 RelocalizationTimes& RelocalizationTimes::operator+=(const RelocalizationTimes& other) {
@@ -58,9 +87,26 @@ void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candi
   *fix = tracker_.Polish(frame, pnp.cam_from_world);
   times->verification_ms += timer.ElapsedMs();
   fix->ransac_iterations = pnp.stats.iterations;
+  candidate->verified = fix->success;
+  candidate->verified_putatives = fix->putatives;
   candidate->verified_inliers = fix->inliers;
-  candidate->accepted = fix->success && fix->inliers >= options_.min_verified_inliers &&
-                        fix->inlier_ratio >= options_.min_verified_inlier_ratio;
+  candidate->verified_inlier_ratio = fix->inlier_ratio;
+  candidate->reproj_rmse_px = fix->reproj_rmse_px;
+  candidate->inlier_cells = fix->inlier_cells;
+  const PoseTrackerOptions& tracking = tracker_.options();
+  candidate->significance =
+      ChanceInliersNegLog10(fix->putatives, fix->inliers, tracking.ransac.max_error_px,
+                            tracking.refine_radius_px) -
+      std::log10(static_cast<double>(options_.max_candidates));
+  candidate->map_from_cam = fix->cam_from_map.Inverse();
+  candidate->accepted = Accepts(*candidate);
+}
+
+bool Relocalizer::Accepts(const RelocalizationCandidate& candidate) const {
+  return candidate.verified && candidate.verified_inliers >= options_.min_verified_inliers &&
+         candidate.verified_inlier_ratio >= options_.min_verified_inlier_ratio &&
+         candidate.significance >= options_.min_significance &&
+         candidate.inlier_cells >= options_.min_inlier_cells;
 }
 
 RelocalizationResult Relocalizer::Relocalize(

@@ -23,9 +23,15 @@ struct RelocalizationOptions {
   int max_candidates = 4;  // Keyframes verified, best appearance score first.
   int min_matches = 20;    // Descriptor matches a candidate needs before RANSAC.
   int min_ransac_inliers = 15;
+  // The acceptance rule: a verified candidate (re-matched by projection and refined) is taken
+  // when all of these hold (Relocalizer::Accepts).
   int min_verified_inliers = 40;  // After re-matching by projection.
   double min_verified_inlier_ratio = 0.5;
-  int strong_inliers = 80;          // Stop at the first candidate this well supported.
+  // -log10 of the chance that a wrong pose gets as many inliers among its putatives
+  // (ChanceInliersNegLog10), less log10 of max_candidates; 0 turns it off.
+  double min_significance = 0.0;
+  int min_inlier_cells = 0;  // Of PoseFix's coverage grid (48 cells); 0 turns it off.
+  int strong_inliers = 80;   // Stop at the first accepted candidate this well supported.
   DescriptorMatchOptions matching;  // Descriptor thresholds for step 1.
   // RANSAC's budget per candidate (it stops earlier once the inliers found make a better model
   // unlikely). Real images leave 15-20% of a candidate's descriptor matches correct (25-40 of
@@ -46,9 +52,27 @@ struct RelocalizationCandidate {
   float score = 0.0f;  // Appearance score in [0, 1].
   int matches = 0;
   int ransac_inliers = 0;
+  // The verification's evidence (when RANSAC found a pose): the polished fix's success, its
+  // putatives (tight re-matches), inliers and ratio, residual, image coverage, the significance
+  // of its inlier count, and its pose.
+  bool verified = false;
+  int verified_putatives = 0;
   int verified_inliers = 0;
+  double verified_inlier_ratio = 0.0;
+  double reproj_rmse_px = 0.0;
+  int inlier_cells = 0;
+  double significance = 0.0;
+  Rigid3d map_from_cam;
   bool accepted = false;
 };
+
+// The chance model of a verification: a pose that is wrong re-matches each predicted point to
+// whatever keypoint lies in the tight radius `search_radius_px` around its projection, at a
+// place uniform over that disc, so each putative falls within the inlier threshold
+// `inlier_px` by chance with p = (inlier_px / search_radius_px)^2. Returns -log10 of the
+// binomial tail P[X >= inliers], X ~ B(putatives, p): 2 means one chance in 100 (the a contrario
+// test of Moisan and Stival's ORSA, with the verification as the test).
+double ChanceInliersNegLog10(int putatives, int inliers, double inlier_px, double search_radius_px);
 
 // Where a relocalization's time went, ms. The candidate steps are summed over the candidates
 // verified.
@@ -84,6 +108,8 @@ class Relocalizer {
  private:
   void Verify(const QueryFrame& frame, RelocalizationCandidate* candidate, PoseFix* fix,
               RelocalizationTimes* times) const;
+  // The acceptance rule (RelocalizationOptions) on a verified candidate's evidence.
+  bool Accepts(const RelocalizationCandidate& candidate) const;
 
   const PoseTracker& tracker_;
   RelocalizationOptions options_;
