@@ -11,8 +11,8 @@
 #     ground truth scatters by itself (`eval --spread`), the floor of those errors;
 #   - a kidnapped robot's first image: each odd frame alone through the real server
 #     (`relocalize`, no session, no prior): recall, error, server time; for an EuRoC recording
-#     (one place throughout) also each frame of its second half alone against a map of its
-#     first half.
+#     (one place throughout) also every frame of each half alone against a map of the other
+#     half, both ways (the negatives, frames of other places: scripts/relocalization-rule.sh).
 # The baseline is, with --baseline REV, revision REV built in a worktree and measured the same
 # way; without it, the figures docs/real-world.tsv holds at HEAD (the last regeneration).
 # Frame subsets are folders of links made here, and relocalization asks one image at a time, so
@@ -42,48 +42,6 @@ for d in "$REAL"/*/; do
   d=${d%/}
   [[ -d $d/mav0 || -d $d/image_0 ]] && recordings+=("$(basename "$d")")
 done
-
-# subset SRC OUT FIRST END STEP: frames FIRST, FIRST+STEP, ... before END of recording SRC as a
-# recording of its own in OUT (links, not copies), and OUT/frames.txt: "timestamp_ns image" lines.
-subset() {
-  local src=$1 out=$2 first=$3 end=$4 step=$5
-  [[ -f $out/frames.txt ]] && return
-  rm -rf "$out"
-  mkdir -p "$out"
-  if [[ -d $src/mav0 ]]; then
-    for cam in cam0 cam1; do
-      mkdir -p "$out/mav0/$cam/data"
-      cp "$src/mav0/$cam/sensor.yaml" "$out/mav0/$cam/"
-      awk -F, -v f="$first" -v e="$end" -v s="$step" '
-        /^#/ { print; next }
-        { i = n++; if (i >= f && i < e && (i - f) % s == 0) print }' \
-        "$src/mav0/$cam/data.csv" | tr -d '\r' > "$out/mav0/$cam/data.csv"
-      grep -v '^#' "$out/mav0/$cam/data.csv" | cut -d, -f2 |
-        while read -r image; do ln -s "$src/mav0/$cam/data/$image" "$out/mav0/$cam/data/$image"; done
-    done
-    [[ -f $src/mav0/body.yaml ]] && cp "$src/mav0/body.yaml" "$out/mav0/"
-    grep -v '^#' "$out/mav0/cam0/data.csv" |
-      awk -F, -v dir="$out/mav0/cam0/data" '{ print $1, dir "/" $2 }' > "$out/frames.txt"
-  else
-    mkdir -p "$out/image_0" "$out/image_1"
-    cp "$src/calib.txt" "$out/"
-    local i=0 k=0 time
-    : > "$out/times.txt"
-    : > "$out/frames.txt"
-    while read -r time; do
-      if (( i >= first && i < end && (i - first) % step == 0 )); then
-        echo "$time" >> "$out/times.txt"
-        for cam in image_0 image_1; do
-          ln -s "$src/$cam/$(printf %06d $i).png" "$out/$cam/$(printf %06d $k).png"
-        done
-        awk -v t="$time" -v p="$out/image_0/$(printf %06d $k).png" \
-          'BEGIN { printf "%.0f %s\n", t * 1e9, p }' >> "$out/frames.txt"
-        k=$((k + 1))
-      fi
-      i=$((i + 1))
-    done < "$src/times.txt"
-  fi
-}
 
 # relocalize_each BIN_DIR MAP SUBSET OUT: each image of SUBSET alone through the server
 # (SERVER_ADDRESS); OUT.tum gets the poses found, OUT.txt "found ms passes" per image (passes:
@@ -138,6 +96,25 @@ measure() {
     put "${prefix}_error_median_cm" "$(fmt "$(field_in "$e" ate median)" 100 2)"
     put "${prefix}_error_max_cm" "$(fmt "$(field_in "$e" ate max)" 100 2)"
     put "${prefix}_rotation_max_deg" "$(fmt "$(field_in "$e" rotation_deg max)" 1 2)"
+  }
+  # relocalize_against_half MAP_HALF QUERY_HALF: a map of one half of the recording, then each
+  # image of the other half alone through the server (figures QUERY_HALF_*), against the ground
+  # truth re-rooted at the map half's first frame (its map frame).
+  relocalize_against_half() {
+    local map_half=$1 query_half=$2 full_gt=$gt
+    $V map build --dataset "$subs/$map_half" --out "$out/maps/${rec}_$map_half.db" --json \
+      > "$out/$rec.$map_half.build.json"
+    stop_server
+    SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
+    relocalize_each "$bin" "${rec}_$map_half" "$subs/$query_half" "$out/$rec.$query_half"
+    put "${query_half}_relocalized_pct" "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.$query_half.txt")"
+    put "${query_half}_second_pass_pct" "$(second_pass_pct "$out/$rec.$query_half.txt")"
+    [[ -f $full_gt ]] || return 0
+    gt=$out/$rec.gt_from_$map_half.tum
+    awk -v t0="$(head -1 "$subs/$map_half/frames.txt" | cut -d' ' -f1)" \
+      '/^#/ || $1 * 1e9 >= t0 - 1e6' "$full_gt" > "$gt"
+    eval_into "$query_half" "$out/$rec.$query_half.tum"
+    gt=$full_gt
   }
   for rec in "${recordings[@]}"; do
     echo "== $rec ($bin)"
@@ -198,18 +175,12 @@ measure() {
     put relocalization_ms "$(cut -d' ' -f2 "$out/$rec.reloc.txt" | median | xargs -I{} awk 'BEGIN { printf "%.1f", {} }')"
     eval_into relocalized "$out/$rec.reloc.tum"
     if [[ -d $d/mav0 ]]; then
-      # One place throughout: the second half's images alone against a map of the first half.
+      # One place throughout: each half's images alone against a map of the other half.
       local half=$((n / 2))
       subset "$d" "$subs/first_half" 0 "$half" 1
       subset "$d" "$subs/second_half" "$half" "$n" 1
-      $V map build --dataset "$subs/first_half" --out "$out/maps/${rec}_first_half.db" --json \
-        > "$out/$rec.first_half.build.json"
-      stop_server
-      SERVER_BIN=$bin/server/visloc-server start_server "$out/maps" "$out"
-      relocalize_each "$bin" "${rec}_first_half" "$subs/second_half" "$out/$rec.half"
-      put second_half_relocalized_pct "$(awk '{ s += $1 } END { printf "%.1f", 100 * s / NR }' "$out/$rec.half.txt")"
-      put second_half_second_pass_pct "$(second_pass_pct "$out/$rec.half.txt")"
-      eval_into second_half "$out/$rec.half.tum"
+      relocalize_against_half first_half second_half
+      relocalize_against_half second_half first_half
     fi
     stop_server
   done
@@ -277,6 +248,10 @@ rows=(
   "second_half_error_max_cm|... max error, cm"
   "second_half_rotation_max_deg|... max rotation error, deg"
   "second_half_second_pass_pct|... that took the second pass (features at every scale), %"
+  "first_half_relocalized_pct|each frame of the first half alone, map of the second half: found, %"
+  "first_half_error_max_cm|... max error, cm"
+  "first_half_rotation_max_deg|... max rotation error, deg"
+  "first_half_second_pass_pct|... that took the second pass (features at every scale), %"
 )
 {
   echo "# visloc on real places"

@@ -32,3 +32,45 @@ stop_server() {
   kill -TERM "$SERVER_PID"
   wait "$SERVER_PID" || true
 }
+
+# subset SRC OUT FIRST END STEP: frames FIRST, FIRST+STEP, ... before END of recording SRC as a
+# recording of its own in OUT (links, not copies), and OUT/frames.txt: "timestamp_ns image" lines.
+subset() {
+  local src=$1 out=$2 first=$3 end=$4 step=$5
+  [[ -f $out/frames.txt ]] && return
+  rm -rf "$out"
+  mkdir -p "$out"
+  if [[ -d $src/mav0 ]]; then
+    for cam in cam0 cam1; do
+      mkdir -p "$out/mav0/$cam/data"
+      cp "$src/mav0/$cam/sensor.yaml" "$out/mav0/$cam/"
+      awk -F, -v f="$first" -v e="$end" -v s="$step" '
+        /^#/ { print; next }
+        { i = n++; if (i >= f && i < e && (i - f) % s == 0) print }' \
+        "$src/mav0/$cam/data.csv" | tr -d '\r' > "$out/mav0/$cam/data.csv"
+      grep -v '^#' "$out/mav0/$cam/data.csv" | cut -d, -f2 |
+        while read -r image; do ln -s "$src/mav0/$cam/data/$image" "$out/mav0/$cam/data/$image"; done
+    done
+    [[ -f $src/mav0/body.yaml ]] && cp "$src/mav0/body.yaml" "$out/mav0/"
+    grep -v '^#' "$out/mav0/cam0/data.csv" |
+      awk -F, -v dir="$out/mav0/cam0/data" '{ print $1, dir "/" $2 }' > "$out/frames.txt"
+  else
+    mkdir -p "$out/image_0" "$out/image_1"
+    cp "$src/calib.txt" "$out/"
+    local i=0 k=0 time
+    : > "$out/times.txt"
+    : > "$out/frames.txt"
+    while read -r time; do
+      if (( i >= first && i < end && (i - first) % step == 0 )); then
+        echo "$time" >> "$out/times.txt"
+        for cam in image_0 image_1; do
+          ln -s "$src/$cam/$(printf %06d $i).png" "$out/$cam/$(printf %06d $k).png"
+        done
+        awk -v t="$time" -v p="$out/image_0/$(printf %06d $k).png" \
+          'BEGIN { printf "%.0f %s\n", t * 1e9, p }' >> "$out/frames.txt"
+        k=$((k + 1))
+      fi
+      i=$((i + 1))
+    done < "$src/times.txt"
+  fi
+}
