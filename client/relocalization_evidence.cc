@@ -34,6 +34,7 @@ LocalizerOptions WithoutAcceptanceRule() {
   r.min_significance = 0.0;
   r.min_inlier_cells = 0;
   r.strong_inliers = std::numeric_limits<int>::max();
+  r.strong_inlier_cells = 0;
   return options;
 }
 

@@ -255,6 +255,45 @@ TEST(RelocalizerTest, FindsTheCameraWithoutAPriorAndRefusesClutter) {
   EXPECT_FALSE(relocalizer.Relocalize(QueryFrame(clutter.features, map->map().camera)).success);
 }
 
+// A real image's verification: many predicted points re-match a wrong corner in the tight radius
+// (blur, repeated texture, a corner the map saw at another scale), so a true fix has plenty of
+// inliers at a low inlier ratio. Here `decoy_fraction` of the points are seen only as a decoy
+// 3-7 px from their projection (beyond the 2 px inlier threshold, within the re-matching radius
+// of a 752-pixel-wide image, 9.4 px) with their own descriptor.
+View WithDecoys(View view, double decoy_fraction, uint64_t seed) {
+  Rng rng(seed);
+  for (size_t i = 0; i < view.point_of_feature.size(); ++i) {
+    if (view.point_of_feature[i] < 0 || rng.Uniform(0, 1) >= decoy_fraction) continue;
+    const double angle = rng.Uniform(0, 2 * M_PI), offset_px = rng.Uniform(3, 7);
+    view.features.keypoints[i].pixel += Eigen::Vector2f(static_cast<float>(offset_px * std::cos(angle)),
+                                                        static_cast<float>(offset_px * std::sin(angle)));
+    view.point_of_feature[i] = -1;
+  }
+  return view;
+}
+
+TEST(RelocalizerTest, AcceptsATrueFixWhoseInlierRatioIsLowButWhoseInliersCannotBeChance) {
+  const auto map = MapWithAppearance();
+  const Rigid3d truth = TruePose(*map);
+  PoseTrackerOptions tracking;
+  tracking.refine_radius_px = 9.4;  // As QueryPipeline scales it for a 752-pixel-wide camera.
+  const PoseTracker tracker(map, map->map().camera, tracking);
+  const View view = WithDecoys(RenderView(*map, truth, 150, 3), 0.6, 5);
+  const QueryFrame frame(view.features, map->map().camera);
+  const RelocalizationResult found = Relocalizer(tracker, RelocalizationOptions{}).Relocalize(frame);
+  ASSERT_TRUE(found.success);
+  EXPECT_TRUE(ApproxEqual(found.fix.cam_from_map, truth, 0.01, 0.2));
+  EXPECT_LT(found.fix.inlier_ratio, 0.5);
+  EXPECT_GE(found.fix.inliers, 40);
+  // The ratio gate of before refused it.
+  RelocalizationOptions ratio_gate;
+  ratio_gate.min_verified_inliers = 40;
+  ratio_gate.min_verified_inlier_ratio = 0.5;
+  ratio_gate.min_significance = 0.0;
+  ratio_gate.min_inlier_cells = 0;
+  EXPECT_FALSE(Relocalizer(tracker, ratio_gate).Relocalize(frame).success);
+}
+
 // The chance of k or more inliers among n putatives at p = (inlier / radius)^2, against the
 // binomial tail summed term by term.
 TEST(RelocalizerTest, SignificanceIsTheBinomialTailOfTheInliers) {

@@ -16,8 +16,10 @@ void RelocalizationOptions::Check() const {
   VISLOC_CHECK(min_verified_inlier_ratio >= 0 && min_verified_inlier_ratio <= 1,
                "relocalization inlier ratio ", min_verified_inlier_ratio);
   constexpr int kCells = PoseFix::kCoverageCols * PoseFix::kCoverageRows;
-  VISLOC_CHECK(min_significance >= 0 && min_inlier_cells >= 0 && min_inlier_cells <= kCells,
-               "relocalization significance ", min_significance, ", cells ", min_inlier_cells);
+  VISLOC_CHECK(min_significance >= 0 && min_inlier_cells >= 0 && min_inlier_cells <= kCells &&
+                   strong_inlier_cells >= 0 && strong_inlier_cells <= kCells,
+               "relocalization significance ", min_significance, ", cells ", min_inlier_cells,
+               ", strong cells ", strong_inlier_cells);
   matching.Check();
 }
 
@@ -139,7 +141,9 @@ RelocalizationResult Relocalizer::Relocalize(
       result.success = true;
       result.fix = fix;
       result.keyframe = keyframe;
-      if (fix.inliers >= options_.strong_inliers) break;
+      if (fix.inliers >= options_.strong_inliers && fix.inlier_cells >= options_.strong_inlier_cells) {
+        break;
+      }
     }
   }
   result.ms = timer.ElapsedMs();
