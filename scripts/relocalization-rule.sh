@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Chooses relocalization's acceptance rule from evidence and regenerates docs/relocalization.md
-# (its curve) and docs/relocalization.tsv. Every frame of every recording in ../shared/real goes
+# (its curve). Every frame of every recording in ../shared/real goes
 # alone against maps of other parts of it, both ways (positives, checked against the ground
 # truth: within 5 cm and 2 degrees; EuRoC's halves, and its outer thirds, whose views lie further
 # apart), and against maps of other places (negatives: any pose is a
@@ -126,5 +126,5 @@ for rec in "${real[@]}" outofmap_room; do
 done
 
 echo "== replaying the rules"
-/usr/bin/python3 scripts/relocalization_rule.py "$JOBS" --tsv docs/relocalization.tsv \
-  --report docs/relocalization.md --commit "$(git rev-parse --short HEAD)"
+/usr/bin/python3 scripts/relocalization_rule.py "$JOBS" --report docs/relocalization.md \
+  --commit "$(git rev-parse --short HEAD)"
