@@ -20,7 +20,7 @@ mkdir -p "$WORK" docs/img
 
 source scripts/report-lib.sh
 
-sequences=(query_square straight circle kidnap lowlight occluders outofmap)
+sequences=(query_square straight circle outward glances kidnap lowlight occluders outofmap)
 echo "== data (320x240)"
 [[ -f $WORK/seq320/done ]] || {
   rm -rf "$WORK/seq320"
