@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every generated doc from one commit, in one run: docs/benchmarks.md,
-# real-cameras.md, real-world.md (against --baseline REV when given), robot-link.md, maps.md,
-# big-maps.md and ros.md (when ROS 1 is installed). Each names the commit in its header; this
+# real-cameras.md, real-world.md (against --baseline REV when given), relocalization.md,
+# robot-link.md, maps.md, big-maps.md and ros.md (when ROS 1 is installed). Each names the commit in its header; this
 # script refuses a tree with uncommitted changes, so that commit is what ran. Then it checks that
 # the README quotes no figure the docs now disagree with (tests/docs/readme_figures_test.py) and
 # names the paragraphs to update.
@@ -38,6 +38,7 @@ run benchmarks
 run robot-link  # Reuses the benchmarks' maps and sequences.
 run real-cameras
 run real-world "${baseline[@]}"
+run relocalization-rule
 run maps
 run big-maps
 if command -v roscore > /dev/null; then run ros; fi

@@ -90,12 +90,37 @@ measure() {
     local prefix=$1 est=$2
     shift 2
     [[ -f $gt ]] || return 0
-    $T eval --gt "$gt" --gt-origin-first --est "$est" --json "$@" > "$out/$rec.$prefix.eval.json"
+    $T eval --gt "$gt" ${gt_origin-"--gt-origin-first"} --est "$est" --json "$@" \
+      > "$out/$rec.$prefix.eval.json"
     local e=$out/$rec.$prefix.eval.json
     [[ $(field "$e" matched_poses) != 0 ]] || return 0  # Nothing localized: no error to give.
     put "${prefix}_error_median_cm" "$(fmt "$(field_in "$e" ate median)" 100 2)"
     put "${prefix}_error_max_cm" "$(fmt "$(field_in "$e" ate max)" 100 2)"
     put "${prefix}_rotation_max_deg" "$(fmt "$(field_in "$e" rotation_deg max)" 1 2)"
+  }
+  # reroot_tum IN ROOT_NS OUT: the TUM trajectory IN relative to its pose nearest ROOT_NS.
+  reroot_tum() {
+    /usr/bin/python3 - "$@" << 'PY'
+import sys
+def mul(a, b):  # Quaternions (x, y, z, w).
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+def rotate(q, v):
+    x, y, z, _ = mul(mul(q, (v[0], v[1], v[2], 0.0)), (-q[0], -q[1], -q[2], q[3]))
+    return (x, y, z)
+src, root_ns, dst = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+rows = [[float(x) for x in l.split()] for l in open(src) if l.strip() and not l.startswith('#')]
+root = min(rows, key=lambda r: abs(r[0] - root_ns / 1e9))
+inverse = (-root[4], -root[5], -root[6], root[7])
+with open(dst, 'w') as out:
+    out.write('# timestamp tx ty tz qx qy qz qw (relative to the pose at %.9f)\n' % root[0])
+    for r in rows:
+        position = rotate(inverse, [r[k] - root[k] for k in (1, 2, 3)])
+        quaternion = mul(inverse, r[4:8])
+        out.write('%.9f %s\n' % (r[0], ' '.join('%.9f' % v for v in (*position, *quaternion))))
+PY
   }
   # relocalize_against_half MAP_HALF QUERY_HALF: a map of one half of the recording, then each
   # image of the other half alone through the server (figures QUERY_HALF_*), against the ground
@@ -111,9 +136,8 @@ measure() {
     put "${query_half}_second_pass_pct" "$(second_pass_pct "$out/$rec.$query_half.txt")"
     [[ -f $full_gt ]] || return 0
     gt=$out/$rec.gt_from_$map_half.tum
-    awk -v t0="$(head -1 "$subs/$map_half/frames.txt" | cut -d' ' -f1)" \
-      '/^#/ || $1 * 1e9 >= t0 - 1e6' "$full_gt" > "$gt"
-    eval_into "$query_half" "$out/$rec.$query_half.tum"
+    reroot_tum "$full_gt" "$(head -1 "$subs/$map_half/frames.txt" | cut -d' ' -f1)" "$gt"
+    gt_origin="" eval_into "$query_half" "$out/$rec.$query_half.tum"
     gt=$full_gt
   }
   for rec in "${recordings[@]}"; do

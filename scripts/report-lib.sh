@@ -35,6 +35,7 @@ stop_server() {
 
 # subset SRC OUT FIRST END STEP: frames FIRST, FIRST+STEP, ... before END of recording SRC as a
 # recording of its own in OUT (links, not copies), and OUT/frames.txt: "timestamp_ns image" lines.
+# frames.txt is written last, so a subset cut short (a run stopped) is made again, not reused.
 subset() {
   local src=$1 out=$2 first=$3 end=$4 step=$5
   [[ -f $out/frames.txt ]] && return
@@ -53,13 +54,13 @@ subset() {
     done
     [[ -f $src/mav0/body.yaml ]] && cp "$src/mav0/body.yaml" "$out/mav0/"
     grep -v '^#' "$out/mav0/cam0/data.csv" |
-      awk -F, -v dir="$out/mav0/cam0/data" '{ print $1, dir "/" $2 }' > "$out/frames.txt"
+      awk -F, -v dir="$out/mav0/cam0/data" '{ print $1, dir "/" $2 }' > "$out/frames.partial"
   else
     mkdir -p "$out/image_0" "$out/image_1"
     cp "$src/calib.txt" "$out/"
     local i=0 k=0 time
     : > "$out/times.txt"
-    : > "$out/frames.txt"
+    : > "$out/frames.partial"
     while read -r time; do
       if (( i >= first && i < end && (i - first) % step == 0 )); then
         echo "$time" >> "$out/times.txt"
@@ -67,10 +68,11 @@ subset() {
           ln -s "$src/$cam/$(printf %06d $i).png" "$out/$cam/$(printf %06d $k).png"
         done
         awk -v t="$time" -v p="$out/image_0/$(printf %06d $k).png" \
-          'BEGIN { printf "%.0f %s\n", t * 1e9, p }' >> "$out/frames.txt"
+          'BEGIN { printf "%.0f %s\n", t * 1e9, p }' >> "$out/frames.partial"
         k=$((k + 1))
       fi
       i=$((i + 1))
     done < "$src/times.txt"
   fi
+  mv "$out/frames.partial" "$out/frames.txt"
 }
