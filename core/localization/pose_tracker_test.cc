@@ -294,6 +294,27 @@ TEST(RelocalizerTest, AcceptsATrueFixWhoseInlierRatioIsLowButWhoseInliersCannotB
   EXPECT_FALSE(Relocalizer(tracker, ratio_gate).Relocalize(frame).success);
 }
 
+// The early stop asks for coverage: a generated circle's frame (issue 55) took a first candidate
+// with 232 inliers crowded into 31 of the 48 cells, 5.1 cm off, and stopped there, where the
+// next one had 374 inliers in 45 cells and was right.
+TEST(RelocalizerTest, OnlyAWellSpreadStrongCandidateEndsTheSearch) {
+  const RelocalizationOptions options;
+  RelocalizationCandidate crowded;
+  crowded.accepted = true;
+  crowded.verified_inliers = 232;
+  crowded.inlier_cells = 31;
+  EXPECT_FALSE(EndsSearch(crowded, options));
+  RelocalizationCandidate spread = crowded;
+  spread.verified_inliers = 374;
+  spread.inlier_cells = 45;
+  EXPECT_TRUE(EndsSearch(spread, options));
+  spread.verified_inliers = 79;  // Spread, but not strong.
+  EXPECT_FALSE(EndsSearch(spread, options));
+  spread.verified_inliers = 374;
+  spread.accepted = false;  // Refused candidates never end it.
+  EXPECT_FALSE(EndsSearch(spread, options));
+}
+
 // The chance of k or more inliers among n putatives at p = (inlier / radius)^2, against the
 // binomial tail summed term by term.
 TEST(RelocalizerTest, SignificanceIsTheBinomialTailOfTheInliers) {

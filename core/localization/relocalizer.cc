@@ -104,6 +104,11 @@ void Relocalizer::Verify(const QueryFrame& frame, RelocalizationCandidate* candi
   candidate->accepted = Accepts(*candidate);
 }
 
+bool EndsSearch(const RelocalizationCandidate& candidate, const RelocalizationOptions& options) {
+  return candidate.accepted && candidate.verified_inliers >= options.strong_inliers &&
+         candidate.inlier_cells >= options.strong_inlier_cells;
+}
+
 bool Relocalizer::Accepts(const RelocalizationCandidate& candidate) const {
   return candidate.verified && candidate.verified_inliers >= options_.min_verified_inliers &&
          candidate.verified_inlier_ratio >= options_.min_verified_inlier_ratio &&
@@ -141,9 +146,7 @@ RelocalizationResult Relocalizer::Relocalize(
       result.success = true;
       result.fix = fix;
       result.keyframe = keyframe;
-      if (fix.inliers >= options_.strong_inliers && fix.inlier_cells >= options_.strong_inlier_cells) {
-        break;
-      }
+      if (EndsSearch(candidate, options_)) break;
     }
   }
   result.ms = timer.ElapsedMs();

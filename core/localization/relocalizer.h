@@ -77,6 +77,10 @@ struct RelocalizationCandidate {
   bool accepted = false;
 };
 
+// Whether an accepted candidate is so well supported that the candidates after it are not
+// verified (RelocalizationOptions::strong_inliers and strong_inlier_cells).
+bool EndsSearch(const RelocalizationCandidate& candidate, const RelocalizationOptions& options);
+
 // The chance model of a verification: a pose that is wrong re-matches each predicted point to
 // whatever keypoint lies in the tight radius `search_radius_px` around its projection, at a
 // place uniform over that disc, so each putative falls within the inlier threshold
