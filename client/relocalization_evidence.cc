@@ -7,7 +7,6 @@
 
 #include "client/relocalization_evidence.h"
 
-#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <memory>
@@ -38,8 +37,9 @@ LocalizerOptions WithoutAcceptanceRule() {
   return options;
 }
 
-void WriteRows(std::ofstream& out, size_t frame, int64_t timestamp_ns, int pass,
-               const RelocalizationResult& result) {
+// One row per candidate of `result` (one of rank -1 when there is none); returns the rows.
+size_t WriteRows(std::ofstream& out, size_t frame, int64_t timestamp_ns, int pass,
+                 const RelocalizationResult& result) {
   for (size_t rank = 0; rank < result.candidates.size(); ++rank) {
     const RelocalizationCandidate& c = result.candidates[rank];
     const Eigen::Vector3d& t = c.map_from_cam.translation;
@@ -54,13 +54,15 @@ void WriteRows(std::ofstream& out, size_t frame, int64_t timestamp_ns, int pass,
   if (result.candidates.empty()) {  // The frame still gets a row: nothing was retrieved.
     out << frame << '\t' << timestamp_ns << '\t' << pass << "\t-1\t-1\t0\t0\t0\t0\t0\t0\t0\t0\t0\t0"
         << "\t0\t0\t0\t1\t0\t0\t0\n";
+    return 1;
   }
+  return result.candidates.size();
 }
 
 }  // namespace
 
-void WriteRelocalizationEvidence(const std::string& map_path, const Dataset& dataset,
-                                 const std::string& out_path) {
+size_t WriteRelocalizationEvidence(const std::string& map_path, const Dataset& dataset,
+                                   const std::string& out_path) {
   const auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(map_path));
   const Camera& camera = dataset.left.camera;
   const QueryPipeline pipeline(map, camera, WithoutAcceptanceRule());
@@ -70,17 +72,17 @@ void WriteRelocalizationEvidence(const std::string& map_path, const Dataset& dat
          "putatives\tinliers\tinlier_ratio\treproj_rmse_px\tinlier_cells\tsignificance\t"
          "tx\tty\ttz\tqw\tqx\tqy\tqz\n";
   out.precision(9);
+  size_t rows = 0;
   for (size_t i = 0; i < dataset.frames.size(); ++i) {
     const cv::Mat image =
         LoadGreyImage(dataset.frames[i].left_path, camera.width(), camera.height());
     const int64_t t = dataset.frames[i].timestamp_ns;
-    WriteRows(out, i, t, 1, pipeline.relocalizer().Relocalize(pipeline.Extract(image)));
-    WriteRows(out, i, t, 2,
-              pipeline.relocalizer().Relocalize(pipeline.ExtractForRelocalization(image)));
+    rows += WriteRows(out, i, t, 1, pipeline.relocalizer().Relocalize(pipeline.Extract(image)));
+    rows += WriteRows(out, i, t, 2,
+                      pipeline.relocalizer().Relocalize(pipeline.ExtractForRelocalization(image)));
   }
   if (!out.flush()) throw InputError("cannot write " + out_path);
-  std::fprintf(stderr, "relocalization evidence of %zu frames in %s\n", dataset.frames.size(),
-               out_path.c_str());
+  return rows;
 }
 
 }  // namespace visloc::cli

@@ -208,13 +208,24 @@ int RunRelocalize(const Args& raw_args) {
     if (args.map_file.empty() || args.dataset_dir.empty() || !many) {
       throw UsageError("--evidence needs --map-file, --dataset and --frames");
     }
-    WriteRelocalizationEvidence(
+    const size_t rows = WriteRelocalizationEvidence(
         args.map_file,
         SelectFrames(ReadDataset(args.dataset_dir),
                      ParseFrameRange(args.frames == "all" ? "" : args.frames)),
         args.evidence_path);
+    if (args.json) {
+      JsonWriter out;
+      out.BeginObject()
+          .Field("evidence", args.evidence_path)
+          .Field("rows", static_cast<int64_t>(rows))
+          .EndObject();
+      std::cout << out.str() << "\n";
+    } else {
+      std::printf("%zu candidate rows -> %s\n", rows, args.evidence_path.c_str());
+    }
     return 0;
   }
+  if (!args.map_file.empty()) throw UsageError("--map-file goes with --evidence");
   if (args.map_name.empty()) throw UsageError("--map is required");
   if (args.server.server.empty()) throw UsageError("--server is required");
   if (many == !args.image_path.empty()) {

@@ -8,7 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <map>
 #include <regex>
+#include <set>
 #include <sstream>
 
 #include "core/util/temp_dir.h"
@@ -213,6 +215,72 @@ TEST(LocalizationE2eTest, OutOfMapImagesAreNeverLocalized) {
   EXPECT_EQ(run.localized_fraction(), 0.0);
   EXPECT_TRUE(run.trajectory.empty());
   for (const auto& row : run.stats) EXPECT_EQ(row[1], "initializing");
+}
+
+// `visloc relocalize --evidence`: every candidate of both feature passes, verified under no rule,
+// one TSV row each. Views of the map have a candidate at their true pose far above the
+// significance the acceptance rule asks (40); images of another room have none near it.
+std::vector<std::map<std::string, std::string>> RelocalizationEvidence(const std::string& sequence,
+                                                                       const std::string& frames) {
+  TempDir dir("visloc_evidence_e2e");
+  const std::string tsv = dir.File("evidence.tsv");
+  const ProcessResult run =
+      Visloc({"relocalize", "--map-file", kData + "/map.db", "--dataset", kData + "/" + sequence,
+              "--frames", frames, "--evidence", tsv, "--json"});
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  std::vector<std::map<std::string, std::string>> rows;
+  std::vector<std::string> header;
+  for (const TextLine& line : ReadTextLines(tsv)) {
+    std::vector<std::string> fields;
+    std::stringstream in(line.text);
+    for (std::string field; std::getline(in, field, '\t');) fields.push_back(field);
+    if (line.number == 1) {
+      header = fields;
+      continue;
+    }
+    EXPECT_EQ(fields.size(), header.size()) << line.text;
+    std::map<std::string, std::string> row;
+    for (size_t i = 0; i < std::min(fields.size(), header.size()); ++i) row[header[i]] = fields[i];
+    rows.push_back(row);
+  }
+  EXPECT_EQ(JsonNumber(run.out, "rows"), static_cast<double>(rows.size()));
+  return rows;
+}
+
+TEST(LocalizationE2eTest, RelocalizationEvidenceSeparatesViewsOfTheMapFromAnotherRoom) {
+  const auto views = RelocalizationEvidence("query_square", "0:60:20");
+  const Dataset query = ReadDataset(kData + "/query_square");
+  const Trajectory gt = ReadTum(kData + "/query_square/groundtruth_map.tum");
+  for (int frame : {0, 1, 2}) {
+    double best_significance = 0, best_error_m = 1e9;
+    std::set<std::string> passes;
+    for (const auto& row : views) {
+      if (std::stoi(row.at("frame")) != frame) continue;
+      passes.insert(row.at("pass"));
+      if (row.at("verified") != "1" || std::stod(row.at("significance")) <= best_significance) {
+        continue;
+      }
+      best_significance = std::stod(row.at("significance"));
+      const auto truth = InterpolateAt(gt, std::stoll(row.at("timestamp_ns")), 1'000'000);
+      ASSERT_TRUE(truth.has_value());
+      best_error_m = (truth->translation - Eigen::Vector3d(std::stod(row.at("tx")),
+                                                           std::stod(row.at("ty")),
+                                                           std::stod(row.at("tz"))))
+                         .norm();
+    }
+    EXPECT_EQ(passes, (std::set<std::string>{"1", "2"})) << frame;
+    EXPECT_GT(best_significance, 80.0) << frame;
+    EXPECT_LT(best_error_m, 0.02) << frame;
+  }
+  double strongest_elsewhere = 0;
+  for (const auto& row : RelocalizationEvidence("outofmap", "0:60:10")) {
+    if (row.at("verified") == "1") {
+      strongest_elsewhere = std::max(strongest_elsewhere, std::stod(row.at("significance")));
+    }
+  }
+  std::printf("evidence: strongest candidate in another room, significance %.1f\n",
+              strongest_elsewhere);
+  EXPECT_LT(strongest_elsewhere, 40.0);
 }
 
 TEST(LocalizationE2eTest, KidnappedRobotIsLostWhileCoveredAndRelocalizedAfter) {
