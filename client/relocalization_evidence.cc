@@ -2,7 +2,7 @@
 // acceptance rule, in process. Every frame of a dataset goes alone through the same query
 // pipeline the Relocalize RPC uses, with both feature passes run and every candidate verified
 // under no acceptance rule, so that any rule can be replayed on the rows afterwards
-// (scripts/relocalization-rule.py): the rule is chosen on what the verifications measured, not
+// (scripts/relocalization_rule.py): the rule is chosen on what the verifications measured, not
 // tuned by rerunning the server.
 
 #include "client/relocalization_evidence.h"
@@ -13,7 +13,6 @@
 
 #include "core/localization/query_pipeline.h"
 #include "core/util/check.h"
-#include "core/util/strings.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::cli {
@@ -37,26 +36,28 @@ LocalizerOptions WithoutAcceptanceRule() {
   return options;
 }
 
-// One row per candidate of `result` (one of rank -1 when there is none); returns the rows.
+void WriteRow(std::ofstream& out, size_t frame, int64_t timestamp_ns, int pass, int rank,
+              const RelocalizationCandidate& c) {
+  const Eigen::Vector3d& t = c.map_from_cam.translation;
+  const Eigen::Quaterniond& q = c.map_from_cam.rotation;
+  out << frame << '\t' << timestamp_ns << '\t' << pass << '\t' << rank << '\t' << c.keyframe << '\t'
+      << c.score << '\t' << c.matches << '\t' << c.ransac_inliers << '\t' << c.verified << '\t'
+      << c.verified_putatives << '\t' << c.verified_inliers << '\t' << c.verified_inlier_ratio
+      << '\t' << c.reproj_rmse_px << '\t' << c.inlier_cells << '\t' << c.significance << '\t'
+      << t.x() << '\t' << t.y() << '\t' << t.z() << '\t' << q.w() << '\t' << q.x() << '\t' << q.y()
+      << '\t' << q.z() << '\n';
+}
+
+// One row per candidate of `result`; a frame that retrieved none still gets one row, of rank -1
+// (an empty candidate). Returns the rows written.
 size_t WriteRows(std::ofstream& out, size_t frame, int64_t timestamp_ns, int pass,
                  const RelocalizationResult& result) {
   for (size_t rank = 0; rank < result.candidates.size(); ++rank) {
-    const RelocalizationCandidate& c = result.candidates[rank];
-    const Eigen::Vector3d& t = c.map_from_cam.translation;
-    const Eigen::Quaterniond& q = c.map_from_cam.rotation;
-    out << frame << '\t' << timestamp_ns << '\t' << pass << '\t' << rank << '\t' << c.keyframe
-        << '\t' << c.score << '\t' << c.matches << '\t' << c.ransac_inliers << '\t' << c.verified
-        << '\t' << c.verified_putatives << '\t' << c.verified_inliers << '\t'
-        << c.verified_inlier_ratio << '\t' << c.reproj_rmse_px << '\t' << c.inlier_cells << '\t'
-        << c.significance << '\t' << t.x() << '\t' << t.y() << '\t' << t.z() << '\t' << q.w()
-        << '\t' << q.x() << '\t' << q.y() << '\t' << q.z() << '\n';
+    WriteRow(out, frame, timestamp_ns, pass, static_cast<int>(rank), result.candidates[rank]);
   }
-  if (result.candidates.empty()) {  // The frame still gets a row: nothing was retrieved.
-    out << frame << '\t' << timestamp_ns << '\t' << pass << "\t-1\t-1\t0\t0\t0\t0\t0\t0\t0\t0\t0\t0"
-        << "\t0\t0\t0\t1\t0\t0\t0\n";
-    return 1;
-  }
-  return result.candidates.size();
+  if (!result.candidates.empty()) return result.candidates.size();
+  WriteRow(out, frame, timestamp_ns, pass, -1, RelocalizationCandidate{});
+  return 1;
 }
 
 }  // namespace

@@ -74,24 +74,32 @@ def read_tum(path):
     return poses
 
 
-def at_rest(poses):
-    """Whether every ground-truth position lies within 1 cm of their mean (EuRoC V1_01 micro)."""
-    positions = np.array([t for _, t in poses.values()])
-    return len(positions) > 0 and np.linalg.norm(positions - positions.mean(axis=0), axis=1).max() < 0.01
+class Poses:
+    """A TUM trajectory (or none), looked up by time."""
 
+    def __init__(self, path):
+        self.poses = read_tum(path) if path != '-' else {}
+        self.stamps = np.array(sorted(self.poses))
+        positions = np.array([t for _, t in self.poses.values()])
+        # A camera at rest (every position within 1 cm of their mean: EuRoC V1_01 micro) is
+        # where its ground truth is, before the ground truth starts too.
+        self.at_rest = len(positions) > 0 and bool(
+            np.linalg.norm(positions - positions.mean(axis=0), axis=1).max() < 0.01)
 
-def nearest(poses, stamps, t_ns, tolerance_ns=2_000_000):
-    """The pose at t_ns (within the tolerance); for a camera at rest, the nearest in time."""
-    if len(stamps) and poses.get('at_rest'):
-        t_ns = min(max(t_ns, stamps[0]), stamps[-1])
-    i = np.searchsorted(stamps, t_ns)
-    best = None
-    for j in (i - 1, i):
-        if 0 <= j < len(stamps) and (best is None or abs(stamps[j] - t_ns) < abs(best - t_ns)):
-            best = stamps[j]
-    if best is None or abs(best - t_ns) > tolerance_ns:
-        return None
-    return poses[best]
+    def __bool__(self):
+        return bool(self.poses)
+
+    def nearest_stamp(self, t_ns):
+        return int(self.stamps[np.argmin(np.abs(self.stamps - t_ns))])
+
+    def at(self, t_ns, tolerance_ns=2_000_000):
+        """The pose at t_ns, within the tolerance (for a camera at rest, the nearest); or None."""
+        if not self:
+            return None
+        if self.at_rest:
+            t_ns = min(max(t_ns, self.stamps[0]), self.stamps[-1])
+        best = self.nearest_stamp(t_ns)
+        return self.poses[best] if abs(best - t_ns) <= tolerance_ns else None
 
 
 class Job:
@@ -123,18 +131,9 @@ class Job:
         self.correct = np.zeros(shape, bool)  # Found: within 5 cm and 2 degrees.
         self.wrong = np.zeros(shape, bool)  # Another place: beyond 1 m or 10 degrees.
         self.has_gt = gt != '-'
-        gt_poses = read_tum(gt) if self.has_gt else {}
-        stamps = np.array(sorted(gt_poses))
-        # A camera at rest is where its ground truth is, before the ground truth starts too.
-        gt_poses['at_rest'] = at_rest(gt_poses)
-        keyframes = read_tum(anchor) if anchor != '-' else {}
-        keyframe_stamps = np.array(sorted(keyframes))
-        self.truth_missing = 0
+        ground_truth, keyframes = Poses(gt), Poses(anchor)
         for (frame, p), by_rank in rows.items():
-            truth = None
-            if self.has_gt:
-                truth = self.truth(gt_poses, stamps, keyframes, keyframe_stamps, frames[frame])
-                self.truth_missing += truth is None and p == 1
+            truth = self.truth(ground_truth, keyframes, frames[frame]) if self.has_gt else None
             for rank, r in by_rank.items():
                 i = (frame, p - 1, rank)
                 self.verified[i] = r['verified'] == '1' and int(r['matches']) >= MIN_MATCHES
@@ -154,18 +153,18 @@ class Job:
                     self.wrong[i] = position_error > WRONG_POSITION_M or angle > WRONG_ROTATION_DEG
 
     @staticmethod
-    def truth(gt_poses, stamps, keyframes, keyframe_stamps, t_ns):
+    def truth(ground_truth, keyframes, t_ns):
         """map_from_cam of the frame at t_ns: the ground truth itself when the map frame is its
         frame (`keyframes` empty: a generated map), else the ground truth's motion from the map
         keyframe nearest in time applied to that keyframe's pose in the map. A relocalization is
         judged against the map as it is: a map's own drift against the ground truth (KITTI 01's,
         26 cm at the median) is the mapping's error, not the relocalization's."""
-        world_from_cam = nearest(gt_poses, stamps, t_ns)
+        world_from_cam = ground_truth.at(t_ns)
         if world_from_cam is None or not keyframes:
             return world_from_cam
-        i = int(np.argmin(np.abs(keyframe_stamps - t_ns)))
-        map_from_keyframe = keyframes[keyframe_stamps[i]]
-        world_from_keyframe = nearest(gt_poses, stamps, int(keyframe_stamps[i]))
+        keyframe_ns = keyframes.nearest_stamp(t_ns)
+        map_from_keyframe = keyframes.poses[keyframe_ns]
+        world_from_keyframe = ground_truth.at(keyframe_ns)
         if world_from_keyframe is None:
             return None
         # keyframe_from_cam = inv(world_from_keyframe) * world_from_cam
