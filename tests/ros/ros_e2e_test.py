@@ -376,7 +376,8 @@ def part_node(a, work, map_db, figures):
         # Query: raw images, odometry, TF map -> odom.
         gt = read_tum(os.path.join(data, "query_square", "groundtruth_map.tum"))
         odom = read_odometry(os.path.join(data, "query_square", "mav0", "odometry0", "data.csv"))
-        listener, node, played_s = play(world, "query", ["use_odometry:=true", "use_imu:=true"],
+        listener, node, played_s = play(world, "query", ["use_odometry:=true", "use_imu:=true",
+                                                         "sensor_wait_s:=%g" % a.sensor_wait_s],
                                         query_bag, "/cam0/image_raw", Image)
         frames = len(gt)
         errs = errors_cm(listener.poses, gt)
@@ -454,8 +455,9 @@ def part_node(a, work, map_db, figures):
             world.server = world.start_server()
             restart["up"] = time.monotonic()
 
-        listener, node, played_s = play(world, "reconnect", ["use_odometry:=true"], query_bag,
-                                        "/cam0/image_raw", Image, during=kill_and_restart)
+        listener, node, played_s = play(world, "reconnect",
+                                        ["use_odometry:=true", "sensor_wait_s:=%g" % a.sensor_wait_s],
+                                        query_bag, "/cam0/image_raw", Image, during=kill_and_restart)
         after = {s: p for s, p in listener.poses.items() if listener.pose_times[s] > restart["up"]}
         errs = errors_cm(after, gt)
         first = min(listener.pose_times[s] for s in after) - restart["up"] if after else -1
@@ -561,6 +563,8 @@ def main():
     p.add_argument("--real", help="the real EuRoC snippet (skipped when absent)")
     p.add_argument("--rate", type=float, default=1.0,
                    help="rosbag play's rate factor (sanitizer builds run slower than the camera)")
+    p.add_argument("--sensor-wait-s", type=float, default=0.1,
+                   help="the node's wait for an image's odometry (wall time; longer under sanitizers)")
     a = p.parse_args()
     if a.real and not os.path.isdir(a.real):
         print("no real recording at %s: its checks are skipped" % a.real)
