@@ -78,6 +78,12 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   } else {
     json.Null();
   }
+  json.Key("stereo_baseline_m");
+  if (const auto& baseline_m = info.metadata.stereo_baseline_m) {
+    json.Value(*baseline_m);
+  } else {
+    json.Null();
+  }
   json.Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
@@ -132,6 +138,11 @@ void PrintInfo(const MapInfo& info) {
     std::printf("rig error     %.2f mm + %.2f%% of the distance from the origin, per axis (its "
                 "calibration's, in every fix's covariance)\n",
                 1e3 * rig->floor_m, 100 * rig->drift_fraction);
+  }
+  if (const auto& baseline_m = info.metadata.stereo_baseline_m) {
+    std::printf("stereo        baseline %.1f mm (how well its points are known, in every fix's "
+                "covariance)\n",
+                1e3 * *baseline_m);
   }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);

@@ -338,6 +338,7 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
   if (options_.disparity_calibration.known || stats_.calibration_passes > 0) {
     recorded.disparity_correction = correction_;
   }
+  recorded.stereo_baseline_m = intrinsics_.baseline_m;
   Map map = AssembleMap(state_, left_, extractor_->settings(), recorded, MapFromWorld(),
                         RectFromRaw(), intrinsics_, options_.assembly, &assembly);
   stats_.learning_ms = timer.ElapsedMs();

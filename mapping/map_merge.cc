@@ -293,12 +293,15 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   Map merged;
   merged.metadata = a.metadata;
   merged.metadata.lineage = MergedLineage(a.metadata, b.metadata);
-  // The rig's correction and calibration error (one camera, checked): A's, else the ones B's
+  // The rig's correction, calibration error and baseline (one camera, checked): A's, else B's
   // build recorded.
   if (!merged.metadata.disparity_correction) {
     merged.metadata.disparity_correction = b.metadata.disparity_correction;
   }
   if (!merged.metadata.rig_error) merged.metadata.rig_error = b.metadata.rig_error;
+  if (!merged.metadata.stereo_baseline_m) {
+    merged.metadata.stereo_baseline_m = b.metadata.stereo_baseline_m;
+  }
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;

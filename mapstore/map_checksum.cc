@@ -25,6 +25,7 @@ void ChecksumHead(const Map& map, Crc& crc) {
     crc.Pod(rig->floor_m);
     crc.Pod(rig->drift_fraction);
   }
+  if (const auto& baseline_m = map.metadata.stereo_baseline_m) crc.Pod(*baseline_m);
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());

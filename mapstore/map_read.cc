@@ -70,6 +70,18 @@ std::optional<RigError> ReadRigError(const Database& db, const MetaRows& rows) {
   return RigError{pair->first, pair->second};
 }
 
+// The meta key 'stereo_baseline_m': a positive finite number, if present.
+std::optional<double> ReadStereoBaseline(const Database& db, const MetaRows& rows) {
+  const std::optional<std::string> text = Find(rows, "stereo_baseline_m");
+  if (!text) return std::nullopt;
+  const auto value = ParseDouble(*text);
+  if (!value || !std::isfinite(*value) || *value <= 0) {
+    throw InputError(StrCat(db.path(), ": malformed stereo baseline in meta ('", *text,
+                            "'; a positive number of metres)"));
+  }
+  return *value;
+}
+
 Meta ReadMeta(Database& db, Map* map) {
   if (!db.HasTable("meta")) throw InputError(db.path() + ": not a visloc map (no 'meta' table)");
   MetaRows rows;
@@ -102,6 +114,7 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.lineage = Find(rows, "lineage").value_or("");              // Schema 2; optional.
   map->metadata.disparity_correction = ReadDisparityCorrection(db, rows);  // Schema 3; optional.
   map->metadata.rig_error = ReadRigError(db, rows);                          // Schema 4; optional.
+  map->metadata.stereo_baseline_m = ReadStereoBaseline(db, rows);            // Schema 5; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

@@ -166,6 +166,31 @@ TEST(MapStoreTest, TheRigsCalibrationErrorIsKeptExactlyAndOnlyWhereThereIsOne) {
             exact + ": meta has 'rig_error_floor_m' without 'rig_error_drift_fraction'");
 }
 
+// The rig's stereo baseline likewise (schema 5): kept to the bit, checksummed, and refused by
+// name when it is not a positive number.
+TEST(MapStoreTest, TheRigsStereoBaselineIsKeptExactlyAndOnlyWhereThereIsOne) {
+  TempDir dir;
+  const std::string plain = dir.File("plain.db"), rig = dir.File("rig.db");
+  SaveMap(SmallMap(), plain);
+  EXPECT_FALSE(LoadMap(plain).metadata.stereo_baseline_m.has_value());
+  Map map = SmallMap();
+  map.metadata.stereo_baseline_m = 0.110077;
+  SaveMap(map, rig);
+  const Map loaded = LoadMap(rig);
+  EXPECT_TRUE(MapsEqual(loaded, map));
+  EXPECT_FALSE(MapsEqual(loaded, LoadMap(plain)));
+  EXPECT_EQ(loaded.metadata.stereo_baseline_m, map.metadata.stereo_baseline_m);
+  EXPECT_EQ(SummarizeMap(loaded, rig).schema_version, 5);
+  EXPECT_TRUE(VerifyMapFile(rig).ok());
+
+  EXPECT_EQ(LoadErrorWithMeta(rig, "stereo_baseline_m", "0.12"),
+            rig + ": content checksum mismatch: the file is corrupt or was modified");
+  EXPECT_EQ(LoadErrorWithMeta(rig, "stereo_baseline_m", "-0.11"),
+            rig + ": malformed stereo baseline in meta ('-0.11'; a positive number of metres)");
+  EXPECT_EQ(LoadErrorWithMeta(rig, "stereo_baseline_m", "wide"),
+            rig + ": malformed stereo baseline in meta ('wide'; a positive number of metres)");
+}
+
 // Each kind of bad file gets its own clear message.
 class BadMapFileTest : public ::testing::Test {
  protected:
@@ -207,11 +232,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '5' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '6' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 5; this visloc reads up to 4): upgrade visloc");
+          ": written by a newer visloc (map schema 6; this visloc reads up to 5): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {

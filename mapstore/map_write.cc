@@ -46,6 +46,9 @@ void WriteMeta(Database& db, const Map& map) {
     insert_double("rig_error_floor_m", rig->floor_m);
     insert_double("rig_error_drift_fraction", rig->drift_fraction);
   }
+  if (const auto& baseline_m = map.metadata.stereo_baseline_m) {
+    insert_double("stereo_baseline_m", *baseline_m);
+  }
 }
 
 void WriteCameraAndFeatures(Database& db, const Map& map) {

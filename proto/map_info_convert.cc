@@ -61,6 +61,7 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
     out->mutable_rig_error()->set_floor_m(rig->floor_m);
     out->mutable_rig_error()->set_drift_fraction(rig->drift_fraction);
   }
+  if (const auto& baseline_m = info.metadata.stereo_baseline_m) out->set_stereo_baseline_m(*baseline_m);
   DetailsToProto(info, out->mutable_details());
 }
 
@@ -85,6 +86,7 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
   if (wire.has_rig_error()) {
     info.metadata.rig_error = RigError{wire.rig_error().floor_m(), wire.rig_error().drift_fraction()};
   }
+  if (wire.has_stereo_baseline_m()) info.metadata.stereo_baseline_m = wire.stereo_baseline_m();
   info.features.kind = wire.feature_kind();
   info.keyframes = wire.keyframes();
   info.points = wire.points();

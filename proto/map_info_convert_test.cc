@@ -17,6 +17,7 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   Map map = MakeSyntheticMap({});
   map.metadata.disparity_correction = DisparityCorrection{-0.6, 1.2e-3};
   map.metadata.rig_error = RigError{0.0, 0.0};
+  map.metadata.stereo_baseline_m = 0.110077;
   mapstore::SaveMap(map, dir.File("lab.db"));
   const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
   ASSERT_TRUE(local.info.has_value()) << local.error;
@@ -53,6 +54,7 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_NEAR(b.metadata.disparity_correction->yaw_rad, 1.2e-3, 1e-15);
   ASSERT_TRUE(b.metadata.rig_error.has_value());  // An exact rig is not "none".
   EXPECT_EQ(*b.metadata.rig_error, RigError{});
+  EXPECT_EQ(b.metadata.stereo_baseline_m, 0.110077);
 
   // A map that records none says so on the wire too (not a zero correction).
   mapstore::SaveMap(MakeSyntheticMap({}), dir.File("plain.db"));
@@ -62,6 +64,8 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.disparity_correction.has_value());
   EXPECT_FALSE(plain.has_rig_error());
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.rig_error.has_value());
+  EXPECT_FALSE(plain.has_stereo_baseline_m());
+  EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.stereo_baseline_m.has_value());
 }
 
 TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {

@@ -115,6 +115,10 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
                std::isfinite(rig->drift_fraction))) {
     problems.Add("the rig's calibration error is negative or not finite");
   }
+  if (const auto& baseline_m = map.metadata.stereo_baseline_m;
+      baseline_m && !(*baseline_m > 0 && std::isfinite(*baseline_m))) {
+    problems.Add("the rig's stereo baseline is not a positive number (", *baseline_m, " m)");
+  }
   for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
     if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
       problems.Add("keyframe ", i, " has a non-finite pose or a non-unit quaternion");
@@ -167,7 +171,8 @@ bool MapsEqual(const Map& a, const Map& b) {
       a.metadata.source_dataset != b.metadata.source_dataset ||
       a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage ||
       a.metadata.disparity_correction != b.metadata.disparity_correction ||
-      a.metadata.rig_error != b.metadata.rig_error) {
+      a.metadata.rig_error != b.metadata.rig_error ||
+      a.metadata.stereo_baseline_m != b.metadata.stereo_baseline_m) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

@@ -53,6 +53,10 @@ struct MapMetadata {
   // The rig's calibration error, when its builder was told it; none: a real rig's, which the
   // localizer assumes (PoseTrackerOptions::rig_floor_m and rig_drift_fraction).
   std::optional<RigError> rig_error = std::nullopt;
+  // The rectified stereo baseline of the rig the map was built with (m), which says how well
+  // its stereo depths pinned its points (point_uncertainty.h); none in maps made before it was
+  // recorded, whose fixes count the map's error without it.
+  std::optional<double> stereo_baseline_m = std::nullopt;
 };
 
 struct Keyframe {
