@@ -102,7 +102,8 @@ void PrintHuman(const TrajectoryEvaluation& eval, const EvalOptions& options,
   PrintRow("rotation", eval.rpe.rotation_deg, 1.0, "deg");
   if (consistency) {
     std::printf(
-        "covariance: position error / per-axis sigma over %zu poses: median %.2f (honest: 1.54), "
+        "covariance: position error in sigmas (Mahalanobis) over %zu poses: median %.2f (honest: "
+        "1.54), "
         "%.1f%% beyond 3 sigma (honest: 2.9%%), %.1f%% beyond 6, max %.1f\n",
         consistency->compared, consistency->normalized_error.median,
         100.0 * consistency->beyond_3_sigma, 100.0 * consistency->beyond_6_sigma,
@@ -154,7 +155,7 @@ int RunEval(const Args& args) {
                    "take the ground truth relative to its first pose (a recording's ground truth "
                    "against a map built from its first frame)");
   parser.AddFlag("stats", &stats_path,
-                 "the run's stats CSV: also check its position sigmas against the errors");
+                 "the run's stats CSV: also check its position covariances against the errors");
   parser.AddFlag("delta", &options.rpe_delta_s, "RPE interval in seconds");
   parser.AddFlag("max-dt", &options.max_time_diff_s, "association tolerance in seconds");
   parser.AddSwitch("json", &json, "print one JSON object");
@@ -181,13 +182,14 @@ int RunEval(const Args& args) {
   const TrajectoryEvaluation eval = EvaluateTrajectory(gt, est, options);
   std::optional<ConsistencyEvaluation> consistency;
   if (!stats_path.empty()) {
-    const std::map<int64_t, double> sigmas = ReadPositionSigmas(stats_path);
-    std::vector<double> sigma_m;
+    const std::map<int64_t, Eigen::Matrix3d> covariances = ReadPositionCovariances(stats_path);
+    std::vector<Eigen::Matrix3d> position_covariance_m2;
     for (const StampedPose& p : est) {
-      const auto it = sigmas.find(p.timestamp_ns);
-      sigma_m.push_back(it == sigmas.end() ? 0.0 : it->second);
+      const auto it = covariances.find(p.timestamp_ns);
+      position_covariance_m2.push_back(it == covariances.end() ? Eigen::Matrix3d::Zero()
+                                                               : it->second);
     }
-    consistency = EvaluateConsistency(gt, est, sigma_m, options);
+    consistency = EvaluateConsistency(gt, est, position_covariance_m2, options);
   }
   if (json) {
     std::cout << ToJson(eval, options, consistency) << "\n";

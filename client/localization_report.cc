@@ -1,6 +1,8 @@
 #include "client/localization_report.h"
 
 #include <algorithm>
+#include <array>
+#include <utility>
 #include <map>
 
 #include "core/util/check.h"
@@ -9,6 +11,13 @@
 
 namespace visloc::cli {
 namespace {
+
+// The position covariance's upper triangle (map frame, m^2), as the stats CSV's last columns.
+constexpr std::array<const char*, 6> kPositionCovarianceColumns = {
+    "position_cov_xx_m2", "position_cov_xy_m2", "position_cov_xz_m2",
+    "position_cov_yy_m2", "position_cov_yz_m2", "position_cov_zz_m2"};
+constexpr std::array<std::pair<int, int>, 6> kPositionCovarianceEntries = {
+    {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}}};
 
 bool VisualFix(const LocalizationResult& r) {
   return r.has_pose &&
@@ -64,9 +73,10 @@ std::string StatsCsvHeader() {
       "timestamp_ns,status,source,features,predicted,putatives,inliers,inlier_ratio,"
       "ransac_iterations,reproj_rmse_px";
   for (const auto& [name, value] : StepColumns({})) header += StrCat(",", name);
-  // relocalization_feature_passes last: columns are only ever added at the end.
+  // Columns are only ever added at the end.
   header +=
       ",relocalization,relocalization_keyframe,position_sigma_m,relocalization_feature_passes";
+  for (const char* name : kPositionCovarianceColumns) header += StrCat(",", name);
   return header;
 }
 
@@ -80,26 +90,43 @@ std::string StatsCsvRow(const LocalizationResult& r) {
   row +=
       StrCat(",", RelocalizationKindName(r.relocalization.kind), ",", r.relocalization.keyframe,
              ",", FormatFixed(r.PositionSigmaPerAxisM(), 5), ",", r.relocalization.feature_passes);
+  const Eigen::Matrix3d covariance = r.PositionCovarianceInMap();
+  for (const auto& [a, b] : kPositionCovarianceEntries) row += StrCat(",", covariance(a, b));
   return row;
 }
 
-std::map<int64_t, double> ReadPositionSigmas(const std::string& path) {
+std::map<int64_t, Eigen::Matrix3d> ReadPositionCovariances(const std::string& path) {
   const std::vector<TextLine> lines = ReadTextLines(path);
   if (lines.empty()) throw InputError(path + ": empty, expected a stats CSV header");
   const std::vector<std::string> header = Split(lines[0].text, ',');
-  const auto column = std::find(header.begin(), header.end(), "position_sigma_m");
-  if (header.empty() || header[0] != "timestamp_ns" || column == header.end()) {
+  const auto sigma = std::find(header.begin(), header.end(), "position_sigma_m");
+  if (header.empty() || header[0] != "timestamp_ns" || sigma == header.end()) {
     throw InputError(path + ": not a visloc stats CSV (no timestamp_ns and position_sigma_m)");
   }
-  const size_t sigma_index = static_cast<size_t>(column - header.begin());
-  std::map<int64_t, double> sigmas;
+  std::vector<size_t> entry_columns;
+  for (const char* name : kPositionCovarianceColumns) {
+    const auto found = std::find(header.begin(), header.end(), name);
+    if (found != header.end()) entry_columns.push_back(static_cast<size_t>(found - header.begin()));
+  }
+  // A CSV from before the covariance columns: an isotropic covariance from the sigma.
+  const bool isotropic = entry_columns.size() != kPositionCovarianceEntries.size();
+  std::map<int64_t, Eigen::Matrix3d> covariances;
   for (size_t l = 1; l < lines.size(); ++l) {
     if (lines[l].text.empty()) continue;
     const DataRow row{lines[l].number, Split(lines[l].text, ',')};
     RequireFieldCount(path, row, header.size());
-    sigmas[FieldAsInt64(path, row, 0)] = FieldAsDouble(path, row, sigma_index);
+    Eigen::Matrix3d& covariance = covariances[FieldAsInt64(path, row, 0)];
+    if (isotropic) {
+      const double sigma_m = FieldAsDouble(path, row, static_cast<size_t>(sigma - header.begin()));
+      covariance = Eigen::Matrix3d::Identity() * sigma_m * sigma_m;
+      continue;
+    }
+    for (size_t i = 0; i < entry_columns.size(); ++i) {
+      const auto [a, b] = kPositionCovarianceEntries[i];
+      covariance(a, b) = covariance(b, a) = FieldAsDouble(path, row, entry_columns[i]);
+    }
   }
-  return sigmas;
+  return covariances;
 }
 
 void RunReport::Add(const LocalizationResult& result) { results_.push_back(result); }

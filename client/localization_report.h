@@ -31,10 +31,11 @@ double LatencyPercentile(std::vector<double> values, double fraction);
 std::string StatsCsvHeader();
 std::string StatsCsvRow(const LocalizationResult& result);
 
-// The per-axis position sigma (m) of each posed frame of a stats CSV written by StatsCsvRow,
-// by timestamp (ns). Throws InputError naming the file and line of a malformed row, or the file
-// when it has no position_sigma_m column.
-std::map<int64_t, double> ReadPositionSigmas(const std::string& path);
+// The position covariance (map frame, m^2) of each frame of a stats CSV written by StatsCsvRow,
+// by timestamp (ns): its position_cov_* columns, or in a CSV from before them its per-axis sigma
+// as an isotropic one (zero without a pose). Throws InputError naming the file and line of a
+// malformed row, or the file when it has no position_sigma_m column.
+std::map<int64_t, Eigen::Matrix3d> ReadPositionCovariances(const std::string& path);
 
 // Accumulates a run's results for the summary, the trajectory and the stats file.
 class RunReport {

@@ -197,9 +197,9 @@ echo "== writing $REPORT"
   echo "then \`visloc eval --gt seq320/S/groundtruth_map.tum --est S.tum --stats S.csv --json\`. Map (\`map build --rig-error 0,0\`: the generated rig is exact): $(field "$WORK/map320.json" keyframes) keyframes, $(field "$WORK/map320.json" points) points."
   echo
   echo "Errors are the absolute trajectory error (ATE) in the map frame, no alignment: each pose against"
-  echo "ground truth at its timestamp. Error / sigma: each pose's position error in units of the per-axis"
-  echo "sigma it reported (the stats CSV's position_sigma_m), the median and the share beyond 3 (an honest"
-  echo "Gaussian: 1.54 and 2.9%)."
+  echo "ground truth at its timestamp. Error / sigma: each pose's position error in units of the"
+  echo "covariance it reported (the Mahalanobis distance in the stats CSV's position covariance), the"
+  echo "median and the share beyond 3 (an honest Gaussian: 1.54 and 2.9%)."
   echo
   echo "| sequence | frames | localized | median error | max error | median rotation | error / sigma, median | beyond 3 sigma | mean inlier ratio | mean RANSAC iterations |"
   echo "|---|---|---|---|---|---|---|---|---|---|"

@@ -7,7 +7,7 @@
 #     error per distance travelled), and the last frame's error as a share of the path (drift);
 #   - held-apart frames: a map of the even frames, the odd frames localized in it as a sequence
 #     (`localize`): share localized, error, ms a frame, and whether the reported covariance
-#     tells the truth (`eval --stats`: error / per-axis sigma); for a camera at rest, how far its
+#     tells the truth (`eval --stats`: error in sigmas); for a camera at rest, how far its
 #     ground truth scatters by itself (`eval --spread`), the floor of those errors;
 #   - a kidnapped robot's first image: each odd frame alone through the real server
 #     (`relocalize`, no session, no prior): recall, error, server time; for an EuRoC recording
@@ -259,7 +259,7 @@ rows=(
   "odd_error_median_cm|odd frames, median error, cm"
   "odd_error_max_cm|odd frames, max error, cm"
   "odd_ms_per_frame|odd frames, ms a frame (median, in-process)"
-  "covariance_median_sigmas|covariance: median error / per-axis sigma (honest 1.54)"
+  "covariance_median_sigmas|covariance: median error in sigmas (honest 1.54)"
   "covariance_beyond_3_sigma_pct|covariance: poses beyond 3 sigma, % (honest 2.9)"
   "covariance_beyond_6_sigma_pct|covariance: poses beyond 6 sigma, % (honest 0)"
   "ground_truth_scatter_mm|at rest: the ground truth's own scatter about its mean, median / max, mm"
@@ -287,9 +287,9 @@ rows=(
   echo "The recordings are \`../shared/real\` (its README). Errors are against each recording's"
   echo "ground truth taken from its first frame, which is the map frame (\`visloc eval"
   echo "--gt-origin-first\`), with no alignment. The covariance figures compare each odd frame's"
-  echo "position error with the per-axis sigma the engine reported for it (\`visloc eval --stats\`;"
-  echo "before commit 0728694 the stats CSV's position_sigma_m was the trace's root, sqrt(3) times the"
-  echo "per-axis sigma, so a baseline before it looks sqrt(3) better here than it was)."
+  echo "position error with the covariance the engine reported for it (\`visloc eval --stats\`: the"
+  echo "Mahalanobis distance in the stats CSV's position covariance; a CSV from before those columns,"
+  echo "a baseline's, is read as its per-axis sigma, position_sigma_m, on every axis)."
   echo "kitti00_first11 has no ground truth."
   echo
   printf "| |"

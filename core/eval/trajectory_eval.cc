@@ -5,6 +5,8 @@
 #include <numeric>
 #include <tuple>
 
+#include <Eigen/Cholesky>
+
 #include "core/geometry/align.h"
 #include "core/util/check.h"
 
@@ -166,17 +168,33 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt_as_given, const Tra
   return result;
 }
 
-ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt_as_given, const Trajectory& est,
+ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
                                           const std::vector<double>& sigma_m,
                                           const EvalOptions& options) {
+  std::vector<Eigen::Matrix3d> covariances;
+  for (double sigma : sigma_m) {
+    covariances.push_back(Eigen::Matrix3d::Identity() * (sigma > 0 ? sigma * sigma : 0.0));
+  }
+  return EvaluateConsistency(gt, est, covariances, options);
+}
+
+ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt_as_given, const Trajectory& est,
+                                          const std::vector<Eigen::Matrix3d>& position_covariance_m2,
+                                          const EvalOptions& options) {
   options.Check();
-  VISLOC_CHECK(sigma_m.size() == est.size(), sigma_m.size(), " sigmas for ", est.size(),
-               " estimates");
+  VISLOC_CHECK(position_covariance_m2.size() == est.size(), position_covariance_m2.size(),
+               " covariances for ", est.size(), " estimates");
   const Trajectory gt = ComparedGroundTruth(gt_as_given, options);
   std::vector<double> normalized;
   for (const auto& [g, e] : AssociateByTime(gt, est, options.max_time_diff_s)) {
-    if (!(sigma_m[e] > 0)) continue;  // Also NaN.
-    normalized.push_back((gt[g].pose.translation - est[e].pose.translation).norm() / sigma_m[e]);
+    const Eigen::LLT<Eigen::Matrix3d> factor(position_covariance_m2[e]);
+    if (!position_covariance_m2[e].allFinite() || factor.info() != Eigen::Success ||
+        !(position_covariance_m2[e].trace() > 0)) {
+      continue;  // None reported.
+    }
+    const Eigen::Vector3d error = gt[g].pose.translation - est[e].pose.translation;
+    // |L^-1 e| = sqrt(e^T Sigma^-1 e) for Sigma = L L^T.
+    normalized.push_back(factor.matrixL().solve(error).norm());
   }
   ConsistencyEvaluation result;
   result.compared = normalized.size();

@@ -76,10 +76,10 @@ std::vector<std::pair<size_t, size_t>> AssociateByTime(const Trajectory& gt, con
 TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& est,
                                         const EvalOptions& options);
 
-// Whether the reported uncertainty tells the truth: each estimate's position error in units of
-// its per-axis standard deviation sigma = sqrt(trace(Sigma_position) / 3). For an honest
-// Gaussian the normalized error follows a chi distribution with 3 degrees of freedom: median
-// 1.54, 2.9% beyond 3 and none in practice beyond 6 (1 in 10^7).
+// Whether the reported uncertainty tells the truth: each estimate's position error e in units of
+// its covariance Sigma, the Mahalanobis distance sqrt(e^T Sigma^-1 e) (|e| / sigma for an
+// isotropic Sigma = sigma^2 I). For an honest Gaussian it follows a chi distribution with 3
+// degrees of freedom: median 1.54, 2.9% beyond 3 and none in practice beyond 6 (1 in 10^7).
 struct ConsistencyEvaluation {
   size_t compared = 0;          // Estimates with a ground-truth pose and a positive sigma.
   ErrorStats normalized_error;  // |error| / sigma.
@@ -87,7 +87,13 @@ struct ConsistencyEvaluation {
   double beyond_6_sigma = 0.0;
 };
 
-// `sigma_m` holds one per-axis position sigma per estimate of `est` (0 or NaN: none reported).
+// `position_covariance_m2` holds one position covariance (map frame, m^2) per estimate of `est`
+// (not positive definite, e.g. zero: none reported).
+ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
+                                          const std::vector<Eigen::Matrix3d>& position_covariance_m2,
+                                          const EvalOptions& options);
+// The same for an isotropic covariance: `sigma_m` holds one per-axis position sigma per estimate
+// (0 or NaN: none reported).
 ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
                                           const std::vector<double>& sigma_m,
                                           const EvalOptions& options);

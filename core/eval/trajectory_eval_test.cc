@@ -126,6 +126,26 @@ TEST(TrajectoryEvalTest, ConsistencyCountsErrorsInSigmas) {
   EXPECT_NEAR(c.beyond_6_sigma, 15.0 / 149.0, 1e-12);
 }
 
+// An anisotropic covariance measures each error along its own axes: 1 cm along an axis of
+// sigma 1 cm is 1 sigma; along an axis of sigma 1 mm it is 10, though the per-axis sigma
+// sqrt(trace / 3) would call it 1.7.
+TEST(TrajectoryEvalTest, ConsistencyIsTheMahalanobisDistanceInTheFullCovariance) {
+  const Trajectory gt = MakeGroundTruth();
+  Trajectory est;
+  std::vector<Eigen::Matrix3d> covariances;
+  const Eigen::Matrix3d covariance = Eigen::Vector3d(1e-4, 1e-6, 1e-4).asDiagonal();
+  for (size_t i = 0; i < gt.size(); ++i) {
+    const Eigen::Vector3d off = i % 2 == 0 ? Eigen::Vector3d(0.01, 0, 0) : Eigen::Vector3d(0, 0.01, 0);
+    est.push_back({gt[i].timestamp_ns, Rigid3d(gt[i].pose.rotation, gt[i].pose.translation + off)});
+    covariances.push_back(i == 3 ? Eigen::Matrix3d::Zero() : covariance);  // One reports none.
+  }
+  const ConsistencyEvaluation c = EvaluateConsistency(gt, est, covariances, EvalOptions{});
+  EXPECT_EQ(c.compared, gt.size() - 1);
+  EXPECT_NEAR(c.normalized_error.min, 1.0, 1e-9);
+  EXPECT_NEAR(c.normalized_error.max, 10.0, 1e-9);
+  EXPECT_NEAR(c.beyond_6_sigma, 74.0 / 149.0, 1e-12);
+}
+
 TEST(TrajectoryEvalTest, CoverageCountsOnlyAssociatedPoses) {
   const Trajectory gt = MakeGroundTruth();
   Trajectory est;

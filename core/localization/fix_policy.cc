@@ -45,7 +45,8 @@ FixDecision DecideTrackedFix(const FixEvidence& e) {
     return e.strong ? Take(TrackingStatus::kRelocalized, FilterUpdate::kRestart) : kReject;
   }
   if (e.within_gate && e.agrees) {
-    return Take(e.strong ? TrackingStatus::kTracking : TrackingStatus::kLimited,
+    return Take(e.strong && e.points_well_known ? TrackingStatus::kTracking
+                                                : TrackingStatus::kLimited,
                 FilterUpdate::kFuse);
   }
   // The prior knew no velocity (the first frames after a fix) and the camera moved further than

@@ -4,7 +4,8 @@
 // so each rule is tested alone.
 //
 //   tracked from the prior    within the jump gate and agreeing with the prediction: tracking
-//                             (strong) or limited; else held for the next frame to confirm,
+//                             (strong, from points the map knows well from here) or limited;
+//                             else held for the next frame to confirm,
 //                             unless the prior knew no motion and the fix is strongly supported
 //                             (a car's first frames);
 //                             with no prior pose: a strong fix is a relocalization.
@@ -40,6 +41,8 @@ struct FixEvidence {
   bool agrees = true;               // With the filter's prediction (max_innovation_chi2).
   bool limited_support = false;     // min_limited_inliers.
   bool strong = false;              // min_tracking_inliers and min_tracking_inlier_ratio.
+  // The fix's uncertainty is mostly its own, not its points' (max_tracking_point_variance_ratio).
+  bool points_well_known = true;
   bool strongly_supported = false;  // relocalization.strong_inliers.
   bool motion_known = false;        // A velocity from recent fixes, or odometry / gyro now.
 };

@@ -64,6 +64,15 @@ TEST(FixPolicyTest, ATrackedFixWithinTheGateIsFusedAsTrackingOrLimited) {
   EXPECT_EQ(DecideTrackedFix(weak).action, Action::kReject);
 }
 
+// A strong fix whose covariance is mostly its points' (seen from where the map never looked) is
+// fused, and reported limited: its sigma is honest, but the map cannot back it as it backs
+// tracking.
+TEST(FixPolicyTest, AStrongFixLeaningOnPointsTheMapKnowsPoorlyIsLimited) {
+  FixEvidence leaning = Tracked(true, true);
+  leaning.points_well_known = false;
+  ExpectTaken(DecideTrackedFix(leaning), TrackingStatus::kLimited, FilterUpdate::kFuse);
+}
+
 // A jump: the next frame must confirm it, however strong, while the prior knew the motion.
 TEST(FixPolicyTest, ATrackedFixBeyondTheGateIsHeldForConfirmation) {
   FixEvidence jump = Tracked(false, true);

@@ -37,6 +37,13 @@ const char* RelocalizationKindName(RelocalizationReport::Kind kind) {
   return "?";
 }
 
+Eigen::Matrix3d LocalizationResult::PositionCovarianceInMap() const {
+  if (!has_pose) return Eigen::Matrix3d::Zero();
+  const Eigen::Matrix3d map_from_cam_rotation = map_from_cam.rotation.toRotationMatrix();
+  return map_from_cam_rotation * covariance.topLeftCorner<3, 3>() *
+         map_from_cam_rotation.transpose();
+}
+
 double LocalizationResult::PositionSigmaPerAxisM() const {
   return has_pose ? std::sqrt(std::max(0.0, covariance.topLeftCorner<3, 3>().trace() / 3.0)) : 0.0;
 }
@@ -48,6 +55,8 @@ void LocalizerOptions::Check() const {
                    min_tracking_inliers >= min_limited_inliers,
                "inlier thresholds: ransac ", tracker.ransac.min_inliers, ", limited ",
                min_limited_inliers, ", tracking ", min_tracking_inliers);
+  VISLOC_CHECK(max_tracking_point_variance_ratio >= 0, "max_tracking_point_variance_ratio ",
+               max_tracking_point_variance_ratio);
   VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0 && max_innovation_chi2 > 0, "jump gate ",
                max_jump_m, " m ", max_jump_deg, " deg, innovation chi2 ", max_innovation_chi2);
   VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
@@ -179,6 +188,8 @@ FixEvidence Localizer::EvidenceOf(const PoseFix& fix, const Motion& motion) cons
                                           filter_.PositionSigmaM(), options_);
   evidence.limited_support = fix.success && fix.inliers >= options_.min_limited_inliers;
   evidence.strong = Strong(fix);
+  evidence.points_well_known =
+      fix.point_variance_ratio <= options_.max_tracking_point_variance_ratio;
   evidence.strongly_supported = fix.inliers >= options_.relocalization.strong_inliers;
   evidence.motion_known = velocity_valid_ || motion.from_sensors;
   // Without a known motion the prediction is only the last pose: a moving robot's fix would

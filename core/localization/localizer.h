@@ -106,6 +106,9 @@ struct LocalizationResult {
   // an honest covariance, the position error's norm over it follows a chi distribution with 3
   // degrees of freedom (median 1.54, 2.9% beyond 3). 0 without a pose.
   double PositionSigmaPerAxisM() const;
+  // The position's covariance in the map frame (m^2): the right perturbation's translation
+  // block turned by the camera's rotation. Zero without a pose.
+  Eigen::Matrix3d PositionCovarianceInMap() const;
 };
 
 class Localizer {

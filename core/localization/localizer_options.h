@@ -45,6 +45,10 @@ struct LocalizerOptions {
   int min_tracking_inliers = 30;
   double min_tracking_inlier_ratio = 0.4;
   int min_limited_inliers = 12;
+  // A tracked fix whose inlier points' own uncertainty is more than this share of its position
+  // variance over the rest (PoseFix::point_variance_ratio) is limited, not tracking: it leans on
+  // points the map saw from elsewhere, and its sigma says so.
+  double max_tracking_point_variance_ratio = 1.0;
   // Jump gate: a fix further than this (plus jump_gate_sigmas of the prior's position sigma)
   // from the prior needs confirmation (fix_policy.h).
   double max_jump_m = 0.2;

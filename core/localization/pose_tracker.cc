@@ -40,6 +40,7 @@ void PoseTrackerOptions::Check() const {
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
   VISLOC_CHECK(map_error_px >= 0 && map_floor_m >= 0 && map_drift_fraction >= 0,
                "map error: ", map_error_px, " px, ", map_floor_m, " m, drift ", map_drift_fraction);
+  VISLOC_CHECK(point_error_gain >= 0, "point_error_gain ", point_error_gain);
   VISLOC_CHECK(rig_floor_m >= 0 && rig_drift_fraction >= 0, "rig error: ", rig_floor_m, " m, drift ",
                rig_drift_fraction);
 }
@@ -112,6 +113,43 @@ Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
   return covariance;
 }
 
+Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
+    const PointView& map_points, const std::vector<PointMatch>& matches,
+    const std::vector<PoseObservation>& observations, const std::vector<char>& inliers,
+    const Rigid3d& cam_from_map, const Eigen::Matrix<double, 6, 6>& inverse_information) const {
+  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+  if (options_.point_error_gain == 0) return Matrix6d::Zero();
+  Matrix6d spread = Matrix6d::Zero();  // J^T (B Sigma B^T) J: the points' share.
+  const Eigen::Matrix3d cam_from_map_rotation = cam_from_map.rotation.toRotationMatrix();
+  for (size_t m = 0; m < matches.size(); ++m) {
+    if (!inliers[m]) continue;
+    const PointCovariance* covariance = map_points.covariance(matches[m].point);
+    if (covariance == nullptr) return Matrix6d::Zero();
+    const Eigen::Vector3d p = cam_from_map * map_points.position(matches[m].point);
+    if (p.z() <= 1e-6) continue;
+    const double iz = 1.0 / p.z(), u = p.x() * iz, v = p.y() * iz;
+    // The projection's rows by the pose (left perturbation, as pose_refinement.cc) and by the
+    // point in the map frame.
+    Eigen::Matrix<double, 2, 6> by_pose;
+    by_pose << iz, 0, -u * iz, -u * v, 1 + u * u, -v,  //
+        0, iz, -v * iz, -(1 + v * v), u * v, u;
+    Eigen::Matrix<double, 2, 3> by_point;
+    by_point << iz, 0, -u * iz, 0, iz, -v * iz;
+    by_point = by_point * cam_from_map_rotation;
+    // J^T (B Sigma B^T) J as two rank-one updates: (L^T J)^T (L^T J) with B Sigma B^T = L L^T.
+    const Eigen::Matrix2d in_image = by_point * Unpack(*covariance) * by_point.transpose();
+    const Eigen::LLT<Eigen::Matrix2d> factor(in_image);
+    if (factor.info() != Eigen::Success) continue;
+    // Weighed as the refinement weighs the residual and its rows (by the lens's pixel scale).
+    const double scale_sq = observations[m].pixel_scale * observations[m].pixel_scale;
+    const Eigen::Matrix2d upper = factor.matrixU();
+    const Eigen::Matrix<double, 2, 6> weighted = scale_sq * upper * by_pose;
+    spread.selfadjointView<Eigen::Upper>().rankUpdate(weighted.transpose());
+  }
+  const Matrix6d full = spread.selfadjointView<Eigen::Upper>();
+  return options_.point_error_gain * inverse_information * full * inverse_information;
+}
+
 void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& frame,
                                const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,
                                double radius_px, PoseFix* fix) const {
@@ -138,14 +176,31 @@ void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& fr
   fix->inliers = refined.stats.inliers;
   fix->inlier_ratio = refined.stats.inlier_ratio;
   fix->reproj_rmse_px = refined.stats.refine.final_rmse_px;
+  timer.Restart();
+  SetCovariances(map_points, matches, observations, refined, fix);
+  fix->times.pose_ms += timer.ElapsedMs();
+  fix->inlier_cells = InlierCells(frame, matches, refined.inlier_mask);
+}
+
+void PoseTracker::SetCovariances(const PointView& map_points, const std::vector<PointMatch>& matches,
+                                 const std::vector<PoseObservation>& observations,
+                                 const PnpResult& refined, PoseFix* fix) const {
   // A posteriori noise: scale the unit-pixel covariance by the measured residual (floored,
   // since a handful of perfect synthetic matches would otherwise claim micrometres).
   const double sigma_px = std::max(0.3, fix->reproj_rmse_px);
   const double unit = options_.ransac.refine.pixel_sigma_px;
   fix->covariance = refined.covariance * (sigma_px * sigma_px) / (unit * unit);
-  fix->systematic_covariance =
+  // The refinement's covariance is sigma^2 (J^T J)^-1 in normalized units, sigma = unit / focal.
+  const double unit_normalized = unit / options_.ransac.refine.focal_px;
+  const Eigen::Matrix<double, 6, 6> from_points =
+      PointsCovariance(map_points, matches, observations, refined.inlier_mask, fix->cam_from_map,
+                       refined.covariance / (unit_normalized * unit_normalized));
+  const Eigen::Matrix<double, 6, 6> map_and_rig =
       SystematicCovariance(observations, refined.inlier_mask, fix->cam_from_map);
-  fix->inlier_cells = InlierCells(frame, matches, refined.inlier_mask);
+  fix->systematic_covariance = map_and_rig + from_points;
+  const double rest_variance = (fix->covariance + map_and_rig).topLeftCorner<3, 3>().trace();
+  fix->point_variance_ratio =
+      rest_variance > 0 ? from_points.topLeftCorner<3, 3>().trace() / rest_variance : 0.0;
 }
 
 int PoseTracker::InlierCells(const QueryFrame& frame, const std::vector<PointMatch>& matches,

@@ -217,6 +217,97 @@ TEST(PoseTrackerTest, TheSystematicCovarianceHoldsTheRigErrorTheMapRecords) {
   EXPECT_NEAR(real, 0.004 * 0.004 + (0.002 * 0.002 + 0.003 * 0.003) * d_real * d_real, 1e-12);
 }
 
+// A wall 4 m ahead that the mapping run saw head-on only, from three keyframes 0.2 m apart with
+// a 0.1 m stereo baseline: its points are known to about a centimetre across those rays and to
+// about ten along them.
+Map HeadOnWallMap() {
+  Map map;
+  map.metadata.name = "wall";
+  map.metadata.stereo_baseline_m = 0.1;
+  map.camera = Camera(320, 240, 160.0, 160.0, 159.5, 119.5);
+  map.features.kind = "harris_surf16";
+  map.features.descriptor_type = DescriptorType::kFloat32;
+  map.features.descriptor_dim = 16;
+  Rng rng(3);
+  for (int row = 0; row < 20; ++row) {
+    for (int col = 0; col < 30; ++col) {
+      map.points.push_back({Eigen::Vector3d(-3.0 + 0.2 * col, -1.5 + 0.15 * row, 4.0), 3, 0.3f});
+    }
+  }
+  map.descriptors = cv::Mat(static_cast<int>(map.points.size()), 16, CV_32F);
+  for (int r = 0; r < map.descriptors.rows; ++r) {
+    for (int d = 0; d < 16; ++d) map.descriptors.at<float>(r, d) = static_cast<float>(rng.Uniform(-1, 1));
+  }
+  for (double x : {-0.2, 0.0, 0.2}) {
+    map.keyframes.push_back({0, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(x, 0, 0))});
+    for (uint32_t j = 0; j < map.points.size(); ++j) {
+      Eigen::Vector2d pixel;
+      map.camera.Project(map.points[j].position_in_map - Eigen::Vector3d(x, 0, 0), &pixel);
+      map.observations.push_back(
+          {static_cast<uint32_t>(map.keyframes.size() - 1), j, pixel.cast<float>()});
+    }
+  }
+  return map;
+}
+
+// The wall's points as a camera at `cam_from_map` sees them, with 0.3 px keypoint noise.
+QueryFrame WallView(const Map& map, const Rigid3d& cam_from_map) {
+  Rng rng(5);
+  FeatureSet features;
+  for (size_t j = 0; j < map.points.size(); ++j) {
+    const Eigen::Vector3d in_camera = cam_from_map * map.points[j].position_in_map;
+    Eigen::Vector2d pixel;
+    if (in_camera.z() <= 0 || !map.camera.Project(in_camera, &pixel)) continue;
+    pixel += Eigen::Vector2d(rng.Normal(0, 0.3), rng.Normal(0, 0.3));
+    if (!map.camera.IsInImage(pixel)) continue;
+    features.keypoints.push_back({pixel.cast<float>(), 1.2f, 1.0f});
+    features.descriptors.push_back(map.descriptors.row(static_cast<int>(j)));
+  }
+  return QueryFrame(features, map.camera);
+}
+
+TEST(PoseTrackerTest, AFixFromPointsSeenFromTheSideCarriesTheirDepthUncertainty) {
+  PoseTrackerOptions options;
+  options.prediction = PredictionMode::kTransparent;
+  const auto fix_from = [&](const Map& map, const Rigid3d& map_from_cam) {
+    const auto located = std::make_shared<const LocalizationMap>(map);
+    const PoseTracker tracker(located, map.camera, options);
+    const PoseFix fix = tracker.Polish(WallView(map, map_from_cam.Inverse()), map_from_cam.Inverse());
+    EXPECT_TRUE(fix.success);
+    EXPECT_GT(fix.inliers, 100);
+    return fix;
+  };
+  // Head-on, where the mapping run saw the wall from, and 3 m to the left looking at it 50
+  // degrees from its normal.
+  const Rigid3d head_on(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.1, 0, 0));
+  const Rigid3d from_the_side(
+      Eigen::Quaterniond(Eigen::AngleAxisd(std::atan2(3.0, 2.5), Eigen::Vector3d::UnitY())),
+      Eigen::Vector3d(-3.0, 0, 1.5));
+  const Map map = HeadOnWallMap();
+  const PoseFix fix_head_on = fix_from(map, head_on);
+  const PoseFix fix_side = fix_from(map, from_the_side);
+  std::printf("point variance ratio: head-on %.3f, from the side %.3f\n",
+              fix_head_on.point_variance_ratio, fix_side.point_variance_ratio);
+  // Head-on the points' depth errors run along the frame's own rays, and what is left is their
+  // error across them, about the query's own keypoint noise; from the side the depth errors move
+  // the points across the image, and the fix's covariance is mostly theirs.
+  EXPECT_LT(fix_head_on.point_variance_ratio, 1.0);
+  EXPECT_GT(fix_side.point_variance_ratio, 1.0);
+  EXPECT_GT(fix_side.point_variance_ratio, 2 * fix_head_on.point_variance_ratio);
+  // A map that does not record its baseline leaves the points' share out, as before it.
+  Map unknown = map;
+  unknown.metadata.stereo_baseline_m = std::nullopt;
+  const PoseFix fix_unknown = fix_from(unknown, from_the_side);
+  EXPECT_EQ(fix_unknown.point_variance_ratio, 0.0);
+  const auto position_variance = [](const PoseFix& fix) {
+    return fix.systematic_covariance.topLeftCorner<3, 3>().trace();
+  };
+  EXPECT_GT(position_variance(fix_side), 2 * position_variance(fix_unknown));
+  // And the gain scales it: 0 leaves it out.
+  options.point_error_gain = 0.0;
+  EXPECT_EQ(fix_from(map, from_the_side).point_variance_ratio, 0.0);
+}
+
 TEST(PoseTrackerTest, PredictionModesParseByName) {
   EXPECT_EQ(ParsePredictionMode("brute_force"), PredictionMode::kBruteForce);
   EXPECT_THROW(ParsePredictionMode("magic"), InputError);

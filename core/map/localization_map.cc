@@ -49,6 +49,9 @@ LocalizationMap::LocalizationMap(Map map) : map_(std::move(map)) {
     keyframe_centers_.push_back(keyframe.map_from_cam.translation);
     keyframe_view_dirs_.push_back(keyframe.map_from_cam.rotation * Eigen::Vector3d::UnitZ());
   }
+  if (const auto baseline_m = map_.metadata.stereo_baseline_m; baseline_m && !map_.points.empty()) {
+    point_covariances_ = PointCovariances(map_, *baseline_m);
+  }
   BuildPostings();
 }
 
@@ -130,7 +133,8 @@ PointView LocalizationMap::AllPoints() const {
                "a paged map does not hold all its points at once: the transparent and "
                "brute-force baselines need a resident map");
   PointView view;
-  view.blocks_ = {{map_.points.data(), &map_.descriptors, 0}};
+  view.blocks_ = {{map_.points.data(), &map_.descriptors, 0,
+                   point_covariances_.empty() ? nullptr : point_covariances_.data()}};
   view.all_descriptors_ = &map_.descriptors;
   return view;
 }
@@ -184,6 +188,8 @@ size_t LocalizationMap::MemoryBytesFor(const Map& map) {
                  (map.keyframes.size() + 1 + map.observations.size()) * sizeof(uint32_t) +
                  // Keyframe centres and viewing directions.
                  2 * map.keyframes.size() * sizeof(Eigen::Vector3d);
+  // The points' covariances, for a map that knows its baseline (point_uncertainty.h).
+  if (map.metadata.stereo_baseline_m) bytes += map.points.size() * sizeof(PointCovariance);
   const AppearanceIndex& appearance = map.appearance;
   bytes += appearance.vocabulary.centroids.total() * appearance.vocabulary.centroids.elemSize() +
            appearance.vocabulary.word_weights.size() * sizeof(float);

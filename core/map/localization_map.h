@@ -4,8 +4,9 @@
 //
 // Memory per point, for a map with D-byte descriptors and m observations per point on average:
 // 32 B (position + quality) + D (descriptor; 64 B for the paper's 16-float SURF-like descriptor,
-// 32 B for ORB) + m * 16 B (observation) + m * 4 B (visibility index): about 176 B per point
-// for SURF16 with m = 4. Keyframes add 88 B each plus their appearance vectors.
+// 32 B for ORB) + m * 16 B (observation) + m * 4 B (visibility index) + 24 B (the point's
+// covariance, in maps that record their stereo baseline): about 200 B per point for SURF16
+// with m = 4. Keyframes add 88 B each plus their appearance vectors.
 //
 // A map larger than the memory one wants to give it is paged (the second constructor): the
 // keyframes, kernel and appearance index stay resident, and points and visibility lists are read
@@ -20,6 +21,7 @@
 #include "core/map/map.h"
 #include "core/map/map_pages.h"
 #include "core/map/page_cache.h"
+#include "core/map/point_uncertainty.h"
 
 namespace visloc {
 
@@ -38,6 +40,12 @@ class PointView {
     *row = static_cast<int>(id - block.first);
     return *block.descriptors;
   }
+  // How well the mapping knows point `id` (point_uncertainty.h); nullptr when the map does not
+  // say (a map without its stereo baseline, a paged map).
+  const PointCovariance* covariance(uint32_t id) const {
+    const Block& block = Find(id);
+    return block.covariances ? &block.covariances[id - block.first] : nullptr;
+  }
   // The whole map's descriptors, rows = point ids, for a resident map; nullptr for a paged one.
   const cv::Mat* all_descriptors() const { return all_descriptors_; }
 
@@ -47,6 +55,7 @@ class PointView {
     const MapPoint* points = nullptr;
     const cv::Mat* descriptors = nullptr;
     uint32_t first = 0;
+    const PointCovariance* covariances = nullptr;
   };
   const Block& Find(uint32_t id) const;
 
@@ -120,6 +129,8 @@ class LocalizationMap {
   std::vector<uint32_t> visible_points_;
   std::vector<Eigen::Vector3d> keyframe_centers_;
   std::vector<Eigen::Vector3d> keyframe_view_dirs_;
+  // One per point of a resident map that knows its stereo baseline, else empty.
+  std::vector<PointCovariance> point_covariances_;
   // The appearance index inverted: for each vocabulary word, the keyframes whose vectors hold it
   // (ascending) with their weights for it. Keyframe ids are stored as 16-bit gaps from the
   // previous one (a gap of 65535 or more as the escape 65535 and the id's two 16-bit halves):

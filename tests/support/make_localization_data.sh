@@ -18,7 +18,7 @@ mkdir -p "$out"
 sim() { "$visloc" sim --out "$out" --no-contact-sheet "$@" >/dev/null; }
 # name:frames (0: the whole sequence).
 queries=(query_square:120 straight:0 circle:120 kidnap:150 lowlight:90 occluders:90 outofmap:45
-         changed:120)
+         changed:120 outward:0 glances:450)
 sim --sequence map_square --fps 5
 # A generated rig's calibration is exact: the map says so (--rig-error 0,0), and its fixes' covariance
 # holds the mapping's own error only.
