@@ -40,7 +40,8 @@ void PoseTrackerOptions::Check() const {
   VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
   VISLOC_CHECK(map_error_px >= 0 && map_floor_m >= 0 && map_drift_fraction >= 0,
                "map error: ", map_error_px, " px, ", map_floor_m, " m, drift ", map_drift_fraction);
-  VISLOC_CHECK(point_error_gain >= 0, "point_error_gain ", point_error_gain);
+  VISLOC_CHECK(point_error_gain >= 0 && covariance_points >= 0, "point_error_gain ",
+               point_error_gain, ", covariance_points ", covariance_points);
   VISLOC_CHECK(rig_floor_m >= 0 && rig_drift_fraction >= 0, "rig error: ", rig_floor_m, " m, drift ",
                rig_drift_fraction);
 }
@@ -119,35 +120,61 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
     const Rigid3d& cam_from_map, const Eigen::Matrix<double, 6, 6>& inverse_information) const {
   using Matrix6d = Eigen::Matrix<double, 6, 6>;
   if (options_.point_error_gain == 0) return Matrix6d::Zero();
-  Matrix6d spread = Matrix6d::Zero();  // J^T (B Sigma B^T) J: the points' share.
-  const Eigen::Matrix3d cam_from_map_rotation = cam_from_map.rotation.toRotationMatrix();
+  std::vector<size_t> inlier_matches;
   for (size_t m = 0; m < matches.size(); ++m) {
-    if (!inliers[m]) continue;
-    const PointCovariance* covariance = map_points.covariance(matches[m].point);
-    if (covariance == nullptr) return Matrix6d::Zero();
-    const Eigen::Vector3d p = cam_from_map * map_points.position(matches[m].point);
-    if (p.z() <= 1e-6) continue;
-    const double iz = 1.0 / p.z(), u = p.x() * iz, v = p.y() * iz;
-    // The projection's rows by the pose (left perturbation, as pose_refinement.cc) and by the
-    // point in the map frame.
-    Eigen::Matrix<double, 2, 6> by_pose;
-    by_pose << iz, 0, -u * iz, -u * v, 1 + u * u, -v,  //
-        0, iz, -v * iz, -(1 + v * v), u * v, u;
-    Eigen::Matrix<double, 2, 3> by_point;
-    by_point << iz, 0, -u * iz, 0, iz, -v * iz;
-    by_point = by_point * cam_from_map_rotation;
-    // J^T (B Sigma B^T) J as two rank-one updates: (L^T J)^T (L^T J) with B Sigma B^T = L L^T.
-    const Eigen::Matrix2d in_image = by_point * Unpack(*covariance) * by_point.transpose();
-    const Eigen::LLT<Eigen::Matrix2d> factor(in_image);
-    if (factor.info() != Eigen::Success) continue;
-    // Weighed as the refinement weighs the residual and its rows (by the lens's pixel scale).
-    const double scale_sq = observations[m].pixel_scale * observations[m].pixel_scale;
-    const Eigen::Matrix2d upper = factor.matrixU();
-    const Eigen::Matrix<double, 2, 6> weighted = scale_sq * upper * by_pose;
-    spread.selfadjointView<Eigen::Upper>().rankUpdate(weighted.transpose());
+    if (inliers[m]) inlier_matches.push_back(m);
   }
-  const Matrix6d full = spread.selfadjointView<Eigen::Upper>();
-  return options_.point_error_gain * inverse_information * full * inverse_information;
+  if (inlier_matches.empty()) return Matrix6d::Zero();
+  // The sum over the inliers of J^T Omega J, J the projection's rows by the pose (2x6, the left
+  // perturbation of pose_refinement.cc) and Omega = B Sigma B^T the point's covariance Sigma
+  // moved into the image by B, the projection's rows by the point (2x3). Over an even sample of
+  // at most covariance_points inliers, scaled to all of them: a sum of hundreds of like terms,
+  // estimated to a few percent by a third of them, at a third of the time.
+  const size_t stride =
+      options_.covariance_points > 0
+          ? (inlier_matches.size() + options_.covariance_points - 1) / options_.covariance_points
+          : 1;
+  std::array<double, 21> upper{};  // Row by row.
+  size_t summed = 0;
+  const Eigen::Matrix3d rotation = cam_from_map.rotation.toRotationMatrix();
+  for (size_t i = 0; i < inlier_matches.size(); i += stride) {
+    const size_t m = inlier_matches[i];
+    const PointCovariance* packed = map_points.covariance(matches[m].point);
+    if (packed == nullptr) return Matrix6d::Zero();
+    const PoseObservation& o = observations[m];
+    const double z = rotation.row(2).dot(o.point_in_world) + cam_from_map.translation.z();
+    if (z <= 1e-6) continue;
+    // An inlier's projection is within a pixel or two of its keypoint: the keypoint's
+    // normalized coordinates serve as the projection's in the Jacobians.
+    const double iz = 1.0 / z, u = o.normalized.x(), v = o.normalized.y();
+    // B = iz [1 0 -u; 0 1 -v] R, row by row.
+    const Eigen::Vector3d b1 = iz * (rotation.row(0) - u * rotation.row(2)).transpose();
+    const Eigen::Vector3d b2 = iz * (rotation.row(1) - v * rotation.row(2)).transpose();
+    const Eigen::Vector3d sigma_b1 = SymmetricTimes(*packed, b1);
+    const Eigen::Vector3d sigma_b2 = SymmetricTimes(*packed, b2);
+    // Weighed as the refinement weighs a residual and its rows: by the lens's pixel scale,
+    // squared twice (the rows on both sides and Omega's own two).
+    const double s = o.pixel_scale, weight = s * s * s * s;
+    const double o11 = weight * b1.dot(sigma_b1), o12 = weight * b1.dot(sigma_b2),
+                 o22 = weight * b2.dot(sigma_b2);
+    const double j1[6] = {iz, 0.0, -u * iz, -u * v, 1.0 + u * u, -v};
+    const double j2[6] = {0.0, iz, -v * iz, -(1.0 + v * v), u * v, u};
+    int k = 0;
+    for (int a = 0; a < 6; ++a) {
+      // Row a of J^T Omega J: (j1[a] o11 + j2[a] o12) j1 + (j1[a] o12 + j2[a] o22) j2.
+      const double w1 = j1[a] * o11 + j2[a] * o12, w2 = j1[a] * o12 + j2[a] * o22;
+      for (int b = a; b < 6; ++b) upper[k++] += w1 * j1[b] + w2 * j2[b];
+    }
+    ++summed;
+  }
+  if (summed == 0) return Matrix6d::Zero();
+  Matrix6d spread;
+  int k = 0;
+  for (int a = 0; a < 6; ++a) {
+    for (int b = a; b < 6; ++b) spread(a, b) = spread(b, a) = upper[k++];
+  }
+  const double to_all = static_cast<double>(inlier_matches.size()) / static_cast<double>(summed);
+  return options_.point_error_gain * to_all * inverse_information * spread * inverse_information;
 }
 
 void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& frame,

@@ -65,6 +65,8 @@ struct PoseTrackerOptions {
   // that mapped them), so this is the pose error of a fix whose every point is off by its own
   // sigma, times point_error_gain. Maps that do not know their points' uncertainty leave it out.
   double point_error_gain = 1.0;
+  // Inliers whose covariances are summed (an even sample, scaled to all; 0: every one).
+  int covariance_points = 160;
   void Check() const;
 };
 

@@ -40,6 +40,11 @@ struct PointUncertaintyOptions {
 using PointCovariance = Eigen::Matrix<float, 6, 1>;
 Eigen::Matrix3d Unpack(const PointCovariance& packed);
 PointCovariance Pack(const Eigen::Matrix3d& covariance);
+// covariance * v, read from the packed triangle.
+inline Eigen::Vector3d SymmetricTimes(const PointCovariance& c, const Eigen::Vector3d& v) {
+  return {c[0] * v.x() + c[1] * v.y() + c[2] * v.z(), c[1] * v.x() + c[3] * v.y() + c[4] * v.z(),
+          c[2] * v.x() + c[4] * v.y() + c[5] * v.z()};
+}
 
 // One covariance per point of `map` (which holds its points and observations), for a rig of
 // stereo baseline `baseline_m` (0: observations pin points across their rays only).
