@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <array>
-#include <utility>
 #include <map>
+#include <utility>
 
 #include "core/util/check.h"
 #include "core/util/strings.h"

@@ -168,16 +168,6 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt_as_given, const Tra
   return result;
 }
 
-ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
-                                          const std::vector<double>& sigma_m,
-                                          const EvalOptions& options) {
-  std::vector<Eigen::Matrix3d> covariances;
-  for (double sigma : sigma_m) {
-    covariances.push_back(Eigen::Matrix3d::Identity() * (sigma > 0 ? sigma * sigma : 0.0));
-  }
-  return EvaluateConsistency(gt, est, covariances, options);
-}
-
 ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt_as_given, const Trajectory& est,
                                           const std::vector<Eigen::Matrix3d>& position_covariance_m2,
                                           const EvalOptions& options) {

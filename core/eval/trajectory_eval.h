@@ -81,8 +81,8 @@ TrajectoryEvaluation EvaluateTrajectory(const Trajectory& gt, const Trajectory& 
 // isotropic Sigma = sigma^2 I). For an honest Gaussian it follows a chi distribution with 3
 // degrees of freedom: median 1.54, 2.9% beyond 3 and none in practice beyond 6 (1 in 10^7).
 struct ConsistencyEvaluation {
-  size_t compared = 0;          // Estimates with a ground-truth pose and a positive sigma.
-  ErrorStats normalized_error;  // |error| / sigma.
+  size_t compared = 0;          // Estimates with a ground-truth pose and a covariance.
+  ErrorStats normalized_error;  // sqrt(error^T Sigma^-1 error).
   double beyond_3_sigma = 0.0;  // Share of the compared estimates.
   double beyond_6_sigma = 0.0;
 };
@@ -91,11 +91,6 @@ struct ConsistencyEvaluation {
 // (not positive definite, e.g. zero: none reported).
 ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
                                           const std::vector<Eigen::Matrix3d>& position_covariance_m2,
-                                          const EvalOptions& options);
-// The same for an isotropic covariance: `sigma_m` holds one per-axis position sigma per estimate
-// (0 or NaN: none reported).
-ConsistencyEvaluation EvaluateConsistency(const Trajectory& gt, const Trajectory& est,
-                                          const std::vector<double>& sigma_m,
                                           const EvalOptions& options);
 
 // How far the poses of a trajectory scatter about their mean: the jitter of a camera that stands

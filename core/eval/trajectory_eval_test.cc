@@ -109,16 +109,16 @@ TEST(TrajectoryEvalTest, ErrorPerDistanceTravelledIsADriftShare) {
 TEST(TrajectoryEvalTest, ConsistencyCountsErrorsInSigmas) {
   const Trajectory gt = MakeGroundTruth();
   Trajectory est;
-  std::vector<double> sigma_m;
+  std::vector<Eigen::Matrix3d> covariances;
   for (size_t i = 0; i < gt.size(); ++i) {
     // Every tenth estimate 7 sigma off, the others 1 sigma; one estimate reports no sigma.
     const double sigma = 0.01, off = (i % 10 == 0 ? 7.0 : 1.0) * sigma;
     est.push_back(
         {gt[i].timestamp_ns,
          Rigid3d(gt[i].pose.rotation, gt[i].pose.translation + Eigen::Vector3d(0, off, 0))});
-    sigma_m.push_back(i == 5 ? 0.0 : sigma);
+    covariances.push_back(Eigen::Matrix3d::Identity() * (i == 5 ? 0.0 : sigma * sigma));
   }
-  const ConsistencyEvaluation c = EvaluateConsistency(gt, est, sigma_m, EvalOptions{});
+  const ConsistencyEvaluation c = EvaluateConsistency(gt, est, covariances, EvalOptions{});
   EXPECT_EQ(c.compared, gt.size() - 1);
   EXPECT_NEAR(c.normalized_error.median, 1.0, 1e-9);
   EXPECT_NEAR(c.normalized_error.max, 7.0, 1e-9);

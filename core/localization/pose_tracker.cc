@@ -120,11 +120,8 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
     const Rigid3d& cam_from_map, const Eigen::Matrix<double, 6, 6>& inverse_information) const {
   using Matrix6d = Eigen::Matrix<double, 6, 6>;
   if (options_.point_error_gain == 0) return Matrix6d::Zero();
-  std::vector<size_t> inlier_matches;
-  for (size_t m = 0; m < matches.size(); ++m) {
-    if (inliers[m]) inlier_matches.push_back(m);
-  }
-  if (inlier_matches.empty()) return Matrix6d::Zero();
+  const size_t inlier_count = static_cast<size_t>(std::count(inliers.begin(), inliers.end(), 1));
+  if (inlier_count == 0) return Matrix6d::Zero();
   // The sum over the inliers of J^T Omega J, J the projection's rows by the pose (2x6, the left
   // perturbation of pose_refinement.cc) and Omega = B Sigma B^T the point's covariance Sigma
   // moved into the image by B, the projection's rows by the point (2x3). Over an even sample of
@@ -132,13 +129,14 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
   // estimated to a few percent by a third of them, at a third of the time.
   const size_t stride =
       options_.covariance_points > 0
-          ? (inlier_matches.size() + options_.covariance_points - 1) / options_.covariance_points
+          ? (inlier_count + options_.covariance_points - 1) / options_.covariance_points
           : 1;
   std::array<double, 21> upper{};  // Row by row.
   size_t summed = 0;
   const Eigen::Matrix3d rotation = cam_from_map.rotation.toRotationMatrix();
-  for (size_t i = 0; i < inlier_matches.size(); i += stride) {
-    const size_t m = inlier_matches[i];
+  size_t inlier_index = 0;  // Of the inlier m is, among the inliers.
+  for (size_t m = 0; m < matches.size(); ++m) {
+    if (!inliers[m] || inlier_index++ % stride != 0) continue;
     const PointCovariance* packed = map_points.covariance(matches[m].point);
     if (packed == nullptr) return Matrix6d::Zero();
     const PoseObservation& o = observations[m];
@@ -173,7 +171,7 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
   for (int a = 0; a < 6; ++a) {
     for (int b = a; b < 6; ++b) spread(a, b) = spread(b, a) = upper[k++];
   }
-  const double to_all = static_cast<double>(inlier_matches.size()) / static_cast<double>(summed);
+  const double to_all = static_cast<double>(inlier_count) / static_cast<double>(summed);
   return options_.point_error_gain * to_all * inverse_information * spread * inverse_information;
 }
 
