@@ -246,5 +246,72 @@ TEST(PnpRansacTest, FailsCleanlyWithoutEnoughSupport) {
       SolvePnpRansac(MakeObservations(kTruth, 100, 0.5, 1.0, false, rng), options).success);
 }
 
+// A front-back rig: the reference camera, and a second one 0.1 m behind it looking backwards
+// (turned half a turn about its y axis), each seeing its own points.
+RigObservations FrontBackObservations(int front_count, int back_count, double outlier_share,
+                                      Rng& rng) {
+  RigObservations rig;
+  rig.cam_from_ref = {Rigid3d(),
+                      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
+                              Eigen::Vector3d(0.0, 0.0, -0.1))};
+  rig.per_camera = {
+      MakeObservations(kTruth, front_count, 0.5, outlier_share, false, rng),
+      MakeObservations(rig.cam_from_ref[1] * kTruth, back_count, 0.5, outlier_share, false, rng)};
+  return rig;
+}
+
+TEST(RigPnpTest, FindsTheRigsPoseFromBothCamerasAmongOutliers) {
+  Rng rng(21);
+  const RigObservations rig = FrontBackObservations(120, 120, 0.3, rng);
+  PnpRansacOptions options;
+  options.refine.focal_px = kFocal;
+  const RigPnpResult result = SolveRigPnpRansac(rig, options);
+  ASSERT_TRUE(result.success);
+  EXPECT_TRUE(ApproxEqual(result.ref_from_world, kTruth, 0.01, 0.3));
+  ASSERT_EQ(result.camera_inliers.size(), 2u);
+  // About 70% of each camera's points are inliers: both cameras count.
+  EXPECT_GT(result.camera_inliers[0], 70);
+  EXPECT_GT(result.camera_inliers[1], 70);
+  EXPECT_EQ(result.stats.inliers, result.camera_inliers[0] + result.camera_inliers[1]);
+  ASSERT_EQ(result.inlier_masks.size(), 2u);
+  EXPECT_EQ(result.inlier_masks[1].size(), 120u);
+}
+
+TEST(RigPnpTest, ACoveredReferenceCameraLeavesThePoseToTheOther) {
+  Rng rng(22);
+  const RigObservations rig = FrontBackObservations(0, 150, 0.2, rng);
+  PnpRansacOptions options;
+  options.refine.focal_px = kFocal;
+  const RigPnpResult result = SolveRigPnpRansac(rig, options);
+  ASSERT_TRUE(result.success);
+  // The reference camera's pose, though it saw nothing.
+  EXPECT_TRUE(ApproxEqual(result.ref_from_world, kTruth, 0.01, 0.3));
+  EXPECT_EQ(result.camera_inliers[0], 0);
+}
+
+TEST(RigPnpTest, TwoViewsTightenThePoseOverOne) {
+  Rng rng(23);
+  const RigObservations both = FrontBackObservations(100, 100, 0.0, rng);
+  RigObservations front_only = both;
+  front_only.per_camera[1].clear();
+  PoseRefineOptions options;
+  options.focal_px = kFocal;
+  Eigen::Matrix<double, 6, 6> both_covariance, front_covariance, mono_covariance;
+  const Rigid3d refined = RefineRigPose(PerturbedStart(), both, options, nullptr, &both_covariance);
+  EXPECT_TRUE(ApproxEqual(refined, kTruth, 0.01, 0.1));
+  RefineRigPose(PerturbedStart(), front_only, options, nullptr, &front_covariance);
+  // One camera at the identity is plain refinement.
+  const Rigid3d mono =
+      RefinePose(PerturbedStart(), both.per_camera[0], options, nullptr, &mono_covariance);
+  EXPECT_TRUE(ApproxEqual(mono, RefineRigPose(PerturbedStart(), front_only, options), 1e-9, 1e-7));
+  EXPECT_TRUE(front_covariance.isApprox(mono_covariance, 1e-6));
+  // Opposite views pin the rotation and the position down: variances shrink by more than the
+  // doubled count alone would give (half).
+  EXPECT_LT(both_covariance.diagonal().head<3>().sum(),
+            0.5 * front_covariance.diagonal().head<3>().sum());
+  EXPECT_LT(both_covariance.diagonal().tail<3>().sum(),
+            0.6 * front_covariance.diagonal().tail<3>().sum());
+}
+
 }  // namespace
 }  // namespace visloc

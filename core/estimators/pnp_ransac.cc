@@ -1,5 +1,7 @@
 #include "core/estimators/pnp_ransac.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "core/estimators/inlier_counter.h"
@@ -42,6 +44,43 @@ std::vector<PoseObservation> Select(const std::vector<PoseObservation>& observat
   return selected;
 }
 
+// Each camera's inliers under the rig's pose, their masks in `masks` when given.
+int CountRigInliers(const Rigid3d& ref_from_world, const RigObservations& rig,
+                    const PnpRansacOptions& options, std::vector<std::vector<char>>* masks,
+                    std::vector<int>* per_camera = nullptr) {
+  int count = 0;
+  if (masks) masks->resize(rig.per_camera.size());
+  if (per_camera) per_camera->assign(rig.per_camera.size(), 0);
+  for (size_t c = 0; c < rig.per_camera.size(); ++c) {
+    const int inliers = CountInliers(rig.cam_from_ref[c] * ref_from_world, rig.per_camera[c],
+                                     options, masks ? &(*masks)[c] : nullptr);
+    if (per_camera) (*per_camera)[c] = inliers;
+    count += inliers;
+  }
+  return count;
+}
+
+// Three distinct indices in [0, n), n >= 3.
+std::array<int, 3> PickThree(int n, Rng& rng) {
+  std::array<int, 3> picks;
+  picks[0] = rng.UniformInt(0, n - 1);
+  do picks[1] = rng.UniformInt(0, n - 1);
+  while (picks[1] == picks[0]);
+  do picks[2] = rng.UniformInt(0, n - 1);
+  while (picks[2] == picks[0] || picks[2] == picks[1]);
+  return picks;
+}
+
+// Iterations needed to draw one all-inlier sample at `confidence`, with `ratio` inliers.
+int NeededIterations(double ratio, const PnpRansacOptions& options) {
+  const double all_good = std::pow(ratio, 3);
+  const int needed = all_good >= 1.0
+                         ? options.min_iterations
+                         : static_cast<int>(std::ceil(std::log(1 - options.confidence) /
+                                                      std::log(std::max(1e-12, 1 - all_good))));
+  return std::max(needed, options.min_iterations);
+}
+
 }  // namespace
 
 PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
@@ -57,12 +96,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
   int needed = options.max_iterations;
   int iteration = 0;
   for (; iteration < std::min(needed, options.max_iterations); ++iteration) {
-    int picks[3];
-    picks[0] = rng.UniformInt(0, n - 1);
-    do picks[1] = rng.UniformInt(0, n - 1);
-    while (picks[1] == picks[0]);
-    do picks[2] = rng.UniformInt(0, n - 1);
-    while (picks[2] == picks[0] || picks[2] == picks[1]);
+    const std::array<int, 3> picks = PickThree(n, rng);
     const std::array<Eigen::Vector3d, 3> points = {observations[picks[0]].point_in_world,
                                                    observations[picks[1]].point_in_world,
                                                    observations[picks[2]].point_in_world};
@@ -74,13 +108,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
       if (inliers > best_inliers) {
         best_inliers = inliers;
         best_pose = candidate;
-        const double ratio = static_cast<double>(inliers) / n;
-        const double all_good = std::pow(ratio, 3);
-        needed = all_good >= 1.0
-                     ? options.min_iterations
-                     : static_cast<int>(std::ceil(std::log(1 - options.confidence) /
-                                                  std::log(std::max(1e-12, 1 - all_good))));
-        needed = std::max(needed, options.min_iterations);
+        needed = NeededIterations(static_cast<double>(inliers) / n, options);
       }
     }
   }
@@ -112,6 +140,91 @@ PnpResult RefinePoseOnInliers(const Rigid3d& cam_from_world,
   result.stats.inliers = CountInliers(pose, observations, options, &result.inlier_mask);
   result.stats.inlier_ratio = static_cast<double>(result.stats.inliers) / n;
   result.cam_from_world = pose;
+  result.success = result.stats.inliers >= options.min_inliers;
+  return result;
+}
+
+RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOptions& options) {
+  options.Check();
+  RigPnpResult result;
+  const int n = static_cast<int>(rig.size());
+  // Cameras that can give a hypothesis, drawn in proportion to their observations.
+  std::vector<int> sampled_cameras;
+  std::vector<int> cumulative;
+  for (size_t c = 0; c < rig.per_camera.size(); ++c) {
+    const int count = static_cast<int>(rig.per_camera[c].size());
+    if (count < 3) continue;
+    sampled_cameras.push_back(static_cast<int>(c));
+    cumulative.push_back((cumulative.empty() ? 0 : cumulative.back()) + count);
+  }
+  if (n < std::max(4, options.min_inliers) || sampled_cameras.empty()) return result;
+  Rng rng(options.seed);
+  std::vector<InlierCounter> counters;
+  for (const auto& observations : rig.per_camera) counters.emplace_back(observations, options.refine);
+  int best_inliers = 0;
+  Rigid3d best_pose;
+  int needed = options.max_iterations;
+  int iteration = 0;
+  for (; iteration < std::min(needed, options.max_iterations); ++iteration) {
+    const int draw = rng.UniformInt(0, cumulative.back() - 1);
+    const size_t slot = std::upper_bound(cumulative.begin(), cumulative.end(), draw) -
+                        cumulative.begin();
+    const int camera = sampled_cameras[slot];
+    const std::vector<PoseObservation>& observations = rig.per_camera[camera];
+    const std::array<int, 3> picks = PickThree(static_cast<int>(observations.size()), rng);
+    const std::array<Eigen::Vector3d, 3> points = {observations[picks[0]].point_in_world,
+                                                   observations[picks[1]].point_in_world,
+                                                   observations[picks[2]].point_in_world};
+    const std::array<Eigen::Vector2d, 3> bearings = {observations[picks[0]].normalized,
+                                                     observations[picks[1]].normalized,
+                                                     observations[picks[2]].normalized};
+    const Rigid3d ref_from_cam = rig.cam_from_ref[camera].Inverse();
+    for (const Rigid3d& cam_from_world : SolveP3P(points, bearings)) {
+      const Rigid3d candidate = ref_from_cam * cam_from_world;
+      int inliers = 0;
+      for (size_t c = 0; c < counters.size(); ++c) {
+        inliers += counters[c].Count(rig.cam_from_ref[c] * candidate, options.max_error_px);
+      }
+      if (inliers > best_inliers) {
+        best_inliers = inliers;
+        best_pose = candidate;
+        // Sampling within one camera: its own inlier share decides the chance of a good draw,
+        // but the shares are not known per camera here; the overall share is used.
+        needed = NeededIterations(static_cast<double>(inliers) / n, options);
+      }
+    }
+  }
+  if (best_inliers < options.min_inliers) {
+    result.stats.iterations = iteration;
+    return result;
+  }
+  result = RefineRigPoseOnInliers(best_pose, rig, options);
+  result.stats.iterations = iteration;
+  return result;
+}
+
+RigPnpResult RefineRigPoseOnInliers(const Rigid3d& ref_from_world, const RigObservations& rig,
+                                    const PnpRansacOptions& options) {
+  RigPnpResult result;
+  const int n = static_cast<int>(rig.size());
+  if (n < std::max(3, options.min_inliers)) return result;
+  std::vector<std::vector<char>> masks;
+  Rigid3d pose = ref_from_world;
+  for (int pass = 0; pass < options.refinement_passes; ++pass) {
+    if (CountRigInliers(pose, rig, options, &masks) < options.min_inliers) return result;
+    RigObservations selected;
+    selected.cam_from_ref = rig.cam_from_ref;
+    for (size_t c = 0; c < rig.per_camera.size(); ++c) {
+      selected.per_camera.push_back(Select(rig.per_camera[c], masks[c]));
+    }
+    const bool last = pass + 1 == options.refinement_passes;
+    pose = RefineRigPose(pose, selected, options.refine, last ? &result.stats.refine : nullptr,
+                         last ? &result.covariance : nullptr);
+  }
+  result.stats.inliers =
+      CountRigInliers(pose, rig, options, &result.inlier_masks, &result.camera_inliers);
+  result.stats.inlier_ratio = static_cast<double>(result.stats.inliers) / n;
+  result.ref_from_world = pose;
   result.success = result.stats.inliers >= options.min_inliers;
   return result;
 }

@@ -50,4 +50,24 @@ PnpResult RefinePoseOnInliers(const Rigid3d& cam_from_world,
                               const std::vector<PoseObservation>& observations,
                               const PnpRansacOptions& options);
 
+// The same over a rig of cameras (RigObservations): hypotheses from P3P within one camera (a
+// camera drawn in proportion to its observations), scored by the inliers of every camera
+// under the rig's pose; the refinement then fits the reference camera's pose to all of them.
+// Generalized minimal solvers (a non-central P3P) sample across cameras too, but a rig's
+// cameras each see tens of matches and more, where sampling within one loses nothing.
+struct RigPnpResult {
+  bool success = false;
+  Rigid3d ref_from_world;
+  std::vector<std::vector<char>> inlier_masks;  // Per camera, one per observation.
+  std::vector<int> camera_inliers;
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  // Reference frame.
+  PnpStats stats;  // Over all cameras.
+};
+
+RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOptions& options);
+
+// RefinePoseOnInliers over a rig.
+RigPnpResult RefineRigPoseOnInliers(const Rigid3d& ref_from_world, const RigObservations& rig,
+                                    const PnpRansacOptions& options);
+
 }  // namespace visloc

@@ -105,17 +105,18 @@ double Rmse(const NormalEquations& ne) {
   return ne.residual_count ? std::sqrt(ne.squared_px / ne.residual_count) : 0.0;
 }
 
-}  // namespace
-
-Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservation>& observations,
-                   const PoseRefineOptions& options, PoseRefineStats* stats, Matrix6d* covariance) {
-  options.Check();
-  Rigid3d pose = cam_from_world;
+// Levenberg-Marquardt over a pose: `linearize(pose)` gives the normal equations there, in
+// the left perturbation of that pose's own frame.
+template <typename Linearizer>
+Rigid3d MinimizeOverPose(const Rigid3d& start, size_t observation_count,
+                         const PoseRefineOptions& options, const Linearizer& linearize,
+                         PoseRefineStats* stats, Matrix6d* covariance) {
+  Rigid3d pose = start;
   PoseRefineStats local;
-  NormalEquations ne = Linearize(pose, observations, options);
+  NormalEquations ne = linearize(pose);
   local.initial_rmse_px = Rmse(ne);
   double lambda = 1e-4;
-  if (observations.size() >= 3) {
+  if (observation_count >= 3) {
     for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
       local.iterations = iteration + 1;
       const Matrix6d h = ne.H();
@@ -131,7 +132,7 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
         break;
       }
       const Rigid3d candidate = ApplyUpdate(delta, pose);
-      const NormalEquations candidate_ne = Linearize(candidate, observations, options);
+      const NormalEquations candidate_ne = linearize(candidate);
       if (candidate_ne.robust_cost < ne.robust_cost) {
         // Converged too when the cost stopped decreasing in its 9th significant digit.
         const bool converged = ne.robust_cost - candidate_ne.robust_cost < 1e-9 * ne.robust_cost;
@@ -158,6 +159,65 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
   }
   if (stats) *stats = local;
   return pose;
+}
+
+// The rig's normal equations at `ref_from_world`: each camera's observations through its
+// cam_from_ref, the perturbation in the reference camera's frame. A point p_ref in the reference
+// frame moves by [I, -[p_ref]x] delta and appears in camera c as R_c p_ref + t_c, so a row a of
+// the projection in camera c (by the point in c) becomes (R_c^T a, p_ref x R_c^T a).
+NormalEquations LinearizeRig(const Rigid3d& ref_from_world, const RigObservations& rig,
+                             const PoseRefineOptions& options) {
+  NormalEquations sum;
+  const double huber = options.huber_px / options.focal_px;
+  const double focal = options.focal_px;
+  const PoseProjector reference(ref_from_world, options);
+  for (size_t c = 0; c < rig.per_camera.size(); ++c) {
+    const Eigen::Matrix3d cam_rotation = rig.cam_from_ref[c].rotation.toRotationMatrix();
+    const Eigen::Vector3d& cam_translation = rig.cam_from_ref[c].translation;
+    for (const PoseObservation& o : rig.per_camera[c]) {
+      const Eigen::Vector3d p_ref = reference.ToCamera(o.point_in_world);
+      const Eigen::Vector3d p = cam_rotation * p_ref + cam_translation;
+      if (p.z() <= 1e-6) continue;
+      const double iz = 1.0 / p.z();
+      const double u = p.x() * iz, v = p.y() * iz, s = o.pixel_scale;
+      const Eigen::Vector3d row_u = cam_rotation.transpose() * Eigen::Vector3d(s * iz, 0, -s * u * iz);
+      const Eigen::Vector3d row_v = cam_rotation.transpose() * Eigen::Vector3d(0, s * iz, -s * v * iz);
+      const Eigen::Vector3d turn_u = p_ref.cross(row_u), turn_v = p_ref.cross(row_v);
+      const double ju[6] = {row_u.x(), row_u.y(), row_u.z(), turn_u.x(), turn_u.y(), turn_u.z()};
+      const double jv[6] = {row_v.x(), row_v.y(), row_v.z(), turn_v.x(), turn_v.y(), turn_v.z()};
+      sum.Add(s * (u - o.normalized.x()), ju, huber, focal);
+      sum.Add(s * (v - o.normalized.y()), jv, huber, focal);
+    }
+  }
+  return sum;
+}
+
+}  // namespace
+
+size_t RigObservations::size() const {
+  size_t count = 0;
+  for (const auto& camera : per_camera) count += camera.size();
+  return count;
+}
+
+Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservation>& observations,
+                   const PoseRefineOptions& options, PoseRefineStats* stats, Matrix6d* covariance) {
+  options.Check();
+  return MinimizeOverPose(
+      cam_from_world, observations.size(), options,
+      [&](const Rigid3d& pose) { return Linearize(pose, observations, options); }, stats,
+      covariance);
+}
+
+Rigid3d RefineRigPose(const Rigid3d& ref_from_world, const RigObservations& rig,
+                      const PoseRefineOptions& options, PoseRefineStats* stats,
+                      Matrix6d* covariance) {
+  options.Check();
+  VISLOC_CHECK(rig.per_camera.size() == rig.cam_from_ref.size(), "rig: ", rig.per_camera.size(),
+               " observation sets for ", rig.cam_from_ref.size(), " cameras");
+  return MinimizeOverPose(
+      ref_from_world, rig.size(), options,
+      [&](const Rigid3d& pose) { return LinearizeRig(pose, rig, options); }, stats, covariance);
 }
 
 }  // namespace visloc

@@ -54,6 +54,22 @@ Rigid3d RefinePose(const Rigid3d& cam_from_world, const std::vector<PoseObservat
                    const PoseRefineOptions& options, PoseRefineStats* stats = nullptr,
                    Eigen::Matrix<double, 6, 6>* covariance = nullptr);
 
+// Observations made by a rig of cameras mounted rigidly together, whose pose is its reference
+// camera's: camera c's observations are in its own normalized coordinates, and cam_from_ref[c]
+// places it on the rig (cam_from_ref[0] is the identity when camera 0 is the reference).
+struct RigObservations {
+  std::vector<Rigid3d> cam_from_ref;
+  std::vector<std::vector<PoseObservation>> per_camera;  // One set per camera (mono only).
+  size_t size() const;                                   // Over all cameras.
+};
+
+// RefinePose over a rig: the reference camera's pose from every camera's observations; the
+// update is a left perturbation in the reference camera's frame, and so is the covariance.
+// Right (stereo) observations are not used.
+Rigid3d RefineRigPose(const Rigid3d& ref_from_world, const RigObservations& rig,
+                      const PoseRefineOptions& options, PoseRefineStats* stats = nullptr,
+                      Eigen::Matrix<double, 6, 6>* covariance = nullptr);
+
 // A pose in matrix form for evaluating many observations: the quaternion is converted once
 // rather than rotating every point by it (about half the arithmetic per point).
 class PoseProjector {
