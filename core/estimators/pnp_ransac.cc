@@ -71,9 +71,9 @@ std::array<int, 3> PickThree(int n, Rng& rng) {
   return picks;
 }
 
-// Iterations needed to draw one all-inlier sample at `confidence`, with `ratio` inliers.
-int NeededIterations(double ratio, const PnpRansacOptions& options) {
-  const double all_good = std::pow(ratio, 3);
+// Iterations needed to draw one all-inlier sample at `confidence`, when a sample is all
+// inliers with probability `all_good`.
+int NeededIterations(double all_good, const PnpRansacOptions& options) {
   const int needed = all_good >= 1.0
                          ? options.min_iterations
                          : static_cast<int>(std::ceil(std::log(1 - options.confidence) /
@@ -108,7 +108,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
       if (inliers > best_inliers) {
         best_inliers = inliers;
         best_pose = candidate;
-        needed = NeededIterations(static_cast<double>(inliers) / n, options);
+        needed = NeededIterations(std::pow(static_cast<double>(inliers) / n, 3), options);
       }
     }
   }
@@ -161,8 +161,25 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
   Rng rng(options.seed);
   std::vector<InlierCounter> counters;
   for (const auto& observations : rig.per_camera) counters.emplace_back(observations, options.refine);
-  int best_inliers = 0;
-  Rigid3d best_pose;
+  // Each sampled camera's best hypothesis by the inliers over all cameras. A hypothesis from
+  // three points of one camera can miss the other cameras' points by more than the threshold
+  // through the rig's lever arm (a fifth of a degree is 2 px at 160 px of focal length), so the
+  // right pose drawn in one camera may count fewer than a wrong one that a narrow view of
+  // another allows. Each camera's best is therefore refined on its inliers and counted again
+  // (the local optimization of LO-RANSAC, at the end: two passes, the second selecting what the
+  // refinement reaches in the other cameras), and the refined counts decide.
+  struct Best {
+    int inliers = 0;      // The hypothesis's, over all cameras.
+    int own_inliers = 0;  // In the camera it was drawn in.
+    Rigid3d ref_from_world;
+  };
+  std::vector<Best> best(rig.per_camera.size());
+  std::vector<int> camera_inliers(rig.per_camera.size(), 0);
+  PnpRansacOptions local_options = options;
+  local_options.refinement_passes = std::max(2, options.refinement_passes);
+  PnpRansacOptions wide_options = options;
+  wide_options.refinement_passes = 1;
+  wide_options.max_error_px = 2 * options.max_error_px;
   int needed = options.max_iterations;
   int iteration = 0;
   for (; iteration < std::min(needed, options.max_iterations); ++iteration) {
@@ -183,22 +200,33 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
       const Rigid3d candidate = ref_from_cam * cam_from_world;
       int inliers = 0;
       for (size_t c = 0; c < counters.size(); ++c) {
-        inliers += counters[c].Count(rig.cam_from_ref[c] * candidate, options.max_error_px);
+        camera_inliers[c] = counters[c].Count(rig.cam_from_ref[c] * candidate, options.max_error_px);
+        inliers += camera_inliers[c];
       }
-      if (inliers > best_inliers) {
-        best_inliers = inliers;
-        best_pose = candidate;
-        // Sampling within one camera: its own inlier share decides the chance of a good draw,
-        // but the shares are not known per camera here; the overall share is used.
-        needed = NeededIterations(static_cast<double>(inliers) / n, options);
+      if (inliers <= best[camera].inliers) continue;
+      best[camera] = {inliers, camera_inliers[camera], candidate};
+      // A draw is all inliers with the chance that its camera's three are: the sum over the
+      // sampled cameras of each one's share of the draws times its own inlier share cubed.
+      double all_good = 0.0;
+      for (const int c : sampled_cameras) {
+        const double count = static_cast<double>(rig.per_camera[c].size());
+        all_good += count / cumulative.back() * std::pow(best[c].own_inliers / count, 3);
       }
+      needed = NeededIterations(all_good, options);
     }
   }
-  if (best_inliers < options.min_inliers) {
-    result.stats.iterations = iteration;
-    return result;
+  for (const int c : sampled_cameras) {
+    if (best[c].inliers < options.min_inliers) continue;
+    // First at twice the threshold, which takes in the other cameras' points the raw hypothesis
+    // misses by a few pixels, then at the threshold (LO-RANSAC's shrinking threshold, Lebeda et
+    // al. 2012).
+    const RigPnpResult wide = RefineRigPoseOnInliers(best[c].ref_from_world, rig, wide_options);
+    RigPnpResult refined = RefineRigPoseOnInliers(
+        wide.success ? wide.ref_from_world : best[c].ref_from_world, rig, local_options);
+    if (refined.success && (!result.success || refined.stats.inliers > result.stats.inliers)) {
+      result = std::move(refined);
+    }
   }
-  result = RefineRigPoseOnInliers(best_pose, rig, options);
   result.stats.iterations = iteration;
   return result;
 }

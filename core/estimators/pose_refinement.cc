@@ -161,38 +161,46 @@ Rigid3d MinimizeOverPose(const Rigid3d& start, size_t observation_count,
   return pose;
 }
 
-// The rig's normal equations at `ref_from_world`: each camera's observations through its
-// cam_from_ref, the perturbation in the reference camera's frame. A point p_ref in the reference
-// frame moves by [I, -[p_ref]x] delta and appears in camera c as R_c p_ref + t_c, so a row a of
-// the projection in camera c (by the point in c) becomes (R_c^T a, p_ref x R_c^T a).
+// The rig's normal equations at `ref_from_world`, from each camera's own: camera c's pose is
+// cam_from_ref_c * ref_from_world, and a left perturbation delta of the reference moves it by
+// Ad(cam_from_ref_c) delta (Ad = [R, [t]x R; 0, R], translation first), so its rows J become
+// J Ad and its sums H and g become Ad^T H Ad and Ad^T g: each observation costs what it costs
+// one camera.
 NormalEquations LinearizeRig(const Rigid3d& ref_from_world, const RigObservations& rig,
                              const PoseRefineOptions& options) {
   NormalEquations sum;
-  const double huber = options.huber_px / options.focal_px;
-  const double focal = options.focal_px;
-  const PoseProjector reference(ref_from_world, options);
+  Matrix6d h = Matrix6d::Zero();
   for (size_t c = 0; c < rig.per_camera.size(); ++c) {
-    const Eigen::Matrix3d cam_rotation = rig.cam_from_ref[c].rotation.toRotationMatrix();
-    const Eigen::Vector3d& cam_translation = rig.cam_from_ref[c].translation;
-    for (const PoseObservation& o : rig.per_camera[c]) {
-      const Eigen::Vector3d p_ref = reference.ToCamera(o.point_in_world);
-      const Eigen::Vector3d p = cam_rotation * p_ref + cam_translation;
-      if (p.z() <= 1e-6) continue;
-      const double iz = 1.0 / p.z();
-      const double u = p.x() * iz, v = p.y() * iz, s = o.pixel_scale;
-      const Eigen::Vector3d row_u = cam_rotation.transpose() * Eigen::Vector3d(s * iz, 0, -s * u * iz);
-      const Eigen::Vector3d row_v = cam_rotation.transpose() * Eigen::Vector3d(0, s * iz, -s * v * iz);
-      const Eigen::Vector3d turn_u = p_ref.cross(row_u), turn_v = p_ref.cross(row_v);
-      const double ju[6] = {row_u.x(), row_u.y(), row_u.z(), turn_u.x(), turn_u.y(), turn_u.z()};
-      const double jv[6] = {row_v.x(), row_v.y(), row_v.z(), turn_v.x(), turn_v.y(), turn_v.z()};
-      sum.Add(s * (u - o.normalized.x()), ju, huber, focal);
-      sum.Add(s * (v - o.normalized.y()), jv, huber, focal);
-    }
+    if (rig.per_camera[c].empty()) continue;
+    const NormalEquations camera =
+        Linearize(rig.cam_from_ref[c] * ref_from_world, rig.per_camera[c], options);
+    const Matrix6d adjoint = PoseAdjoint(rig.cam_from_ref[c]);
+    h += adjoint.transpose() * camera.H() * adjoint;
+    sum.g += adjoint.transpose() * camera.g;
+    sum.robust_cost += camera.robust_cost;
+    sum.squared_px += camera.squared_px;
+    sum.residual_count += camera.residual_count;
+  }
+  int k = 0;
+  for (int a = 0; a < 6; ++a) {
+    for (int b = a; b < 6; ++b) sum.h_upper[k++] = h(a, b);
   }
   return sum;
 }
 
 }  // namespace
+
+Matrix6d PoseAdjoint(const Rigid3d& b_from_a) {
+  const Eigen::Matrix3d r = b_from_a.rotation.toRotationMatrix();
+  const Eigen::Vector3d& t = b_from_a.translation;
+  Eigen::Matrix3d t_cross;
+  t_cross << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  Matrix6d adjoint = Matrix6d::Zero();
+  adjoint.topLeftCorner<3, 3>() = r;
+  adjoint.topRightCorner<3, 3>() = t_cross * r;
+  adjoint.bottomRightCorner<3, 3>() = r;
+  return adjoint;
+}
 
 size_t RigObservations::size() const {
   size_t count = 0;

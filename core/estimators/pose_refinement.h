@@ -70,6 +70,11 @@ Rigid3d RefineRigPose(const Rigid3d& ref_from_world, const RigObservations& rig,
                       const PoseRefineOptions& options, PoseRefineStats* stats = nullptr,
                       Eigen::Matrix<double, 6, 6>* covariance = nullptr);
 
+// The adjoint of `b_from_a` for left perturbations, translation first: b_from_a * exp(delta) =
+// exp(PoseAdjoint(b_from_a) * delta) * b_from_a. It moves a pose's perturbation (and, as
+// Ad^T H Ad, its information) from frame a to frame b.
+Eigen::Matrix<double, 6, 6> PoseAdjoint(const Rigid3d& b_from_a);
+
 // A pose in matrix form for evaluating many observations: the quaternion is converted once
 // rather than rotating every point by it (about half the arithmetic per point).
 class PoseProjector {
