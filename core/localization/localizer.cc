@@ -89,12 +89,26 @@ std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const Localiz
   return std::make_pair(normal, normal.dot(mean));
 }
 
+namespace {
+
+// A one-camera rig: `camera` at `body_from_cam` when given (its gyro then in that body frame).
+CameraRig SingleCameraRig(const Camera& camera, const std::optional<Rigid3d>& body_from_cam) {
+  CameraRig rig;
+  rig.cameras = {camera};
+  rig.body_from_cam = {body_from_cam.value_or(Rigid3d())};
+  rig.body_is_gyro_frame = body_from_cam.has_value();
+  return rig;
+}
+
+}  // namespace
+
 Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
                      const LocalizerOptions& options, const std::optional<Rigid3d>& body_from_cam)
     : map_(std::move(map)),
       camera_(camera),
       pipeline_(map_, camera_, options),
-      options_(pipeline_.options()) {
+      options_(pipeline_.options()),
+      rig_(SingleCameraRig(camera, body_from_cam)) {
   if (body_from_cam) {
     cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
   }
@@ -104,6 +118,102 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& c
       throw InputError("planar motion needs a map whose keyframes span a plane");
     }
   }
+}
+
+Rigid3d CameraRig::CamFromReference(size_t camera) const {
+  return body_from_cam[camera].Inverse() * body_from_cam[0];
+}
+
+void CameraRig::Check() const {
+  if (cameras.empty() || cameras.size() > kMaxCameras) {
+    throw InputError(StrCat("a rig has 1 to ", kMaxCameras, " cameras, not ", cameras.size()));
+  }
+  if (body_from_cam.size() != cameras.size()) {
+    throw InputError(StrCat("a rig of ", cameras.size(), " cameras needs as many placements, not ",
+                            body_from_cam.size()));
+  }
+}
+
+Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig& rig,
+                     const LocalizerOptions& options)
+    : Localizer(map, rig.cameras.at(0), options,
+                rig.body_is_gyro_frame ? std::optional(rig.body_from_cam.at(0)) : std::nullopt) {
+  rig.Check();
+  rig_ = rig;
+  if (rig.cameras.size() == 1) return;
+  std::vector<const PoseTracker*> trackers = {&pipeline_.tracker()};
+  std::vector<Rigid3d> cam_from_ref = {Rigid3d()};
+  for (size_t c = 1; c < rig.cameras.size(); ++c) {
+    rig_pipelines_.push_back(std::make_unique<QueryPipeline>(map_, rig.cameras[c], options));
+    trackers.push_back(&rig_pipelines_.back()->tracker());
+    cam_from_ref.push_back(rig.CamFromReference(c));
+  }
+  rig_tracker_ = std::make_unique<RigTracker>(std::move(trackers), std::move(cam_from_ref));
+}
+
+std::vector<const QueryFrame*> Localizer::RigFrames(const QueryFrame& reference) const {
+  std::vector<const QueryFrame*> frames = {&reference};
+  for (const std::optional<QueryFrame>& frame : rig_frames_) {
+    frames.push_back(frame ? &*frame : nullptr);
+  }
+  frames.resize(rig_tracker_->size(), nullptr);
+  return frames;
+}
+
+PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const {
+  if (!rig_tracker_) return pipeline_.tracker().Track(frame, prior_cam_from_map);
+  return rig_tracker_->Track(RigFrames(frame), prior_cam_from_map);
+}
+
+void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
+  rig_frames_.clear();
+  for (size_t c = 0; c < rig_pipelines_.size(); ++c) {
+    const cv::Mat& image = input.rig_images[c].image;
+    if (image.empty()) {
+      rig_frames_.emplace_back();
+      continue;
+    }
+    ExtractStats extract;
+    double undistort_ms = 0.0;
+    rig_frames_.emplace_back(rig_pipelines_[c]->Extract(image, &extract, &undistort_ms));
+    stats->times.detect_ms += extract.detect_ms;
+    stats->times.describe_ms += extract.describe_ms;
+    stats->times.undistort_ms += undistort_ms;
+    stats->features += static_cast<int>(rig_frames_.back()->size());
+  }
+}
+
+PoseFix Localizer::RelocalizeRig(const FrameInput& input, PoseFix reference_fix,
+                                 const QueryFrame* frame, LocalizationResult* result) {
+  // The verification re-matches in every camera's tracking features: those of this frame when
+  // they were extracted, else extracted now, once, when there is a pose to verify.
+  std::optional<QueryFrame> reference_frame;
+  const auto verified = [&](const Rigid3d& ref_from_map) {
+    const Timer timer;
+    if (frame == nullptr) {
+      reference_frame.emplace(pipeline_.Extract(input.image));
+      ExtractRig(input, &result->stats);
+      frame = &*reference_frame;
+    }
+    PoseFix fix = rig_tracker_->Polish(RigFrames(*frame), ref_from_map);
+    result->stats.times.relocalize_ms += timer.ElapsedMs();
+    if (fix.success) CopyFixStats(fix, &result->stats);
+    return fix;
+  };
+  if (reference_fix.success) return verified(reference_fix.cam_from_map);
+  for (size_t c = 0; c < rig_pipelines_.size(); ++c) {
+    const cv::Mat& image = input.rig_images[c].image;
+    if (image.empty()) continue;
+    const QueryFrame* tracking_frame =
+        c < rig_frames_.size() && rig_frames_[c] ? &*rig_frames_[c] : nullptr;
+    const PoseFix found =
+        TryRelocalize(*rig_pipelines_[c], image, tracking_frame, input.timestamp_ns, result);
+    if (!found.success) continue;
+    // Camera c's pose moved to the reference: ref_from_map = cam_from_ref^-1 cam_from_map.
+    PoseFix fix = verified(rig_tracker_->cam_from_ref(c + 1).Inverse() * found.cam_from_map);
+    if (fix.success) return fix;
+  }
+  return reference_fix;
 }
 
 Localizer::Motion Localizer::PredictMotion(const FrameInput& input, double dt_s) const {
@@ -156,6 +266,7 @@ void Localizer::CopyFixStats(const PoseFix& fix, FrameStats* stats) {
   stats->inlier_ratio = fix.inlier_ratio;
   stats->ransac_iterations = fix.ransac_iterations;
   stats->reproj_rmse_px = fix.reproj_rmse_px;
+  stats->cameras = fix.cameras;
 }
 
 void Localizer::ApplyPlane() {
@@ -236,7 +347,8 @@ void Localizer::Accept(const PoseFix& fix, const FixDecision& decision, PoseSour
   result->covariance = filter_.covariance() + systematic_;
 }
 
-RelocalizationResult Localizer::RelocalizeFrame(const QueryFrame& frame, int64_t timestamp_ns,
+RelocalizationResult Localizer::RelocalizeFrame(const QueryPipeline& pipeline,
+                                                const QueryFrame& frame, int64_t timestamp_ns,
                                                 RelocalizationReport* report) const {
   RelocalizationResult found;
   const bool local = ever_localized_ &&
@@ -244,14 +356,14 @@ RelocalizationResult Localizer::RelocalizeFrame(const QueryFrame& frame, int64_t
   if (local) {
     const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
                                                          : last_fix_map_from_cam_.translation;
-    found = pipeline_.relocalizer().Relocalize(
+    found = pipeline.relocalizer().Relocalize(
         frame, RelocalizationScope{center, options_.local_radius_m});
     report->kind = RelocalizationReport::Kind::kLocal;
     report->ms += found.ms;
     report->candidates += static_cast<int>(found.candidates.size());
   }
   if (!found.success) {
-    found = pipeline_.relocalizer().Relocalize(frame);
+    found = pipeline.relocalizer().Relocalize(frame);
     report->kind = RelocalizationReport::Kind::kGlobal;
     report->ms += found.ms;
     report->candidates += static_cast<int>(found.candidates.size());
@@ -259,21 +371,22 @@ RelocalizationResult Localizer::RelocalizeFrame(const QueryFrame& frame, int64_t
   return found;
 }
 
-PoseFix Localizer::TryRelocalize(const cv::Mat& image, const QueryFrame* tracking_frame,
-                                 int64_t timestamp_ns, LocalizationResult* result) {
+PoseFix Localizer::TryRelocalize(const QueryPipeline& pipeline, const cv::Mat& image,
+                                 const QueryFrame* tracking_frame, int64_t timestamp_ns,
+                                 LocalizationResult* result) {
   RelocalizationReport& report = result->relocalization;
   const double report_ms_before = report.ms;
   RelocalizationResult found;
   if (tracking_frame) {
-    found = RelocalizeFrame(*tracking_frame, timestamp_ns, &report);
+    found = RelocalizeFrame(pipeline, *tracking_frame, timestamp_ns, &report);
     ++report.feature_passes;
   }
   if (!found.success) {
     ++report.feature_passes;
     const Timer extract;
-    const QueryFrame frame = pipeline_.ExtractForRelocalization(image);
+    const QueryFrame frame = pipeline.ExtractForRelocalization(image);
     report.ms += extract.ElapsedMs();
-    found = RelocalizeFrame(frame, timestamp_ns, &report);
+    found = RelocalizeFrame(pipeline, frame, timestamp_ns, &report);
   }
   result->stats.times.relocalize_ms += report.ms - report_ms_before;
   relocalization_failed_ = !found.success;
@@ -297,12 +410,14 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   const bool features_first = TrackingFeaturesFirst();
   if (Prior(input) || had_held_fix || features_first) {
     frame.emplace(Extract(input.image, &result.stats));
+    if (rig_tracker_) ExtractRig(input, &result.stats);
   }
   const bool taken =
       (frame && TrackFromPrior(*frame, input, motion, &result)) ||
       (had_held_fix && ConfirmHeldFix(*frame, input.timestamp_ns, &result)) ||
       Relocalize(input, frame && features_first ? &*frame : nullptr, motion, &result);
   if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
+  rig_frames_.clear();
   result.stats.times.total_ms = total.ElapsedMs();
   return result;
 }
@@ -315,6 +430,30 @@ void Localizer::CheckInput(const FrameInput& input) const {
   if (input.image.cols != camera_.width() || input.image.rows != camera_.height()) {
     throw InputError(StrCat("the image is ", input.image.cols, "x", input.image.rows,
                             " but the session camera is ", camera_.width(), "x", camera_.height()));
+  }
+  const size_t other_cameras = rig_pipelines_.size();
+  if (input.rig_images.size() != other_cameras) {
+    throw InputError(StrCat("the session's rig has ", other_cameras + 1,
+                            " cameras but the frame carries ", input.rig_images.size() + 1,
+                            " images"));
+  }
+  for (size_t c = 0; c < other_cameras; ++c) {
+    const RigImage& rig_image = input.rig_images[c];
+    if (rig_image.image.empty()) continue;
+    const int64_t skew_ns = rig_image.timestamp_ns - input.timestamp_ns;
+    if (std::abs(skew_ns) > options_.max_rig_skew_ns) {
+      throw InputError(StrCat("camera ", c + 1, "'s image was taken ", skew_ns / 1e6,
+                              " ms from the reference camera's (at most ",
+                              options_.max_rig_skew_ns / 1e6, " ms)"));
+    }
+    const Camera& camera = rig_.cameras[c + 1];
+    if (rig_image.image.type() != CV_8UC1 || rig_image.image.cols != camera.width() ||
+        rig_image.image.rows != camera.height()) {
+      throw InputError(StrCat("camera ", c + 1, "'s image is ", rig_image.image.cols, "x",
+                              rig_image.image.rows, " of type ", rig_image.image.type(),
+                              " but the camera is ", camera.width(), "x", camera.height(),
+                              " 8-bit grey"));
+    }
   }
   if (last_timestamp_ns_ && input.timestamp_ns <= *last_timestamp_ns_) {
     throw InputError(StrCat("frame timestamp ", input.timestamp_ns,
@@ -354,7 +493,7 @@ bool Localizer::TrackFromPrior(const QueryFrame& frame, const FrameInput& input,
                                const Motion& motion, LocalizationResult* result) {
   const std::optional<Rigid3d> prior = Prior(input);
   if (!prior) return false;
-  const PoseFix fix = pipeline_.tracker().Track(frame, prior->Inverse());
+  const PoseFix fix = TrackFrame(frame, prior->Inverse());
   AddFixTimes(fix, &result->stats);
   CopyFixStats(fix, &result->stats);
   const FixDecision decision = DecideTrackedFix(EvidenceOf(fix, motion));
@@ -372,7 +511,7 @@ bool Localizer::ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns,
   if (!pending_) return false;
   const Pending held = *pending_;
   pending_.reset();
-  const PoseFix fix = pipeline_.tracker().Track(frame, held.map_from_cam.Inverse());
+  const PoseFix fix = TrackFrame(frame, held.map_from_cam.Inverse());
   AddFixTimes(fix, &result->stats);
   const FixDecision decision = DecideConfirmation(
       fix.success && Strong(fix),
@@ -388,7 +527,8 @@ bool Localizer::ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns,
 
 bool Localizer::Relocalize(const FrameInput& input, const QueryFrame* frame, const Motion& motion,
                            LocalizationResult* result) {
-  const PoseFix fix = TryRelocalize(input.image, frame, input.timestamp_ns, result);
+  PoseFix fix = TryRelocalize(pipeline_, input.image, frame, input.timestamp_ns, result);
+  if (rig_tracker_) fix = RelocalizeRig(input, std::move(fix), frame, result);
   if (!fix.success) return false;
   const FixDecision decision = DecideRelocalizedFix(EvidenceOf(fix, motion));
   if (decision.held()) {

@@ -34,6 +34,7 @@
 #include "core/localization/localizer_options.h"
 #include "core/localization/motion_filter.h"
 #include "core/localization/query_pipeline.h"
+#include "core/localization/rig_tracker.h"
 
 namespace visloc {
 
@@ -47,9 +48,19 @@ struct GyroSample {
   Eigen::Vector3d rate_radps = Eigen::Vector3d::Zero();
 };
 
+// One image of a rig's other camera (CameraRig): 8-bit grey, raw, that camera's size; empty
+// when that camera gave none this frame.
+struct RigImage {
+  int64_t timestamp_ns = 0;
+  cv::Mat image;
+};
+
 struct FrameInput {
   int64_t timestamp_ns = 0;
-  cv::Mat image;  // 8-bit grey, raw (distorted), the session camera's size.
+  cv::Mat image;  // 8-bit grey, raw (distorted), the session (reference) camera's size.
+  // A rig's other cameras' images (cameras 1.. of the CameraRig, in its order); empty for one
+  // camera. Each stamp within LocalizerOptions::max_rig_skew_ns of timestamp_ns.
+  std::vector<RigImage> rig_images;
   // The odometry's camera pose in its own frame (only its motion between frames is used).
   std::optional<Rigid3d> odom_from_cam;
   std::vector<GyroSample> gyro;              // Samples since the previous frame.
@@ -69,7 +80,8 @@ struct StepTimings {
 };
 
 struct FrameStats {
-  int features = 0;  // Tracking's (none when the frame went straight to relocalization).
+  int features = 0;  // Tracking's (none when the frame went straight to relocalization); a
+                     // rig's over all of its cameras.
   int predicted = 0;
   int putatives = 0;
   int inliers = 0;
@@ -77,6 +89,9 @@ struct FrameStats {
   int ransac_iterations = 0;
   double reproj_rmse_px = 0.0;
   StepTimings times;
+  // A rig's session: each camera's share of the fix this frame (features, predicted points,
+  // putatives, inliers), in the rig's order; empty for one camera.
+  std::vector<PoseFix::CameraSupport> cameras;
 };
 
 struct RelocalizationReport {
@@ -111,6 +126,20 @@ struct LocalizationResult {
   Eigen::Matrix3d PositionCovarianceInMap() const;
 };
 
+// The cameras a session localizes with, mounted rigidly on the robot. Camera 0 is the
+// reference: the session reports its pose, as a one-camera session does. `body_from_cam` places
+// each on the body; gyro samples are in the body frame when `body_is_gyro_frame`.
+struct CameraRig {
+  std::vector<Camera> cameras;
+  std::vector<Rigid3d> body_from_cam;
+  bool body_is_gyro_frame = false;
+  // Camera c's placement on the rig: reference_from_cam^-1 of it (the identity for camera 0).
+  Rigid3d CamFromReference(size_t camera) const;
+  // Throws InputError unless there are 1 to kMaxCameras cameras, each with its placement.
+  void Check() const;
+  static constexpr size_t kMaxCameras = 8;
+};
+
 class Localizer {
  public:
   // `camera` is the query camera (it may differ from the map's). `body_from_cam` places the
@@ -119,6 +148,10 @@ class Localizer {
   Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
             const LocalizerOptions& options,
             const std::optional<Rigid3d>& body_from_cam = std::nullopt);
+  // A session over a rig of cameras (CameraRig): each frame carries an image per camera, and
+  // one pose is found from all of them (RigTracker). A rig of one camera is the session above.
+  Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig& rig,
+            const LocalizerOptions& options);
 
   // Frames must come in increasing time. Throws InputError for an image of the wrong size or
   // type, and for a timestamp that does not increase.
@@ -143,6 +176,16 @@ class Localizer {
   // Throws InputError for an image or timestamp the session cannot take.
   void CheckInput(const FrameInput& input) const;
   QueryFrame Extract(const cv::Mat& image, FrameStats* stats) const;
+  // A rig's other cameras' tracking features (rig_frames_), their time and count into `stats`.
+  void ExtractRig(const FrameInput& input, FrameStats* stats);
+  // Every camera's frame for the rig's tracker: `reference` and rig_frames_.
+  std::vector<const QueryFrame*> RigFrames(const QueryFrame& reference) const;
+  // Guided tracking of the frame (a rig's: all of its cameras) from `prior_cam_from_map`.
+  PoseFix TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const;
+  // A rig's relocalization: the reference camera's fix verified with every camera, or, when it
+  // has none, each other camera's relocalization in turn, moved to the reference and verified.
+  PoseFix RelocalizeRig(const FrameInput& input, PoseFix reference_fix, const QueryFrame* frame,
+                        LocalizationResult* result);
   // The motion since the last frame, applied to the filter and to a held fix.
   Motion Predict(const FrameInput& input);
   // The pose to track from: the filter's, or the frame's external hint when the filter has none.
@@ -169,12 +212,13 @@ class Localizer {
   bool TrackingFeaturesFirst() const;
   // Relocalization of `image`: with `tracking_frame`'s features first when given, then with the
   // relocalization features when that found nothing.
-  PoseFix TryRelocalize(const cv::Mat& image, const QueryFrame* tracking_frame,
-                        int64_t timestamp_ns, LocalizationResult* result);
+  PoseFix TryRelocalize(const QueryPipeline& pipeline, const cv::Mat& image,
+                        const QueryFrame* tracking_frame, int64_t timestamp_ns,
+                        LocalizationResult* result);
   // Local relocalization of `frame` around the last fix when that is recent, then global when
   // that found nothing; the time and candidates go to `report`.
-  RelocalizationResult RelocalizeFrame(const QueryFrame& frame, int64_t timestamp_ns,
-                                       RelocalizationReport* report) const;
+  RelocalizationResult RelocalizeFrame(const QueryPipeline& pipeline, const QueryFrame& frame,
+                                       int64_t timestamp_ns, RelocalizationReport* report) const;
   // Takes a fix. Relocalized fixes, and any fix while the filter holds nothing, restart it.
   void Accept(const PoseFix& fix, const FixDecision& decision, PoseSource source,
               int64_t timestamp_ns, LocalizationResult* result);
@@ -186,6 +230,12 @@ class Localizer {
   Camera camera_;
   QueryPipeline pipeline_;
   LocalizerOptions options_;  // The pipeline's: radii scaled to the camera.
+  // A rig of two or more cameras: the other cameras' pipelines, the tracker over all of them,
+  // and this frame's tracking features of the other cameras (none where no image came).
+  CameraRig rig_;
+  std::vector<std::unique_ptr<QueryPipeline>> rig_pipelines_;
+  std::unique_ptr<RigTracker> rig_tracker_;
+  std::vector<std::optional<QueryFrame>> rig_frames_;
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
   std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
 

@@ -77,6 +77,10 @@ struct LocalizerOptions {
   // re-matching needs no more query corners, and each costs description and matching time
   // (EuRoC 752x480: 2.0 ms a frame with 600, 2.4 ms with the map's 1300, the same spread).
   int max_query_features = 600;
+  // A rig's images of one frame are taken at the same moment: their stamps may differ from the
+  // reference camera's by at most this (a hardware-triggered rig's are equal; 5 ms is a frame
+  // of a 200 Hz camera, and a robot turning at 1 rad/s moves 5 mrad in it).
+  int64_t max_rig_skew_ns = 5'000'000;
   // Detect query corners at the map detector's finest scale only (as the seed paper does for
   // speed); false uses all of the map's scales.
   bool finest_scale_only = true;

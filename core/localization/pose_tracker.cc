@@ -37,7 +37,8 @@ void PoseTrackerOptions::Check() const {
   matching.Check();
   VISLOC_CHECK(search_radius_px > 0 && refine_radius_px > 0, "search radii ", search_radius_px, " ",
                refine_radius_px);
-  VISLOC_CHECK(coarse_points >= 0, "coarse_points ", coarse_points);
+  VISLOC_CHECK(coarse_points >= 0 && rig_min_coarse_points >= 0, "coarse_points ", coarse_points,
+               ", rig_min_coarse_points ", rig_min_coarse_points);
   VISLOC_CHECK(map_error_px >= 0 && map_floor_m >= 0 && map_drift_fraction >= 0,
                "map error: ", map_error_px, " px, ", map_floor_m, " m, drift ", map_drift_fraction);
   VISLOC_CHECK(point_error_gain >= 0 && covariance_points >= 0, "point_error_gain ",
@@ -100,8 +101,12 @@ Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
   }
   std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
   const double median_depth_m = depths.empty() ? 0.0 : depths[depths.size() / 2];
+  return MapAndRigCovariance(median_depth_m, cam_from_map.Inverse().translation.norm());
+}
+
+Eigen::Matrix<double, 6, 6> PoseTracker::MapAndRigCovariance(double median_depth_m,
+                                                             double from_origin_m) const {
   const double angle_rad = options_.map_error_px / camera_.fx();
-  const double from_origin_m = cam_from_map.Inverse().translation.norm();
   const RigError rig = map_->map().metadata.rig_error.value_or(
       RigError{options_.rig_floor_m, options_.rig_drift_fraction});
   const double floor_sq = std::pow(options_.map_floor_m, 2) + std::pow(rig.floor_m, 2);
@@ -114,14 +119,23 @@ Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
   return covariance;
 }
 
-Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
-    const PointView& map_points, const std::vector<PointMatch>& matches,
-    const std::vector<PoseObservation>& observations, const std::vector<char>& inliers,
-    const Rigid3d& cam_from_map, const Eigen::Matrix<double, 6, 6>& inverse_information) const {
-  using Matrix6d = Eigen::Matrix<double, 6, 6>;
-  if (options_.point_error_gain == 0) return Matrix6d::Zero();
+Eigen::Matrix<double, 6, 6> PointSpread::Matrix() const {
+  Eigen::Matrix<double, 6, 6> spread;
+  int k = 0;
+  for (int a = 0; a < 6; ++a) {
+    for (int b = a; b < 6; ++b) spread(a, b) = spread(b, a) = upper[k++];
+  }
+  return spread;
+}
+
+PointSpread PoseTracker::PointSpreadOf(const PointView& map_points,
+                                       const std::vector<PointMatch>& matches,
+                                       const std::vector<PoseObservation>& observations,
+                                       const std::vector<char>& inliers,
+                                       const Rigid3d& cam_from_map) const {
+  PointSpread spread;
   const size_t inlier_count = static_cast<size_t>(std::count(inliers.begin(), inliers.end(), 1));
-  if (inlier_count == 0) return Matrix6d::Zero();
+  if (inlier_count == 0) return spread;
   // The sum over the inliers of J^T Omega J, J the projection's rows by the pose (2x6, the left
   // perturbation of pose_refinement.cc) and Omega = B Sigma B^T the point's covariance Sigma
   // moved into the image by B, the projection's rows by the point (2x3). Over an even sample of
@@ -138,7 +152,10 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
   for (size_t m = 0; m < matches.size(); ++m) {
     if (!inliers[m] || inlier_index++ % stride != 0) continue;
     const PointCovariance* packed = map_points.covariance(matches[m].point);
-    if (packed == nullptr) return Matrix6d::Zero();
+    if (packed == nullptr) {
+      spread.unknown = true;
+      return spread;
+    }
     const PoseObservation& o = observations[m];
     const double z = rotation.row(2).dot(o.point_in_world) + cam_from_map.translation.z();
     if (z <= 1e-6) continue;
@@ -165,14 +182,23 @@ Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
     }
     ++summed;
   }
-  if (summed == 0) return Matrix6d::Zero();
-  Matrix6d spread;
-  int k = 0;
-  for (int a = 0; a < 6; ++a) {
-    for (int b = a; b < 6; ++b) spread(a, b) = spread(b, a) = upper[k++];
-  }
-  const double to_all = static_cast<double>(inlier_count) / static_cast<double>(summed);
-  return options_.point_error_gain * to_all * inverse_information * spread * inverse_information;
+  if (summed == 0) return spread;
+  spread.upper = upper;
+  spread.to_all = static_cast<double>(inlier_count) / static_cast<double>(summed);
+  return spread;
+}
+
+Eigen::Matrix<double, 6, 6> PoseTracker::PointsCovariance(
+    const PointView& map_points, const std::vector<PointMatch>& matches,
+    const std::vector<PoseObservation>& observations, const std::vector<char>& inliers,
+    const Rigid3d& cam_from_map, const Eigen::Matrix<double, 6, 6>& inverse_information) const {
+  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+  if (options_.point_error_gain == 0) return Matrix6d::Zero();
+  const PointSpread spread =
+      PointSpreadOf(map_points, matches, observations, inliers, cam_from_map);
+  if (spread.unknown) return Matrix6d::Zero();
+  return options_.point_error_gain * spread.to_all * inverse_information * spread.Matrix() *
+         inverse_information;
 }
 
 void PoseTracker::RefineAround(const PointView& map_points, const QueryFrame& frame,
@@ -243,8 +269,8 @@ int PoseTracker::InlierCells(const QueryFrame& frame, const std::vector<PointMat
 }
 
 const std::vector<ProjectedPoint>& PoseTracker::CoarseSubset(
-    const std::vector<ProjectedPoint>& projected, std::vector<ProjectedPoint>* subset) const {
-  const int wanted = options_.coarse_points;
+    const std::vector<ProjectedPoint>& projected, int wanted,
+    std::vector<ProjectedPoint>* subset) const {
   if (wanted == 0 || static_cast<int>(projected.size()) <= wanted) return projected;
   std::vector<Eigen::Vector2f> pixels;
   pixels.reserve(projected.size());
@@ -295,7 +321,7 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
   const std::vector<ProjectedPoint> projected =
       ProjectPoints(map_points, camera_, prior_cam_from_map, points);
   std::vector<ProjectedPoint> subset;
-  const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, &subset);
+  const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, options_.coarse_points, &subset);
   fix.times.project_ms += timer.ElapsedMs();
   timer.Restart();
   std::vector<PointMatch> matches =

@@ -6,6 +6,7 @@
 //
 // Not thread-safe (the visibility predictor keeps scratch space); one per session.
 
+#include <array>
 #include <memory>
 #include <vector>
 
@@ -38,7 +39,10 @@ struct PoseTrackerOptions {
   // image (0: all). A RANSAC pose from a couple of hundred matches is as good as from all of
   // them once every predicted point is re-matched around it in the tight radius, and the wide
   // search is most of the matching time. When RANSAC fails on the subset, all points are tried.
+  // A rig shares them among its cameras that have an image (at least rig_min_coarse_points
+  // each).
   int coarse_points = 160;
+  int rig_min_coarse_points = 60;
   PnpRansacOptions ransac;  // max_error_px is also the inlier threshold of the refinement.
   // The map's own error, which a fix inherits from the points it is made of. The keypoint noise
   // of a fix averages out over its inliers and, in a session, over frames; this does not, since
@@ -68,6 +72,13 @@ struct PoseTrackerOptions {
   double point_error_gain = 1.0;
   // Inliers whose covariances are summed (an even sample, scaled to all; 0: every one).
   int covariance_points = 160;
+  // A rig's camera takes part in the joint fix only while its inliers are significant against
+  // chance (ChanceInliersNegLog10 over its tight re-matches, -log10): a covered or blinded
+  // camera's noise re-matches a quarter of its putatives within the inlier threshold by chance
+  // (generated kidnap, front camera covered: 20-34 of 82-117, significance below 3), which
+  // pulled the rear camera's fix 2.6 cm off at 7.7 sigma. A camera seeing the map scores in the
+  // tens to hundreds.
+  double rig_camera_min_significance = 8.0;
   void Check() const;
 };
 
@@ -105,6 +116,24 @@ struct PoseFix {
   static constexpr int kCoverageCols = 8;
   static constexpr int kCoverageRows = 6;
   PoseStepTimes times;
+  // A rig's fix (rig_tracker.h): each camera's share, in the rig's order; empty for one camera.
+  struct CameraSupport {
+    int features = 0;
+    int predicted = 0;
+    int putatives = 0;
+    int inliers = 0;
+  };
+  std::vector<CameraSupport> cameras;
+};
+
+// The inlier points' own uncertainty moved into a camera's pose (PoseTrackerOptions::
+// point_error_gain) before it becomes a covariance: the upper triangle of sum J^T Omega J (row by
+// row) over an even sample of the inliers, and the sample's scale to all of them.
+struct PointSpread {
+  std::array<double, 21> upper{};
+  double to_all = 1.0;
+  bool unknown = false;  // A point without a covariance: the map does not know them.
+  Eigen::Matrix<double, 6, 6> Matrix() const;  // Not scaled by to_all.
 };
 
 class PoseTracker {
@@ -122,6 +151,27 @@ class PoseTracker {
 
   const PoseTrackerOptions& options() const { return options_; }
   const Camera& camera() const { return camera_; }
+
+  // The stages of Track, for a rig's tracker (rig_tracker.h) that runs them per camera.
+  // The points predicted visible from `cam_from_map` (count and time into `fix`).
+  std::vector<uint32_t> PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const;
+  // The projections matched in the wide radius: `projected` itself when it has at most
+  // `wanted` (0: all), else that many of them spread over the image, written to `subset`.
+  const std::vector<ProjectedPoint>& CoarseSubset(const std::vector<ProjectedPoint>& projected,
+                                                  int wanted,
+                                                  std::vector<ProjectedPoint>* subset) const;
+  // The map's and the rig calibration's share of a fix's covariance (map_error_px and after),
+  // for inliers at `median_depth_m`, the camera `from_origin_m` from the map's origin.
+  Eigen::Matrix<double, 6, 6> MapAndRigCovariance(double median_depth_m,
+                                                   double from_origin_m) const;
+  // The inlier points' own uncertainty as this camera sees them at `cam_from_map`, by its own
+  // pose's perturbation.
+  PointSpread PointSpreadOf(const PointView& map_points, const std::vector<PointMatch>& matches,
+                            const std::vector<PoseObservation>& observations,
+                            const std::vector<char>& inliers, const Rigid3d& cam_from_map) const;
+  // PoseFix::inlier_cells of the inlier `matches` (the mask is per match).
+  int InlierCells(const QueryFrame& frame, const std::vector<PointMatch>& matches,
+                  const std::vector<char>& inliers) const;
   const LocalizationMap& map() const { return *map_; }
   // Undistorted normalized observations of matched points (all in `map_points`), for the pose
   // solvers.
@@ -129,11 +179,6 @@ class PoseTracker {
                                             const std::vector<PointMatch>& matches) const;
 
  private:
-  std::vector<uint32_t> PredictPoints(const Rigid3d& cam_from_map, PoseFix* fix) const;
-  // The projections matched in the wide radius: `projected` itself when it has at most
-  // options_.coarse_points, else that many of them, written to `subset`.
-  const std::vector<ProjectedPoint>& CoarseSubset(const std::vector<ProjectedPoint>& projected,
-                                                  std::vector<ProjectedPoint>* subset) const;
   // RANSAC on the matches' observations (one refinement pass), timed into `fix`.
   PnpResult SolveFromMatches(const PointView& map_points, const QueryFrame& frame,
                              const std::vector<PointMatch>& matches, PoseFix* fix) const;
@@ -153,9 +198,6 @@ class PoseTracker {
   void SetCovariances(const PointView& map_points, const std::vector<PointMatch>& matches,
                       const std::vector<PoseObservation>& observations, const PnpResult& refined,
                       PoseFix* fix) const;
-  // PoseFix::inlier_cells of the inlier `matches` (the mask is per match).
-  int InlierCells(const QueryFrame& frame, const std::vector<PointMatch>& matches,
-                  const std::vector<char>& inliers) const;
   // Re-matches `points` around their projections from `cam_from_map` in `radius_px` and refines.
   void RefineAround(const PointView& map_points, const QueryFrame& frame,
                     const std::vector<uint32_t>& points, const Rigid3d& cam_from_map,
