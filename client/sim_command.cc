@@ -69,6 +69,10 @@ int RunSim(const Args& args) {
   parser.AddFlag("right-yaw-error", &options.rig.right_yaw_error_deg,
                  "the right camera is really turned by this many degrees about its y axis against "
                  "its written calibration (a stereo calibration's residual error)");
+  std::string rig_layout = "stereo";
+  parser.AddFlag("rig", &rig_layout,
+                 "cameras on the head: stereo (the pair), front-back (and a rear camera, cam2) or "
+                 "four (rear, left and right: cam2, cam3, cam4); a cover hides the front pair only");
   std::string board;
   sim::BoardViewOptions board_views;
   parser.AddFlag("board", &board,
@@ -97,6 +101,7 @@ int RunSim(const Args& args) {
   options.format = ParseDatasetFormat(format);
   if (lens != "pinhole" && lens != "fisheye") throw UsageError("--lens must be pinhole or fisheye");
   options.rig.fisheye = lens == "fisheye";
+  options.rig.layout = sim::ParseRigLayout(rig_layout);
   if (!(options.rig.fisheye_fov_deg >= 90 && options.rig.fisheye_fov_deg < 180)) {
     throw UsageError("--fisheye-fov must be in [90, 180)");
   }

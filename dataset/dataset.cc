@@ -1,5 +1,6 @@
 #include "dataset/dataset.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include <opencv2/imgcodecs.hpp>
@@ -70,6 +71,21 @@ Dataset ReadDataset(const std::string& dir, std::optional<DatasetFormat> format)
     }
   }
   return *format == DatasetFormat::kEuroc ? ReadEuroc(dir) : ReadKitti(dir);
+}
+
+const std::pair<int64_t, std::string>* CameraStream::Nearest(int64_t timestamp_ns,
+                                                          int64_t tolerance_ns) const {
+  const auto after = std::lower_bound(
+      images.begin(), images.end(), timestamp_ns,
+      [](const std::pair<int64_t, std::string>& image, int64_t t) { return image.first < t; });
+  const std::pair<int64_t, std::string>* best = nullptr;
+  for (auto it : {after, after == images.begin() ? images.end() : std::prev(after)}) {
+    if (it == images.end()) continue;
+    const int64_t offset = std::abs(it->first - timestamp_ns);
+    if (offset <= tolerance_ns && (best == nullptr || offset < std::abs(best->first - timestamp_ns)))
+      best = &*it;
+  }
+  return best;
 }
 
 }  // namespace visloc

@@ -53,6 +53,16 @@ struct StereoPairing {
   int64_t max_offset_ns = 0;  // Largest time difference within a pair.
 };
 
+// A further camera of the recording's rig (EuRoC cam2, cam3, ...): its calibration and its
+// images, each with its own stamp, not paired with the stereo frames.
+struct CameraStream {
+  std::string name;  // The folder's: "cam2".
+  CameraInfo info;
+  std::vector<std::pair<int64_t, std::string>> images;  // Stamp (ns) and path, increasing.
+  // The image whose stamp is nearest `timestamp_ns`, when within `tolerance_ns`; else nullptr.
+  const std::pair<int64_t, std::string>* Nearest(int64_t timestamp_ns, int64_t tolerance_ns) const;
+};
+
 struct Dataset {
   std::string root;
   DatasetFormat format = DatasetFormat::kEuroc;
@@ -63,6 +73,7 @@ struct Dataset {
   Trajectory odom_from_cam;         // Odometry's camera poses; only relative motion matters.
   Trajectory world_from_body;       // Ground truth; empty when the dataset has none.
   StereoPairing pairing;            // Stereo datasets only.
+  std::vector<CameraStream> other_cameras;  // EuRoC's cam2, cam3, ... in order.
 
   bool has_stereo() const { return right.has_value(); }
   // Maps left-camera coordinates into the right camera. Requires has_stereo().

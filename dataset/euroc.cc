@@ -244,6 +244,11 @@ Dataset ReadEuroc(const std::string& dir) {
                               kMaxPairOffsetNs / 1e6, " ms"));
     }
   }
+  for (int c = 2; fs::is_directory(StrCat(mav0, "/cam", c)); ++c) {
+    const std::string folder = StrCat(mav0, "/cam", c);
+    dataset.other_cameras.push_back(
+        {StrCat("cam", c), ReadSensorYaml(folder + "/sensor.yaml"), ReadCameraCsv(folder)});
+  }
   if (fs::is_regular_file(mav0 + "/imu0/data.csv"))
     dataset.imu = ReadImuCsv(mav0 + "/imu0/data.csv");
   if (fs::is_regular_file(mav0 + "/odometry0/data.csv")) {
@@ -315,7 +320,18 @@ EurocWriter::EurocWriter(const std::string& dir, const CameraInfo& left,
   }
 }
 
-void EurocWriter::AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right) {
+void EurocWriter::AddCamera(const CameraInfo& info, const std::string& comment) {
+  VISLOC_CHECK(timestamps_ns_.empty(), "cameras are added before the first frame");
+  const std::string folder = StrCat(mav0_, "/cam", others_.size() + 2);
+  MakeDirectories(folder + "/data");
+  WriteSensorYaml(folder + "/sensor.yaml", info, comment);
+  others_.push_back(info);
+}
+
+void EurocWriter::AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right,
+                           const std::vector<cv::Mat>& others) {
+  VISLOC_CHECK(others.size() == others_.size(), "a frame of ", others.size(),
+               " further images for ", others_.size(), " further cameras");
   VISLOC_CHECK(timestamps_ns_.empty() || timestamp_ns > timestamps_ns_.back(),
                "frame timestamps must increase: ", timestamp_ns);
   const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
@@ -328,6 +344,9 @@ void EurocWriter::AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::
   };
   write(mav0_ + "/cam0/data/" + name, left, left_);
   if (right_) write(mav0_ + "/cam1/data/" + name, right, *right_);
+  for (size_t c = 0; c < others_.size(); ++c) {
+    write(StrCat(mav0_, "/cam", c + 2, "/data/", name), others[c], others_[c]);
+  }
   timestamps_ns_.push_back(timestamp_ns);
 }
 
@@ -337,6 +356,9 @@ void EurocWriter::Finish(const std::vector<ImuSample>& imu, const Trajectory& od
   for (int64_t t : timestamps_ns_) images += StrCat(t, ",", t, ".png\n");
   WriteFileAtomically(mav0_ + "/cam0/data.csv", images);
   if (right_) WriteFileAtomically(mav0_ + "/cam1/data.csv", images);
+  for (size_t c = 0; c < others_.size(); ++c) {
+    WriteFileAtomically(StrCat(mav0_, "/cam", c + 2, "/data.csv"), images);
+  }
   char buffer[512];
   if (!imu.empty()) {
     MakeDirectories(mav0_ + "/imu0");

@@ -3,6 +3,7 @@
 //
 //   DIR/mav0/cam0/{data.csv, sensor.yaml, data/<timestamp>.png}   left camera (reference)
 //   DIR/mav0/cam1/...                                             right camera (optional)
+//   DIR/mav0/cam2/..., cam3/, ...                                 a rig's further cameras
 //   DIR/mav0/imu0/{data.csv, sensor.yaml}                         gyro + accelerometer (optional)
 //   DIR/mav0/odometry0/data.csv                                   odometry poses (optional)
 //   DIR/mav0/state_groundtruth_estimate0/data.csv                 ground truth (optional)
@@ -34,8 +35,12 @@ class EurocWriter {
   EurocWriter(const std::string& dir, const CameraInfo& left,
               const std::optional<CameraInfo>& right);
 
-  // `left` (and `right` when stereo) are 8-bit grey images of the calibrated size.
-  void AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right);
+  // A further camera of the rig (cam2, cam3, ... in the order added), before the first frame.
+  void AddCamera(const CameraInfo& info, const std::string& comment);
+  // `left` (and `right` when stereo) are 8-bit grey images of the calibrated size, `others`
+  // one per added camera, taken at the same moment.
+  void AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right,
+                const std::vector<cv::Mat>& others = {});
   // Writes data.csv for the cameras and the optional streams (empty ones are not written).
   void Finish(const std::vector<ImuSample>& imu, const Trajectory& odom_from_cam,
               const Trajectory& world_from_body);
@@ -44,6 +49,7 @@ class EurocWriter {
   std::string mav0_;
   CameraInfo left_;
   std::optional<CameraInfo> right_;
+  std::vector<CameraInfo> others_;
   std::vector<int64_t> timestamps_ns_;
 };
 

@@ -124,10 +124,15 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   fs::remove_all(stats.dir);
   fs::create_directories(stats.dir);
 
+  const std::vector<CameraInfo> others = OtherCameras(rig_options, rig);
   std::unique_ptr<EurocWriter> euroc;
   if (options_.format == DatasetFormat::kEuroc) {
     euroc = std::make_unique<EurocWriter>(stats.dir, rig.left, rig.right);
+    for (size_t c = 0; c < others.size(); ++c) {
+      euroc->AddCamera(others[c], StrCat(RigLayoutName(rig_options.layout), " rig's camera ", c + 2));
+    }
   } else {
+    VISLOC_CHECK(others.empty(), "a rig's further cameras are written in the EuRoC layout only");
     VISLOC_CHECK(!rig_options.distortion && !rig_options.fisheye && !rig_options.imperfect,
                  "KITTI sequences are rectified: no distortion, fisheye or imperfect rig");
     WriteKittiCalibration(stats.dir, rig.left.camera, rig_options.baseline_m);
@@ -135,6 +140,7 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
 
   const Renderer left_renderer(rig.left.camera, options_.supersample);
   const Renderer right_renderer(rig.right.camera, options_.supersample);
+  const Renderer other_renderer(rig.left.camera, options_.supersample);  // Same lens.
   Rng noise(options_.seed * 1000003 + std::hash<std::string>{}(name) % 1000);
   std::vector<double> times_s;
   std::vector<int64_t> stamps_ns;
@@ -182,8 +188,24 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
     }
     const cv::Mat left = left_sensor.Capture(left_radiance, &noise);
     const cv::Mat right = right_sensor.Capture(right_radiance, &noise);
+    // The further cameras see the room as it is: a hand covers the front pair only.
+    std::vector<cv::Mat> other_images;
+    for (const CameraInfo& other : others) {
+      render_timer.Restart();
+      const cv::Mat radiance =
+          options_.effects
+              ? other_renderer.RenderRadiance(
+                    world, spec.path.WorldFromBody(t - 0.5 * options_.effects->exposure_time_s) *
+                               other.body_from_cam,
+                    spec.path.WorldFromBody(t + 0.5 * options_.effects->exposure_time_s) *
+                        other.body_from_cam,
+                    t, options_.effects->exposure_time_s)
+              : other_renderer.RenderRadiance(world, body * other.body_from_cam, t);
+      render_ms += render_timer.ElapsedMs();
+      other_images.push_back(left_sensor.Capture(radiance, &noise));
+    }
     if (euroc) {
-      euroc->AddFrame(stamp, left, right);
+      euroc->AddFrame(stamp, left, right, other_images);
     } else {
       WriteKittiFrame(stats.dir, k, left, right);
     }
@@ -245,6 +267,7 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       .Field("imperfect_rig", rig_options.imperfect)
       .Field("right_yaw_error_deg", rig_options.right_yaw_error_deg)
       .Field("camera_effects", options_.effects.has_value())
+      .Field("rig", RigLayoutName(rig_options.layout))
       .Field("seed", static_cast<int64_t>(options_.seed))
       .Field("duration_s", times_s.back())
       .Field("path_length_m", stats.path_length_m)

@@ -66,6 +66,46 @@ StereoRig MakeRig(const RigOptions& options) {
   return rig;
 }
 
+RigOptions::Layout ParseRigLayout(const std::string& name) {
+  if (name == "stereo") return RigOptions::Layout::kStereo;
+  if (name == "front-back") return RigOptions::Layout::kFrontBack;
+  if (name == "four") return RigOptions::Layout::kFour;
+  throw InputError("unknown rig '" + name + "' (stereo, front-back or four)");
+}
+
+const char* RigLayoutName(RigOptions::Layout layout) {
+  switch (layout) {
+    case RigOptions::Layout::kStereo:
+      return "stereo";
+    case RigOptions::Layout::kFrontBack:
+      return "front-back";
+    case RigOptions::Layout::kFour:
+      return "four";
+  }
+  return "?";
+}
+
+std::vector<CameraInfo> OtherCameras(const RigOptions& options, const StereoRig& rig) {
+  // Each further camera is the left camera turned about the body's vertical (z) axis by
+  // `yaw_rad`, at `position` on the head.
+  const auto turned = [&](double yaw_rad, const Eigen::Vector3d& position) {
+    CameraInfo info = rig.left;
+    info.body_from_cam = Rigid3d(
+        Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ())) *
+            rig.left.body_from_cam.rotation,
+        position);
+    return info;
+  };
+  std::vector<CameraInfo> others;
+  if (options.layout == RigOptions::Layout::kStereo) return others;
+  others.push_back(turned(M_PI, Eigen::Vector3d(-0.1, 0.0, 0.0)));
+  if (options.layout == RigOptions::Layout::kFour) {
+    others.push_back(turned(M_PI / 2, Eigen::Vector3d(-0.05, 0.1, 0.0)));
+    others.push_back(turned(-M_PI / 2, Eigen::Vector3d(-0.05, -0.1, 0.0)));
+  }
+  return others;
+}
+
 RigOptions CarRig(const RigOptions& base) {
   RigOptions car;
   car.width = 1241;

@@ -38,7 +38,15 @@ struct RigOptions {
   // trusts the calibration comes out metrically wrong, most where disparities are small.
   double right_yaw_error_deg = 0.0;
   double fps = 15.0;
+  // Further cameras on the head beside the stereo pair, with the left camera's lens
+  // (OtherCameras): none; a rear one (front-back); rear, left and right ones (four).
+  enum class Layout { kStereo, kFrontBack, kFour };
+  Layout layout = Layout::kStereo;
 };
+
+// "stereo", "front-back" or "four"; throws InputError otherwise.
+RigOptions::Layout ParseRigLayout(const std::string& name);
+const char* RigLayoutName(RigOptions::Layout layout);
 
 // A car's stereo rig with KITTI's geometry: 1241x376 pixels, a 719 px focal length, a 0.54 m
 // baseline, 10 Hz. The error settings of `base` (right_yaw_error_deg) are kept.
@@ -52,6 +60,10 @@ struct StereoRig {
 // Cameras mounted on the head: the left camera 0.072 m left of the body origin, the right one
 // 0.072 m right, both looking along the body's x axis (camera z = body x, camera x = -body y).
 StereoRig MakeRig(const RigOptions& options);
+
+// The layout's further cameras (cam2, cam3, ...): the rear camera 0.1 m behind the head's
+// centre looking back (front-back), then one on each side looking left and right (four).
+std::vector<CameraInfo> OtherCameras(const RigOptions& options, const StereoRig& rig);
 
 struct SequenceSpec {
   std::string name;
