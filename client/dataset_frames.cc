@@ -2,7 +2,9 @@
 
 #include <algorithm>
 
+#include "core/util/args.h"
 #include "core/util/check.h"
+#include "core/util/strings.h"
 
 namespace visloc::cli {
 
@@ -32,6 +34,67 @@ FrameInput DatasetFrameInput(const Dataset& dataset, size_t index, bool odometry
     }
   }
   return input;
+}
+
+std::vector<std::string> ParseCameraNames(const std::string& list) {
+  std::vector<std::string> names = Split(list, ',');
+  if (names.empty() || names.front() != "cam0") {
+    throw UsageError("--cameras starts with cam0, the reference camera (got '" + list + "')");
+  }
+  if (names.size() > CameraRig::kMaxCameras) {
+    throw UsageError(StrCat("--cameras: at most ", CameraRig::kMaxCameras, " cameras"));
+  }
+  for (size_t i = 0; i < names.size(); ++i) {
+    if (std::find(names.begin(), names.begin() + i, names[i]) != names.begin() + i) {
+      throw UsageError("--cameras names " + names[i] + " twice");
+    }
+  }
+  return names;
+}
+
+namespace {
+
+const CameraStream* FindStream(const Dataset& dataset, const std::string& name) {
+  for (const CameraStream& stream : dataset.other_cameras) {
+    if (stream.name == name) return &stream;
+  }
+  return nullptr;
+}
+
+const CameraInfo& CameraNamed(const Dataset& dataset, const std::string& name) {
+  if (name == "cam0") return dataset.left;
+  if (name == "cam1" && dataset.right) return *dataset.right;
+  if (const CameraStream* stream = FindStream(dataset, name)) return stream->info;
+  std::string known = dataset.right ? "cam0, cam1" : "cam0";
+  for (const CameraStream& stream : dataset.other_cameras) known += ", " + stream.name;
+  throw InputError(dataset.root + ": no camera " + name + " (it has " + known + ")");
+}
+
+}  // namespace
+
+CameraRig DatasetCameraRig(const Dataset& dataset, const std::vector<std::string>& names,
+                           bool gyro) {
+  CameraRig rig;
+  for (const std::string& name : names) {
+    const CameraInfo& info = CameraNamed(dataset, name);
+    rig.cameras.push_back(info.camera);
+    rig.body_from_cam.push_back(info.body_from_cam);
+  }
+  rig.body_is_gyro_frame = gyro;
+  return rig;
+}
+
+std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& dataset,
+                                                             const std::string& name,
+                                                             size_t index, int64_t tolerance_ns) {
+  const FrameRecord& record = dataset.frames[index];
+  if (name == "cam0") return std::make_pair(record.timestamp_ns, record.left_path);
+  if (name == "cam1" && dataset.right) return std::make_pair(record.timestamp_ns, record.right_path);
+  const CameraStream* stream = FindStream(dataset, name);
+  if (stream == nullptr) CameraNamed(dataset, name);  // Throws, naming the cameras there are.
+  const auto* image = stream->Nearest(record.timestamp_ns, tolerance_ns);
+  if (image == nullptr) return std::nullopt;
+  return *image;
 }
 
 }  // namespace visloc::cli

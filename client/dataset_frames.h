@@ -16,4 +16,20 @@ Dataset ReadQueryDataset(const std::string& dir, const std::string& format, bool
 // to this one (with `gyro`; found by binary search, the samples being sorted by time).
 FrameInput DatasetFrameInput(const Dataset& dataset, size_t index, bool odometry, bool gyro);
 
+// Camera names of `--cameras` ("cam0,cam2"): cam0 first (the reference, whose pose is
+// reported), each once. Throws UsageError otherwise.
+std::vector<std::string> ParseCameraNames(const std::string& list);
+
+// The dataset's cameras `names` as a rig: cam0 is the left camera, cam1 the stereo pair's right,
+// cam2 and after EuRoC's further cameras; their T_BS place them on the body (the gyro's frame
+// with `gyro`). Throws InputError naming a camera the dataset does not have.
+CameraRig DatasetCameraRig(const Dataset& dataset, const std::vector<std::string>& names,
+                           bool gyro);
+
+// Camera `name`'s image of frame `index`: its stamp and file, or none when it has no image
+// within `tolerance_ns` of the frame's stamp.
+std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& dataset,
+                                                             const std::string& name,
+                                                             size_t index, int64_t tolerance_ns);
+
 }  // namespace visloc::cli

@@ -77,6 +77,8 @@ std::string StatsCsvHeader() {
   header +=
       ",relocalization,relocalization_keyframe,position_sigma_m,relocalization_feature_passes";
   for (const char* name : kPositionCovarianceColumns) header += StrCat(",", name);
+  // A rig's cameras, each a ';'-separated list in the rig's order (empty for one camera).
+  header += ",camera_features,camera_putatives,camera_inliers";
   return header;
 }
 
@@ -92,6 +94,16 @@ std::string StatsCsvRow(const LocalizationResult& r) {
              ",", FormatFixed(r.PositionSigmaPerAxisM(), 5), ",", r.relocalization.feature_passes);
   const Eigen::Matrix3d covariance = r.PositionCovarianceInMap();
   for (const auto& [a, b] : kPositionCovarianceEntries) row += StrCat(",", covariance(a, b));
+  const auto per_camera = [&](int PoseFix::CameraSupport::*field) {
+    std::string list;
+    for (const PoseFix::CameraSupport& camera : s.cameras) {
+      list += StrCat(list.empty() ? "" : ";", camera.*field);
+    }
+    return list;
+  };
+  row += StrCat(",", per_camera(&PoseFix::CameraSupport::features), ",",
+                per_camera(&PoseFix::CameraSupport::putatives), ",",
+                per_camera(&PoseFix::CameraSupport::inliers));
   return row;
 }
 

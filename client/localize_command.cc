@@ -26,6 +26,7 @@ struct LocalizeArgs {
   std::string map_path, dataset_dir, format, trajectory_path, stats_path, gt_path, frames;
   std::string mode = "visibility";
   std::string blackout;  // "START,DURATION" in seconds from the first frame.
+  std::string cameras = "cam0";
   bool odometry = false, no_gyro = false, planar = false, bridge_constant_velocity = false;
   bool json = false, all_scales = false;
   int k = 10;
@@ -47,14 +48,25 @@ std::optional<std::pair<double, double>> ParseBlackout(const std::string& text) 
 }
 
 FrameInput MakeFrameInput(const Dataset& dataset, size_t index, const LocalizeArgs& args,
+                          const std::vector<std::string>& cameras, const CameraRig& rig,
+                          int64_t max_rig_skew_ns,
                           const std::optional<std::pair<double, double>>& blackout) {
   FrameInput input =
       DatasetFrameInput(dataset, index, args.odometry, args.odometry && !args.no_gyro);
   const Camera& camera = dataset.left.camera;
   input.image = LoadGreyImage(dataset.frames[index].left_path, camera.width(), camera.height());
   const double t_s = NsToSeconds(input.timestamp_ns - dataset.frames.front().timestamp_ns);
-  if (blackout && t_s >= blackout->first && t_s < blackout->second) {
-    input.image.setTo(0);  // The camera is covered; the robot keeps walking.
+  // The front pair is covered; the robot keeps walking, and its other cameras see.
+  const bool covered = blackout && t_s >= blackout->first && t_s < blackout->second;
+  if (covered) input.image.setTo(0);
+  for (size_t c = 1; c < cameras.size(); ++c) {
+    RigImage& rig_image = input.rig_images.emplace_back();
+    const auto image = CameraImageAt(dataset, cameras[c], index, max_rig_skew_ns);
+    if (!image) continue;  // That camera gave no image for this frame.
+    rig_image.timestamp_ns = image->first;
+    rig_image.image =
+        LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
+    if (covered && cameras[c] == "cam1") rig_image.image.setTo(0);
   }
   return input;
 }
@@ -86,7 +98,11 @@ int RunLocalize(const Args& raw_args) {
   parser.AddSwitch("all-scales", &args.all_scales,
                    "detect at all of the map's scales (default: the finest only, faster)");
   parser.AddFlag("blackout", &args.blackout,
-                 "START,DURATION: black images in this window (s from the first frame)");
+                 "START,DURATION: black images in this window (s from the first frame; cam0 and "
+                 "cam1, the front pair)");
+  parser.AddFlag("cameras", &args.cameras,
+                 "the rig localized with: cam0 (the reference, reported) then others, e.g. "
+                 "cam0,cam1 (the stereo pair) or cam0,cam2 (EuRoC's cam2 folder)");
   parser.AddSwitch("bridge-constant-velocity", &args.bridge_constant_velocity,
                    "bridge frames without a fix by constant velocity (for comparison only)");
   parser.AddFlag("frames", &args.frames,
@@ -109,15 +125,17 @@ int RunLocalize(const Args& raw_args) {
   options.max_query_features = args.max_features;
   options.finest_scale_only = !args.all_scales;
   if (args.planar) options.motion.plane_sigma_m = 0.02;
-  Localizer localizer(map, dataset.left.camera, options,
-                      args.odometry ? std::optional(dataset.left.body_from_cam) : std::nullopt);
+  const std::vector<std::string> cameras = ParseCameraNames(args.cameras);
+  const CameraRig rig = DatasetCameraRig(dataset, cameras, args.odometry);
+  Localizer localizer(map, rig, options);
 
   const size_t count = dataset.frames.size();
   RunReport report;
   int bad_frames = 0;
   for (size_t i = 0; i < count; ++i) {
     try {
-      report.Add(localizer.Process(MakeFrameInput(dataset, i, args, blackout)));
+      report.Add(localizer.Process(MakeFrameInput(dataset, i, args, cameras, rig,
+                                                  options.max_rig_skew_ns, blackout)));
     } catch (const InputError& e) {
       ++bad_frames;
       std::fprintf(stderr, "visloc localize: frame %zu skipped: %s\n", i, e.what());

@@ -53,6 +53,7 @@ struct StreamArgs {
   int stall_timeout_ms = 0;  // 0: StallTimeout's default.
   bool odometry = false, json = false;
   int frames = 0;
+  std::string cameras = "cam0";  // A dataset's rig (dataset_frames.h).
 };
 
 // A robot's pace (a live camera, the dataset's timing or a --rate) sends what a robot would:
@@ -77,14 +78,33 @@ std::chrono::milliseconds StallTimeout(const StreamArgs& args) {
   return args.rate_hz == 0 ? std::chrono::milliseconds(60000) : std::chrono::milliseconds(2000);
 }
 
-client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& camera) {
+// A rig's other cameras on the wire: each placed on the body of the reference camera's T_BS,
+// which the session then declares (SessionOptions.body_from_cam).
+std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
+                                          const std::vector<std::string>& names) {
+  const CameraRig rig = DatasetCameraRig(dataset, names, /*gyro=*/false);
+  std::vector<v1::RigCamera> cameras;
+  for (size_t c = 1; c < rig.cameras.size(); ++c) {
+    v1::RigCamera& camera = cameras.emplace_back();
+    proto::ToProto(rig.cameras[c], camera.mutable_camera());
+    proto::ToProto(rig.body_from_cam[c], camera.mutable_body_from_cam());
+    camera.set_name(names[c]);
+  }
+  return cameras;
+}
+
+client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& camera,
+                                      const std::vector<v1::RigCamera>& rig_cameras) {
   client::SessionOptions o;
   args.server.ToLibrary(&o);
   o.map_name = args.map_name;
   o.robot_id = args.robot_id;
   proto::ToProto(camera.camera, &o.camera);
   o.session.set_drop_policy(args.policy == "newest" ? v1::NEWEST_ONLY : v1::PROCESS_ALL);
-  if (args.odometry) proto::ToProto(camera.body_from_cam, o.session.mutable_body_from_cam());
+  if (args.odometry || !rig_cameras.empty()) {
+    proto::ToProto(camera.body_from_cam, o.session.mutable_body_from_cam());
+  }
+  o.rig_cameras = rig_cameras;
   o.encoding = args.encoding == "png"   ? client::Encoding::kPng
                : args.encoding == "raw" ? client::Encoding::kRaw
                                         : client::Encoding::kJpeg;
@@ -103,7 +123,8 @@ client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& 
   return o;
 }
 
-client::Frame LibraryFrame(const StreamArgs& args, const Dataset& dataset, size_t index) {
+client::Frame LibraryFrame(const StreamArgs& args, const Dataset& dataset,
+                           const std::vector<std::string>& cameras, size_t index) {
   const FrameInput input = DatasetFrameInput(dataset, index, args.odometry, args.odometry);
   v1::Frame wire;
   proto::ToProto(input, "", &wire);
@@ -116,6 +137,19 @@ client::Frame LibraryFrame(const StreamArgs& args, const Dataset& dataset, size_
     frame.encoded = ReadFileBytes(path);
   } else {
     frame.image = LoadGreyImage(path, dataset.left.camera.width(), dataset.left.camera.height());
+  }
+  for (size_t c = 1; c < cameras.size(); ++c) {
+    client::RigFrameImage& rig_image = frame.rig_images.emplace_back();
+    // The engine's tolerance by default: an image further off is none.
+    const auto image =
+        CameraImageAt(dataset, cameras[c], index, LocalizerOptions{}.max_rig_skew_ns);
+    if (!image) continue;
+    rig_image.timestamp_ns = image->first;
+    if (args.encoding == "file") {
+      rig_image.encoded = ReadFileBytes(image->second);
+    } else {
+      rig_image.image = LoadGreyImage(image->second, 0, 0);
+    }
   }
   return frame;
 }
@@ -255,6 +289,9 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
                  "with --camera: the camera model (an EuRoC sensor.yaml, as `visloc calibrate` "
                  "writes)");
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
+  parser.AddFlag("cameras", &args->cameras,
+                 "with --dataset: the rig streamed, cam0 (the reference, reported) then others, "
+                 "e.g. cam0,cam1 (the stereo pair) or cam0,cam2 (EuRoC's cam2 folder)");
   parser.AddFlag("rate", &args->rate_hz,
                  "frames per second to send (0: as fast as possible, every frame answered)");
   parser.SetDefaultText("rate", "the dataset's timing");
@@ -295,6 +332,7 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
     if (args->encoding == "file") {
       throw UsageError("--encoding file needs --dataset (a camera's frames are pixels)");
     }
+    if (args->cameras != "cam0") throw UsageError("--cameras names a dataset's cameras");
   }
   if (args->encoding.empty()) args->encoding = DefaultEncoding(*args);
   if (args->rate_hz > 1000)
@@ -352,6 +390,8 @@ class FrameSource {
   virtual ~FrameSource() = default;
   virtual const CameraInfo& camera() const = 0;
   virtual const Dataset* dataset() const { return nullptr; }
+  // A rig's other cameras (none for one camera).
+  virtual std::vector<v1::RigCamera> rig_cameras() const { return {}; }
   // Frames expected (for progress; 0: unknown).
   virtual size_t expected() const = 0;
   // The next frame, paced as the source runs; false at the end. Throws InputError for one bad
@@ -362,11 +402,17 @@ class FrameSource {
 class DatasetSource final : public FrameSource {
  public:
   explicit DatasetSource(const StreamArgs& args)
-      : args_(args), dataset_(ReadQueryDataset(args.dataset_dir, args.format, args.odometry)) {
+      : args_(args),
+        dataset_(ReadQueryDataset(args.dataset_dir, args.format, args.odometry)),
+        cameras_(ParseCameraNames(args.cameras)) {
     count_ = args.frames > 0 ? std::min<size_t>(args.frames, dataset_.frames.size())
                              : dataset_.frames.size();
+    DatasetCameraRig(dataset_, cameras_, false);  // Throws for a camera the dataset lacks.
   }
   const CameraInfo& camera() const override { return dataset_.left; }
+  std::vector<v1::RigCamera> rig_cameras() const override {
+    return WireRigCameras(dataset_, cameras_);
+  }
   const Dataset* dataset() const override { return &dataset_; }
   size_t expected() const override { return count_; }
   bool Next(client::Frame* frame) override {
@@ -380,13 +426,14 @@ class DatasetSource final : public FrameSource {
       std::this_thread::sleep_until(
           start_ + std::chrono::nanoseconds(static_cast<int64_t>(i * 1e9 / args_.rate_hz)));
     }
-    *frame = LibraryFrame(args_, dataset_, i);
+    *frame = LibraryFrame(args_, dataset_, cameras_, i);
     return true;
   }
 
  private:
   const StreamArgs& args_;
   Dataset dataset_;
+  std::vector<std::string> cameras_;
   size_t count_ = 0, next_ = 0;
   Clock::time_point start_ = Clock::now();
 };
@@ -444,7 +491,7 @@ int RunStream(const Args& raw_args) {
   const size_t expected = source->expected();
   StreamRecorder recorder(args, source->dataset());
   std::mutex recorder_mutex;
-  client::SessionOptions options = LibraryOptions(args, source->camera());
+  client::SessionOptions options = LibraryOptions(args, source->camera(), source->rig_cameras());
   options.on_event = [&](const client::Event& e) {
     std::lock_guard<std::mutex> lock(recorder_mutex);
     recorder.Record(e, expected);

@@ -42,7 +42,7 @@ int CountInRange(const char* field, uint32_t value, uint32_t high) {
 constexpr double kMaxGyroRadps = 50.0;
 // Session option ranges: beyond them the engine is not the method any more.
 constexpr uint32_t kMaxVisibilityK = 1000, kMaxRansacIterations = 100000;
-constexpr double kMaxRansacErrorPx = 100.0, kMaxCameraHeightM = 10.0;
+constexpr double kMaxRansacErrorPx = 100.0, kMaxCameraHeightM = 10.0, kMaxRigSkewMs = 1000.0;
 
 }  // namespace
 
@@ -91,6 +91,50 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const C
                             camera.width(), "x", camera.height()));
   }
   return grey;
+}
+
+FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
+  FrameInput input = FromProto(frame, rig.cameras.at(0));
+  const size_t others = rig.cameras.size() - 1;
+  if (static_cast<size_t>(frame.rig_images_size()) != others) {
+    throw InputError(StrCat("the frame carries ", frame.rig_images_size(), " rig images for a rig of ",
+                            rig.cameras.size(), " cameras (", others, " besides the reference)"));
+  }
+  for (size_t c = 0; c < others; ++c) {
+    const v1::RigImage& in = frame.rig_images(static_cast<int>(c));
+    RigImage& image = input.rig_images.emplace_back();
+    image.timestamp_ns = in.timestamp_ns();
+    if (in.image_case() == v1::RigImage::IMAGE_NOT_SET) continue;  // None this time.
+    try {
+      image.image = DecodeImage(in.encoded(), in.has_raw() ? &in.raw() : nullptr, rig.cameras[c + 1]);
+    } catch (const InputError& e) {
+      throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
+    }
+  }
+  return input;
+}
+
+CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits) {
+  constexpr size_t kMaxOthers = CameraRig::kMaxCameras - 1;
+  if (static_cast<size_t>(start.rig_cameras_size()) > kMaxOthers) {
+    throw InputError(StrCat("start.rig_cameras: ", start.rig_cameras_size(), " cameras; at most ",
+                            kMaxOthers, " besides the reference"));
+  }
+  CameraRig rig;
+  rig.cameras.push_back(FromProto(start.camera(), limits));
+  rig.body_is_gyro_frame = start.options().has_body_from_cam();
+  rig.body_from_cam.push_back(rig.body_is_gyro_frame
+                                  ? FromProto(start.options().body_from_cam(), "body_from_cam")
+                                  : Rigid3d());
+  for (const v1::RigCamera& camera : start.rig_cameras()) {
+    if (!camera.has_body_from_cam()) {
+      throw InputError(StrCat("start.rig_cameras[", rig.cameras.size() - 1,
+                              "] has no body_from_cam"));
+    }
+    rig.cameras.push_back(FromProto(camera.camera(), limits));
+    rig.body_from_cam.push_back(FromProto(camera.body_from_cam(), "rig_cameras.body_from_cam"));
+  }
+  return rig;
 }
 
 FrameInput FromProto(const v1::Frame& frame, const Camera& camera) {
@@ -173,6 +217,10 @@ LocalizerOptions FromProto(const v1::SessionOptions& o) {
                             "; allowed 0 (process all), 1 (newest only)"));
   }
   if (o.has_body_from_cam()) FromProto(o.body_from_cam(), "options.body_from_cam");
+  if (o.max_rig_skew_ms() != 0) {
+    RequireRange("options.max_rig_skew_ms", o.max_rig_skew_ms(), 0.001, kMaxRigSkewMs, " ms");
+    options.max_rig_skew_ns = static_cast<int64_t>(std::llround(o.max_rig_skew_ms() * 1e6));
+  }
   // The ranges above keep every option inside what Check() accepts; a failure here is a bug,
   // and its text (a source location) is for the server log, not the client.
   options.Check();
@@ -219,6 +267,13 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
   rel->set_candidates(r.relocalization.candidates);
   rel->set_ms(r.relocalization.ms);
   rel->set_feature_passes(r.relocalization.feature_passes);
+  for (const PoseFix::CameraSupport& camera : r.stats.cameras) {
+    v1::CameraSupport* support = out->add_cameras();
+    support->set_features(camera.features);
+    support->set_predicted(camera.predicted);
+    support->set_putatives(camera.putatives);
+    support->set_inliers(camera.inliers);
+  }
 }
 
 void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
@@ -284,6 +339,12 @@ LocalizationResult FromProto(const v1::LocalizeResponse& in) {
   r.relocalization.candidates = static_cast<int>(in.relocalization().candidates());
   r.relocalization.ms = in.relocalization().ms();
   r.relocalization.feature_passes = static_cast<int>(in.relocalization().feature_passes());
+  for (const v1::CameraSupport& camera : in.cameras()) {
+    r.stats.cameras.push_back({static_cast<int>(camera.features()),
+                               static_cast<int>(camera.predicted()),
+                               static_cast<int>(camera.putatives()),
+                               static_cast<int>(camera.inliers())});
+  }
   return r;
 }
 

@@ -15,6 +15,12 @@ namespace visloc::proto {
 // Decodes a frame's image to 8-bit grey of exactly the camera's size.
 cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const Camera& camera);
 FrameInput FromProto(const v1::Frame& frame, const Camera& camera);
+// A rig session's frame: the reference image of rig.cameras[0], and one rig image per other
+// camera (InputError naming a missing or misfit one).
+FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig);
+// A session's rig: the reference camera, placed by options.body_from_cam (the identity when
+// unset: the body is then the reference camera), and SessionStart.rig_cameras on that body.
+CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits);
 void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Frame* out);
 
 LocalizerOptions FromProto(const v1::SessionOptions& options);

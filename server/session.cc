@@ -65,12 +65,8 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
     : workers_(workers),
       registry_(registry),
       before_frame_(before_frame),
-      camera_(proto::FromProto(start.camera(), limits)),
-      localizer_(
-          std::move(map), camera_, proto::FromProto(start.options()),
-          start.options().has_body_from_cam()
-              ? std::optional(proto::FromProto(start.options().body_from_cam(), "body_from_cam"))
-              : std::nullopt) {
+      rig_(proto::RigFromProto(start, limits)),
+      localizer_(std::move(map), rig_, proto::FromProto(start.options())) {
   tally_.map = start.map_name();
   tally_.robot_id = start.robot_id();
   tally_.started = std::chrono::system_clock::now();
@@ -92,7 +88,7 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     v1::Frame merged;
     const v1::Frame& frame = WithCarriedImu(request.frame(), &merged);
     if (before_frame_) before_frame_(frame);
-    answered = localizer_.Process(proto::FromProto(frame, camera_));
+    answered = localizer_.Process(proto::FromProto(frame, rig_));
     proto::ToProto(*answered, index, &response);
   } catch (const InputError& e) {
     Refuse(request, index, RedactForClient(e.what()), &response);

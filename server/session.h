@@ -91,7 +91,7 @@ class LocalizationSession {
   // Gyro samples of the frames skipped since the last one answered (bounded): a frame's samples
   // cover the time since the frame before it, and the engine integrates from the last it saw.
   std::vector<v1::ImuSample> carried_imu_;
-  Camera camera_;
+  CameraRig rig_;  // The session's cameras: the reference first (SessionStart.rig_cameras after).
   Localizer localizer_;
   // A frame arrived now: the arrival rate over the last 2 s.
   double ArrivalRateHz(std::chrono::steady_clock::time_point now);

@@ -5,6 +5,7 @@
 // dependency through opencv_core) into the wire's CameraModel. A test holds the two readers to
 // the same answers on every kind of file visloc writes and on real EuRoC calibrations.
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -59,7 +60,63 @@ v1::LensModel LensFrom(const std::string& path, const std::string& name) {
                  "' (expected radial-tangential, equidistant or none)");
 }
 
+// The unit quaternion of a rotation matrix (row-major), by its largest diagonal term for
+// precision (Shepperd's method).
+void SetRotation(const double r[3][3], v1::Pose* pose) {
+  const double trace = r[0][0] + r[1][1] + r[2][2];
+  double w, x, y, z;
+  if (trace > 0) {
+    const double s = 2.0 * std::sqrt(1.0 + trace);
+    w = 0.25 * s, x = (r[2][1] - r[1][2]) / s, y = (r[0][2] - r[2][0]) / s,
+    z = (r[1][0] - r[0][1]) / s;
+  } else if (r[0][0] > r[1][1] && r[0][0] > r[2][2]) {
+    const double s = 2.0 * std::sqrt(1.0 + r[0][0] - r[1][1] - r[2][2]);
+    w = (r[2][1] - r[1][2]) / s, x = 0.25 * s, y = (r[0][1] + r[1][0]) / s,
+    z = (r[0][2] + r[2][0]) / s;
+  } else if (r[1][1] > r[2][2]) {
+    const double s = 2.0 * std::sqrt(1.0 + r[1][1] - r[0][0] - r[2][2]);
+    w = (r[0][2] - r[2][0]) / s, x = (r[0][1] + r[1][0]) / s, y = 0.25 * s,
+    z = (r[1][2] + r[2][1]) / s;
+  } else {
+    const double s = 2.0 * std::sqrt(1.0 + r[2][2] - r[0][0] - r[1][1]);
+    w = (r[1][0] - r[0][1]) / s, x = (r[0][2] + r[2][0]) / s, y = (r[1][2] + r[2][1]) / s,
+    z = 0.25 * s;
+  }
+  const double norm = std::sqrt(w * w + x * x + y * y + z * z);
+  pose->set_qw(w / norm);
+  pose->set_qx(x / norm);
+  pose->set_qy(y / norm);
+  pose->set_qz(z / norm);
+}
+
 }  // namespace
+
+v1::RigCamera RigCameraFromYaml(const std::string& path, const std::string& name) {
+  v1::RigCamera rig_camera;
+  *rig_camera.mutable_camera() = CameraFromYaml(path);
+  rig_camera.set_name(name);
+  cv::FileStorage file(ReadWithDirective(path), cv::FileStorage::READ |
+                                                     cv::FileStorage::MEMORY |
+                                                     cv::FileStorage::FORMAT_YAML);
+  const std::vector<double> t = Numbers(path, file["T_BS"]["data"], "T_BS.data", 16);
+  double r[3][3];
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) r[i][j] = t[i * 4 + j];
+  }
+  // A rotation: its columns orthonormal (to a calibration file's printed precision).
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) {
+      const double dot = r[0][a] * r[0][b] + r[1][a] * r[1][b] + r[2][a] * r[2][b];
+      if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-3) Fail(path, "T_BS is not a rigid transform");
+    }
+  }
+  v1::Pose* pose = rig_camera.mutable_body_from_cam();
+  pose->set_tx(t[3]);
+  pose->set_ty(t[7]);
+  pose->set_tz(t[11]);
+  SetRotation(r, pose);
+  return rig_camera;
+}
 
 v1::CameraModel CameraFromYaml(const std::string& path) {
   cv::FileStorage file;

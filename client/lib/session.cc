@@ -140,6 +140,23 @@ bool SessionImpl::Submit(const Frame& frame, std::string* why_not) {
     }
     if (frame.image.depth() != CV_8U) return refuse("the image is not 8-bit");
   }
+  if (frame.rig_images.size() != options_.rig_cameras.size()) {
+    return refuse("the frame carries " + std::to_string(frame.rig_images.size()) +
+                  " rig images for " + std::to_string(options_.rig_cameras.size()) +
+                  " rig cameras");
+  }
+  for (size_t c = 0; c < frame.rig_images.size(); ++c) {
+    const cv::Mat& image = frame.rig_images[c].image;
+    const v1::CameraModel& camera = options_.rig_cameras[c].camera();
+    if (!frame.rig_images[c].encoded.empty() || image.empty()) continue;
+    if (image.cols != static_cast<int>(camera.width()) ||
+        image.rows != static_cast<int>(camera.height()) || image.depth() != CV_8U) {
+      return refuse("rig camera " + std::to_string(c + 1) + "'s image is " +
+                    std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                    " but that camera is " + std::to_string(camera.width()) + "x" +
+                    std::to_string(camera.height()) + " (8-bit)");
+    }
+  }
   Events events;
   {
     std::unique_lock<std::mutex> lock(mutex_);
@@ -153,6 +170,7 @@ bool SessionImpl::Submit(const Frame& frame, std::string* why_not) {
     if (!refused_.empty()) return refuse(refused_);
     Queued queued{frame, Clock::now()};
     queued.frame.image = frame.image.clone();  // The caller may reuse its buffer.
+    for (RigFrameImage& rig_image : queued.frame.rig_images) rig_image.image = rig_image.image.clone();
     queue_.push_back(std::move(queued));
     ++stats_.submitted;
     while (static_cast<int>(queue_.size()) > options_.max_queued) {
@@ -282,6 +300,7 @@ bool SessionImpl::OpenStream(Events* events, grpc::Status* refused) {
   v1::SessionStart* s = start.mutable_start();
   s->set_map_name(options_.map_name);
   *s->mutable_camera() = options_.camera;
+  for (const v1::RigCamera& camera : options_.rig_cameras) *s->add_rig_cameras() = camera;
   *s->mutable_options() = options_.session;
   s->set_robot_id(options_.robot_id);
   if (!stream->call->Write(start)) {
@@ -434,6 +453,24 @@ bool SessionImpl::SendNext() {
   } else {
     f->set_encoded(EncodeImage(next.frame.image, options_.encoding, options_.jpeg_quality));
   }
+  size_t rig_bytes = 0;
+  for (const RigFrameImage& rig_image : next.frame.rig_images) {
+    v1::RigImage* out = f->add_rig_images();
+    out->set_timestamp_ns(rig_image.timestamp_ns);
+    if (!rig_image.encoded.empty()) {
+      out->set_encoded(rig_image.encoded);
+    } else if (rig_image.image.empty()) {
+      continue;  // That camera gave no image this time.
+    } else if (options_.encoding == Encoding::kRaw) {
+      v1::RawImage* raw = out->mutable_raw();
+      raw->set_width(rig_image.image.cols);
+      raw->set_height(rig_image.image.rows);
+      raw->set_pixels(EncodeImage(rig_image.image, Encoding::kRaw, 0));
+    } else {
+      out->set_encoded(EncodeImage(rig_image.image, options_.encoding, options_.jpeg_quality));
+    }
+    rig_bytes += out->encoded().size() + out->raw().pixels().size();
+  }
   if (next.frame.odom_from_cam) *f->mutable_odom_from_cam() = *next.frame.odom_from_cam;
   for (const v1::ImuSample& s : carried) *f->add_imu() = s;  // Older: dropped frames'.
   for (const v1::ImuSample& s : next.frame.imu) *f->add_imu() = s;
@@ -442,7 +479,7 @@ bool SessionImpl::SendNext() {
   } else if (resume_hint) {
     *f->mutable_map_from_cam_hint() = hint;
   }
-  const size_t bytes = f->encoded().size() + f->raw().pixels().size();
+  const size_t bytes = f->encoded().size() + f->raw().pixels().size() + rig_bytes;
   const bool written = stream->call->Write(request);
   std::lock_guard<std::mutex> lock(mutex_);
   if (written) {

@@ -20,7 +20,6 @@ VISLOC, SERVER, PRODUCT = sys.argv[1:4]
 NOT_YET = {
     ("visloc", "jobs"): "issue 36 (mapping over the link)",
     ("visloc map build", "--server"): "issue 36 (mapping over the link)",
-    ("visloc localize", "--cameras"): "issue 56 (the robot's whole rig)",
 }
 NOT_YET_VERBS = {
     "visloc map align": "issue 57 (the site: a site frame)",

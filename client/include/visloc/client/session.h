@@ -89,6 +89,10 @@ struct SessionOptions {
   Credentials credentials;
   std::string map_name;
   v1::CameraModel camera;      // The camera the frames come from (PinholeCamera() helps).
+  // A rig: the robot's other cameras, each with its pose on the body (the frame of
+  // session.body_from_cam, or `camera`'s own when that is unset). Every Frame then carries one
+  // image of each in rig_images. RigCameraFromYaml reads one from its sensor.yaml.
+  std::vector<v1::RigCamera> rig_cameras;
   v1::SessionOptions session;  // The engine's options (drop policy, camera height, ...).
   std::string robot_id;        // For the server's logs.
 
@@ -126,6 +130,13 @@ struct SessionOptions {
   void Check() const;
 };
 
+// One image of a rig's other camera (SessionOptions::rig_cameras), taken with the frame.
+struct RigFrameImage {
+  int64_t timestamp_ns = 0;
+  cv::Mat image;        // 8-bit grey or BGR, that camera's size; empty: it gave none this time.
+  std::string encoded;  // Or already encoded PNG/JPEG bytes.
+};
+
 struct Frame {
   int64_t timestamp_ns = 0;
   cv::Mat image;  // 8-bit grey or BGR (converted to grey), the camera's size.
@@ -135,6 +146,7 @@ struct Frame {
   std::optional<v1::Pose> map_from_cam_hint;  // An external guess.
   // Already encoded PNG/JPEG bytes (sent as they are; `image` is then ignored).
   std::string encoded;
+  std::vector<RigFrameImage> rig_images;  // One per rig camera, in SessionOptions' order.
 };
 
 struct SessionStats {
@@ -187,6 +199,10 @@ v1::CameraModel PinholeCamera(int width, int height, double fx, double fy, doubl
 // lens (distortion_model radial-tangential, equidistant or none, with its four coefficients).
 // Throws std::invalid_argument naming the file and what is wrong with it.
 v1::CameraModel CameraFromYaml(const std::string& path);
+// A rig's camera from its sensor.yaml: CameraFromYaml's camera, placed on the body by the
+// file's T_BS (body_from_sensor, row-major 4x4), with `name` for reports. Throws
+// std::invalid_argument as CameraFromYaml does, and for a T_BS that is not a rigid transform.
+v1::RigCamera RigCameraFromYaml(const std::string& path, const std::string& name);
 
 // The largest answer a client accepts (gRPC's default is 4 MiB): a map download chunk or a
 // relocalization's candidate list stay far below it. The wire's limit, defined once in
