@@ -91,6 +91,12 @@ std::optional<std::pair<Eigen::Vector3d, double>> FitKeyframePlane(const Localiz
 
 namespace {
 
+// `rig`, once CameraRig::Check has passed it.
+const CameraRig& Checked(const CameraRig& rig) {
+  rig.Check();
+  return rig;
+}
+
 // A one-camera rig: `camera` at `body_from_cam` when given (its gyro then in that body frame).
 CameraRig SingleCameraRig(const Camera& camera, const std::optional<Rigid3d>& body_from_cam) {
   CameraRig rig;
@@ -136,9 +142,8 @@ void CameraRig::Check() const {
 
 Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig& rig,
                      const LocalizerOptions& options)
-    : Localizer(map, rig.cameras.at(0), options,
-                rig.body_is_gyro_frame ? std::optional(rig.body_from_cam.at(0)) : std::nullopt) {
-  rig.Check();
+    : Localizer(map, Checked(rig).cameras[0], options,
+                rig.body_is_gyro_frame ? std::optional(rig.body_from_cam[0]) : std::nullopt) {
   rig_ = rig;
   if (rig.cameras.size() == 1) return;
   std::vector<const PoseTracker*> trackers = {&pipeline_.tracker()};

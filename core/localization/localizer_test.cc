@@ -92,6 +92,70 @@ TEST(LocalizerTest, ARobotThatStaysLostStopsTryingTheTrackingFeatures) {
   EXPECT_EQ(tried.relocalization.feature_passes, 1);  // Still lost: the full features only.
 }
 
+// A rig of the map's camera and a rear camera 0.1 m behind it looking back.
+CameraRig FrontBackRig(const Camera& camera) {
+  CameraRig rig;
+  rig.cameras = {camera, camera};
+  rig.body_from_cam = {Rigid3d(),
+                       Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
+                               Eigen::Vector3d(0, 0, -0.1))};
+  return rig;
+}
+
+FrameInput RigFrame(int64_t timestamp_ns, const cv::Mat& front, const cv::Mat& rear,
+                    int64_t rear_offset_ns = 0) {
+  FrameInput input = Frame(timestamp_ns, front);
+  input.rig_images.push_back({timestamp_ns + rear_offset_ns, rear});
+  return input;
+}
+
+TEST(LocalizerTest, ARigsFrameIsCheckedCameraByCameraAndTheSessionGoesOn) {
+  const auto map = SmallHarrisMap();
+  Localizer localizer(map, FrontBackRig(map->map().camera), LocalizerOptions{});
+  const cv::Mat dark(240, 320, CV_8UC1, cv::Scalar(3));
+  const auto refused = [&](const FrameInput& input) {
+    try {
+      localizer.Process(input);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(refused(Frame(1, dark)), "the session's rig has 2 cameras but the frame carries 1 images");
+  EXPECT_EQ(refused(RigFrame(1, dark, cv::Mat(100, 100, CV_8UC1, cv::Scalar(0)))),
+            "camera 1's image is 100x100 of type 0 but the camera is 320x240 8-bit grey");
+  // Taken 8 ms apart: not the same moment (the default tolerance is 5 ms).
+  EXPECT_EQ(refused(RigFrame(10'000'000, dark, dark, 8'000'000)),
+            "camera 1's image was taken 8 ms from the reference camera's (at most 5 ms)");
+  // A camera that gave no image this time is no error; all cameras blind: no pose.
+  const LocalizationResult none = localizer.Process(RigFrame(20'000'000, dark, cv::Mat()));
+  EXPECT_EQ(none.status, TrackingStatus::kInitializing);
+  const LocalizationResult blind = localizer.Process(RigFrame(86'000'000, dark, dark, 2'000'000));
+  EXPECT_EQ(blind.status, TrackingStatus::kInitializing);
+  EXPECT_FALSE(blind.has_pose);
+  EXPECT_EQ(blind.relocalization.kind, RelocalizationReport::Kind::kGlobal);
+}
+
+TEST(LocalizerTest, ARigIsOneToEightCamerasEachPlaced) {
+  const auto map = SmallHarrisMap();
+  CameraRig rig = FrontBackRig(map->map().camera);
+  rig.body_from_cam.pop_back();
+  EXPECT_THROW(Localizer(map, rig, LocalizerOptions{}), InputError);
+  rig.cameras.assign(9, map->map().camera);
+  rig.body_from_cam.assign(9, Rigid3d());
+  EXPECT_THROW(Localizer(map, rig, LocalizerOptions{}), InputError);
+  rig.cameras.clear();
+  rig.body_from_cam.clear();
+  EXPECT_THROW(Localizer(map, rig, LocalizerOptions{}), InputError);
+  // Camera c's placement on the rig, from both on the body.
+  rig = FrontBackRig(map->map().camera);
+  const Rigid3d body_from_front(RotationFromRollPitchYaw(0.1, 0.2, 0.3), Eigen::Vector3d(1, 2, 3));
+  rig.body_from_cam = {body_from_front, body_from_front * FrontBackRig(map->map().camera).body_from_cam[1]};
+  EXPECT_TRUE(ApproxEqual(rig.CamFromReference(1),
+                          FrontBackRig(map->map().camera).body_from_cam[1].Inverse(), 1e-12, 1e-9));
+  EXPECT_TRUE(ApproxEqual(rig.CamFromReference(0), Rigid3d(), 1e-12, 1e-9));
+}
+
 TEST(LocalizerTest, OptionsAreChecked) {
   const auto map = SmallHarrisMap();
   LocalizerOptions options;
