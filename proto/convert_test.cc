@@ -9,6 +9,8 @@
 #include <cmath>
 #include <functional>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include "core/util/check.h"
 
 namespace visloc {
@@ -76,6 +78,52 @@ class WireValidationTest : public ::testing::Test {
     }
   }
 };
+
+TEST_F(WireValidationTest, ARigSessionDeclaresItsCamerasAndEachFrameCarriesTheirImages) {
+  v1::SessionStart start;
+  *start.mutable_camera() = GoodCamera();
+  v1::RigCamera* rear = start.add_rig_cameras();
+  *rear->mutable_camera() = GoodCamera();
+  const Rigid3d body_from_rear(RotationFromRollPitchYaw(0, 0, M_PI), Eigen::Vector3d(-0.1, 0, 0));
+  proto::ToProto(body_from_rear, rear->mutable_body_from_cam());
+  const CameraRig rig = proto::RigFromProto(start, proto::WireLimits{});
+  ASSERT_EQ(rig.cameras.size(), 2u);
+  EXPECT_FALSE(rig.body_is_gyro_frame);  // No options.body_from_cam: the reference is the body.
+  EXPECT_TRUE(ApproxEqual(rig.CamFromReference(1), body_from_rear.Inverse(), 1e-12, 1e-9));
+
+  const cv::Mat grey(240, 320, CV_8UC1, cv::Scalar(90));
+  std::vector<uchar> png;
+  cv::imencode(".png", grey, png);
+  v1::Frame frame;
+  frame.set_timestamp_ns(1000);
+  frame.set_encoded(std::string(png.begin(), png.end()));
+  EXPECT_THAT([&] { proto::FromProto(frame, rig); },
+              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(
+                  "the frame carries 0 rig images for a rig of 2 cameras (1 besides the reference)")));
+  v1::RigImage* image = frame.add_rig_images();
+  image->set_timestamp_ns(1001);
+  image->set_encoded(std::string(png.begin(), png.end()));
+  const FrameInput input = proto::FromProto(frame, rig);
+  ASSERT_EQ(input.rig_images.size(), 1u);
+  EXPECT_EQ(input.rig_images[0].timestamp_ns, 1001);
+  EXPECT_EQ(input.rig_images[0].image.cols, 320);
+  // A camera that gave no image this time: an empty one; a bad one is named.
+  image->clear_encoded();
+  EXPECT_TRUE(proto::FromProto(frame, rig).rig_images[0].image.empty());
+  image->set_encoded("not an image");
+  EXPECT_THAT([&] { proto::FromProto(frame, rig); },
+              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 1: image:")));
+  // Each rig camera is placed, and a rig has at most eight cameras.
+  rear->clear_body_from_cam();
+  EXPECT_THAT([&] { proto::RigFromProto(start, proto::WireLimits{}); },
+              ::testing::ThrowsMessage<InputError>(
+                  ::testing::HasSubstr("start.rig_cameras[0] has no body_from_cam")));
+  proto::ToProto(body_from_rear, rear->mutable_body_from_cam());
+  for (int i = 0; i < 7; ++i) *start.add_rig_cameras() = *rear;
+  EXPECT_THAT([&] { proto::RigFromProto(start, proto::WireLimits{}); },
+              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(
+                  "start.rig_cameras: 8 cameras; at most 7 besides the reference")));
+}
 
 TEST_F(WireValidationTest, SessionOptionsOutOfRangeAreRefusedByName) {
   const auto refused = [](const std::function<void(v1::SessionOptions*)>& set,

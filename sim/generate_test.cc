@@ -77,6 +77,39 @@ TEST(GenerateTest, KidnapFramesAreCoveredAndListed) {
             std::string::npos);
 }
 
+TEST(GenerateTest, ARigsRearCameraSeesTheRoomWhileTheFrontPairIsCovered) {
+  TempDir dir;
+  GenerateOptions options = SmallOptions(0);
+  options.rig.layout = RigOptions::Layout::kFour;
+  const SequenceSpec spec = MakeSequenceSpec("kidnap", 1);
+  options.max_frames = static_cast<int>(std::ceil(spec.covered_s[0].first * 15)) + 2;
+  const GenerateStats stats = SequenceGenerator(options).Generate("kidnap", dir.path());
+  const Dataset dataset = ReadDataset(stats.dir);
+  ASSERT_EQ(dataset.other_cameras.size(), 3u);
+  EXPECT_EQ(dataset.other_cameras[0].name, "cam2");
+  EXPECT_EQ(dataset.other_cameras[2].name, "cam4");
+  // The rear camera looks back along the body's x axis: its optical axis against the front's.
+  const Eigen::Vector3d front_axis = dataset.left.body_from_cam.rotation * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d rear_axis =
+      dataset.other_cameras[0].info.body_from_cam.rotation * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(front_axis.dot(rear_axis), -1.0, 1e-12);
+  const Eigen::Vector3d left_axis =
+      dataset.other_cameras[1].info.body_from_cam.rotation * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(front_axis.dot(left_axis), 0.0, 1e-12);
+  EXPECT_NEAR(left_axis.y(), 1.0, 1e-12);  // The body's left.
+  for (const CameraStream& stream : dataset.other_cameras) {
+    ASSERT_EQ(stream.images.size(), dataset.frames.size());
+    EXPECT_EQ(stream.images.back().first, dataset.frames.back().timestamp_ns);
+  }
+  // The last frame is covered in front, not behind.
+  EXPECT_LT(cv::mean(LoadGreyImage(dataset.frames.back().left_path, 160, 120))[0], 10.0);
+  EXPECT_GT(cv::mean(LoadGreyImage(dataset.other_cameras[0].images.back().second, 160, 120))[0],
+            40.0);
+  const auto lines = ReadTextLines(stats.dir + "/sequence.json");
+  EXPECT_NE(lines[0].text.find("\"rig\":\"four\""), std::string::npos);
+  EXPECT_THROW(ParseRigLayout("three"), InputError);
+}
+
 TEST(GenerateTest, KittiLayoutReadsBack) {
   TempDir dir;
   GenerateOptions options = SmallOptions(4);

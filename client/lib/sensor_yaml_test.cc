@@ -61,6 +61,29 @@ TEST(CameraFromYamlTest, ReadsWhatVislocWritesAsTheEngineDoes) {
   EXPECT_DOUBLE_EQ(fisheye.fx(), 190.1);
 }
 
+TEST(CameraFromYamlTest, ARigCameraIsPlacedByItsT_BSAsTheEngineReadsIt) {
+  TempDir dir("visloc-sensor-yaml");
+  CameraInfo info;
+  info.rate_hz = 20;
+  info.camera = Camera(320, 240, 160, 160, 159.5, 119.5);
+  for (const double yaw : {0.0, 0.3, M_PI, -2.0}) {
+    info.body_from_cam = Rigid3d(RotationFromRollPitchYaw(0.2, -1.1, yaw), {-0.1, 0.02, 0.3});
+    WriteSensorYaml(dir.File("rear.yaml"), info, "rear");
+    const v1::RigCamera rig_camera = RigCameraFromYaml(dir.File("rear.yaml"), "rear");
+    EXPECT_EQ(rig_camera.name(), "rear");
+    ExpectSameCamera(dir.File("rear.yaml"));
+    const Rigid3d robot = proto::FromProto(rig_camera.body_from_cam(), "body_from_cam");
+    const Rigid3d engine = ReadSensorYaml(dir.File("rear.yaml")).body_from_cam;
+    EXPECT_TRUE(ApproxEqual(robot, engine, 1e-12, 1e-9)) << "yaw " << yaw;
+  }
+  WriteText(dir.File("sheared.yaml"),
+            "camera_model: pinhole\nresolution: [320, 240]\nintrinsics: [160, 160, 159.5, 119.5]\n"
+            "T_BS:\n  cols: 4\n  rows: 4\n  data: [1, 0.5, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
+  EXPECT_THAT([&] { RigCameraFromYaml(dir.File("sheared.yaml"), "x"); },
+              ::testing::ThrowsMessage<std::invalid_argument>(
+                  HasSubstr("sheared.yaml: T_BS is not a rigid transform")));
+}
+
 TEST(CameraFromYamlTest, ReadsRealEurocCalibrationsAsTheEngineDoes) {
   const std::string real = VISLOC_REAL_DATA;
   if (!std::filesystem::is_directory(real)) GTEST_SKIP() << "no real recordings at " << real;

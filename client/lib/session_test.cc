@@ -219,6 +219,50 @@ TEST_F(ClientSessionTest, BadOptionsAndFramesAreRefusedAtOnce) {
   EXPECT_EQ(why, "the frame has no image");
 }
 
+// A rig: the session declares its rear camera, every frame carries its image (each encoding),
+// and the server answers every frame with each camera's share; frames that do not fit the rig
+// are refused at once, on the robot's side.
+TEST_F(ClientSessionTest, ARigSessionSendsEveryCamerasImageAndHearsEachOnesShare) {
+  for (const Encoding encoding : {Encoding::kJpeg, Encoding::kRaw}) {
+    SessionOptions options = Options();
+    options.encoding = encoding;
+    options.wait_for_room = true;
+    v1::RigCamera& rear = options.rig_cameras.emplace_back();
+    *rear.mutable_camera() = options.camera;
+    rear.mutable_body_from_cam()->set_qy(1.0);  // Half a turn about y: looking back.
+    auto session = Session::Open(options);
+    std::string why;
+    EXPECT_FALSE(session->Submit(MakeFrame(0), &why));
+    EXPECT_EQ(why, "the frame carries 0 rig images for 1 rig cameras");
+    Frame wrong = MakeFrame(0);
+    wrong.rig_images.push_back({wrong.timestamp_ns, cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)), ""});
+    EXPECT_FALSE(session->Submit(wrong, &why));
+    EXPECT_EQ(why, "rig camera 1's image is 10x10 but that camera is 160x120 (8-bit)");
+    for (int i = 0; i < 3; ++i) {
+      Frame frame = MakeFrame(i);
+      frame.rig_images.push_back({frame.timestamp_ns, MakeFrame(i + 10).image, ""});
+      ASSERT_TRUE(session->Submit(frame, &why)) << why;
+    }
+    const std::vector<Event> events = Collect(
+        session.get(), 20, [](const auto& e) { return Count(e, Event::Kind::kResult) == 3; });
+    session->Close();
+    int answered = 0;
+    for (const Event& e : events) {
+      if (e.kind != Event::Kind::kResult) continue;
+      EXPECT_NE(e.response.status(), v1::STATUS_ERROR) << e.response.error();
+      // Random images: nothing to localize. Both cameras are named in every answer, and the
+      // first frame's features were extracted in both (a robot that stays lost then goes
+      // straight to the relocalization features).
+      ASSERT_EQ(e.response.cameras_size(), 2) << static_cast<int>(encoding);
+      if (answered == 0) {
+        EXPECT_GT(e.response.cameras(1).features(), 0u);
+      }
+      ++answered;
+    }
+    EXPECT_EQ(answered, 3);
+  }
+}
+
 TEST_F(ClientSessionTest, AnUnreachableServerIsRetriedThenGivenUpWhenAsked) {
   SessionOptions options = Options();
   options.server = "127.0.0.1:1";  // Nothing listens there.

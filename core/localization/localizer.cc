@@ -172,6 +172,9 @@ PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_
 
 void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
   rig_frames_.clear();
+  // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these).
+  stats->cameras.assign(rig_.cameras.size(), PoseFix::CameraSupport{});
+  stats->cameras[0].features = stats->features;
   for (size_t c = 0; c < rig_pipelines_.size(); ++c) {
     const cv::Mat& image = input.rig_images[c].image;
     if (image.empty()) {
@@ -184,7 +187,8 @@ void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
     stats->times.detect_ms += extract.detect_ms;
     stats->times.describe_ms += extract.describe_ms;
     stats->times.undistort_ms += undistort_ms;
-    stats->features += static_cast<int>(rig_frames_.back()->size());
+    stats->cameras[c + 1].features = static_cast<int>(rig_frames_.back()->size());
+    stats->features += stats->cameras[c + 1].features;
   }
 }
 
@@ -423,6 +427,8 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
       Relocalize(input, frame && features_first ? &*frame : nullptr, motion, &result);
   if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
   rig_frames_.clear();
+  // A rig's answer names every camera, even when no features were extracted this frame.
+  if (rig_tracker_) result.stats.cameras.resize(rig_.cameras.size());
   result.stats.times.total_ms = total.ElapsedMs();
   return result;
 }
