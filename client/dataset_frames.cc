@@ -5,6 +5,7 @@
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "proto/geometry_convert.h"
 
 namespace visloc::cli {
 
@@ -95,6 +96,19 @@ std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& data
   const auto* image = stream->Nearest(record.timestamp_ns, tolerance_ns);
   if (image == nullptr) return std::nullopt;
   return *image;
+}
+
+std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
+                                          const std::vector<std::string>& names) {
+  const CameraRig rig = DatasetCameraRig(dataset, names, /*gyro=*/false);
+  std::vector<v1::RigCamera> cameras;
+  for (size_t c = 1; c < rig.cameras.size(); ++c) {
+    v1::RigCamera& camera = cameras.emplace_back();
+    proto::ToProto(rig.cameras[c], camera.mutable_camera());
+    proto::ToProto(rig.body_from_cam[c], camera.mutable_body_from_cam());
+    camera.set_name(names[c]);
+  }
+  return cameras;
 }
 
 }  // namespace visloc::cli

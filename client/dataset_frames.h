@@ -5,6 +5,7 @@
 
 #include "core/localization/localizer.h"
 #include "dataset/dataset.h"
+#include "visloc/v1/visloc.pb.h"
 
 namespace visloc::cli {
 
@@ -31,5 +32,10 @@ CameraRig DatasetCameraRig(const Dataset& dataset, const std::vector<std::string
 std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& dataset,
                                                              const std::string& name,
                                                              size_t index, int64_t tolerance_ns);
+
+// The rig's other cameras (names[1..]) on the wire, each placed on the body by its T_BS: the
+// body of the reference camera's T_BS, which the session (or request) then declares.
+std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
+                                          const std::vector<std::string>& names);
 
 }  // namespace visloc::cli

@@ -9,6 +9,7 @@
 
 #include "client/commands.h"
 #include "client/connection.h"
+#include "client/dataset_frames.h"
 #include "client/relocalization_evidence.h"
 #include "core/eval/trajectory_eval.h"
 #include "core/util/args.h"
@@ -29,15 +30,25 @@ namespace {
 struct RelocalizeArgs {
   std::string map_name, image_path, dataset_dir, sensor_path, frames, trajectory_path;
   std::string map_file, evidence_path;
+  std::string cameras = "cam0";  // With --frames: the rig each request carries.
   Connection server;
   bool json = false;
 };
 
-// One Relocalize call for the image file at `path`.
+// One Relocalize call for the image file at `path`, with `rig_images` (the files' bytes, or
+// none for a camera without an image then) for a rig's other cameras.
 v1::RelocalizeResponse Ask(v1::Localization::Stub& stub, const RelocalizeArgs& args,
-                           const v1::RelocalizeRequest& base, const std::string& path) {
+                           const v1::RelocalizeRequest& base, const std::string& path,
+                           const std::vector<std::optional<std::pair<int64_t, std::string>>>&
+                               rig_images = {}) {
   v1::RelocalizeRequest request = base;
   request.set_encoded_image(ReadFileBytes(path));
+  for (const auto& image : rig_images) {
+    v1::RigImage* out = request.add_rig_images();
+    if (!image) continue;
+    out->set_timestamp_ns(image->first);
+    out->set_encoded(ReadFileBytes(image->second));
+  }
   grpc::ClientContext context;
   args.server.Prepare(&context);
   v1::RelocalizeResponse response;
@@ -128,8 +139,15 @@ int RelocalizeFrames(v1::Localization::Stub& stub, const RelocalizeArgs& args,
   Trajectory found;
   std::vector<v1::RelocalizeResponse> answers;
   std::vector<double> ms;
-  for (const FrameRecord& frame : dataset.frames) {
-    answers.push_back(Ask(stub, args, base, frame.left_path));
+  const std::vector<std::string> cameras = ParseCameraNames(args.cameras);
+  for (size_t i = 0; i < dataset.frames.size(); ++i) {
+    const FrameRecord& frame = dataset.frames[i];
+    std::vector<std::optional<std::pair<int64_t, std::string>>> rig_images;
+    for (size_t c = 1; c < cameras.size(); ++c) {
+      rig_images.push_back(
+          CameraImageAt(dataset, cameras[c], i, LocalizerOptions{}.max_rig_skew_ns));
+    }
+    answers.push_back(Ask(stub, args, base, frame.left_path, rig_images));
     const v1::RelocalizeResponse& answer = answers.back();
     ms.push_back(answer.ms());
     if (answer.localized()) {
@@ -200,6 +218,9 @@ int RunRelocalize(const Args& raw_args) {
                  "N), BEGIN:END or BEGIN:END:STEP; 'all' for every frame");
   parser.AddFlag("trajectory", &args.trajectory_path,
                  "with --frames: write the poses found (TUM, map frame)");
+  parser.AddFlag("cameras", &args.cameras,
+                 "with --frames: each request a rig's frame, cam0 (the reference) then others, "
+                 "e.g. cam0,cam1 (the stereo pair)");
   parser.AddPositional("IMAGE", &args.image_path, "PNG or JPEG image", /*required=*/false);
   parser.AddSwitch("json", &args.json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
@@ -236,6 +257,9 @@ int RunRelocalize(const Args& raw_args) {
     throw UsageError("give --dataset or --camera-yaml, not both");
   }
   if (!many && !args.trajectory_path.empty()) throw UsageError("--trajectory needs --frames");
+  if (args.cameras != "cam0" && (!many || args.dataset_dir.empty())) {
+    throw UsageError("--cameras needs --dataset and --frames (a rig's images of each frame)");
+  }
   args.server.ApplyEnvironment();
   v1::RelocalizeRequest base;
   base.set_map_name(args.map_name);
@@ -243,6 +267,13 @@ int RunRelocalize(const Args& raw_args) {
   if (!args.dataset_dir.empty()) {
     dataset = ReadDataset(args.dataset_dir);
     proto::ToProto(dataset->left.camera, base.mutable_camera());
+    const std::vector<std::string> cameras = ParseCameraNames(args.cameras);
+    if (cameras.size() > 1) {
+      for (const v1::RigCamera& camera : WireRigCameras(*dataset, cameras)) {
+        *base.add_rig_cameras() = camera;
+      }
+      proto::ToProto(dataset->left.body_from_cam, base.mutable_body_from_cam());
+    }
   } else if (!args.sensor_path.empty()) {
     proto::ToProto(ReadSensorYaml(args.sensor_path).camera, base.mutable_camera());
   }

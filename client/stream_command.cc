@@ -78,21 +78,6 @@ std::chrono::milliseconds StallTimeout(const StreamArgs& args) {
   return args.rate_hz == 0 ? std::chrono::milliseconds(60000) : std::chrono::milliseconds(2000);
 }
 
-// A rig's other cameras on the wire: each placed on the body of the reference camera's T_BS,
-// which the session then declares (SessionOptions.body_from_cam).
-std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
-                                          const std::vector<std::string>& names) {
-  const CameraRig rig = DatasetCameraRig(dataset, names, /*gyro=*/false);
-  std::vector<v1::RigCamera> cameras;
-  for (size_t c = 1; c < rig.cameras.size(); ++c) {
-    v1::RigCamera& camera = cameras.emplace_back();
-    proto::ToProto(rig.cameras[c], camera.mutable_camera());
-    proto::ToProto(rig.body_from_cam[c], camera.mutable_body_from_cam());
-    camera.set_name(names[c]);
-  }
-  return cameras;
-}
-
 client::SessionOptions LibraryOptions(const StreamArgs& args, const CameraInfo& camera,
                                       const std::vector<v1::RigCamera>& rig_cameras) {
   client::SessionOptions o;

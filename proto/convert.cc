@@ -93,6 +93,20 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const C
   return grey;
 }
 
+namespace {
+
+// Rig image `c` (camera c + 1) decoded for its camera; empty when it carries none.
+cv::Mat RigImageOf(const v1::RigImage& in, size_t c, const CameraRig& rig) {
+  if (in.image_case() == v1::RigImage::IMAGE_NOT_SET) return cv::Mat();  // None this time.
+  try {
+    return DecodeImage(in.encoded(), in.has_raw() ? &in.raw() : nullptr, rig.cameras[c + 1]);
+  } catch (const InputError& e) {
+    throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
+  }
+}
+
+}  // namespace
+
 FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
   FrameInput input = FromProto(frame, rig.cameras.at(0));
   const size_t others = rig.cameras.size() - 1;
@@ -102,39 +116,69 @@ FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
   }
   for (size_t c = 0; c < others; ++c) {
     const v1::RigImage& in = frame.rig_images(static_cast<int>(c));
-    RigImage& image = input.rig_images.emplace_back();
-    image.timestamp_ns = in.timestamp_ns();
-    if (in.image_case() == v1::RigImage::IMAGE_NOT_SET) continue;  // None this time.
-    try {
-      image.image = DecodeImage(in.encoded(), in.has_raw() ? &in.raw() : nullptr, rig.cameras[c + 1]);
-    } catch (const InputError& e) {
-      throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
-    }
+    input.rig_images.push_back({in.timestamp_ns(), RigImageOf(in, c, rig)});
   }
   return input;
 }
 
-CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits) {
+namespace {
+
+// `reference` placed by `body_from_reference` (the identity when null), and `others` on that body.
+CameraRig RigOf(const Camera& reference, const v1::Pose* body_from_reference,
+                const google::protobuf::RepeatedPtrField<v1::RigCamera>& others,
+                const WireLimits& limits, const char* field) {
   constexpr size_t kMaxOthers = CameraRig::kMaxCameras - 1;
-  if (static_cast<size_t>(start.rig_cameras_size()) > kMaxOthers) {
-    throw InputError(StrCat("start.rig_cameras: ", start.rig_cameras_size(), " cameras; at most ",
-                            kMaxOthers, " besides the reference"));
+  if (static_cast<size_t>(others.size()) > kMaxOthers) {
+    throw InputError(StrCat(field, ": ", others.size(), " cameras; at most ", kMaxOthers,
+                            " besides the reference"));
   }
   CameraRig rig;
-  rig.cameras.push_back(FromProto(start.camera(), limits));
-  rig.body_is_gyro_frame = start.options().has_body_from_cam();
-  rig.body_from_cam.push_back(rig.body_is_gyro_frame
-                                  ? FromProto(start.options().body_from_cam(), "body_from_cam")
-                                  : Rigid3d());
-  for (const v1::RigCamera& camera : start.rig_cameras()) {
+  rig.cameras.push_back(reference);
+  rig.body_is_gyro_frame = body_from_reference != nullptr;
+  rig.body_from_cam.push_back(
+      body_from_reference ? FromProto(*body_from_reference, "body_from_cam") : Rigid3d());
+  for (const v1::RigCamera& camera : others) {
     if (!camera.has_body_from_cam()) {
-      throw InputError(StrCat("start.rig_cameras[", rig.cameras.size() - 1,
-                              "] has no body_from_cam"));
+      throw InputError(StrCat(field, "[", rig.cameras.size() - 1, "] has no body_from_cam"));
     }
     rig.cameras.push_back(FromProto(camera.camera(), limits));
     rig.body_from_cam.push_back(FromProto(camera.body_from_cam(), "rig_cameras.body_from_cam"));
   }
   return rig;
+}
+
+}  // namespace
+
+CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits) {
+  const v1::SessionOptions& options = start.options();
+  return RigOf(FromProto(start.camera(), limits),
+               options.has_body_from_cam() ? &options.body_from_cam() : nullptr,
+               start.rig_cameras(), limits, "start.rig_cameras");
+}
+
+CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& reference,
+                       const WireLimits& limits) {
+  CameraRig rig = RigOf(reference, request.has_body_from_cam() ? &request.body_from_cam() : nullptr,
+                        request.rig_cameras(), limits, "request.rig_cameras");
+  rig.body_is_gyro_frame = false;  // No gyro in a single frame.
+  return rig;
+}
+
+std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request,
+                                        const CameraRig& rig) {
+  std::vector<cv::Mat> images = {
+      DecodeImage(request.encoded_image(),
+                  request.has_raw_image() ? &request.raw_image() : nullptr, rig.cameras[0])};
+  const size_t others = rig.cameras.size() - 1;
+  if (static_cast<size_t>(request.rig_images_size()) != others) {
+    throw InputError(StrCat("the request carries ", request.rig_images_size(),
+                            " rig images for a rig of ", rig.cameras.size(), " cameras (", others,
+                            " besides the reference)"));
+  }
+  for (size_t c = 0; c < others; ++c) {
+    images.push_back(RigImageOf(request.rig_images(static_cast<int>(c)), c, rig));
+  }
+  return images;
 }
 
 FrameInput FromProto(const v1::Frame& frame, const Camera& camera) {
@@ -227,6 +271,17 @@ LocalizerOptions FromProto(const v1::SessionOptions& o) {
   return options;
 }
 
+namespace {
+
+void ToProto(const PoseFix::CameraSupport& camera, v1::CameraSupport* out) {
+  out->set_features(camera.features);
+  out->set_predicted(camera.predicted);
+  out->set_putatives(camera.putatives);
+  out->set_inliers(camera.inliers);
+}
+
+}  // namespace
+
 void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResponse* out) {
   out->set_timestamp_ns(r.timestamp_ns);
   out->set_frame_index(frame_index);
@@ -267,13 +322,7 @@ void ToProto(const LocalizationResult& r, uint64_t frame_index, v1::LocalizeResp
   rel->set_candidates(r.relocalization.candidates);
   rel->set_ms(r.relocalization.ms);
   rel->set_feature_passes(r.relocalization.feature_passes);
-  for (const PoseFix::CameraSupport& camera : r.stats.cameras) {
-    v1::CameraSupport* support = out->add_cameras();
-    support->set_features(camera.features);
-    support->set_predicted(camera.predicted);
-    support->set_putatives(camera.putatives);
-    support->set_inliers(camera.inliers);
-  }
+  for (const PoseFix::CameraSupport& camera : r.stats.cameras) ToProto(camera, out->add_cameras());
 }
 
 void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
@@ -286,6 +335,11 @@ void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out) {
   }
   out->set_keyframe(found.keyframe);
   out->set_feature_passes(static_cast<uint32_t>(found.feature_passes));
+  if (found.success) {
+    for (const PoseFix::CameraSupport& camera : found.fix.cameras) {
+      ToProto(camera, out->add_cameras());
+    }
+  }
   for (const RelocalizationCandidate& c : found.candidates) {
     v1::RelocalizationCandidate* candidate = out->add_candidates();
     candidate->set_keyframe(c.keyframe);

@@ -21,6 +21,12 @@ FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig);
 // A session's rig: the reference camera, placed by options.body_from_cam (the identity when
 // unset: the body is then the reference camera), and SessionStart.rig_cameras on that body.
 CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits);
+// A Relocalize request's rig: `reference` (the request's camera, or the map's), placed by
+// body_from_cam, and rig_cameras. The rig's images in `images` (the reference's first; empty
+// for a camera with none), InputError naming a missing or misfit one.
+CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& reference,
+                       const WireLimits& limits);
+std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request, const CameraRig& rig);
 void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Frame* out);
 
 LocalizerOptions FromProto(const v1::SessionOptions& options);

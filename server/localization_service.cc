@@ -1,6 +1,6 @@
 #include "server/localization_service.h"
 
-#include "core/localization/query_pipeline.h"
+#include "core/localization/rig_pipeline.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/timer.h"
@@ -123,13 +123,13 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     // Without a camera model the image is taken to come from the map's own camera.
     const Camera camera = request->has_camera() ? proto::FromProto(request->camera(), limits_.wire)
                                                 : map->map().camera;
-    const cv::Mat image =
-        proto::DecodeImage(request->encoded_image(),
-                           request->has_raw_image() ? &request->raw_image() : nullptr, camera);
-    // The session's query pipeline (detector settings, radii scaled to the camera), so a
-    // single image is relocalized exactly as a session's first frame would be.
-    const QueryPipeline pipeline(map, camera, LocalizerOptions{});
-    proto::ToProto(pipeline.RelocalizeImage(image), response);
+    // The session's query pipelines (detector settings, radii scaled to each camera), so a
+    // single frame is relocalized exactly as a session's first frame would be; a rig's frame
+    // with all of its cameras.
+    const CameraRig rig = proto::RigFromProto(*request, camera, limits_.wire);
+    const std::vector<cv::Mat> images = proto::RigImagesFromProto(*request, rig);
+    const RigPipeline pipeline(map, rig, LocalizerOptions{});
+    proto::ToProto(pipeline.RelocalizeImages(images), response);
     response->set_ms(timer.ElapsedMs());
     return Status::OK;
   });

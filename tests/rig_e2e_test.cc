@@ -11,6 +11,7 @@
 #include <regex>
 #include <sstream>
 
+#include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
@@ -184,6 +185,34 @@ TEST_F(RigE2eTest, FourCamerasLookingEveryWayTrackTheCircle) {
   ASSERT_EQ(eval.exit_code, 0) << eval.err;
   EXPECT_LE(JsonNumber(eval.out, "consistency", "beyond_3_sigma"), 0.03);
   EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);
+}
+
+// The Relocalize RPC with a rig's frame: every image proposes, the pose found is verified with
+// every camera. A covered front camera's frames are found by the rear one alone.
+TEST_F(RigE2eTest, TheRelocalizeRpcFindsACoveredRobotByItsRearCamera) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const std::string sequence = kData + "/front-back/kidnap";
+  const std::vector<int> covered = CoveredFrames(sequence);
+  ASSERT_GE(covered.size(), 10u);
+  const std::string frames =
+      StrCat(covered.front(), ":", covered.back() + 1, ":", 3);  // Every third covered frame.
+  const int asked = static_cast<int>((covered.back() - covered.front()) / 3 + 1);
+  for (const std::string cameras : {"cam0", "cam0,cam2"}) {
+    const std::string found = out_.File("reloc_" + cameras + ".tum");
+    const ProcessResult relocalize = Visloc(
+        {"relocalize", "--server", server.address(), "--map", "square", "--dataset", sequence,
+         "--frames", frames, "--cameras", cameras, "--trajectory", found, "--json"});
+    ASSERT_EQ(relocalize.exit_code, 0) << relocalize.err;
+    EXPECT_EQ(JsonNumber(relocalize.out, "frames"), asked);
+    if (cameras == "cam0") {
+      EXPECT_EQ(JsonNumber(relocalize.out, "localized"), 0);  // The front camera sees its cover.
+      continue;
+    }
+    EXPECT_EQ(JsonNumber(relocalize.out, "localized"), asked);
+    const auto [worst_m, compared] = WorstError(sequence, found);
+    EXPECT_EQ(compared, asked);
+    EXPECT_LE(worst_m, 0.03);
+  }
 }
 
 TEST_F(RigE2eTest, ARigTheDatasetCannotFilmIsRefusedByName) {

@@ -19,6 +19,31 @@
 namespace visloc::client {
 namespace {
 
+// The frame's rig images on the wire, encoded as the session's options say (a camera with no
+// image this time: a RigImage with none); their bytes.
+size_t AddRigImages(const Frame& frame, const SessionOptions& options,
+                    google::protobuf::RepeatedPtrField<v1::RigImage>* out) {
+  size_t bytes = 0;
+  for (const RigFrameImage& rig_image : frame.rig_images) {
+    v1::RigImage* image = out->Add();
+    image->set_timestamp_ns(rig_image.timestamp_ns);
+    if (!rig_image.encoded.empty()) {
+      image->set_encoded(rig_image.encoded);
+    } else if (rig_image.image.empty()) {
+      continue;  // That camera gave no image this time.
+    } else if (options.encoding == Encoding::kRaw) {
+      v1::RawImage* raw = image->mutable_raw();
+      raw->set_width(rig_image.image.cols);
+      raw->set_height(rig_image.image.rows);
+      raw->set_pixels(EncodeImage(rig_image.image, Encoding::kRaw, 0));
+    } else {
+      image->set_encoded(EncodeImage(rig_image.image, options.encoding, options.jpeg_quality));
+    }
+    bytes += image->encoded().size() + image->raw().pixels().size();
+  }
+  return bytes;
+}
+
 using Clock = std::chrono::steady_clock;
 
 double MsBetween(Clock::time_point from, Clock::time_point to) {
@@ -453,24 +478,7 @@ bool SessionImpl::SendNext() {
   } else {
     f->set_encoded(EncodeImage(next.frame.image, options_.encoding, options_.jpeg_quality));
   }
-  size_t rig_bytes = 0;
-  for (const RigFrameImage& rig_image : next.frame.rig_images) {
-    v1::RigImage* out = f->add_rig_images();
-    out->set_timestamp_ns(rig_image.timestamp_ns);
-    if (!rig_image.encoded.empty()) {
-      out->set_encoded(rig_image.encoded);
-    } else if (rig_image.image.empty()) {
-      continue;  // That camera gave no image this time.
-    } else if (options_.encoding == Encoding::kRaw) {
-      v1::RawImage* raw = out->mutable_raw();
-      raw->set_width(rig_image.image.cols);
-      raw->set_height(rig_image.image.rows);
-      raw->set_pixels(EncodeImage(rig_image.image, Encoding::kRaw, 0));
-    } else {
-      out->set_encoded(EncodeImage(rig_image.image, options_.encoding, options_.jpeg_quality));
-    }
-    rig_bytes += out->encoded().size() + out->raw().pixels().size();
-  }
+  const size_t rig_bytes = AddRigImages(next.frame, options_, f->mutable_rig_images());
   if (next.frame.odom_from_cam) *f->mutable_odom_from_cam() = *next.frame.odom_from_cam;
   for (const v1::ImuSample& s : carried) *f->add_imu() = s;  // Older: dropped frames'.
   for (const v1::ImuSample& s : next.frame.imu) *f->add_imu() = s;
@@ -603,6 +611,11 @@ v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& fr
   request.set_encoded_image(!frame.encoded.empty()
                                 ? frame.encoded
                                 : EncodeImage(frame.image, options.encoding, options.jpeg_quality));
+  for (const v1::RigCamera& camera : options.rig_cameras) *request.add_rig_cameras() = camera;
+  if (options.session.has_body_from_cam()) {
+    *request.mutable_body_from_cam() = options.session.body_from_cam();
+  }
+  AddRigImages(frame, options, request.mutable_rig_images());
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + timeout);
   Authorize(&context, options.credentials);

@@ -110,13 +110,17 @@ CameraRig SingleCameraRig(const Camera& camera, const std::optional<Rigid3d>& bo
 
 Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& camera,
                      const LocalizerOptions& options, const std::optional<Rigid3d>& body_from_cam)
+    : Localizer(std::move(map), SingleCameraRig(camera, body_from_cam), options) {}
+
+Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig& rig,
+                     const LocalizerOptions& options)
     : map_(std::move(map)),
-      camera_(camera),
-      pipeline_(map_, camera_, options),
-      options_(pipeline_.options()),
-      rig_(SingleCameraRig(camera, body_from_cam)) {
-  if (body_from_cam) {
-    cam_from_body_rotation_ = body_from_cam->rotation.toRotationMatrix().transpose();
+      rig_(Checked(rig)),
+      camera_(rig.cameras[0]),
+      pipeline_(map_, rig_, options),
+      options_(reference().options()) {
+  if (rig_.body_is_gyro_frame) {
+    cam_from_body_rotation_ = rig_.body_from_cam[0].rotation.toRotationMatrix().transpose();
   }
   if (options_.motion.plane_sigma_m > 0) {
     plane_ = FitKeyframePlane(*map_, options_.motion);
@@ -126,48 +130,18 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const Camera& c
   }
 }
 
-Rigid3d CameraRig::CamFromReference(size_t camera) const {
-  return body_from_cam[camera].Inverse() * body_from_cam[0];
-}
-
-void CameraRig::Check() const {
-  if (cameras.empty() || cameras.size() > kMaxCameras) {
-    throw InputError(StrCat("a rig has 1 to ", kMaxCameras, " cameras, not ", cameras.size()));
-  }
-  if (body_from_cam.size() != cameras.size()) {
-    throw InputError(StrCat("a rig of ", cameras.size(), " cameras needs as many placements, not ",
-                            body_from_cam.size()));
-  }
-}
-
-Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig& rig,
-                     const LocalizerOptions& options)
-    : Localizer(map, Checked(rig).cameras[0], options,
-                rig.body_is_gyro_frame ? std::optional(rig.body_from_cam[0]) : std::nullopt) {
-  rig_ = rig;
-  if (rig.cameras.size() == 1) return;
-  std::vector<const PoseTracker*> trackers = {&pipeline_.tracker()};
-  std::vector<Rigid3d> cam_from_ref = {Rigid3d()};
-  for (size_t c = 1; c < rig.cameras.size(); ++c) {
-    rig_pipelines_.push_back(std::make_unique<QueryPipeline>(map_, rig.cameras[c], options));
-    trackers.push_back(&rig_pipelines_.back()->tracker());
-    cam_from_ref.push_back(rig.CamFromReference(c));
-  }
-  rig_tracker_ = std::make_unique<RigTracker>(std::move(trackers), std::move(cam_from_ref));
-}
-
 std::vector<const QueryFrame*> Localizer::RigFrames(const QueryFrame& reference) const {
   std::vector<const QueryFrame*> frames = {&reference};
   for (const std::optional<QueryFrame>& frame : rig_frames_) {
     frames.push_back(frame ? &*frame : nullptr);
   }
-  frames.resize(rig_tracker_->size(), nullptr);
+  frames.resize(pipeline_.size(), nullptr);
   return frames;
 }
 
 PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const {
-  if (!rig_tracker_) return pipeline_.tracker().Track(frame, prior_cam_from_map);
-  return rig_tracker_->Track(RigFrames(frame), prior_cam_from_map);
+  if (!rig()) return reference().tracker().Track(frame, prior_cam_from_map);
+  return pipeline_.tracker()->Track(RigFrames(frame), prior_cam_from_map);
 }
 
 void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
@@ -175,7 +149,7 @@ void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
   // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these).
   stats->cameras.assign(rig_.cameras.size(), PoseFix::CameraSupport{});
   stats->cameras[0].features = stats->features;
-  for (size_t c = 0; c < rig_pipelines_.size(); ++c) {
+  for (size_t c = 0; c + 1 < pipeline_.size(); ++c) {
     const cv::Mat& image = input.rig_images[c].image;
     if (image.empty()) {
       rig_frames_.emplace_back();
@@ -183,7 +157,7 @@ void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
     }
     ExtractStats extract;
     double undistort_ms = 0.0;
-    rig_frames_.emplace_back(rig_pipelines_[c]->Extract(image, &extract, &undistort_ms));
+    rig_frames_.emplace_back(pipeline_.camera(c + 1).Extract(image, &extract, &undistort_ms));
     stats->times.detect_ms += extract.detect_ms;
     stats->times.describe_ms += extract.describe_ms;
     stats->times.undistort_ms += undistort_ms;
@@ -200,26 +174,27 @@ PoseFix Localizer::RelocalizeRig(const FrameInput& input, PoseFix reference_fix,
   const auto verified = [&](const Rigid3d& ref_from_map) {
     const Timer timer;
     if (frame == nullptr) {
-      reference_frame.emplace(pipeline_.Extract(input.image));
+      reference_frame.emplace(reference().Extract(input.image));
       ExtractRig(input, &result->stats);
       frame = &*reference_frame;
     }
-    PoseFix fix = rig_tracker_->Polish(RigFrames(*frame), ref_from_map);
+    PoseFix fix = pipeline_.tracker()->Polish(RigFrames(*frame), ref_from_map);
     result->stats.times.relocalize_ms += timer.ElapsedMs();
     if (fix.success) CopyFixStats(fix, &result->stats);
     return fix;
   };
   if (reference_fix.success) return verified(reference_fix.cam_from_map);
-  for (size_t c = 0; c < rig_pipelines_.size(); ++c) {
+  for (size_t c = 0; c + 1 < pipeline_.size(); ++c) {
     const cv::Mat& image = input.rig_images[c].image;
     if (image.empty()) continue;
     const QueryFrame* tracking_frame =
         c < rig_frames_.size() && rig_frames_[c] ? &*rig_frames_[c] : nullptr;
     const PoseFix found =
-        TryRelocalize(*rig_pipelines_[c], image, tracking_frame, input.timestamp_ns, result);
+        TryRelocalize(pipeline_.camera(c + 1), image, tracking_frame, input.timestamp_ns, result);
     if (!found.success) continue;
     // Camera c's pose moved to the reference: ref_from_map = cam_from_ref^-1 cam_from_map.
-    PoseFix fix = verified(rig_tracker_->cam_from_ref(c + 1).Inverse() * found.cam_from_map);
+    PoseFix fix =
+        verified(pipeline_.tracker()->cam_from_ref(c + 1).Inverse() * found.cam_from_map);
     if (fix.success) return fix;
   }
   return reference_fix;
@@ -419,7 +394,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   const bool features_first = TrackingFeaturesFirst();
   if (Prior(input) || had_held_fix || features_first) {
     frame.emplace(Extract(input.image, &result.stats));
-    if (rig_tracker_) ExtractRig(input, &result.stats);
+    if (rig()) ExtractRig(input, &result.stats);
   }
   const bool taken =
       (frame && TrackFromPrior(*frame, input, motion, &result)) ||
@@ -428,7 +403,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
   rig_frames_.clear();
   // A rig's answer names every camera, even when no features were extracted this frame.
-  if (rig_tracker_) result.stats.cameras.resize(rig_.cameras.size());
+  if (rig()) result.stats.cameras.resize(rig_.cameras.size());
   result.stats.times.total_ms = total.ElapsedMs();
   return result;
 }
@@ -442,7 +417,7 @@ void Localizer::CheckInput(const FrameInput& input) const {
     throw InputError(StrCat("the image is ", input.image.cols, "x", input.image.rows,
                             " but the session camera is ", camera_.width(), "x", camera_.height()));
   }
-  const size_t other_cameras = rig_pipelines_.size();
+  const size_t other_cameras = pipeline_.size() - 1;
   if (input.rig_images.size() != other_cameras) {
     throw InputError(StrCat("the session's rig has ", other_cameras + 1,
                             " cameras but the frame carries ", input.rig_images.size() + 1,
@@ -474,7 +449,7 @@ void Localizer::CheckInput(const FrameInput& input) const {
 
 QueryFrame Localizer::Extract(const cv::Mat& image, FrameStats* stats) const {
   ExtractStats extract;
-  QueryFrame frame = pipeline_.Extract(image, &extract, &stats->times.undistort_ms);
+  QueryFrame frame = reference().Extract(image, &extract, &stats->times.undistort_ms);
   stats->times.detect_ms = extract.detect_ms;
   stats->times.describe_ms = extract.describe_ms;
   stats->features = static_cast<int>(frame.size());
@@ -538,8 +513,8 @@ bool Localizer::ConfirmHeldFix(const QueryFrame& frame, int64_t timestamp_ns,
 
 bool Localizer::Relocalize(const FrameInput& input, const QueryFrame* frame, const Motion& motion,
                            LocalizationResult* result) {
-  PoseFix fix = TryRelocalize(pipeline_, input.image, frame, input.timestamp_ns, result);
-  if (rig_tracker_) fix = RelocalizeRig(input, std::move(fix), frame, result);
+  PoseFix fix = TryRelocalize(reference(), input.image, frame, input.timestamp_ns, result);
+  if (rig()) fix = RelocalizeRig(input, std::move(fix), frame, result);
   if (!fix.success) return false;
   const FixDecision decision = DecideRelocalizedFix(EvidenceOf(fix, motion));
   if (decision.held()) {

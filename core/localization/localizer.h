@@ -33,8 +33,7 @@
 #include "core/localization/fix_policy.h"
 #include "core/localization/localizer_options.h"
 #include "core/localization/motion_filter.h"
-#include "core/localization/query_pipeline.h"
-#include "core/localization/rig_tracker.h"
+#include "core/localization/rig_pipeline.h"
 
 namespace visloc {
 
@@ -126,20 +125,6 @@ struct LocalizationResult {
   Eigen::Matrix3d PositionCovarianceInMap() const;
 };
 
-// The cameras a session localizes with, mounted rigidly on the robot. Camera 0 is the
-// reference: the session reports its pose, as a one-camera session does. `body_from_cam` places
-// each on the body; gyro samples are in the body frame when `body_is_gyro_frame`.
-struct CameraRig {
-  std::vector<Camera> cameras;
-  std::vector<Rigid3d> body_from_cam;
-  bool body_is_gyro_frame = false;
-  // Camera c's placement on the rig: reference_from_cam^-1 of it (the identity for camera 0).
-  Rigid3d CamFromReference(size_t camera) const;
-  // Throws InputError unless there are 1 to kMaxCameras cameras, each with its placement.
-  void Check() const;
-  static constexpr size_t kMaxCameras = 8;
-};
-
 class Localizer {
  public:
   // `camera` is the query camera (it may differ from the map's). `body_from_cam` places the
@@ -227,14 +212,13 @@ class Localizer {
   static void AddFixTimes(const PoseFix& fix, FrameStats* stats);
 
   std::shared_ptr<const LocalizationMap> map_;
-  Camera camera_;
-  QueryPipeline pipeline_;
-  LocalizerOptions options_;  // The pipeline's: radii scaled to the camera.
-  // A rig of two or more cameras: the other cameras' pipelines, the tracker over all of them,
-  // and this frame's tracking features of the other cameras (none where no image came).
   CameraRig rig_;
-  std::vector<std::unique_ptr<QueryPipeline>> rig_pipelines_;
-  std::unique_ptr<RigTracker> rig_tracker_;
+  Camera camera_;         // The reference camera, rig_.cameras[0].
+  RigPipeline pipeline_;  // Every camera's pipeline, and a rig's tracker over all of them.
+  const QueryPipeline& reference() const { return pipeline_.camera(0); }
+  bool rig() const { return pipeline_.tracker() != nullptr; }  // Two or more cameras.
+  LocalizerOptions options_;  // The reference pipeline's: radii scaled to its camera.
+  // A rig's tracking features of this frame, cameras 1.. (none where no image came).
   std::vector<std::optional<QueryFrame>> rig_frames_;
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
   std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
