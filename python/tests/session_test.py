@@ -16,7 +16,8 @@ import unittest
 import cv2
 
 from harness import start
-from visloc import Session, SessionOptions, pinhole_camera
+from visloc import (Session, SessionOptions, body_from_cam_from_yaml, pinhole_camera,
+                    rig_camera_from_yaml)
 from visloc.v1 import visloc_pb2 as pb
 
 SERVER, PROXY, DATA = sys.argv[1], sys.argv[2], sys.argv[3]
@@ -97,6 +98,35 @@ class PythonClientTest(unittest.TestCase):
         errors = sorted(self.position_error_m(e) for e in posed)
         self.assertLess(errors[len(errors) // 2], 0.02)
         self.assertEqual(session.streams_opened, 1)
+
+    def test_a_rig_keeps_the_pose_while_its_front_camera_is_covered(self):
+        """The front-back kidnap walk (the fixture's rig): the rear camera's sensor.yaml places
+        it, every frame carries its image, and no frame is without a pose."""
+        walk = os.path.join(DATA, "front-back/kidnap/mav0")
+        rear = rig_camera_from_yaml(os.path.join(walk, "cam2/sensor.yaml"), "rear")
+        options = self.options(self.address, rig_cameras=[rear])
+        options.session.body_from_cam.CopyFrom(
+            body_from_cam_from_yaml(os.path.join(walk, "cam0/sensor.yaml")))
+        session = Session(options)
+        refused = session.submit(*self.frames[0])
+        self.assertFalse(refused)
+        self.assertEqual(refused.reason, "the frame carries 0 rig images for 1 rig cameras")
+        front = sorted(glob.glob(os.path.join(walk, "cam0/data/*.png")))[:120]
+        for path in front:
+            timestamp_ns = int(os.path.basename(path)[:-4])
+            rear_image = cv2.imread(path.replace("/cam0/", "/cam2/"), cv2.IMREAD_GRAYSCALE)
+            self.assertTrue(session.submit(timestamp_ns, cv2.imread(path, cv2.IMREAD_GRAYSCALE),
+                                           rig_images=[rear_image]))
+            time.sleep(1 / 30)
+        session.close(drain_s=10)
+        results = [e for e in self.collect(session, time.monotonic() + 0.5) if e.kind == "result"]
+        self.assertGreaterEqual(len(results), 110)  # A loaded machine may drop a few.
+        story = "\n".join(self.describe(e) for e in results)
+        self.assertTrue(all(e.response.has_pose for e in results[1:]), story)
+        self.assertTrue(all(len(e.response.cameras) == 2 for e in results), story)
+        covered = [e for e in results if e.response.cameras[0].inliers == 0 and
+                   e.response.cameras[1].inliers > 100]
+        self.assertGreaterEqual(len(covered), 10, story)  # Frames 91-108: the rear camera's fix.
 
     def test_an_unknown_map_fails_once_with_the_reason(self):
         options = self.options(self.address)

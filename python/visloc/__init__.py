@@ -22,10 +22,10 @@ repository's proto/ by Debian's protoc and grpc_python_plugin at build time.
 """
 
 from visloc.camera import (body_from_cam_from_yaml, camera_from_yaml, pinhole_camera,
-                           stereo_rig_from_yaml)
+                           rig_camera_from_yaml, stereo_rig_from_yaml)
 from visloc.mapping import MappingError, MappingOptions, MappingSession
 from visloc.session import Event, LinkState, NotSent, Session, SessionOptions, encode_image
 
 __all__ = ["Event", "LinkState", "MappingError", "MappingOptions", "MappingSession", "NotSent",
            "Session", "SessionOptions", "body_from_cam_from_yaml", "camera_from_yaml",
-           "encode_image", "pinhole_camera", "stereo_rig_from_yaml"]
+           "encode_image", "pinhole_camera", "rig_camera_from_yaml", "stereo_rig_from_yaml"]

@@ -82,6 +82,12 @@ def body_from_cam_from_yaml(path: str) -> pb.Pose:
     return pb.Pose(tx=m[0, 3], ty=m[1, 3], tz=m[2, 3], qw=q[0], qx=q[1], qy=q[2], qz=q[3])
 
 
+def rig_camera_from_yaml(path: str, name: str = "") -> pb.RigCamera:
+    """A rig's further camera from its sensor.yaml: the camera, placed on the body by T_BS."""
+    return pb.RigCamera(camera=camera_from_yaml(path), body_from_cam=body_from_cam_from_yaml(path),
+                        name=name)
+
+
 def stereo_rig_from_yaml(left_path: str, right_path: str) -> pb.StereoRig:
     """A stereo rig (for mapping over the link) from its two cameras' sensor.yaml files."""
     return pb.StereoRig(left=camera_from_yaml(left_path), right=camera_from_yaml(right_path),

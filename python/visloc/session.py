@@ -6,7 +6,7 @@ import enum
 import queue
 import threading
 import time
-from typing import Callable, Deque, List, Optional
+from typing import Callable, Deque, List, Optional, Sequence
 
 import cv2
 import grpc
@@ -65,6 +65,10 @@ class SessionOptions:
     give_up_after_s: float = 0.0  # 0: never (a robot keeps trying).
     keepalive_time_ms: int = 10000  # Not below the server's --keepalive-min-ping-interval-s.
     on_event: Optional[Callable[[Event], None]] = None
+    # A rig: the robot's other cameras (rig_camera_from_yaml), each placed on the body of
+    # session.body_from_cam (the reference camera's own frame when unset); every frame then
+    # carries one image of each (submit's rig_images).
+    rig_cameras: List[pb.RigCamera] = dataclasses.field(default_factory=list)
 
     def problem(self) -> str:
         if not self.server:
@@ -187,6 +191,7 @@ class _Queued:
     odom_from_cam: Optional[pb.Pose]
     hint: Optional[pb.Pose]
     submitted: float
+    rig_images: List[pb.RigImage] = dataclasses.field(default_factory=list)
 
 
 class Session:
@@ -214,10 +219,13 @@ class Session:
     # --- the application's side ---------------------------------------------------------
     def submit(self, timestamp_ns: int, image: Optional[np.ndarray] = None, *,
                encoded: bytes = b"", odom_from_cam: Optional[pb.Pose] = None,
-               hint: Optional[pb.Pose] = None) -> bool:
+               hint: Optional[pb.Pose] = None, rig_images: Sequence = (),
+               rig_timestamps_ns: Sequence[int] = ()) -> bool:
         """Hands a frame over; never blocks. True when taken; a false NotSent with the reason
         when it cannot be sent (wrong size, no image, not 8-bit, closed, or refused by the
-        server: link_state FAILED), as the C++ library's Submit answers."""
+        server: link_state FAILED), as the C++ library's Submit answers. A rig's frame carries
+        one of ``rig_images`` per rig camera: a grey image, encoded bytes, or None (that camera
+        gave none this time), each taken at ``rig_timestamps_ns`` (default: timestamp_ns)."""
         if not encoded:
             if image is None or image.size == 0:
                 return NotSent("the frame has no image")
@@ -226,6 +234,13 @@ class Session:
                                f"camera is {self._o.camera.width}x{self._o.camera.height}")
             if image.dtype != np.uint8:
                 return NotSent("the image is not 8-bit")
+        if len(rig_images) != len(self._o.rig_cameras):
+            return NotSent(f"the frame carries {len(rig_images)} rig images for "
+                           f"{len(self._o.rig_cameras)} rig cameras")
+        try:
+            rig = self._rig_messages(timestamp_ns, rig_images, rig_timestamps_ns)
+        except ValueError as e:
+            return NotSent(str(e))
         events = []
         with self._lock:
             if self._closing:
@@ -233,7 +248,7 @@ class Session:
             if self._refused:
                 return NotSent(self._refused)
             self._queue.append(_Queued(timestamp_ns, None if image is None else image.copy(),
-                                       encoded, odom_from_cam, hint, time.monotonic()))
+                                       encoded, odom_from_cam, hint, time.monotonic(), rig))
             self.stats["submitted"] += 1
             while len(self._queue) > self._o.max_queued:
                 old = self._queue.popleft()
@@ -243,6 +258,30 @@ class Session:
             self._lock.notify_all()
         self._emit(events)
         return True
+
+    def _rig_messages(self, timestamp_ns: int, rig_images: Sequence,
+                      rig_timestamps_ns: Sequence[int]) -> List[pb.RigImage]:
+        """The rig images on the wire, encoded now (the caller may reuse its buffers)."""
+        messages = []
+        for c, image in enumerate(rig_images):
+            stamp = rig_timestamps_ns[c] if c < len(rig_timestamps_ns) else timestamp_ns
+            message = pb.RigImage(timestamp_ns=stamp)
+            if isinstance(image, (bytes, bytearray)):
+                message.encoded = bytes(image)
+            elif image is not None:
+                camera = self._o.rig_cameras[c].camera
+                if image.shape[1] != camera.width or image.shape[0] != camera.height or \
+                        image.dtype != np.uint8:
+                    raise ValueError(f"rig camera {c + 1}'s image is {image.shape[1]}x"
+                                     f"{image.shape[0]} but that camera is {camera.width}x"
+                                     f"{camera.height} (8-bit)")
+                if self._o.encoding == "raw":
+                    message.raw.width, message.raw.height = image.shape[1], image.shape[0]
+                    message.raw.pixels = encode_image(image, "raw")
+                else:
+                    message.encoded = encode_image(image, self._o.encoding, self._o.jpeg_quality)
+            messages.append(message)
+        return messages
 
     def next(self, timeout_s: float = 0.0) -> Optional[Event]:
         try:
@@ -291,6 +330,7 @@ class Session:
         start.start.camera.CopyFrom(self._o.camera)
         start.start.options.CopyFrom(self._o.session)
         start.start.robot_id = self._o.robot_id
+        start.start.rig_cameras.extend(self._o.rig_cameras)
         yield start
         while True:
             with self._lock:
@@ -315,13 +355,15 @@ class Session:
                 frame.raw.pixels = encode_image(item.image, "raw")
             else:
                 frame.encoded = encode_image(item.image, self._o.encoding, self._o.jpeg_quality)
+            frame.rig_images.extend(item.rig_images)
             if item.odom_from_cam is not None:
                 frame.odom_from_cam.CopyFrom(item.odom_from_cam)
             if hint is not None:
                 frame.map_from_cam_hint.CopyFrom(hint)
             with self._lock:
                 self.stats["sent"] += 1
-                self.stats["bytes_sent"] += len(frame.encoded) + len(frame.raw.pixels)
+                self.stats["bytes_sent"] += len(frame.encoded) + len(frame.raw.pixels) + sum(
+                    len(r.encoded) + len(r.raw.pixels) for r in item.rig_images)
             yield pb.LocalizeRequest(frame=frame)
 
     def _read(self, call, stream_state) -> None:
