@@ -78,6 +78,56 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
   return run;
 }
 
+// A rig (--cameras) beside one camera, frame by frame interleaved: three sessions on the same
+// frames, the reference camera alone, the rig on one thread and the rig on `threads` threads.
+struct RigRun {
+  std::vector<std::string> cameras;
+  int threads = 2;
+  ErrorStats one_camera_ms, rig_ms, rig_threaded_ms;  // Engine time per frame.
+  double localized_fraction = 0.0;
+  std::vector<double> camera_inliers_median;  // Per camera, over the rig's fixes.
+};
+
+RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
+               const std::vector<cv::Mat>& images, const std::vector<std::string>& cameras,
+               int threads) {
+  RigRun run;
+  run.cameras = cameras;
+  run.threads = threads;
+  const CameraRig rig = DatasetCameraRig(dataset, cameras, /*gyro=*/false);
+  LocalizerOptions threaded_options;
+  threaded_options.rig_threads = threads;
+  Localizer one(map, dataset.left.camera, LocalizerOptions{});
+  Localizer serial(map, rig, LocalizerOptions{});
+  Localizer threaded(map, rig, threaded_options);
+  std::vector<double> one_ms, rig_ms, threaded_ms;
+  std::vector<std::vector<double>> inliers(cameras.size());
+  int localized = 0;
+  for (size_t i = 0; i < images.size(); ++i) {
+    FrameInput input = InputFor(dataset, images, i);
+    one_ms.push_back(one.Process(input).stats.times.total_ms);
+    for (size_t c = 1; c < cameras.size(); ++c) {
+      const auto image = CameraImageAt(dataset, cameras[c], i, LocalizerOptions{}.max_rig_skew_ns);
+      RigImage& rig_image = input.rig_images.emplace_back();
+      if (!image) continue;
+      rig_image.timestamp_ns = image->first;
+      rig_image.image = LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
+    }
+    const LocalizationResult r = serial.Process(input);
+    rig_ms.push_back(r.stats.times.total_ms);
+    threaded_ms.push_back(threaded.Process(input).stats.times.total_ms);
+    if (!r.has_pose || r.source == PoseSource::kMotion) continue;
+    ++localized;
+    for (size_t c = 0; c < r.stats.cameras.size(); ++c) inliers[c].push_back(r.stats.cameras[c].inliers);
+  }
+  run.one_camera_ms = ComputeErrorStats(one_ms);
+  run.rig_ms = ComputeErrorStats(rig_ms);
+  run.rig_threaded_ms = ComputeErrorStats(threaded_ms);
+  run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
+  for (const auto& camera : inliers) run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
+  return run;
+}
+
 ErrorStats TimeOrb(const std::vector<cv::Mat>& images) {
   const cv::Ptr<cv::ORB> orb = cv::ORB::create(500);
   std::vector<double> ms;
@@ -257,8 +307,8 @@ GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
 }  // namespace
 
 int RunBench(const Args& raw_args) {
-  std::string dataset_dir, map_path, format, server_map;
-  int frames = 0, relocalization_queries = 30;
+  std::string dataset_dir, map_path, format, server_map, cameras = "cam0";
+  int frames = 0, relocalization_queries = 30, rig_threads = 2;
   bool json = false;
   Connection server;
   ArgParser parser("visloc bench",
@@ -272,12 +322,17 @@ int RunBench(const Args& raw_args) {
   parser.AddFlag("frames", &frames, "use the first N frames (0: all)");
   parser.AddFlag("relocalization-queries", &relocalization_queries,
                  "frames spread over the sequence used as relocalization queries");
+  parser.AddFlag("cameras", &cameras,
+                 "also time this rig (cam0 first) beside cam0 alone, interleaved frame by frame");
+  parser.AddFlag("rig-threads", &rig_threads, "with --cameras: the threaded rig's threads");
   server.AddFlags(parser, /*server_required=*/false);
   parser.AddFlag("server-map", &server_map, "the map's name on the server (default: file stem)");
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(raw_args, std::cout)) return 0;
   server.ApplyEnvironment();
   if (frames < 0 || relocalization_queries < 1) throw UsageError("--frames >= 0, queries >= 1");
+  if (rig_threads < 1) throw UsageError("--rig-threads must be at least 1");
+  const std::vector<std::string> rig_cameras = ParseCameraNames(cameras);
   const Dataset dataset = ReadQueryDataset(dataset_dir, format, /*odometry=*/false);
   const auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(map_path));
   const size_t count =
@@ -294,6 +349,8 @@ int RunBench(const Args& raw_args) {
   const ErrorStats orb = TimeOrb(images);
   const RelocalizationRun relocalization =
       TimeRelocalization(map, camera, images, relocalization_queries);
+  std::optional<RigRun> rig;
+  if (rig_cameras.size() > 1) rig = TimeRig(map, dataset, images, rig_cameras, rig_threads);
   std::optional<GrpcRun> grpc;
   if (!server.server.empty()) {
     if (server_map.empty()) server_map = std::filesystem::path(map_path).stem().string();
@@ -327,6 +384,23 @@ int RunBench(const Args& raw_args) {
         .Field("localized_fraction", visibility.localized_fraction)
         .Field("no_visibility_localized_fraction", transparent.localized_fraction)
         .Field("brute_force_localized_fraction", brute.localized_fraction);
+    if (rig) {
+      out.Key("rig")
+          .BeginObject()
+          .Field("cameras", static_cast<int64_t>(rig->cameras.size()))
+          .Field("threads", static_cast<int64_t>(rig->threads))
+          .Field("one_camera_ms_per_frame_median", rig->one_camera_ms.median)
+          .Field("ms_per_frame_median", rig->rig_ms.median)
+          .Field("threaded_ms_per_frame_median", rig->rig_threaded_ms.median)
+          .Field("engine_ratio", rig->rig_ms.median / rig->one_camera_ms.median)
+          .Field("threaded_latency_ratio",
+                 rig->rig_threaded_ms.median / rig->one_camera_ms.median)
+          .Field("localized_fraction", rig->localized_fraction)
+          .Key("camera_inliers_median")
+          .BeginArray();
+      for (double inliers : rig->camera_inliers_median) out.Value(inliers);
+      out.EndArray().EndObject();
+    }
     if (grpc) {
       out.Field("grpc_ms_per_frame_median", grpc->round_trip_ms.median)
           .Field("grpc_server_ms_per_frame_median", grpc->server_ms.median)
@@ -387,6 +461,21 @@ int RunBench(const Args& raw_args) {
               relocalization.full_features_ms.median / orb.median,
               100 * relocalization.full_features_found_fraction,
               relocalization.full_features_ms.median / ours);
+  if (rig) {
+    std::string names, inliers;
+    for (size_t c = 0; c < rig->cameras.size(); ++c) {
+      names += (c ? "," : "") + rig->cameras[c];
+      inliers += StrCat(c ? " / " : "", FormatFixed(rig->camera_inliers_median[c], 0));
+    }
+    std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.2fx cam0 alone's %.3f ms, interleaved; inliers %s)\n",
+                ("rig " + names).c_str(), rig->rig_ms.median, rig->rig_ms.median / orb.median,
+                100 * rig->localized_fraction, rig->rig_ms.median / rig->one_camera_ms.median,
+                rig->one_camera_ms.median, inliers.c_str());
+    std::printf("%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's)\n",
+                StrCat("  on ", rig->threads, " threads").c_str(), rig->rig_threaded_ms.median,
+                rig->rig_threaded_ms.median / orb.median,
+                rig->rig_threaded_ms.median / rig->one_camera_ms.median);
+  }
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;
     const double in_process = grpc->in_process_ms.median;

@@ -30,6 +30,7 @@ struct LocalizeArgs {
   bool odometry = false, no_gyro = false, planar = false, bridge_constant_velocity = false;
   bool json = false, all_scales = false;
   int k = 10;
+  int rig_threads = 1;
   int max_features = LocalizerOptions{}.max_query_features;
   double threshold = 0.2;
 };
@@ -100,6 +101,8 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("blackout", &args.blackout,
                  "START,DURATION: black images in this window (s from the first frame; cam0 and "
                  "cam1, the front pair)");
+  parser.AddFlag("rig-threads", &args.rig_threads,
+                 "with --cameras: threads a frame's cameras are worked on side by side");
   parser.AddFlag("cameras", &args.cameras,
                  "the rig localized with: cam0 (the reference, reported) then others, e.g. "
                  "cam0,cam1 (the stereo pair) or cam0,cam2 (EuRoC's cam2 folder)");
@@ -124,6 +127,8 @@ int RunLocalize(const Args& raw_args) {
   options.motion.bridge_with_constant_velocity = args.bridge_constant_velocity;
   options.max_query_features = args.max_features;
   options.finest_scale_only = !args.all_scales;
+  if (args.rig_threads < 1) throw UsageError("--rig-threads must be at least 1");
+  options.rig_threads = args.rig_threads;
   if (args.planar) options.motion.plane_sigma_m = 0.02;
   const std::vector<std::string> cameras = ParseCameraNames(args.cameras);
   const CameraRig rig = DatasetCameraRig(dataset, cameras, args.odometry);

@@ -88,6 +88,9 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     v1::Frame merged;
     const v1::Frame& frame = WithCarriedImu(request.frame(), &merged);
     if (before_frame_) before_frame_(frame);
+    // A rig's cameras side by side on the workers idle now.
+    const SparePermits spare(workers_, static_cast<int>(rig_.cameras.size()) - 1);
+    localizer_.SetRigThreads(1 + spare.taken());
     answered = localizer_.Process(proto::FromProto(frame, rig_));
     proto::ToProto(*answered, index, &response);
   } catch (const InputError& e) {

@@ -22,6 +22,14 @@ class WorkPermits {
     ++free_;
     available_.notify_one();
   }
+  // Takes up to `wanted` permits that are free now, without waiting; how many it took.
+  int TryAcquire(int wanted) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const int taken = std::max(0, std::min(wanted, free_));
+    free_ -= taken;
+    peak_in_use_ = std::max(peak_in_use_, permits_ - free_);
+    return taken;
+  }
   int permits() const { return permits_; }
   int in_use() const {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -51,6 +59,25 @@ class WorkPermit {
 
  private:
   WorkPermits* permits_;
+};
+
+// Holds, for its scope, up to `wanted` further permits that are free when it starts: the idle
+// cores a rig session's frame may use for its cameras side by side, never waited for (a busy
+// server runs the frame's cameras one after the other on its one permit).
+class SparePermits {
+ public:
+  SparePermits(WorkPermits* permits, int wanted)
+      : permits_(permits), taken_(wanted > 0 ? permits->TryAcquire(wanted) : 0) {}
+  ~SparePermits() {
+    for (int i = 0; i < taken_; ++i) permits_->Release();
+  }
+  SparePermits(const SparePermits&) = delete;
+  SparePermits& operator=(const SparePermits&) = delete;
+  int taken() const { return taken_; }
+
+ private:
+  WorkPermits* permits_;
+  int taken_;
 };
 
 }  // namespace visloc::server

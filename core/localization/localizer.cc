@@ -7,6 +7,7 @@
 
 #include "core/geometry/trajectory.h"
 #include "core/util/check.h"
+#include "core/util/parallel.h"
 #include "core/util/timer.h"
 
 namespace visloc {
@@ -60,6 +61,8 @@ void LocalizerOptions::Check() const {
   VISLOC_CHECK(max_jump_m > 0 && max_jump_deg > 0 && max_innovation_chi2 > 0, "jump gate ",
                max_jump_m, " m ", max_jump_deg, " deg, innovation chi2 ", max_innovation_chi2);
   VISLOC_CHECK(motion.plane_sigma_m >= 0 && motion.max_bridge_s >= 0, "motion options");
+  VISLOC_CHECK(rig_threads >= 1 && max_rig_skew_ns >= 0, "rig threads ", rig_threads, ", skew ",
+               max_rig_skew_ns, " ns");
   VISLOC_CHECK(max_query_features >= 0 && max_relocalization_features >= 0,
                "keypoint counts: query ", max_query_features, ", relocalization ",
                max_relocalization_features);
@@ -130,6 +133,12 @@ Localizer::Localizer(std::shared_ptr<const LocalizationMap> map, const CameraRig
   }
 }
 
+void Localizer::SetRigThreads(int threads) {
+  VISLOC_CHECK(threads >= 1, "rig threads ", threads);
+  options_.rig_threads = threads;
+  pipeline_.SetThreads(threads);
+}
+
 std::vector<const QueryFrame*> Localizer::RigFrames(const QueryFrame& reference) const {
   std::vector<const QueryFrame*> frames = {&reference};
   for (const std::optional<QueryFrame>& frame : rig_frames_) {
@@ -144,26 +153,32 @@ PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_
   return pipeline_.tracker()->Track(RigFrames(frame), prior_cam_from_map);
 }
 
-void Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
-  rig_frames_.clear();
-  // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these).
-  stats->cameras.assign(rig_.cameras.size(), PoseFix::CameraSupport{});
-  stats->cameras[0].features = stats->features;
-  for (size_t c = 0; c + 1 < pipeline_.size(); ++c) {
-    const cv::Mat& image = input.rig_images[c].image;
-    if (image.empty()) {
-      rig_frames_.emplace_back();
-      continue;
+QueryFrame Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
+  const size_t n = pipeline_.size();
+  std::vector<std::optional<QueryFrame>> frames(n);
+  std::vector<ExtractStats> extract(n);
+  std::vector<double> undistort_ms(n, 0.0);
+  // The cameras side by side (LocalizerOptions::rig_threads): each with its own pipeline.
+  ParallelRanges(static_cast<int>(n), options_.rig_threads, [&](int begin, int end) {
+    for (int c = begin; c < end; ++c) {
+      const cv::Mat& image = c == 0 ? input.image : input.rig_images[c - 1].image;
+      if (!image.empty()) frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
     }
-    ExtractStats extract;
-    double undistort_ms = 0.0;
-    rig_frames_.emplace_back(pipeline_.camera(c + 1).Extract(image, &extract, &undistort_ms));
-    stats->times.detect_ms += extract.detect_ms;
-    stats->times.describe_ms += extract.describe_ms;
-    stats->times.undistort_ms += undistort_ms;
-    stats->cameras[c + 1].features = static_cast<int>(rig_frames_.back()->size());
-    stats->features += stats->cameras[c + 1].features;
+  });
+  // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these); the
+  // steps' times summed over the cameras (CPU time, as a one-camera frame's).
+  stats->cameras.assign(n, PoseFix::CameraSupport{});
+  stats->features = 0;
+  for (size_t c = 0; c < n; ++c) {
+    stats->times.detect_ms += extract[c].detect_ms;
+    stats->times.describe_ms += extract[c].describe_ms;
+    stats->times.undistort_ms += undistort_ms[c];
+    stats->cameras[c].features = frames[c] ? static_cast<int>(frames[c]->size()) : 0;
+    stats->features += stats->cameras[c].features;
   }
+  rig_frames_.assign(std::make_move_iterator(frames.begin() + 1),
+                     std::make_move_iterator(frames.end()));
+  return std::move(*frames[0]);
 }
 
 PoseFix Localizer::RelocalizeRig(const FrameInput& input, PoseFix reference_fix,
@@ -174,8 +189,8 @@ PoseFix Localizer::RelocalizeRig(const FrameInput& input, PoseFix reference_fix,
   const auto verified = [&](const Rigid3d& ref_from_map) {
     const Timer timer;
     if (frame == nullptr) {
-      reference_frame.emplace(reference().Extract(input.image));
-      ExtractRig(input, &result->stats);
+      FrameStats extraction;  // Counted as relocalization's time.
+      reference_frame.emplace(ExtractRig(input, &extraction));
       frame = &*reference_frame;
     }
     PoseFix fix = pipeline_.tracker()->Polish(RigFrames(*frame), ref_from_map);
@@ -393,8 +408,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   std::optional<QueryFrame> frame;
   const bool features_first = TrackingFeaturesFirst();
   if (Prior(input) || had_held_fix || features_first) {
-    frame.emplace(Extract(input.image, &result.stats));
-    if (rig()) ExtractRig(input, &result.stats);
+    frame.emplace(rig() ? ExtractRig(input, &result.stats) : Extract(input.image, &result.stats));
   }
   const bool taken =
       (frame && TrackFromPrior(*frame, input, motion, &result)) ||

@@ -143,6 +143,9 @@ class Localizer {
   LocalizationResult Process(const FrameInput& input);
 
   const LocalizerOptions& options() const { return options_; }
+  // LocalizerOptions::rig_threads from the next frame on (a server lends a rig session the
+  // workers idle at each frame). The answers do not change.
+  void SetRigThreads(int threads);
 
  private:
   struct Motion {
@@ -161,8 +164,10 @@ class Localizer {
   // Throws InputError for an image or timestamp the session cannot take.
   void CheckInput(const FrameInput& input) const;
   QueryFrame Extract(const cv::Mat& image, FrameStats* stats) const;
-  // A rig's other cameras' tracking features (rig_frames_), their time and count into `stats`.
-  void ExtractRig(const FrameInput& input, FrameStats* stats);
+  // A rig's tracking features: the reference camera's returned, the others' into rig_frames_
+  // (each camera on its own thread, up to LocalizerOptions::rig_threads); their time and count
+  // into `stats`.
+  QueryFrame ExtractRig(const FrameInput& input, FrameStats* stats);
   // Every camera's frame for the rig's tracker: `reference` and rig_frames_.
   std::vector<const QueryFrame*> RigFrames(const QueryFrame& reference) const;
   // Guided tracking of the frame (a rig's: all of its cameras) from `prior_cam_from_map`.

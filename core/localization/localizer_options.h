@@ -81,6 +81,10 @@ struct LocalizerOptions {
   // reference camera's by at most this (a hardware-triggered rig's are equal; 5 ms is a frame
   // of a 200 Hz camera, and a robot turning at 1 rad/s moves 5 mrad in it).
   int64_t max_rig_skew_ns = 5'000'000;
+  // A rig's cameras are worked on side by side on up to this many threads (features, then each
+  // camera's prediction and search): a frame's latency, not its CPU time, shrinks. The answers
+  // are the same for any count. A server sets its worker count.
+  int rig_threads = 1;
   // Detect query corners at the map detector's finest scale only (as the seed paper does for
   // speed); false uses all of the map's scales.
   bool finest_scale_only = true;

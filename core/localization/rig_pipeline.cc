@@ -33,8 +33,13 @@ RigPipeline::RigPipeline(const std::shared_ptr<const LocalizationMap>& map, cons
     cam_from_ref.push_back(rig.CamFromReference(c));
   }
   if (cameras_.size() > 1) {
-    tracker_ = std::make_unique<RigTracker>(std::move(trackers), std::move(cam_from_ref));
+    tracker_ = std::make_unique<RigTracker>(std::move(trackers), std::move(cam_from_ref),
+                                            options.rig_threads);
   }
+}
+
+void RigPipeline::SetThreads(int threads) {
+  if (tracker_) tracker_->set_threads(threads);
 }
 
 RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& images) const {

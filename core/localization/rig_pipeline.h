@@ -38,6 +38,8 @@ class RigPipeline {
   const QueryPipeline& camera(size_t c) const { return *cameras_[c]; }
   // The tracker over every camera; nullptr for a rig of one camera (its tracker is camera(0)'s).
   const RigTracker* tracker() const { return tracker_.get(); }
+  // The threads the tracker works on the cameras with (LocalizerOptions::rig_threads).
+  void SetThreads(int threads);
 
   // Global relocalization of one frame of the rig, with nothing known of where it was taken:
   // each camera's image (`images[c]`; an empty one: that camera gave none) is relocalized as

@@ -4,12 +4,15 @@
 
 #include "core/localization/relocalizer.h"
 #include "core/util/check.h"
+#include "core/util/parallel.h"
 #include "core/util/timer.h"
 
 namespace visloc {
 
-RigTracker::RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref)
-    : trackers_(std::move(trackers)), cam_from_ref_(std::move(cam_from_ref)) {
+RigTracker::RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref,
+                       int threads)
+    : trackers_(std::move(trackers)), cam_from_ref_(std::move(cam_from_ref)), threads_(threads) {
+  VISLOC_CHECK(threads_ >= 1, "rig threads ", threads_);
   VISLOC_CHECK(!trackers_.empty() && trackers_.size() == cam_from_ref_.size(), "rig: ",
                trackers_.size(), " trackers for ", cam_from_ref_.size(), " placements");
 }
@@ -24,6 +27,17 @@ std::vector<PoseObservation> RigTracker::Observations(size_t camera, const Query
     for (PoseObservation& o : observations) o.pixel_scale *= to_reference;
   }
   return observations;
+}
+
+void RigTracker::set_threads(int threads) {
+  VISLOC_CHECK(threads >= 1, "rig threads ", threads);
+  threads_ = threads;
+}
+
+void RigTracker::ForEachCamera(const std::function<void(size_t)>& fn) const {
+  ParallelRanges(static_cast<int>(trackers_.size()), threads_, [&](int begin, int end) {
+    for (int c = begin; c < end; ++c) fn(static_cast<size_t>(c));
+  });
 }
 
 int RigTracker::CoarsePointsPerCamera(const std::vector<const QueryFrame*>& frames) const {
@@ -45,14 +59,16 @@ PoseFix RigTracker::Track(const std::vector<const QueryFrame*>& frames,
   RigObservations rig;
   rig.cam_from_ref = cam_from_ref_;
   rig.per_camera.resize(trackers_.size());
-  bool subsampled = false;
   const int coarse_points = CoarsePointsPerCamera(frames);
-  for (size_t c = 0; c < trackers_.size(); ++c) {
-    if (frames[c] == nullptr || frames[c]->size() == 0) continue;
-    fix.cameras[c].features = static_cast<int>(frames[c]->size());
+  // Each camera's prediction and wide search, the cameras side by side; their counts and times
+  // (summed: CPU time, as the steps of one camera are) merged after.
+  std::vector<PoseFix> camera_fixes(trackers_.size());
+  std::vector<char> camera_subsampled(trackers_.size(), 0);
+  ForEachCamera([&](size_t c) {
+    if (frames[c] == nullptr || frames[c]->size() == 0) return;
     const PoseTracker& tracker = *trackers_[c];
     const Rigid3d cam_from_map = cam_from_ref_[c] * prior_ref_from_map;
-    PoseFix camera_fix;
+    PoseFix& camera_fix = camera_fixes[c];
     CameraMatches& camera = per_camera[c];
     camera.points = tracker.PredictPoints(cam_from_map, &camera_fix);
     Timer timer;
@@ -61,19 +77,25 @@ PoseFix RigTracker::Track(const std::vector<const QueryFrame*>& frames,
     timer.Restart();
     projected[c] = ProjectPoints(camera.map_points, tracker.camera(), cam_from_map, camera.points);
     std::vector<ProjectedPoint> subset;
-    const std::vector<ProjectedPoint>& coarse = tracker.CoarseSubset(projected[c], coarse_points, &subset);
-    subsampled |= coarse.size() < projected[c].size();
+    const std::vector<ProjectedPoint>& coarse =
+        tracker.CoarseSubset(projected[c], coarse_points, &subset);
+    camera_subsampled[c] = coarse.size() < projected[c].size();
     camera_fix.times.project_ms += timer.ElapsedMs();
     timer.Restart();
     camera.matches = MatchProjected(camera.map_points, coarse, *frames[c],
                                     tracker.options().search_radius_px, tracker.options().matching);
     camera_fix.times.match_ms += timer.ElapsedMs();
     rig.per_camera[c] = Observations(c, *frames[c], camera);
-    fix.predicted += camera_fix.predicted;
-    fix.cameras[c].predicted = camera_fix.predicted;
-    fix.times.predict_ms += camera_fix.times.predict_ms;
-    fix.times.project_ms += camera_fix.times.project_ms;
-    fix.times.match_ms += camera_fix.times.match_ms;
+  });
+  bool subsampled = false;
+  for (size_t c = 0; c < trackers_.size(); ++c) {
+    if (frames[c] != nullptr) fix.cameras[c].features = static_cast<int>(frames[c]->size());
+    subsampled |= camera_subsampled[c] != 0;
+    fix.predicted += camera_fixes[c].predicted;
+    fix.cameras[c].predicted = camera_fixes[c].predicted;
+    fix.times.predict_ms += camera_fixes[c].times.predict_ms;
+    fix.times.project_ms += camera_fixes[c].times.project_ms;
+    fix.times.match_ms += camera_fixes[c].times.match_ms;
   }
   // One refinement pass: RefineAround re-matches around this pose and refines twice anyway.
   PnpRansacOptions ransac_options = reference().options().ransac;
@@ -85,14 +107,14 @@ PoseFix RigTracker::Track(const std::vector<const QueryFrame*>& frames,
   if (!ransac.success && subsampled) {
     // As PoseTracker::Track: RANSAC failed on the subsets, so every projected point is tried.
     timer.Restart();
-    for (size_t c = 0; c < trackers_.size(); ++c) {
-      if (projected[c].empty()) continue;
+    ForEachCamera([&](size_t c) {
+      if (projected[c].empty()) return;
       const PoseTracker& tracker = *trackers_[c];
       per_camera[c].matches =
           MatchProjected(per_camera[c].map_points, projected[c], *frames[c],
                          tracker.options().search_radius_px, tracker.options().matching);
       rig.per_camera[c] = Observations(c, *frames[c], per_camera[c]);
-    }
+    });
     fix.times.match_ms += timer.ElapsedMs();
     timer.Restart();
     ransac = SolveRigPnpRansac(rig, ransac_options);
@@ -132,20 +154,25 @@ void RigTracker::RefineAround(const std::vector<const QueryFrame*>& frames,
   RigObservations rig;
   rig.cam_from_ref = cam_from_ref_;
   rig.per_camera.resize(trackers_.size());
-  for (size_t c = 0; c < trackers_.size(); ++c) {
+  std::vector<PoseStepTimes> camera_times(trackers_.size());
+  ForEachCamera([&](size_t c) {
     CameraMatches& camera = (*per_camera)[c];
-    if (frames[c] == nullptr || camera.points.empty()) continue;
+    if (frames[c] == nullptr || camera.points.empty()) return;
     const PoseTracker& tracker = *trackers_[c];
     Timer timer;
     const std::vector<ProjectedPoint> projected = ProjectPoints(
         camera.map_points, tracker.camera(), cam_from_ref_[c] * ref_from_map, camera.points);
-    fix->times.project_ms += timer.ElapsedMs();
+    camera_times[c].project_ms = timer.ElapsedMs();
     timer.Restart();
     camera.matches = MatchProjected(camera.map_points, projected, *frames[c],
                                     tracker.options().refine_radius_px, tracker.options().matching);
-    fix->times.match_ms += timer.ElapsedMs();
+    camera_times[c].match_ms = timer.ElapsedMs();
     rig.per_camera[c] = Observations(c, *frames[c], camera);
-    fix->cameras[c].putatives = static_cast<int>(camera.matches.size());
+  });
+  for (size_t c = 0; c < trackers_.size(); ++c) {
+    fix->times.project_ms += camera_times[c].project_ms;
+    fix->times.match_ms += camera_times[c].match_ms;
+    fix->cameras[c].putatives = static_cast<int>((*per_camera)[c].matches.size());
   }
   Timer timer;
   RigPnpResult refined = RefineRigPoseOnInliers(ref_from_map, rig, reference().options().ransac);

@@ -11,6 +11,7 @@
 // The fix is the reference camera's (camera 0, whose pose a session reports), and so is its
 // covariance: the rig's joint (J^T J)^-1, its points' uncertainty through every camera.
 
+#include <functional>
 #include <vector>
 
 #include "core/localization/pose_tracker.h"
@@ -20,8 +21,11 @@ namespace visloc {
 class RigTracker {
  public:
   // `trackers[c]` tracks camera c (each built for its own camera, with its radii); they must
-  // outlive this. `cam_from_ref[c]` places camera c on the rig (the identity for camera 0).
-  RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref);
+  // outlive this. `cam_from_ref[c]` places camera c on the rig (the identity for camera 0). The
+  // cameras' predictions and searches run on up to `threads` threads (each camera's tracker on
+  // one: a PoseTracker is not thread-safe, the map is); the result is the same for any count.
+  RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref,
+             int threads = 1);
 
   // Full guided estimation from the reference camera's prior. `frames[c]` is camera c's frame;
   // nullptr for a camera without one this time. PoseFix::cameras holds each camera's share.
@@ -32,6 +36,7 @@ class RigTracker {
   PoseFix Polish(const std::vector<const QueryFrame*>& frames, const Rigid3d& ref_from_map) const;
 
   size_t size() const { return trackers_.size(); }
+  void set_threads(int threads);
   const Rigid3d& cam_from_ref(size_t camera) const { return cam_from_ref_[camera]; }
 
  private:
@@ -42,6 +47,8 @@ class RigTracker {
     std::vector<PointMatch> matches;
   };
 
+  // fn(c) for every camera, on up to threads_ threads.
+  void ForEachCamera(const std::function<void(size_t)>& fn) const;
   // Each camera's share of the wide search's points (PoseTrackerOptions::coarse_points).
   int CoarsePointsPerCamera(const std::vector<const QueryFrame*>& frames) const;
   // The observations of `camera`'s matches, their pixel scale in the reference camera's focal
@@ -63,6 +70,7 @@ class RigTracker {
 
   std::vector<const PoseTracker*> trackers_;
   std::vector<Rigid3d> cam_from_ref_;
+  int threads_ = 1;
   const PoseTracker& reference() const { return *trackers_.front(); }
 };
 
