@@ -29,8 +29,8 @@ std::string WorldKey(const RoomOptions& room) {
                 room.street);
 }
 
-bool IsCovered(const SequenceSpec& spec, double t) {
-  for (const auto& [start, end] : spec.covered_s) {
+bool Within(const std::vector<std::pair<double, double>>& intervals, double t) {
+  for (const auto& [start, end] : intervals) {
     if (t >= start && t < end) return true;
   }
   return false;
@@ -145,7 +145,7 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   std::vector<double> times_s;
   std::vector<int64_t> stamps_ns;
   Trajectory world_from_body, map_from_cam;
-  std::vector<int> covered_frames;
+  std::vector<int> covered_frames, blank_frames;
   std::vector<std::pair<std::string, cv::Mat>> sheet;
   const std::set<int> sheet_frames = ContactSheetFrames(spec, frame_count, rig_options.fps);
   Timer render_timer;
@@ -158,12 +158,18 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
     const Rigid3d world_from_right = body * rig.right.body_from_cam * calibrated_from_true_right;
     cv::Mat left_radiance, right_radiance;
     render_timer.Restart();
-    if (IsCovered(spec, t)) {
+    if (Within(spec.covered_s, t)) {
       // A hand over the lens lets a little light through: dark, flat, noisy.
       left_radiance =
           cv::Mat(rig.left.camera.height(), rig.left.camera.width(), CV_32FC1, cv::Scalar(0.015));
       right_radiance = left_radiance.clone();
       covered_frames.push_back(k);
+    } else if (Within(spec.blank_s, t)) {
+      // A blank wall fills the view: evenly lit, no texture; the sensor adds its noise.
+      left_radiance =
+          cv::Mat(rig.left.camera.height(), rig.left.camera.width(), CV_32FC1, cv::Scalar(0.45));
+      right_radiance = left_radiance.clone();
+      blank_frames.push_back(k);
     } else if (options_.effects) {
       // The shutter opens half the exposure time before t and closes half after.
       const double half = 0.5 * options_.effects->exposure_time_s;
@@ -274,6 +280,8 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       .Key("covered_frames")
       .BeginArray();
   for (int k : covered_frames) json.Value(k);
+  json.EndArray().Key("blank_frames").BeginArray();
+  for (int k : blank_frames) json.Value(k);
   json.EndArray().EndObject();
   WriteFileAtomically(stats.dir + "/sequence.json", json.str() + "\n");
   if (!sheet.empty()) cv::imwrite(stats.dir + "/contact_sheet.png", MakeContactSheet(sheet));

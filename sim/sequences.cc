@@ -120,7 +120,7 @@ RigOptions CarRig(const RigOptions& base) {
 const std::vector<std::string>& SequenceNames() {
   static const std::vector<std::string> names = {
       "map_square", "query_square", "straight",  "circle",      "outward", "glances",
-      "kidnap",     "lowlight",     "occluders", "changed",     "outofmap", "map_suite",
+      "kidnap",     "blankwall",    "lowlight",  "occluders",   "changed",  "outofmap", "map_suite",
       "query_suite", "drive"};
   return names;
 }
@@ -161,7 +161,7 @@ WalkingPath SuiteTour(const GaitOptions& gait) {
 
 SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
   const GaitOptions gait;
-  SequenceSpec spec{name, "", RoomOptions{}, WalkingPath({}, gait), SensorModel{}, {}};
+  SequenceSpec spec{name, "", RoomOptions{}, WalkingPath({}, gait), SensorModel{}, {}, {}};
   spec.room.seed = seed;
   if (name == "map_square") {
     spec.description = "mapping run: 2 m square loop, back to the start";
@@ -169,6 +169,11 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
   } else if (name == "query_square") {
     spec.description = "2 m square offset by (0.3, 0.2) m from the mapping square";
     spec.path = SquarePath(-0.7, -0.8, gait);
+  } else if (name == "blankwall") {
+    spec.description =
+        "the offset square; for 2.5 s the front pair faces a blank wall (no texture in view)";
+    spec.path = SquarePath(-0.7, -0.8, gait);
+    spec.blank_s.emplace_back(3.0, 5.5);
   } else if (name == "straight") {
     spec.description = "3 m straight line; the last metre leaves the mapped area";
     spec.path = WalkingPath({-1.0, 0.0, 0.0}, gait);

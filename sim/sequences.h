@@ -72,12 +72,15 @@ struct SequenceSpec {
   WalkingPath path;
   SensorModel sensor;
   std::vector<std::pair<double, double>> covered_s;  // Camera covered during these intervals.
+  // The front pair faces a blank wall during these: a textureless surface fills its view (the
+  // rig's further cameras see the room).
+  std::vector<std::pair<double, double>> blank_s;
   // Filmed by CarRig instead of the generator's rig; its map frame is its own first frame.
   bool car = false;
 };
 
-// Names in catalogue order: map_square, query_square, straight, circle, kidnap, lowlight,
-// occluders, changed, outofmap, map_suite, query_suite, drive. The suite sequences start where
+// Names in catalogue order: map_square, query_square, straight, circle, outward, glances,
+// kidnap, blankwall, lowlight, occluders, changed, outofmap, map_suite, query_suite, drive. The suite sequences start where
 // map_square does, so a map built from map_suite has the same map frame.
 const std::vector<std::string>& SequenceNames();
 

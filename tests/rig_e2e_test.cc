@@ -147,6 +147,33 @@ TEST_F(RigE2eTest, ARearCameraKeepsTheKidnappedRobotWhileTheFrontPairIsCovered) 
   EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);
 }
 
+TEST_F(RigE2eTest, ARearCameraSeesTheRoomWhileTheFrontOneFacesABlankWall) {
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const std::string sequence = kData + "/front-back/blankwall";
+  std::ifstream in(sequence + "/sequence.json");
+  const std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(json, m, std::regex("\"blank_frames\":\\[([0-9,]*)\\]")));
+  const std::vector<int> blank = PerCamera(std::regex_replace(m[1].str(), std::regex(","), ";"));
+  ASSERT_GE(blank.size(), 30u);
+  const ProcessResult front = Stream(server, "front-back/blankwall", "cam0", "front");
+  ASSERT_EQ(front.exit_code, 0) << front.err;
+  const auto front_rows = ReadStats(out_.File("front.csv"));
+  int front_lost = 0;
+  for (int k : blank) front_lost += front_rows[k].at("status") == "lost";
+  EXPECT_GE(front_lost, static_cast<int>(blank.size()) - 3);  // Nothing to match: lost.
+  const ProcessResult rig = Stream(server, "front-back/blankwall", "cam0,cam2", "rig");
+  ASSERT_EQ(rig.exit_code, 0) << rig.err;
+  const auto rows = ReadStats(out_.File("rig.csv"));
+  ASSERT_EQ(rows.size(), 150u);
+  for (size_t k = 0; k < rows.size(); ++k) {
+    EXPECT_NE(rows[k].at("status"), "lost") << "frame " << k;
+  }
+  const auto [worst_m, compared] = WorstError(sequence, out_.File("rig.tum"));
+  EXPECT_EQ(compared, 150);
+  EXPECT_LE(worst_m, 0.02);
+}
+
 TEST_F(RigE2eTest, TheServedRigAnswersAsTheInProcessRig) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   const ProcessResult streamed = Stream(server, "four/circle", "cam0,cam2,cam3,cam4", "streamed");

@@ -3,7 +3,7 @@
 #   map.db        built from the 2 m square rendered at 5 fps (the whole loop, kept quick),
 #   map_build.json, map_trajectory.tum  that build's summary and estimated frame poses,
 #   <sequence>/   short query sequences at 15 fps with ground truth in the map frame,
-#   front-back/kidnap, four/circle  the same walks filmed by rigs of two and four cameras.
+#   front-back/{kidnap,blankwall}, four/circle  walks filmed by rigs of two and four cameras.
 # Usage: make_localization_data.sh VISLOC_BINARY OUT_DIR. Skips the work when OUT_DIR is newer
 # than the binary (local re-runs); CI always starts from a fresh build folder.
 set -euo pipefail
@@ -33,8 +33,8 @@ for q in "${queries[@]}"; do
 done
 # Rigs: the kidnap walk with a rear camera (cam2) that the cover leaves seeing, and the circle
 # with four cameras (cam2 rear, cam3 left, cam4 right).
-"$visloc" sim --out "$out/front-back" --no-contact-sheet --sequence kidnap --frames 150 \
-  --rig front-back >/dev/null &
+"$visloc" sim --out "$out/front-back" --no-contact-sheet --sequence kidnap,blankwall \
+  --frames 150 --rig front-back >/dev/null &
 pids+=($!)
 "$visloc" sim --out "$out/four" --no-contact-sheet --sequence circle --frames 120 --rig four \
   >/dev/null &
