@@ -33,6 +33,10 @@ struct SessionStatus {
   double position_sigma_m = 0.0;  // Per axis.
   int inliers = 0;
   double inlier_ratio = 0.0;
+  // A rig session: each camera's inliers in the last answer (0: that camera saw nothing the
+  // fix took); empty for one camera.
+  std::vector<int> camera_inliers;
+  std::vector<std::string> camera_names;  // The rig's, as its SessionStart names them.
   double server_ms = 0.0;
   double frame_rate_hz = 0.0;  // Arrivals per second over the last few seconds.
   std::chrono::system_clock::time_point last_frame;  // Epoch before the first frame.

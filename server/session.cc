@@ -68,6 +68,14 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
       rig_(proto::RigFromProto(start, limits)),
       localizer_(std::move(map), rig_, proto::FromProto(start.options())) {
   tally_.map = start.map_name();
+  if (start.rig_cameras_size() > 0) {
+    tally_.camera_names.push_back("reference");
+    for (const v1::RigCamera& camera : start.rig_cameras()) {
+      tally_.camera_names.push_back(camera.name().empty()
+                                        ? StrCat("camera ", tally_.camera_names.size())
+                                        : camera.name());
+    }
+  }
   tally_.robot_id = start.robot_id();
   tally_.started = std::chrono::system_clock::now();
   tally_.without_pose_since = tally_.started;
@@ -130,6 +138,10 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     s->position_sigma_m = answered->PositionSigmaPerAxisM();
     s->inliers = answered->stats.inliers;
     s->inlier_ratio = answered->stats.inlier_ratio;
+    s->camera_inliers.clear();
+    for (const PoseFix::CameraSupport& camera : answered->stats.cameras) {
+      s->camera_inliers.push_back(camera.inliers);
+    }
     if (s->has_pose) {
       s->without_pose_since.reset();
     } else if (!s->without_pose_since) {

@@ -78,23 +78,32 @@ def main():
         robots = []
         driver = None
         try:
-            for robot, sequence in [("rover-kidnap", "kidnap"), ("rover-walk", "query_square")]:
+            for robot, sequence, cameras in [("rover-kidnap", "kidnap", "cam0"),
+                                             ("rover-walk", "query_square", "cam0"),
+                                             ("rover-rig", "front-back/kidnap", "cam0,cam2")]:
                 robots.append(subprocess.Popen(
                     [visloc_bin, "stream", "--server", grpc_address, "--map", "square",
                      "--robot-id", robot, "--dataset", os.path.join(data, sequence),
-                     "--rate", "15"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+                     "--cameras", cameras, "--rate", "15"],
+                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
             driver = browser()
             loaded = time.monotonic()
             driver.get("http://" + http_address + "/")
             usable_s = None
             seen = []
+            rig_cameras = set()  # The rig robot's camera lines as drawn ("cam2 179", blind ones).
             deadline = time.monotonic() + 40
             while time.monotonic() < deadline:
                 statuses = robot_statuses(driver)
                 drawn = "keyframes" in driver.execute_script(
                     "return document.getElementById('viewinfo').textContent;")
-                if usable_s is None and drawn and len(statuses) == 2:
+                if usable_s is None and drawn and len(statuses) == 3:
                     usable_s = time.monotonic() - loaded
+                for name, seeing in driver.execute_script(
+                        "const c = document.querySelector('.robot[data-robot=rover-rig]');"
+                        "return c ? [...c.querySelectorAll('.cameras span')]"
+                        ".map(s => [s.textContent.split(' ')[0], s.className]) : [];"):
+                    rig_cameras.add((name, seeing))
                 kidnapped = statuses.get("rover-kidnap")
                 if kidnapped and (not seen or seen[-1] != kidnapped):
                     seen.append(kidnapped)
@@ -102,7 +111,11 @@ def main():
                     break
                 time.sleep(0.1)
             check(usable_s is not None and usable_s < USABLE_S,
-                  f"the page was usable after {usable_s} s (map drawn, both robots listed)")
+                  f"the page was usable after {usable_s} s (map drawn, the robots listed)")
+            # The rig robot's card names its cameras and which of them the fix took; while its
+            # front camera is covered, the front one is drawn blind and the rear one seeing.
+            check(("cam2", "seeing") in rig_cameras and ("reference", "seeing") in rig_cameras,
+                  f"the rig's cameras shown: {sorted(rig_cameras)}")
             check("lost" in seen, f"the kidnapped robot never showed lost: {seen}")
             check(seen and "lost" in seen and seen[-1] in ("tracking", "relocalized"),
                   f"the kidnapped robot did not come back: {seen}")

@@ -93,6 +93,18 @@ class RigE2eTest : public ::testing::Test {
                    kData + "/" + sequence + "/groundtruth_map.tum", "--json"});
   }
 
+  // The run LABEL's errors (LABEL.tum, LABEL.csv) as Mahalanobis distances in its reported
+  // covariances (eval --stats): at most `beyond_3_sigma` of them beyond 3, none beyond 6.
+  void ExpectCovarianceCoversTheError(const std::string& sequence_dir, const std::string& label,
+                                      double beyond_3_sigma) {
+    const ProcessResult eval = Visloc({"eval", "--gt", sequence_dir + "/groundtruth_map.tum",
+                                       "--est", out_.File(label + ".tum"), "--stats",
+                                       out_.File(label + ".csv"), "--json"});
+    ASSERT_EQ(eval.exit_code, 0) << eval.err;
+    EXPECT_LE(JsonNumber(eval.out, "consistency", "beyond_3_sigma"), beyond_3_sigma);
+    EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);
+  }
+
   TempDir maps_{"visloc_rig_maps"};
   TempDir out_{"visloc_rig_out"};
 };
@@ -139,12 +151,7 @@ TEST_F(RigE2eTest, ARearCameraKeepsTheKidnappedRobotWhileTheFrontPairIsCovered) 
   // map the walk's first second is 0.6 cm off at 2.5-3.2 sigma (3.3% of the frames beyond 3;
   // the benchmark's 15 fps map, docs/rigs.md: none): the front and rear cameras see parts of
   // the map whose relative error the map's coarser keyframing leaves.
-  const ProcessResult eval = Visloc({"eval", "--gt", sequence + "/groundtruth_map.tum", "--est",
-                                     out_.File("rig.tum"), "--stats", out_.File("rig.csv"),
-                                     "--json"});
-  ASSERT_EQ(eval.exit_code, 0) << eval.err;
-  EXPECT_LE(JsonNumber(eval.out, "consistency", "beyond_3_sigma"), 0.05);
-  EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);
+  ExpectCovarianceCoversTheError(sequence, "rig", 0.05);
 }
 
 TEST_F(RigE2eTest, ARearCameraSeesTheRoomWhileTheFrontOneFacesABlankWall) {
@@ -206,12 +213,7 @@ TEST_F(RigE2eTest, FourCamerasLookingEveryWayTrackTheCircle) {
     all_four += std::all_of(inliers.begin(), inliers.end(), [](int n) { return n > 20; });
   }
   EXPECT_GE(all_four, 110) << "frames where every camera contributes";
-  const ProcessResult eval = Visloc({"eval", "--gt", kData + "/four/circle/groundtruth_map.tum",
-                                     "--est", out_.File("four.tum"), "--stats",
-                                     out_.File("four.csv"), "--json"});
-  ASSERT_EQ(eval.exit_code, 0) << eval.err;
-  EXPECT_LE(JsonNumber(eval.out, "consistency", "beyond_3_sigma"), 0.03);
-  EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);
+  ExpectCovarianceCoversTheError(kData + "/four/circle", "four", 0.03);
 }
 
 // The Relocalize RPC with a rig's frame: every image proposes, the pose found is verified with

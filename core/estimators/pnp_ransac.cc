@@ -71,6 +71,18 @@ std::array<int, 3> PickThree(int n, Rng& rng) {
   return picks;
 }
 
+// P3P's poses from the three observations `picks`.
+std::vector<Rigid3d> SolveSample(const std::vector<PoseObservation>& observations,
+                                 const std::array<int, 3>& picks) {
+  const std::array<Eigen::Vector3d, 3> points = {observations[picks[0]].point_in_world,
+                                                 observations[picks[1]].point_in_world,
+                                                 observations[picks[2]].point_in_world};
+  const std::array<Eigen::Vector2d, 3> bearings = {observations[picks[0]].normalized,
+                                                   observations[picks[1]].normalized,
+                                                   observations[picks[2]].normalized};
+  return SolveP3P(points, bearings);
+}
+
 // Iterations needed to draw one all-inlier sample at `confidence`, when a sample is all
 // inliers with probability `all_good`.
 int NeededIterations(double all_good, const PnpRansacOptions& options) {
@@ -96,14 +108,7 @@ PnpResult SolvePnpRansac(const std::vector<PoseObservation>& observations,
   int needed = options.max_iterations;
   int iteration = 0;
   for (; iteration < std::min(needed, options.max_iterations); ++iteration) {
-    const std::array<int, 3> picks = PickThree(n, rng);
-    const std::array<Eigen::Vector3d, 3> points = {observations[picks[0]].point_in_world,
-                                                   observations[picks[1]].point_in_world,
-                                                   observations[picks[2]].point_in_world};
-    const std::array<Eigen::Vector2d, 3> bearings = {observations[picks[0]].normalized,
-                                                     observations[picks[1]].normalized,
-                                                     observations[picks[2]].normalized};
-    for (const Rigid3d& candidate : SolveP3P(points, bearings)) {
+    for (const Rigid3d& candidate : SolveSample(observations, PickThree(n, rng))) {
       const int inliers = counter.Count(candidate, options.max_error_px);
       if (inliers > best_inliers) {
         best_inliers = inliers;
@@ -188,15 +193,9 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
                         cumulative.begin();
     const int camera = sampled_cameras[slot];
     const std::vector<PoseObservation>& observations = rig.per_camera[camera];
-    const std::array<int, 3> picks = PickThree(static_cast<int>(observations.size()), rng);
-    const std::array<Eigen::Vector3d, 3> points = {observations[picks[0]].point_in_world,
-                                                   observations[picks[1]].point_in_world,
-                                                   observations[picks[2]].point_in_world};
-    const std::array<Eigen::Vector2d, 3> bearings = {observations[picks[0]].normalized,
-                                                     observations[picks[1]].normalized,
-                                                     observations[picks[2]].normalized};
     const Rigid3d ref_from_cam = rig.cam_from_ref[camera].Inverse();
-    for (const Rigid3d& cam_from_world : SolveP3P(points, bearings)) {
+    const std::array<int, 3> picks = PickThree(static_cast<int>(observations.size()), rng);
+    for (const Rigid3d& cam_from_world : SolveSample(observations, picks)) {
       const Rigid3d candidate = ref_from_cam * cam_from_world;
       int inliers = 0;
       for (size_t c = 0; c < counters.size(); ++c) {

@@ -50,7 +50,11 @@ std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_ses
           .Field("yaw_deg", YawDeg(s.map_from_cam))
           .Field("position_sigma_m", s.position_sigma_m);
     }
-    json.Field("inliers", s.inliers)
+    json.Field("inliers", s.inliers).Key("camera_inliers").BeginArray();
+    for (int inliers : s.camera_inliers) json.Value(static_cast<int64_t>(inliers));
+    json.EndArray().Key("camera_names").BeginArray();
+    for (const std::string& name : s.camera_names) json.Value(name);
+    json.EndArray()
         .Field("inlier_ratio", s.inlier_ratio)
         .Field("server_ms", s.server_ms)
         .Field("frame_rate_hz", s.frame_rate_hz)
