@@ -18,6 +18,11 @@ bool SensorGate::Sensor::Reached(int64_t stamp_ns, double now_s, double quiet_af
 
 bool SensorGate::MayRelease(int64_t stamp_ns, double received_s, double now_s) const {
   if (now_s - received_s >= options_.max_wait_s) return true;
+  for (const Sensor& camera : cameras_) {
+    if (!camera.Reached(stamp_ns - options_.camera_tolerance_ns, now_s, options_.quiet_after_s)) {
+      return false;
+    }
+  }
   return (!options_.odometry || odometry_.Reached(stamp_ns, now_s, options_.quiet_after_s)) &&
          (!options_.imu || imu_.Reached(stamp_ns, now_s, options_.quiet_after_s));
 }

@@ -20,6 +20,10 @@ namespace visloc::ros_node {
 struct SensorSyncOptions {
   bool odometry = false;       // Wait for odometry stamped at or past the image.
   bool imu = false;            // Wait for an IMU sample stamped at or past the image.
+  // A rig's further cameras: wait for an image of each stamped at or past the image's stamp
+  // less camera_tolerance_ns (the same moment, as the engine's rig skew allows).
+  size_t cameras = 0;
+  int64_t camera_tolerance_ns = 5'000'000;
   double max_wait_s = 0.1;     // Wall time an image waits at most.
   double quiet_after_s = 1.0;  // A sensor without a message for this long is not waited for.
   size_t max_pending = 8;      // Images waiting at most; beyond it the oldest goes at once.
@@ -28,9 +32,14 @@ struct SensorSyncOptions {
 // The sensors' progress, and whether an image may go.
 class SensorGate {
  public:
-  explicit SensorGate(const SensorSyncOptions& options) : options_(options) {}
+  explicit SensorGate(const SensorSyncOptions& options)
+      : options_(options), cameras_(options.cameras) {}
   void OnOdometry(int64_t stamp_ns, double now_s) { odometry_.Heard(stamp_ns, now_s); }
   void OnImu(int64_t stamp_ns, double now_s) { imu_.Heard(stamp_ns, now_s); }
+  // An image of rig camera `camera` (0-based among the further cameras).
+  void OnCamera(size_t camera, int64_t stamp_ns, double now_s) {
+    cameras_.at(camera).Heard(stamp_ns, now_s);
+  }
   // True once every sensor the image waits for has reached its stamp (or is quiet), or it has
   // waited max_wait_s since `received_s`.
   bool MayRelease(int64_t stamp_ns, double received_s, double now_s) const;
@@ -46,6 +55,7 @@ class SensorGate {
   };
   SensorSyncOptions options_;
   Sensor odometry_, imu_;
+  std::vector<Sensor> cameras_;
 };
 
 // Images (of any type) in the order they came, let go in that order as the gate allows.

@@ -89,5 +89,21 @@ TEST(SensorSyncTest, AnOlderStampArrivingLateDoesNotMoveTheSensorBack) {
   EXPECT_EQ(sync.TakeReady(0.002), std::vector<int>{1});
 }
 
+// A rig: the reference camera's image waits for the other cameras' images of the same moment
+// (their stamps within the tolerance, on either side), which their topics may bring later.
+TEST(SensorSyncTest, ARigsImageWaitsForItsOtherCamerasImagesOfTheSameMoment) {
+  SensorSyncOptions options;
+  options.cameras = 2;
+  SensorSync<int> sync(options);
+  sync.gate().OnCamera(0, 0, 0.000);
+  sync.gate().OnCamera(1, 0, 0.000);
+  sync.Add(kFrameNs, 1, 0.066);
+  sync.gate().OnCamera(0, kFrameNs - 2'000'000, 0.068);  // 2 ms earlier: the same moment.
+  EXPECT_TRUE(sync.TakeReady(0.068).empty()) << "sent without camera 2's image";
+  sync.gate().OnCamera(1, kFrameNs + 1'000'000, 0.070);
+  EXPECT_EQ(sync.TakeReady(0.070), std::vector<int>{1});
+  EXPECT_THROW(sync.gate().OnCamera(2, 0, 0.1), std::out_of_range);
+}
+
 }  // namespace
 }  // namespace visloc::ros_node

@@ -116,8 +116,9 @@ class LocalizationNode {
     }
     if (use_odometry_) odom_sub_ = nh_.subscribe("odom", 50, &LocalizationNode::OnOdometry, this);
     if (use_imu_) imu_sub_ = nh_.subscribe("imu", 400, &LocalizationNode::OnImu, this);
+    SubscribeRigCameras();
     sync_.emplace(SyncOptions());
-    if (use_odometry_ || use_imu_) {
+    if (use_odometry_ || use_imu_ || !rig_.empty()) {
       // Images held for their odometry or IMU go when the wait runs out, even with no message.
       sync_timer_ = nh_.createWallTimer(ros::WallDuration(0.02),
                                         [this](const ros::WallTimerEvent&) { SendReady(); });
@@ -163,12 +164,20 @@ class LocalizationNode {
     use_odometry_ = pnh_.param("use_odometry", false);
     use_imu_ = pnh_.param("use_imu", false);
     sensor_wait_s_ = pnh_.param("sensor_wait_s", 0.1);
+    // A rig: the further cameras' namespaces, each with image_raw and camera_info ("/cam2,/cam3").
+    std::stringstream rig_cameras(pnh_.param<std::string>("rig_cameras", ""));
+    for (std::string name; std::getline(rig_cameras, name, ',');) {
+      if (name.empty()) continue;
+      rig_.push_back(std::make_unique<RigCameraTopics>());
+      rig_.back()->ns = name;
+    }
   }
 
   SensorSyncOptions SyncOptions() const {
     SensorSyncOptions sync;
     sync.odometry = use_odometry_;
     sync.imu = use_imu_;
+    sync.cameras = rig_.size();
     sync.max_wait_s = sensor_wait_s_;
     return sync;
   }
@@ -194,6 +203,7 @@ class LocalizationNode {
       return nullptr;
     }
     camera_frame_ = camera_frame_override_.empty() ? msg.header.frame_id : camera_frame_override_;
+    if (!rig_.empty() && !SetRigCameras(msg.header.frame_id)) return nullptr;
     // The camera's pose on the IMU is fixed when the session opens: with IMU, the session waits
     // (up to 1 s of camera_info) for the first IMU message and the TF between the two frames.
     if (use_imu_ && !SetBodyFromCamera(msg.header.frame_id)) {
@@ -288,6 +298,71 @@ class LocalizationNode {
     Receive(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
   }
 
+  // A rig's further cameras: each one's image_raw and camera_info in its namespace.
+  void SubscribeRigCameras() {
+    for (size_t c = 0; c < rig_.size(); ++c) {
+      RigCameraTopics& camera = *rig_[c];
+      camera.info_sub = nh_.subscribe<sensor_msgs::CameraInfo>(
+          camera.ns + "/camera_info", 1, [this, c](const sensor_msgs::CameraInfoConstPtr& msg) {
+            std::lock_guard<std::mutex> lock(mutex_);
+            rig_[c]->info = *msg;
+          });
+      camera.image_sub = transport_.subscribe(
+          camera.ns + "/image_raw", 2,
+          boost::function<void(const sensor_msgs::ImageConstPtr&)>(
+              [this, c](const sensor_msgs::ImageConstPtr& msg) { OnRigImage(c, msg); }));
+    }
+  }
+
+  void OnRigImage(size_t c, const sensor_msgs::ImageConstPtr& msg) {
+    cv::Mat image;
+    try {
+      image = ros_msg::DecodeRawImage(
+          msg->width, msg->height, msg->encoding, msg->is_bigendian != 0, msg->step,
+          std::string_view(reinterpret_cast<const char*>(msg->data.data()), msg->data.size()));
+    } catch (const std::exception& e) {
+      ROS_ERROR_THROTTLE(5.0, "visloc: %s image refused: %s", rig_[c]->ns.c_str(), e.what());
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const auto stamp_ns = static_cast<int64_t>(msg->header.stamp.toNSec());
+      auto& images = rig_[c]->images;
+      images.emplace_back(stamp_ns, std::move(image));
+      if (images.size() > 10) images.pop_front();
+      sync_->gate().OnCamera(c, stamp_ns, WallNowS());
+    }
+    SendReady();
+  }
+
+  // The rig's further cameras on the session's body (the IMU's frame with use_imu, else the
+  // reference camera's), from their camera_info and TF. False while one is not known yet.
+  bool SetRigCameras(const std::string& reference_frame) {
+    const std::string body_frame = use_imu_ ? imu_frame_ : reference_frame;
+    std::vector<v1::RigCamera> cameras;
+    for (const auto& camera : rig_) {
+      if (!camera->info || body_frame.empty()) {
+        PublishStatus("waiting for " + camera->ns + "/camera_info");
+        return false;
+      }
+      v1::RigCamera& out = cameras.emplace_back();
+      out.set_name(camera->ns);
+      try {
+        const ros_msg::CameraInfoMessage info = CameraInfoFromRos(*camera->info);
+        ToProto(ros_msg::CameraFromInfo(info, camera->ns + "/camera_info"), out.mutable_camera());
+        const auto t =
+            tf_buffer_.lookupTransform(body_frame, camera->info->header.frame_id, ros::Time(0));
+        ToProto(FromRos(t.transform), out.mutable_body_from_cam());
+      } catch (const tf2::TransformException& e) {
+        ROS_WARN_THROTTLE(5.0, "visloc: no TF %s -> %s yet: %s", body_frame.c_str(),
+                          camera->info->header.frame_id.c_str(), e.what());
+        return false;
+      }
+    }
+    options_.rig_cameras = std::move(cameras);
+    return true;
+  }
+
   // An image waits (sensor_sync.h) until its odometry and IMU have come; before camera_info,
   // the newest one is kept for the session's first frame.
   void Receive(int64_t stamp_ns, vc::Frame frame) {
@@ -352,6 +427,23 @@ class LocalizationNode {
       imu_.erase(imu_.begin(), later);
       last_imu_frame_ns_ = stamp_ns;
       imu_samples_sent_ += frame.imu.size();
+    }
+    // Each further camera's image of the same moment (nearest within the tolerance), or none.
+    constexpr int64_t kRigToleranceNs = 5'000'000;
+    for (const auto& camera : rig_) {
+      vc::RigFrameImage& rig_image = frame.rig_images.emplace_back();
+      auto& images = camera->images;
+      auto best = images.end();
+      for (auto it = images.begin(); it != images.end(); ++it) {
+        const int64_t offset = std::abs(it->first - stamp_ns);
+        if (offset <= kRigToleranceNs && (best == images.end() || offset < std::abs(best->first - stamp_ns))) {
+          best = it;
+        }
+      }
+      if (best == images.end()) continue;
+      rig_image.timestamp_ns = best->first;
+      rig_image.image = best->second;
+      images.erase(images.begin(), std::next(best));  // Older ones go with it.
     }
     if (pending_hint_) {
       frame.map_from_cam_hint = *pending_hint_;
@@ -570,6 +662,15 @@ class LocalizationNode {
   std::deque<StampedPose> waiting_for_odometry_;  // map_from_cam of answers ahead of odometry.  //
                                                   // The newest image before camera_info came.
   std::optional<v1::Pose> pending_hint_;
+  // A rig's further cameras (~rig_cameras): their topics, camera_info and recent images.
+  struct RigCameraTopics {
+    std::string ns;
+    std::optional<sensor_msgs::CameraInfo> info;
+    std::deque<std::pair<int64_t, cv::Mat>> images;  // By stamp, the last few.
+    ros::Subscriber info_sub;
+    image_transport::Subscriber image_sub;
+  };
+  std::vector<std::unique_ptr<RigCameraTopics>> rig_;
   v1::LocalizeResponse last_response_;
   std::string link_state_ = "connecting", last_status_;
   double last_latency_ms_ = 0.0;

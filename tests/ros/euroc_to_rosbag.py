@@ -4,6 +4,7 @@ python3-rosbag: the independent side of visloc's bag import and ROS node tests.
 
   euroc_to_rosbag.py DIR OUT.bag [--mono] [--right-compressed] [--left-compressed]
                      [--odometry] [--odometry-lag-ms MS] [--imu] [--drop-right N]
+                     [--rig-camera CAM ...]
 
 Topics: /cam0/image_raw (sensor_msgs/Image mono8, or .../compressed JPEG), /cam0/camera_info,
 /cam1/image_raw (or /cam1/image_raw/compressed, PNG), /cam1/camera_info, /odom
@@ -13,7 +14,9 @@ of a stereo pair is written the way ROS's stereo calibration writes it: the rect
 the left camera's, R of the right camera turns it into that frame, P[3] = -fx * baseline.
 Every --drop-right'th right image is left out, to exercise pairing reports. With
 --odometry-lag-ms, every other odometry message is recorded (so played) that long after its own
-stamp, as odometry from another node arrives after the image of the same instant.
+stamp, as odometry from another node arrives after the image of the same instant. Each
+--rig-camera CAM (a rig's further camera, as `visloc sim --rig` writes cam2, ...) adds
+/CAM/image_raw, /CAM/camera_info and /tf_static cam0 -> CAM (from both cameras' T_BS).
 """
 import argparse
 import csv
@@ -115,6 +118,30 @@ def write_image(bag, mav0, cam, name, t, compressed):
     bag.write(topic, msg, t)
 
 
+def static_transform(parent, child, parent_from_child, t0):
+    tf = TransformStamped()
+    tf.header.stamp, tf.header.frame_id, tf.child_frame_id = t0, parent, child
+    tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = parent_from_child[:3, 3]
+    w, x, y, z = quaternion_wxyz(parent_from_child[:3, :3])
+    q = tf.transform.rotation
+    q.w, q.x, q.y, q.z = w, x, y, z
+    return tf
+
+
+def quaternion_wxyz(r):
+    """The unit quaternion of a rotation matrix, from its largest diagonal term."""
+    trace = np.trace(r)
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        return 0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s
+    i = int(np.argmax(np.diag(r)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+    v = [0.0, 0.0, 0.0]
+    v[i], v[j], v[k] = 0.25 * s, (r[j, i] + r[i, j]) / s, (r[k, i] + r[i, k]) / s
+    return ((r[k, j] - r[j, k]) / s, v[0], v[1], v[2])
+
+
 def to_time(ns):
     return rospy.Time(int(ns) // 1000000000, int(ns) % 1000000000)
 
@@ -130,6 +157,7 @@ def main():
     p.add_argument("--odometry-lag-ms", type=float, default=0.0)
     p.add_argument("--drop-right", type=int, default=0)
     p.add_argument("--imu", action="store_true")
+    p.add_argument("--rig-camera", action="append", default=[])
     a = p.parse_args()
     mav0 = os.path.join(a.dir, "mav0")
     left, body_from_left = read_camera(os.path.join(mav0, "cam0", "sensor.yaml"))
@@ -147,13 +175,22 @@ def main():
             r_left, r_right, baseline = rectify(left, right, np.linalg.inv(left_from_right))
     with open(os.path.join(mav0, "cam0", "data.csv")) as f:
         stamps = [int(row[0]) for row in csv.reader(f) if row and not row[0].startswith("#")]
+    rig = [(cam,) + read_camera(os.path.join(mav0, cam, "sensor.yaml")) for cam in a.rig_camera]
     bag = rosbag.Bag(a.out, "w")
     try:
+        if rig:
+            t0 = to_time(stamps[0])
+            bag.write("/tf_static", TFMessage(transforms=[
+                static_transform("cam0", cam, np.linalg.inv(body_from_left) @ t_bs, t0)
+                for cam, _, t_bs in rig]), t0)
         for i, ns in enumerate(stamps):
             t = to_time(ns)
             name = "%d.png" % ns
             write_image(bag, mav0, "cam0", name, t, "jpeg" if a.left_compressed else None)
             bag.write("/cam0/camera_info", camera_info(left, "cam0", t, r_left), t)
+            for cam, sensor, _ in rig:
+                write_image(bag, mav0, cam, name, t, None)
+                bag.write("/%s/camera_info" % cam, camera_info(sensor, cam, t), t)
             if stereo:
                 bag.write("/cam1/camera_info", camera_info(right, "cam1", t, r_right, baseline), t)
                 if a.drop_right and i % a.drop_right == a.drop_right - 1:
