@@ -10,7 +10,7 @@
 #     server as cam0 and as the stereo pair (cam0,cam1) taken as a rig; each stereo pair of a
 #     later stretch alone through the Relocalize RPC against a map of the earlier one;
 #   - speed: `visloc bench --cameras` (a rig beside cam0 alone, interleaved frame by frame).
-# Usage: scripts/rigs.sh [WORK_DIR=out/rigs] (about 15 minutes on 2 cores once built).
+# Usage: scripts/rigs.sh [WORK_DIR=out/rigs] (about 10 minutes on 2 cores once built).
 # VISLOC_REAL_DATA names the recordings folder.
 set -euo pipefail
 cd "$(dirname "$0")/.."
