@@ -98,9 +98,8 @@ std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& data
   return *image;
 }
 
-std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
+std::vector<v1::RigCamera> WireRigCameras(const CameraRig& rig,
                                           const std::vector<std::string>& names) {
-  const CameraRig rig = DatasetCameraRig(dataset, names, /*gyro=*/false);
   std::vector<v1::RigCamera> cameras;
   for (size_t c = 1; c < rig.cameras.size(); ++c) {
     v1::RigCamera& camera = cameras.emplace_back();

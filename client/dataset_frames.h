@@ -33,9 +33,10 @@ std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& data
                                                              const std::string& name,
                                                              size_t index, int64_t tolerance_ns);
 
-// The rig's other cameras (names[1..]) on the wire, each placed on the body by its T_BS: the
-// body of the reference camera's T_BS, which the session (or request) then declares.
-std::vector<v1::RigCamera> WireRigCameras(const Dataset& dataset,
+// A rig's other cameras (cameras 1.., named names[1..]) on the wire, each placed on the body by
+// its body_from_cam (T_BS): the body of the reference camera's, which the session (or request)
+// then declares.
+std::vector<v1::RigCamera> WireRigCameras(const CameraRig& rig,
                                           const std::vector<std::string>& names);
 
 }  // namespace visloc::cli

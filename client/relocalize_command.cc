@@ -269,7 +269,8 @@ int RunRelocalize(const Args& raw_args) {
     proto::ToProto(dataset->left.camera, base.mutable_camera());
     const std::vector<std::string> cameras = ParseCameraNames(args.cameras);
     if (cameras.size() > 1) {
-      for (const v1::RigCamera& camera : WireRigCameras(*dataset, cameras)) {
+      for (const v1::RigCamera& camera :
+           WireRigCameras(DatasetCameraRig(*dataset, cameras, /*gyro=*/false), cameras)) {
         *base.add_rig_cameras() = camera;
       }
       proto::ToProto(dataset->left.body_from_cam, base.mutable_body_from_cam());

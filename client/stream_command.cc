@@ -42,7 +42,9 @@ using Clock = std::chrono::steady_clock;
 struct StreamArgs {
   Connection server;
   std::string map_name, dataset_dir, format, trajectory_path, stats_path, events_path, gt_path;
-  std::string camera_source, sensor_path;  // A live source instead of a dataset.
+  // Live sources instead of a dataset: one per camera of the rig (the reference first), each
+  // with its sensor.yaml.
+  std::vector<std::string> camera_sources, sensor_paths;
   std::string robot_id = "visloc-stream";
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
@@ -61,7 +63,7 @@ struct StreamArgs {
 // would (a real 752x480 PNG is 210 KiB; at quality 90, about a quarter of that). A replay as
 // fast as possible is an evaluation: the image files' own bytes, so nothing is lost.
 std::string DefaultEncoding(const StreamArgs& args) {
-  return args.camera_source.empty() && args.rate_hz == 0 ? "file" : "jpeg";
+  return args.camera_sources.empty() && args.rate_hz == 0 ? "file" : "jpeg";
 }
 
 // What the summary says of the encoding: "jpeg q90", "file", ...
@@ -267,12 +269,13 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.AddFlag("robot-id", &args->robot_id,
                  "the robot's name in the server's log and in visloc sessions");
   parser.AddFlag("dataset", &args->dataset_dir, "dataset folder (EuRoC or KITTI layout)");
-  parser.AddFlag("camera", &args->camera_source,
+  parser.AddList("camera", &args->camera_sources,
                  "instead of --dataset, a live source through OpenCV: a V4L2 device (/dev/video0 "
-                 "or 0), a GStreamer pipeline (with '!'), or a video file");
-  parser.AddFlag("camera-yaml", &args->sensor_path,
-                 "with --camera: the camera model (an EuRoC sensor.yaml, as `visloc calibrate` "
-                 "writes)");
+                 "or 0), a GStreamer pipeline (with '!'), or a video file; given again for a rig's "
+                 "further cameras (--camera FRONT --camera REAR), their frames taken together");
+  parser.AddList("camera-yaml", &args->sensor_paths,
+                 "with --camera: each camera's model and T_BS (an EuRoC sensor.yaml, as `visloc "
+                 "calibrate` writes), in the order of --camera");
   parser.AddFlag("format", &args->format, "euroc or kitti (default: detected)");
   parser.AddFlag("cameras", &args->cameras,
                  "with --dataset: the rig streamed, cam0 (the reference, reported) then others, "
@@ -305,14 +308,20 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   *run = parser.Parse(raw_args, std::cout);
   if (!*run) return;
   args->server.ApplyEnvironment();
-  if (!args->dataset_dir.empty() && !args->camera_source.empty()) {
+  if (!args->dataset_dir.empty() && !args->camera_sources.empty()) {
     throw UsageError("give --dataset DIR or --camera SOURCE, not both");
   }
-  if (args->dataset_dir.empty() && args->camera_source.empty()) {
+  if (args->dataset_dir.empty() && args->camera_sources.empty()) {
     throw UsageError("give --dataset DIR or --camera SOURCE (with --camera-yaml sensor.yaml)");
   }
-  if (!args->camera_source.empty()) {
-    if (args->sensor_path.empty()) throw UsageError("--camera needs --camera-yaml sensor.yaml");
+  if (!args->camera_sources.empty()) {
+    if (args->sensor_paths.empty()) throw UsageError("--camera needs --camera-yaml sensor.yaml");
+    if (args->sensor_paths.size() != args->camera_sources.size()) {
+      throw UsageError("each --camera needs its --camera-yaml, in the same order");
+    }
+    if (args->camera_sources.size() > CameraRig::kMaxCameras) {
+      throw UsageError(StrCat("--camera: at most ", CameraRig::kMaxCameras, " cameras"));
+    }
     if (args->odometry) throw UsageError("--odometry comes from a dataset, not --camera");
     if (args->encoding == "file") {
       throw UsageError("--encoding file needs --dataset (a camera's frames are pixels)");
@@ -396,7 +405,7 @@ class DatasetSource final : public FrameSource {
   }
   const CameraInfo& camera() const override { return dataset_.left; }
   std::vector<v1::RigCamera> rig_cameras() const override {
-    return WireRigCameras(dataset_, cameras_);
+    return WireRigCameras(DatasetCameraRig(dataset_, cameras_, /*gyro=*/false), cameras_);
   }
   const Dataset* dataset() const override { return &dataset_; }
   size_t expected() const override { return count_; }
@@ -426,35 +435,55 @@ class DatasetSource final : public FrameSource {
 // A V4L2 device ("/dev/video0" or "0"), a GStreamer pipeline (anything with a "!"), or a video
 // file, read through OpenCV's VideoCapture; the camera model comes from a sensor.yaml. Frames
 // are stamped with the clock when read (a device), or with their position in the file (paced
-// at the file's frame rate, or --rate).
+// at the file's frame rate, or --rate). A rig's further cameras are read beside it: every
+// camera's frame grabbed first, then decoded, so they are taken as close together as the
+// devices allow, and sent with the reference frame's stamp.
 class CaptureSource final : public FrameSource {
  public:
-  explicit CaptureSource(const StreamArgs& args)
-      : args_(args),
-        camera_(ReadSensorYaml(args.sensor_path)),
-        video_(args.camera_source, "--camera") {}
-  const CameraInfo& camera() const override { return camera_; }
+  explicit CaptureSource(const StreamArgs& args) : args_(args) {
+    for (size_t c = 0; c < args.camera_sources.size(); ++c) {
+      cameras_.push_back(ReadSensorYaml(args.sensor_paths[c]));
+      videos_.push_back(std::make_unique<VideoSource>(args.camera_sources[c], "--camera"));
+    }
+  }
+  const CameraInfo& camera() const override { return cameras_.front(); }
+  std::vector<v1::RigCamera> rig_cameras() const override {
+    CameraRig rig;
+    for (const CameraInfo& camera : cameras_) {
+      rig.cameras.push_back(camera.camera);
+      rig.body_from_cam.push_back(camera.body_from_cam);
+    }
+    return WireRigCameras(rig, args_.camera_sources);
+  }
   size_t expected() const override {
-    const size_t in_file = video_.file_frames();
+    const size_t in_file = videos_.front()->file_frames();
     return args_.frames > 0 ? (in_file ? std::min<size_t>(args_.frames, in_file) : args_.frames)
                             : in_file;
   }
   bool Next(client::Frame* frame) override {
     if (args_.frames > 0 && read_ >= static_cast<size_t>(args_.frames)) return false;
-    cv::Mat image;
-    if (!video_.Read(&image)) return false;
+    for (const auto& video : videos_) {
+      if (!video->Grab()) return false;
+    }
+    std::vector<cv::Mat> images(videos_.size());
+    for (size_t c = 0; c < videos_.size(); ++c) {
+      if (!videos_[c]->Retrieve(&images[c])) return false;
+    }
     const size_t i = read_++;
-    const double rate = args_.rate_hz > 0 ? args_.rate_hz : video_.file_fps();
+    const double rate = args_.rate_hz > 0 ? args_.rate_hz : videos_.front()->file_fps();
     *frame = client::Frame();
-    frame->timestamp_ns = video_.Stamp(i, rate, /*pace=*/args_.rate_hz != 0, start_);
-    frame->image = image;  // Grey or BGR; the library converts and checks the size.
+    frame->timestamp_ns = videos_.front()->Stamp(i, rate, /*pace=*/args_.rate_hz != 0, start_);
+    frame->image = images[0];  // Grey or BGR; the library converts and checks the size.
+    for (size_t c = 1; c < images.size(); ++c) {
+      frame->rig_images.push_back({frame->timestamp_ns, images[c], ""});
+    }
     return true;
   }
 
  private:
   const StreamArgs& args_;
-  CameraInfo camera_;
-  VideoSource video_;
+  std::vector<CameraInfo> cameras_;
+  std::vector<std::unique_ptr<VideoSource>> videos_;
   size_t read_ = 0;
   Clock::time_point start_ = Clock::now();
 };
@@ -467,7 +496,7 @@ int RunStream(const Args& raw_args) {
   ParseStreamArgs(raw_args, &args, &run);
   if (!run) return 0;
   std::unique_ptr<FrameSource> source;
-  if (args.camera_source.empty()) {
+  if (args.camera_sources.empty()) {
     source = std::make_unique<DatasetSource>(args);
   } else {
     source = std::make_unique<CaptureSource>(args);

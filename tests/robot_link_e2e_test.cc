@@ -302,5 +302,47 @@ TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
   EXPECT_THAT(file_from_camera.err, HasSubstr("--encoding file needs --dataset"));
 }
 
+// A rig of live sources: the front-back kidnap walk's front and rear cameras as two video files
+// (`--camera FRONT --camera REAR`, each with its sensor.yaml), their frames taken together. The
+// front camera alone is lost while covered; the rig keeps every frame.
+TEST_F(RobotLinkE2eTest, SeveralVideoSourcesStreamAsARig) {
+  const std::string walk = kData + "/front-back/kidnap/mav0";
+  for (const std::string camera : {"cam0", "cam2"}) {
+    cv::VideoWriter writer(out_.File(camera + ".avi"), cv::VideoWriter::fourcc('M', 'J', 'P', 'G'),
+                           15.0, cv::Size(320, 240), /*isColor=*/false);
+    ASSERT_TRUE(writer.isOpened());
+    std::vector<std::string> paths;
+    for (const auto& entry : std::filesystem::directory_iterator(walk + "/" + camera + "/data")) {
+      paths.push_back(entry.path().string());
+    }
+    std::sort(paths.begin(), paths.end());
+    for (const std::string& path : paths) writer.write(cv::imread(path, cv::IMREAD_GRAYSCALE));
+  }
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
+  const auto stream = [&](std::vector<std::string> cameras) {
+    std::vector<std::string> args = {"stream", "--server", server.address(), "--map", "square",
+                                     "--rate", "0", "--json"};
+    for (const std::string& camera : cameras) {
+      args.insert(args.end(), {"--camera", out_.File(camera + ".avi"), "--camera-yaml",
+                               walk + "/" + camera + "/sensor.yaml"});
+    }
+    return Visloc(args);
+  };
+  const ProcessResult front = stream({"cam0"});
+  ASSERT_EQ(front.exit_code, 0) << front.err;
+  EXPECT_EQ(JsonNumber(front.out, "frames"), 150);
+  EXPECT_LE(JsonNumber(front.out, "localized_fraction"), 0.9);  // 18 covered frames lost.
+  const ProcessResult rig = stream({"cam0", "cam2"});
+  ASSERT_EQ(rig.exit_code, 0) << rig.err;
+  EXPECT_EQ(JsonNumber(rig.out, "frames"), 150);
+  EXPECT_EQ(JsonNumber(rig.out, "localized_fraction"), 1.0);
+  const ProcessResult unpaired =
+      Visloc({"stream", "--server", server.address(), "--map", "square", "--camera",
+              out_.File("cam0.avi"), "--camera", out_.File("cam2.avi"), "--camera-yaml",
+              walk + "/cam0/sensor.yaml"});
+  EXPECT_EQ(unpaired.exit_code, 2);
+  EXPECT_THAT(unpaired.err, HasSubstr("each --camera needs its --camera-yaml, in the same order"));
+}
+
 }  // namespace
 }  // namespace visloc
