@@ -111,20 +111,25 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
       RigImage& rig_image = input.rig_images.emplace_back();
       if (!image) continue;
       rig_image.timestamp_ns = image->first;
-      rig_image.image = LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
+      rig_image.image =
+          LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
     }
     const LocalizationResult r = serial.Process(input);
     rig_ms.push_back(r.stats.times.total_ms);
     threaded_ms.push_back(threaded.Process(input).stats.times.total_ms);
     if (!r.has_pose || r.source == PoseSource::kMotion) continue;
     ++localized;
-    for (size_t c = 0; c < r.stats.cameras.size(); ++c) inliers[c].push_back(r.stats.cameras[c].inliers);
+    for (size_t c = 0; c < r.stats.cameras.size(); ++c) {
+      inliers[c].push_back(r.stats.cameras[c].inliers);
+    }
   }
   run.one_camera_ms = ComputeErrorStats(one_ms);
   run.rig_ms = ComputeErrorStats(rig_ms);
   run.rig_threaded_ms = ComputeErrorStats(threaded_ms);
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
-  for (const auto& camera : inliers) run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
+  for (const auto& camera : inliers) {
+    run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
+  }
   return run;
 }
 
@@ -393,8 +398,7 @@ int RunBench(const Args& raw_args) {
           .Field("ms_per_frame_median", rig->rig_ms.median)
           .Field("threaded_ms_per_frame_median", rig->rig_threaded_ms.median)
           .Field("engine_ratio", rig->rig_ms.median / rig->one_camera_ms.median)
-          .Field("threaded_latency_ratio",
-                 rig->rig_threaded_ms.median / rig->one_camera_ms.median)
+          .Field("threaded_latency_ratio", rig->rig_threaded_ms.median / rig->one_camera_ms.median)
           .Field("localized_fraction", rig->localized_fraction)
           .Key("camera_inliers_median")
           .BeginArray();
@@ -467,10 +471,11 @@ int RunBench(const Args& raw_args) {
       names += (c ? "," : "") + rig->cameras[c];
       inliers += StrCat(c ? " / " : "", FormatFixed(rig->camera_inliers_median[c], 0));
     }
-    std::printf("%-28s %10.3f %10.2f %9.1f%%  (%.2fx cam0 alone's %.3f ms, interleaved; inliers %s)\n",
-                ("rig " + names).c_str(), rig->rig_ms.median, rig->rig_ms.median / orb.median,
-                100 * rig->localized_fraction, rig->rig_ms.median / rig->one_camera_ms.median,
-                rig->one_camera_ms.median, inliers.c_str());
+    std::printf(
+        "%-28s %10.3f %10.2f %9.1f%%  (%.2fx cam0 alone's %.3f ms, interleaved; inliers %s)\n",
+        ("rig " + names).c_str(), rig->rig_ms.median, rig->rig_ms.median / orb.median,
+        100 * rig->localized_fraction, rig->rig_ms.median / rig->one_camera_ms.median,
+        rig->one_camera_ms.median, inliers.c_str());
     std::printf("%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's)\n",
                 StrCat("  on ", rig->threads, " threads").c_str(), rig->rig_threaded_ms.median,
                 rig->rig_threaded_ms.median / orb.median,

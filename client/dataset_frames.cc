@@ -86,11 +86,13 @@ CameraRig DatasetCameraRig(const Dataset& dataset, const std::vector<std::string
 }
 
 std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& dataset,
-                                                             const std::string& name,
-                                                             size_t index, int64_t tolerance_ns) {
+                                                             const std::string& name, size_t index,
+                                                             int64_t tolerance_ns) {
   const FrameRecord& record = dataset.frames[index];
   if (name == "cam0") return std::make_pair(record.timestamp_ns, record.left_path);
-  if (name == "cam1" && dataset.right) return std::make_pair(record.timestamp_ns, record.right_path);
+  if (name == "cam1" && dataset.right) {
+    return std::make_pair(record.timestamp_ns, record.right_path);
+  }
   const CameraStream* stream = FindStream(dataset, name);
   if (stream == nullptr) CameraNamed(dataset, name);  // Throws, naming the cameras there are.
   const auto* image = stream->Nearest(record.timestamp_ns, tolerance_ns);

@@ -30,8 +30,8 @@ CameraRig DatasetCameraRig(const Dataset& dataset, const std::vector<std::string
 // Camera `name`'s image of frame `index`: its stamp and file, or none when it has no image
 // within `tolerance_ns` of the frame's stamp.
 std::optional<std::pair<int64_t, std::string>> CameraImageAt(const Dataset& dataset,
-                                                             const std::string& name,
-                                                             size_t index, int64_t tolerance_ns);
+                                                             const std::string& name, size_t index,
+                                                             int64_t tolerance_ns);
 
 // A rig's other cameras (cameras 1.., named names[1..]) on the wire, each placed on the body by
 // its body_from_cam (T_BS): the body of the reference camera's, which the session (or request)

@@ -65,8 +65,7 @@ FrameInput MakeFrameInput(const Dataset& dataset, size_t index, const LocalizeAr
     const auto image = CameraImageAt(dataset, cameras[c], index, max_rig_skew_ns);
     if (!image) continue;  // That camera gave no image for this frame.
     rig_image.timestamp_ns = image->first;
-    rig_image.image =
-        LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
+    rig_image.image = LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
     if (covered && cameras[c] == "cam1") rig_image.image.setTo(0);
   }
   return input;
@@ -139,8 +138,8 @@ int RunLocalize(const Args& raw_args) {
   int bad_frames = 0;
   for (size_t i = 0; i < count; ++i) {
     try {
-      report.Add(localizer.Process(MakeFrameInput(dataset, i, args, cameras, rig,
-                                                  options.max_rig_skew_ns, blackout)));
+      report.Add(localizer.Process(
+          MakeFrameInput(dataset, i, args, cameras, rig, options.max_rig_skew_ns, blackout)));
     } catch (const InputError& e) {
       ++bad_frames;
       std::fprintf(stderr, "visloc localize: frame %zu skipped: %s\n", i, e.what());

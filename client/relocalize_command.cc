@@ -37,10 +37,10 @@ struct RelocalizeArgs {
 
 // One Relocalize call for the image file at `path`, with `rig_images` (the files' bytes, or
 // none for a camera without an image then) for a rig's other cameras.
-v1::RelocalizeResponse Ask(v1::Localization::Stub& stub, const RelocalizeArgs& args,
-                           const v1::RelocalizeRequest& base, const std::string& path,
-                           const std::vector<std::optional<std::pair<int64_t, std::string>>>&
-                               rig_images = {}) {
+v1::RelocalizeResponse Ask(
+    v1::Localization::Stub& stub, const RelocalizeArgs& args, const v1::RelocalizeRequest& base,
+    const std::string& path,
+    const std::vector<std::optional<std::pair<int64_t, std::string>>>& rig_images = {}) {
   v1::RelocalizeRequest request = base;
   request.set_encoded_image(ReadFileBytes(path));
   for (const auto& image : rig_images) {

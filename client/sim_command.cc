@@ -70,9 +70,10 @@ int RunSim(const Args& args) {
                  "the right camera is really turned by this many degrees about its y axis against "
                  "its written calibration (a stereo calibration's residual error)");
   std::string rig_layout = "stereo";
-  parser.AddFlag("rig", &rig_layout,
-                 "cameras on the head: stereo (the pair), front-back (and a rear camera, cam2) or "
-                 "four (rear, left and right: cam2, cam3, cam4); a cover hides the front pair only");
+  parser.AddFlag(
+      "rig", &rig_layout,
+      "cameras on the head: stereo (the pair), front-back (and a rear camera, cam2) or "
+      "four (rear, left and right: cam2, cam3, cam4); a cover hides the front pair only");
   std::string board;
   sim::BoardViewOptions board_views;
   parser.AddFlag("board", &board,

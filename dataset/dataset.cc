@@ -74,7 +74,7 @@ Dataset ReadDataset(const std::string& dir, std::optional<DatasetFormat> format)
 }
 
 const std::pair<int64_t, std::string>* CameraStream::Nearest(int64_t timestamp_ns,
-                                                          int64_t tolerance_ns) const {
+                                                             int64_t tolerance_ns) const {
   const auto after = std::lower_bound(
       images.begin(), images.end(), timestamp_ns,
       [](const std::pair<int64_t, std::string>& image, int64_t t) { return image.first < t; });
@@ -82,7 +82,8 @@ const std::pair<int64_t, std::string>* CameraStream::Nearest(int64_t timestamp_n
   for (auto it : {after, after == images.begin() ? images.end() : std::prev(after)}) {
     if (it == images.end()) continue;
     const int64_t offset = std::abs(it->first - timestamp_ns);
-    if (offset <= tolerance_ns && (best == nullptr || offset < std::abs(best->first - timestamp_ns)))
+    if (offset <= tolerance_ns &&
+        (best == nullptr || offset < std::abs(best->first - timestamp_ns)))
       best = &*it;
   }
   return best;

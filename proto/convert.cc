@@ -111,8 +111,9 @@ FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
   FrameInput input = FromProto(frame, rig.cameras.at(0));
   const size_t others = rig.cameras.size() - 1;
   if (static_cast<size_t>(frame.rig_images_size()) != others) {
-    throw InputError(StrCat("the frame carries ", frame.rig_images_size(), " rig images for a rig of ",
-                            rig.cameras.size(), " cameras (", others, " besides the reference)"));
+    throw InputError(StrCat("the frame carries ", frame.rig_images_size(),
+                            " rig images for a rig of ", rig.cameras.size(), " cameras (", others,
+                            " besides the reference)"));
   }
   for (size_t c = 0; c < others; ++c) {
     const v1::RigImage& in = frame.rig_images(static_cast<int>(c));
@@ -135,8 +136,8 @@ CameraRig RigOf(const Camera& reference, const v1::Pose* body_from_reference,
   CameraRig rig;
   rig.cameras.push_back(reference);
   rig.body_is_gyro_frame = body_from_reference != nullptr;
-  rig.body_from_cam.push_back(
-      body_from_reference ? FromProto(*body_from_reference, "body_from_cam") : Rigid3d());
+  rig.body_from_cam.push_back(body_from_reference ? FromProto(*body_from_reference, "body_from_cam")
+                                                  : Rigid3d());
   for (const v1::RigCamera& camera : others) {
     if (!camera.has_body_from_cam()) {
       throw InputError(StrCat(field, "[", rig.cameras.size() - 1, "] has no body_from_cam"));
@@ -167,8 +168,8 @@ CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& refer
 std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request,
                                         const CameraRig& rig) {
   std::vector<cv::Mat> images = {
-      DecodeImage(request.encoded_image(),
-                  request.has_raw_image() ? &request.raw_image() : nullptr, rig.cameras[0])};
+      DecodeImage(request.encoded_image(), request.has_raw_image() ? &request.raw_image() : nullptr,
+                  rig.cameras[0])};
   const size_t others = rig.cameras.size() - 1;
   if (static_cast<size_t>(request.rig_images_size()) != others) {
     throw InputError(StrCat("the request carries ", request.rig_images_size(),
@@ -394,10 +395,9 @@ LocalizationResult FromProto(const v1::LocalizeResponse& in) {
   r.relocalization.ms = in.relocalization().ms();
   r.relocalization.feature_passes = static_cast<int>(in.relocalization().feature_passes());
   for (const v1::CameraSupport& camera : in.cameras()) {
-    r.stats.cameras.push_back({static_cast<int>(camera.features()),
-                               static_cast<int>(camera.predicted()),
-                               static_cast<int>(camera.putatives()),
-                               static_cast<int>(camera.inliers())});
+    r.stats.cameras.push_back(
+        {static_cast<int>(camera.features()), static_cast<int>(camera.predicted()),
+         static_cast<int>(camera.putatives()), static_cast<int>(camera.inliers())});
   }
   return r;
 }

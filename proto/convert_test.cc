@@ -97,9 +97,10 @@ TEST_F(WireValidationTest, ARigSessionDeclaresItsCamerasAndEachFrameCarriesTheir
   v1::Frame frame;
   frame.set_timestamp_ns(1000);
   frame.set_encoded(std::string(png.begin(), png.end()));
-  EXPECT_THAT([&] { proto::FromProto(frame, rig); },
-              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(
-                  "the frame carries 0 rig images for a rig of 2 cameras (1 besides the reference)")));
+  EXPECT_THAT(
+      [&] { proto::FromProto(frame, rig); },
+      ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(
+          "the frame carries 0 rig images for a rig of 2 cameras (1 besides the reference)")));
   v1::RigImage* image = frame.add_rig_images();
   image->set_timestamp_ns(1001);
   image->set_encoded(std::string(png.begin(), png.end()));

@@ -71,9 +71,8 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
   if (start.rig_cameras_size() > 0) {
     tally_.camera_names.push_back("reference");
     for (const v1::RigCamera& camera : start.rig_cameras()) {
-      tally_.camera_names.push_back(camera.name().empty()
-                                        ? StrCat("camera ", tally_.camera_names.size())
-                                        : camera.name());
+      tally_.camera_names.push_back(
+          camera.name().empty() ? StrCat("camera ", tally_.camera_names.size()) : camera.name());
     }
   }
   tally_.robot_id = start.robot_id();

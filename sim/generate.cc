@@ -129,7 +129,8 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   if (options_.format == DatasetFormat::kEuroc) {
     euroc = std::make_unique<EurocWriter>(stats.dir, rig.left, rig.right);
     for (size_t c = 0; c < others.size(); ++c) {
-      euroc->AddCamera(others[c], StrCat(RigLayoutName(rig_options.layout), " rig's camera ", c + 2));
+      euroc->AddCamera(others[c],
+                       StrCat(RigLayoutName(rig_options.layout), " rig's camera ", c + 2));
     }
   } else {
     VISLOC_CHECK(others.empty(), "a rig's further cameras are written in the EuRoC layout only");
@@ -201,8 +202,9 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       const cv::Mat radiance =
           options_.effects
               ? other_renderer.RenderRadiance(
-                    world, spec.path.WorldFromBody(t - 0.5 * options_.effects->exposure_time_s) *
-                               other.body_from_cam,
+                    world,
+                    spec.path.WorldFromBody(t - 0.5 * options_.effects->exposure_time_s) *
+                        other.body_from_cam,
                     spec.path.WorldFromBody(t + 0.5 * options_.effects->exposure_time_s) *
                         other.body_from_cam,
                     t, options_.effects->exposure_time_s)

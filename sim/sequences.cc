@@ -90,10 +90,10 @@ std::vector<CameraInfo> OtherCameras(const RigOptions& options, const StereoRig&
   // `yaw_rad`, at `position` on the head.
   const auto turned = [&](double yaw_rad, const Eigen::Vector3d& position) {
     CameraInfo info = rig.left;
-    info.body_from_cam = Rigid3d(
-        Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ())) *
-            rig.left.body_from_cam.rotation,
-        position);
+    info.body_from_cam =
+        Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ())) *
+                    rig.left.body_from_cam.rotation,
+                position);
     return info;
   };
   std::vector<CameraInfo> others;
@@ -119,9 +119,9 @@ RigOptions CarRig(const RigOptions& base) {
 
 const std::vector<std::string>& SequenceNames() {
   static const std::vector<std::string> names = {
-      "map_square", "query_square", "straight",  "circle",      "outward", "glances",
-      "kidnap",     "blankwall",    "lowlight",  "occluders",   "changed",  "outofmap", "map_suite",
-      "query_suite", "drive"};
+      "map_square", "query_square", "straight",  "circle",      "outward",
+      "glances",    "kidnap",       "blankwall", "lowlight",    "occluders",
+      "changed",    "outofmap",     "map_suite", "query_suite", "drive"};
   return names;
 }
 

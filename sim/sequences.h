@@ -80,8 +80,9 @@ struct SequenceSpec {
 };
 
 // Names in catalogue order: map_square, query_square, straight, circle, outward, glances,
-// kidnap, blankwall, lowlight, occluders, changed, outofmap, map_suite, query_suite, drive. The suite sequences start where
-// map_square does, so a map built from map_suite has the same map frame.
+// kidnap, blankwall, lowlight, occluders, changed, outofmap, map_suite, query_suite, drive. The
+// suite sequences start where map_square does, so a map built from map_suite has the same map
+// frame.
 const std::vector<std::string>& SequenceNames();
 
 // Throws InputError for an unknown name (listing the known ones).

@@ -280,14 +280,14 @@ TEST_F(RealDataE2eTest, EachLaterMachineHallImageAloneIsFoundToCentimetres) {
   EXPECT_LE(JsonNumber(eval.out, "ate", "max"), 0.02);          // Measured 0.70 cm.
   EXPECT_LE(JsonNumber(eval.out, "rotation_deg", "max"), 1.0);  // Measured 0.29 deg.
   // Each stereo pair alone as a rig's frame (issue 56): every one found, verified with both.
-  const ProcessResult pairs = Visloc({"relocalize", "--server", server.address(), "--map", "hall",
-                                      "--dataset", kMachineHall, "--frames", "75:150", "--cameras",
-                                      "cam0,cam1", "--trajectory", dir_.File("pairs.tum"), "--json"});
+  const ProcessResult pairs =
+      Visloc({"relocalize", "--server", server.address(), "--map", "hall", "--dataset",
+              kMachineHall, "--frames", "75:150", "--cameras", "cam0,cam1", "--trajectory",
+              dir_.File("pairs.tum"), "--json"});
   ASSERT_EQ(pairs.exit_code, 0) << pairs.err;
   EXPECT_EQ(JsonNumber(pairs.out, "localized"), 75);
-  const ProcessResult pairs_eval = Visloc(
-      {"eval", "--gt", kMachineHallTruth, "--gt-origin-first", "--est", dir_.File("pairs.tum"),
-       "--json"});
+  const ProcessResult pairs_eval = Visloc({"eval", "--gt", kMachineHallTruth, "--gt-origin-first",
+                                           "--est", dir_.File("pairs.tum"), "--json"});
   ASSERT_EQ(pairs_eval.exit_code, 0) << pairs_eval.err;
   EXPECT_LE(JsonNumber(pairs_eval.out, "ate", "max"), 0.02);  // Measured 0.70 cm.
 
@@ -356,10 +356,11 @@ TEST_F(RealDataE2eTest, KittiEveryOtherFrameMapsAndTheFramesBetweenLocalize) {
   ASSERT_EQ(odd.exit_code, 0) << odd.err;
   EXPECT_EQ(JsonNumber(odd.out, "frames"), 25);
   EXPECT_GE(JsonNumber(odd.out, "localized_fraction") * 25, 23.99);  // Measured 24.
-  EXPECT_LT(OnRampDrift(dir_, dir_.File("odd.tum")).first, 0.03);  // KITTI's two cameras as a rig (issue 56): all 25 frames.
-  const ProcessResult rig = Visloc({"localize", "--map", dir_.File("even.db"), "--dataset", kOnRamp,
-                                    "--frames", "1::2", "--cameras", "cam0,cam1", "--trajectory",
-                                    dir_.File("rig.tum"), "--json"});
+  EXPECT_LT(OnRampDrift(dir_, dir_.File("odd.tum")).first,
+            0.03);  // KITTI's two cameras as a rig (issue 56): all 25 frames.
+  const ProcessResult rig =
+      Visloc({"localize", "--map", dir_.File("even.db"), "--dataset", kOnRamp, "--frames", "1::2",
+              "--cameras", "cam0,cam1", "--trajectory", dir_.File("rig.tum"), "--json"});
   ASSERT_EQ(rig.exit_code, 0) << rig.err;
   EXPECT_EQ(JsonNumber(rig.out, "localized_fraction") * 25, 25);
   EXPECT_LT(OnRampDrift(dir_, dir_.File("rig.tum")).first, 0.03);

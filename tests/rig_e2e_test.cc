@@ -97,9 +97,9 @@ class RigE2eTest : public ::testing::Test {
   // covariances (eval --stats): at most `beyond_3_sigma` of them beyond 3, none beyond 6.
   void ExpectCovarianceCoversTheError(const std::string& sequence_dir, const std::string& label,
                                       double beyond_3_sigma) {
-    const ProcessResult eval = Visloc({"eval", "--gt", sequence_dir + "/groundtruth_map.tum",
-                                       "--est", out_.File(label + ".tum"), "--stats",
-                                       out_.File(label + ".csv"), "--json"});
+    const ProcessResult eval =
+        Visloc({"eval", "--gt", sequence_dir + "/groundtruth_map.tum", "--est",
+                out_.File(label + ".tum"), "--stats", out_.File(label + ".csv"), "--json"});
     ASSERT_EQ(eval.exit_code, 0) << eval.err;
     EXPECT_LE(JsonNumber(eval.out, "consistency", "beyond_3_sigma"), beyond_3_sigma);
     EXPECT_EQ(JsonNumber(eval.out, "consistency", "beyond_6_sigma"), 0.0);

@@ -321,7 +321,7 @@ TEST_F(RobotLinkE2eTest, SeveralVideoSourcesStreamAsARig) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
   const auto stream = [&](std::vector<std::string> cameras) {
     std::vector<std::string> args = {"stream", "--server", server.address(), "--map", "square",
-                                     "--rate", "0", "--json"};
+                                     "--rate", "0",        "--json"};
     for (const std::string& camera : cameras) {
       args.insert(args.end(), {"--camera", out_.File(camera + ".avi"), "--camera-yaml",
                                walk + "/" + camera + "/sensor.yaml"});
@@ -336,10 +336,9 @@ TEST_F(RobotLinkE2eTest, SeveralVideoSourcesStreamAsARig) {
   ASSERT_EQ(rig.exit_code, 0) << rig.err;
   EXPECT_EQ(JsonNumber(rig.out, "frames"), 150);
   EXPECT_EQ(JsonNumber(rig.out, "localized_fraction"), 1.0);
-  const ProcessResult unpaired =
-      Visloc({"stream", "--server", server.address(), "--map", "square", "--camera",
-              out_.File("cam0.avi"), "--camera", out_.File("cam2.avi"), "--camera-yaml",
-              walk + "/cam0/sensor.yaml"});
+  const ProcessResult unpaired = Visloc(
+      {"stream", "--server", server.address(), "--map", "square", "--camera", out_.File("cam0.avi"),
+       "--camera", out_.File("cam2.avi"), "--camera-yaml", walk + "/cam0/sensor.yaml"});
   EXPECT_EQ(unpaired.exit_code, 2);
   EXPECT_THAT(unpaired.err, HasSubstr("each --camera needs its --camera-yaml, in the same order"));
 }

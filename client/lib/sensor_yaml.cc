@@ -95,9 +95,8 @@ v1::RigCamera RigCameraFromYaml(const std::string& path, const std::string& name
   v1::RigCamera rig_camera;
   *rig_camera.mutable_camera() = CameraFromYaml(path);
   rig_camera.set_name(name);
-  cv::FileStorage file(ReadWithDirective(path), cv::FileStorage::READ |
-                                                     cv::FileStorage::MEMORY |
-                                                     cv::FileStorage::FORMAT_YAML);
+  cv::FileStorage file(ReadWithDirective(path), cv::FileStorage::READ | cv::FileStorage::MEMORY |
+                                                    cv::FileStorage::FORMAT_YAML);
   const std::vector<double> t = Numbers(path, file["T_BS"]["data"], "T_BS.data", 16);
   double r[3][3];
   for (int i = 0; i < 3; ++i) {

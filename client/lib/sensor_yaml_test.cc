@@ -76,9 +76,10 @@ TEST(CameraFromYamlTest, ARigCameraIsPlacedByItsT_BSAsTheEngineReadsIt) {
     const Rigid3d engine = ReadSensorYaml(dir.File("rear.yaml")).body_from_cam;
     EXPECT_TRUE(ApproxEqual(robot, engine, 1e-12, 1e-9)) << "yaw " << yaw;
   }
-  WriteText(dir.File("sheared.yaml"),
-            "camera_model: pinhole\nresolution: [320, 240]\nintrinsics: [160, 160, 159.5, 119.5]\n"
-            "T_BS:\n  cols: 4\n  rows: 4\n  data: [1, 0.5, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
+  WriteText(
+      dir.File("sheared.yaml"),
+      "camera_model: pinhole\nresolution: [320, 240]\nintrinsics: [160, 160, 159.5, 119.5]\n"
+      "T_BS:\n  cols: 4\n  rows: 4\n  data: [1, 0.5, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]\n");
   EXPECT_THAT([&] { RigCameraFromYaml(dir.File("sheared.yaml"), "x"); },
               ::testing::ThrowsMessage<std::invalid_argument>(
                   HasSubstr("sheared.yaml: T_BS is not a rigid transform")));

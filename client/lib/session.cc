@@ -195,7 +195,9 @@ bool SessionImpl::Submit(const Frame& frame, std::string* why_not) {
     if (!refused_.empty()) return refuse(refused_);
     Queued queued{frame, Clock::now()};
     queued.frame.image = frame.image.clone();  // The caller may reuse its buffer.
-    for (RigFrameImage& rig_image : queued.frame.rig_images) rig_image.image = rig_image.image.clone();
+    for (RigFrameImage& rig_image : queued.frame.rig_images) {
+      rig_image.image = rig_image.image.clone();
+    }
     queue_.push_back(std::move(queued));
     ++stats_.submitted;
     while (static_cast<int>(queue_.size()) > options_.max_queued) {

@@ -165,7 +165,9 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
   if (n < std::max(4, options.min_inliers) || sampled_cameras.empty()) return result;
   Rng rng(options.seed);
   std::vector<InlierCounter> counters;
-  for (const auto& observations : rig.per_camera) counters.emplace_back(observations, options.refine);
+  for (const auto& observations : rig.per_camera) {
+    counters.emplace_back(observations, options.refine);
+  }
   // Each sampled camera's best hypothesis by the inliers over all cameras. A hypothesis from
   // three points of one camera can miss the other cameras' points by more than the threshold
   // through the rig's lever arm (a fifth of a degree is 2 px at 160 px of focal length), so the
@@ -189,8 +191,8 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
   int iteration = 0;
   for (; iteration < std::min(needed, options.max_iterations); ++iteration) {
     const int draw = rng.UniformInt(0, cumulative.back() - 1);
-    const size_t slot = std::upper_bound(cumulative.begin(), cumulative.end(), draw) -
-                        cumulative.begin();
+    const size_t slot =
+        std::upper_bound(cumulative.begin(), cumulative.end(), draw) - cumulative.begin();
     const int camera = sampled_cameras[slot];
     const std::vector<PoseObservation>& observations = rig.per_camera[camera];
     const Rigid3d ref_from_cam = rig.cam_from_ref[camera].Inverse();
@@ -199,7 +201,8 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
       const Rigid3d candidate = ref_from_cam * cam_from_world;
       int inliers = 0;
       for (size_t c = 0; c < counters.size(); ++c) {
-        camera_inliers[c] = counters[c].Count(rig.cam_from_ref[c] * candidate, options.max_error_px);
+        camera_inliers[c] =
+            counters[c].Count(rig.cam_from_ref[c] * candidate, options.max_error_px);
         inliers += camera_inliers[c];
       }
       if (inliers <= best[camera].inliers) continue;

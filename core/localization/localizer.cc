@@ -162,7 +162,9 @@ QueryFrame Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
   ParallelRanges(static_cast<int>(n), options_.rig_threads, [&](int begin, int end) {
     for (int c = begin; c < end; ++c) {
       const cv::Mat& image = c == 0 ? input.image : input.rig_images[c - 1].image;
-      if (!image.empty()) frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
+      if (!image.empty()) {
+        frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
+      }
     }
   });
   // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these); the
@@ -208,8 +210,7 @@ PoseFix Localizer::RelocalizeRig(const FrameInput& input, PoseFix reference_fix,
         TryRelocalize(pipeline_.camera(c + 1), image, tracking_frame, input.timestamp_ns, result);
     if (!found.success) continue;
     // Camera c's pose moved to the reference: ref_from_map = cam_from_ref^-1 cam_from_map.
-    PoseFix fix =
-        verified(pipeline_.tracker()->cam_from_ref(c + 1).Inverse() * found.cam_from_map);
+    PoseFix fix = verified(pipeline_.tracker()->cam_from_ref(c + 1).Inverse() * found.cam_from_map);
     if (fix.success) return fix;
   }
   return reference_fix;
@@ -355,8 +356,8 @@ RelocalizationResult Localizer::RelocalizeFrame(const QueryPipeline& pipeline,
   if (local) {
     const Eigen::Vector3d center = filter_.initialized() ? filter_.map_from_cam().translation
                                                          : last_fix_map_from_cam_.translation;
-    found = pipeline.relocalizer().Relocalize(
-        frame, RelocalizationScope{center, options_.local_radius_m});
+    found = pipeline.relocalizer().Relocalize(frame,
+                                              RelocalizationScope{center, options_.local_radius_m});
     report->kind = RelocalizationReport::Kind::kLocal;
     report->ms += found.ms;
     report->candidates += static_cast<int>(found.candidates.size());

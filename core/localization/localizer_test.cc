@@ -96,9 +96,9 @@ TEST(LocalizerTest, ARobotThatStaysLostStopsTryingTheTrackingFeatures) {
 CameraRig FrontBackRig(const Camera& camera) {
   CameraRig rig;
   rig.cameras = {camera, camera};
-  rig.body_from_cam = {Rigid3d(),
-                       Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
-                               Eigen::Vector3d(0, 0, -0.1))};
+  rig.body_from_cam = {
+      Rigid3d(), Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
+                         Eigen::Vector3d(0, 0, -0.1))};
   return rig;
 }
 
@@ -121,7 +121,8 @@ TEST(LocalizerTest, ARigsFrameIsCheckedCameraByCameraAndTheSessionGoesOn) {
     }
     return std::string("accepted");
   };
-  EXPECT_EQ(refused(Frame(1, dark)), "the session's rig has 2 cameras but the frame carries 1 images");
+  EXPECT_EQ(refused(Frame(1, dark)),
+            "the session's rig has 2 cameras but the frame carries 1 images");
   EXPECT_EQ(refused(RigFrame(1, dark, cv::Mat(100, 100, CV_8UC1, cv::Scalar(0)))),
             "camera 1's image is 100x100 of type 0 but the camera is 320x240 8-bit grey");
   // Taken 8 ms apart: not the same moment (the default tolerance is 5 ms).
@@ -150,7 +151,8 @@ TEST(LocalizerTest, ARigIsOneToEightCamerasEachPlaced) {
   // Camera c's placement on the rig, from both on the body.
   rig = FrontBackRig(map->map().camera);
   const Rigid3d body_from_front(RotationFromRollPitchYaw(0.1, 0.2, 0.3), Eigen::Vector3d(1, 2, 3));
-  rig.body_from_cam = {body_from_front, body_from_front * FrontBackRig(map->map().camera).body_from_cam[1]};
+  rig.body_from_cam = {body_from_front,
+                       body_from_front * FrontBackRig(map->map().camera).body_from_cam[1]};
   EXPECT_TRUE(ApproxEqual(rig.CamFromReference(1),
                           FrontBackRig(map->map().camera).body_from_cam[1].Inverse(), 1e-12, 1e-9));
   EXPECT_TRUE(ApproxEqual(rig.CamFromReference(0), Rigid3d(), 1e-12, 1e-9));

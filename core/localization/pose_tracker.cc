@@ -321,7 +321,8 @@ PoseFix PoseTracker::Track(const QueryFrame& frame, const Rigid3d& prior_cam_fro
   const std::vector<ProjectedPoint> projected =
       ProjectPoints(map_points, camera_, prior_cam_from_map, points);
   std::vector<ProjectedPoint> subset;
-  const std::vector<ProjectedPoint>& coarse = CoarseSubset(projected, options_.coarse_points, &subset);
+  const std::vector<ProjectedPoint>& coarse =
+      CoarseSubset(projected, options_.coarse_points, &subset);
   fix.times.project_ms += timer.ElapsedMs();
   timer.Restart();
   std::vector<PointMatch> matches =

@@ -163,7 +163,7 @@ class PoseTracker {
   // The map's and the rig calibration's share of a fix's covariance (map_error_px and after),
   // for inliers at `median_depth_m`, the camera `from_origin_m` from the map's origin.
   Eigen::Matrix<double, 6, 6> MapAndRigCovariance(double median_depth_m,
-                                                   double from_origin_m) const;
+                                                  double from_origin_m) const;
   // The inlier points' own uncertainty as this camera sees them at `cam_from_map`, by its own
   // pose's perturbation.
   PointSpread PointSpreadOf(const PointView& map_points, const std::vector<PointMatch>& matches,

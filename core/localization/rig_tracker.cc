@@ -13,8 +13,8 @@ RigTracker::RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rig
                        int threads)
     : trackers_(std::move(trackers)), cam_from_ref_(std::move(cam_from_ref)), threads_(threads) {
   VISLOC_CHECK(threads_ >= 1, "rig threads ", threads_);
-  VISLOC_CHECK(!trackers_.empty() && trackers_.size() == cam_from_ref_.size(), "rig: ",
-               trackers_.size(), " trackers for ", cam_from_ref_.size(), " placements");
+  VISLOC_CHECK(!trackers_.empty() && trackers_.size() == cam_from_ref_.size(),
+               "rig: ", trackers_.size(), " trackers for ", cam_from_ref_.size(), " placements");
 }
 
 std::vector<PoseObservation> RigTracker::Observations(size_t camera, const QueryFrame& frame,
@@ -138,7 +138,8 @@ PoseFix RigTracker::Polish(const std::vector<const QueryFrame*>& frames,
     if (frames[c] == nullptr || frames[c]->size() == 0) continue;
     fix.cameras[c].features = static_cast<int>(frames[c]->size());
     PoseFix camera_fix;
-    per_camera[c].points = trackers_[c]->PredictPoints(cam_from_ref_[c] * ref_from_map, &camera_fix);
+    per_camera[c].points =
+        trackers_[c]->PredictPoints(cam_from_ref_[c] * ref_from_map, &camera_fix);
     per_camera[c].map_points = trackers_[c]->map().Points(per_camera[c].points);
     fix.predicted += camera_fix.predicted;
     fix.cameras[c].predicted = camera_fix.predicted;
@@ -200,8 +201,8 @@ void RigTracker::RefineAround(const std::vector<const QueryFrame*>& frames,
   for (size_t c = 0; c < trackers_.size(); ++c) {
     fix->cameras[c].inliers = refined.camera_inliers[c];
     if (frames[c] == nullptr || refined.inlier_masks[c].empty()) continue;
-    cells += trackers_[c]->InlierCells(*frames[c], (*per_camera)[c].matches,
-                                       refined.inlier_masks[c]);
+    cells +=
+        trackers_[c]->InlierCells(*frames[c], (*per_camera)[c].matches, refined.inlier_masks[c]);
   }
   fix->inlier_cells = std::min(cells, PoseFix::kCoverageCols * PoseFix::kCoverageRows);
 }
@@ -251,8 +252,9 @@ void RigTracker::SetCovariances(const std::vector<const QueryFrame*>& frames,
       if (inliers[m]) depths.push_back((cam_from_map * rig.per_camera[c][m].point_in_world).z());
     }
     if (points_known) {
-      const PointSpread camera = trackers_[c]->PointSpreadOf(
-          per_camera[c].map_points, per_camera[c].matches, rig.per_camera[c], inliers, cam_from_map);
+      const PointSpread camera =
+          trackers_[c]->PointSpreadOf(per_camera[c].map_points, per_camera[c].matches,
+                                      rig.per_camera[c], inliers, cam_from_map);
       points_known = !camera.unknown;
       const Eigen::Matrix<double, 6, 6> adjoint = PoseAdjoint(cam_from_ref_[c]);
       spread += camera.to_all * adjoint.transpose() * camera.Matrix() * adjoint;

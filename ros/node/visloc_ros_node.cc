@@ -436,7 +436,8 @@ class LocalizationNode {
       auto best = images.end();
       for (auto it = images.begin(); it != images.end(); ++it) {
         const int64_t offset = std::abs(it->first - stamp_ns);
-        if (offset <= kRigToleranceNs && (best == images.end() || offset < std::abs(best->first - stamp_ns))) {
+        if (offset <= kRigToleranceNs &&
+            (best == images.end() || offset < std::abs(best->first - stamp_ns))) {
           best = it;
         }
       }
