@@ -95,30 +95,37 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const C
 
 namespace {
 
-// Rig image `c` (camera c + 1) decoded for its camera; empty when it carries none.
-cv::Mat RigImageOf(const v1::RigImage& in, size_t c, const CameraRig& rig) {
-  if (in.image_case() == v1::RigImage::IMAGE_NOT_SET) return cv::Mat();  // None this time.
-  try {
-    return DecodeImage(in.encoded(), in.has_raw() ? &in.raw() : nullptr, rig.cameras[c + 1]);
-  } catch (const InputError& e) {
-    throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
+// The rig images a `carrier` (a frame, a request) carries, one per camera after the reference,
+// each decoded for its camera (an empty image where one carries none). InputError for a count
+// that is not the rig's, or an image that does not fit its camera (named).
+std::vector<RigImage> RigImagesOf(const google::protobuf::RepeatedPtrField<v1::RigImage>& in,
+                                  const CameraRig& rig, const char* carrier) {
+  const size_t others = rig.cameras.size() - 1;
+  if (static_cast<size_t>(in.size()) != others) {
+    throw InputError(StrCat("the ", carrier, " carries ", in.size(), " rig images for a rig of ",
+                            rig.cameras.size(), " cameras (", others, " besides the reference)"));
   }
+  std::vector<RigImage> images;
+  for (size_t c = 0; c < others; ++c) {
+    const v1::RigImage& image = in[static_cast<int>(c)];
+    RigImage& out = images.emplace_back();
+    out.timestamp_ns = image.timestamp_ns();
+    if (image.image_case() == v1::RigImage::IMAGE_NOT_SET) continue;  // None this time.
+    try {
+      out.image = DecodeImage(image.encoded(), image.has_raw() ? &image.raw() : nullptr,
+                              rig.cameras[c + 1]);
+    } catch (const InputError& e) {
+      throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
+    }
+  }
+  return images;
 }
 
 }  // namespace
 
 FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
   FrameInput input = FromProto(frame, rig.cameras.at(0));
-  const size_t others = rig.cameras.size() - 1;
-  if (static_cast<size_t>(frame.rig_images_size()) != others) {
-    throw InputError(StrCat("the frame carries ", frame.rig_images_size(),
-                            " rig images for a rig of ", rig.cameras.size(), " cameras (", others,
-                            " besides the reference)"));
-  }
-  for (size_t c = 0; c < others; ++c) {
-    const v1::RigImage& in = frame.rig_images(static_cast<int>(c));
-    input.rig_images.push_back({in.timestamp_ns(), RigImageOf(in, c, rig)});
-  }
+  input.rig_images = RigImagesOf(frame.rig_images(), rig, "frame");
   return input;
 }
 
@@ -170,14 +177,8 @@ std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request,
   std::vector<cv::Mat> images = {
       DecodeImage(request.encoded_image(), request.has_raw_image() ? &request.raw_image() : nullptr,
                   rig.cameras[0])};
-  const size_t others = rig.cameras.size() - 1;
-  if (static_cast<size_t>(request.rig_images_size()) != others) {
-    throw InputError(StrCat("the request carries ", request.rig_images_size(),
-                            " rig images for a rig of ", rig.cameras.size(), " cameras (", others,
-                            " besides the reference)"));
-  }
-  for (size_t c = 0; c < others; ++c) {
-    images.push_back(RigImageOf(request.rig_images(static_cast<int>(c)), c, rig));
+  for (RigImage& image : RigImagesOf(request.rig_images(), rig, "request")) {
+    images.push_back(std::move(image.image));
   }
   return images;
 }
