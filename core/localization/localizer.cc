@@ -159,12 +159,10 @@ QueryFrame Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
   std::vector<ExtractStats> extract(n);
   std::vector<double> undistort_ms(n, 0.0);
   // The cameras side by side (LocalizerOptions::rig_threads): each with its own pipeline.
-  ParallelRanges(static_cast<int>(n), options_.rig_threads, [&](int begin, int end) {
-    for (int c = begin; c < end; ++c) {
-      const cv::Mat& image = c == 0 ? input.image : input.rig_images[c - 1].image;
-      if (!image.empty()) {
-        frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
-      }
+  pipeline_.ForEachCamera([&](size_t c) {
+    const cv::Mat& image = c == 0 ? input.image : input.rig_images[c - 1].image;
+    if (!image.empty()) {
+      frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
     }
   });
   // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these); the

@@ -90,26 +90,30 @@ QueryFrame QueryPipeline::ExtractForRelocalization(const cv::Mat& image) const {
   return QueryFrame(ExtractAtMapScale(*relocalization_extractor_, image, nullptr), camera_);
 }
 
-RelocalizationResult QueryPipeline::RelocalizeImage(const cv::Mat& image) const {
+RelocalizationResult QueryPipeline::RelocalizeImage(
+    const cv::Mat& image, std::optional<QueryFrame>* tracking_frame) const {
   const Timer timer;
-  // One pass: the features `extract` gives, then the relocalizer on them.
-  const auto pass = [&](auto extract) {
+  // One pass: the features `extract` gives, then the relocalizer on them (kept in `*kept` when
+  // given).
+  const auto pass = [&](auto extract, std::optional<QueryFrame>* kept) {
     const Timer features;
-    const QueryFrame frame = extract();
+    std::optional<QueryFrame> frame(extract());
     const double features_ms = features.ElapsedMs();
-    RelocalizationResult found = relocalizer_->Relocalize(frame);
+    RelocalizationResult found = relocalizer_->Relocalize(*frame);
     found.times.features_ms = features_ms;
+    if (kept) *kept = std::move(frame);
     return found;
   };
+  if (tracking_frame) tracking_frame->reset();
   RelocalizationResult found;
   int passes = 0;
   if (options_.relocalize_with_tracking_features_first) {
-    found = pass([&] { return Extract(image); });
+    found = pass([&] { return Extract(image); }, tracking_frame);
     passes = 1;
   }
   if (!found.success) {
     const RelocalizationTimes first = found.times;
-    found = pass([&] { return ExtractForRelocalization(image); });
+    found = pass([&] { return ExtractForRelocalization(image); }, nullptr);
     found.times += first;
     ++passes;
   }

@@ -6,6 +6,7 @@
 // 320-pixel values to the camera's width. One place, so the consumers cannot drift apart.
 
 #include <memory>
+#include <optional>
 
 #include <opencv2/core.hpp>
 
@@ -34,8 +35,11 @@ class QueryPipeline {
   // (LocalizerOptions::max_relocalization_features). Throws as Extract does.
   QueryFrame ExtractForRelocalization(const cv::Mat& image) const;
   // Global relocalization of one image, with nothing known about where it was taken; `ms`
-  // includes the feature extraction.
-  RelocalizationResult RelocalizeImage(const cv::Mat& image) const;
+  // includes the feature extraction. `tracking_frame`, when given, receives the tracking
+  // features (Extract) when the first pass extracted them, so a caller verifying the pose need
+  // not extract them again.
+  RelocalizationResult RelocalizeImage(const cv::Mat& image,
+                                       std::optional<QueryFrame>* tracking_frame = nullptr) const;
 
   const Camera& camera() const { return camera_; }
   const LocalizerOptions& options() const { return options_; }  // Scaled.

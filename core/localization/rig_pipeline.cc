@@ -23,7 +23,9 @@ void CameraRig::Check() const {
 }
 
 RigPipeline::RigPipeline(const std::shared_ptr<const LocalizationMap>& map, const CameraRig& rig,
-                         const LocalizerOptions& options) {
+                         const LocalizerOptions& options)
+    : workers_(std::make_unique<WorkerPool>(static_cast<int>(rig.cameras.size()) - 1)),
+      threads_(options.rig_threads) {
   rig.Check();
   std::vector<const PoseTracker*> trackers;
   std::vector<Rigid3d> cam_from_ref;
@@ -34,12 +36,18 @@ RigPipeline::RigPipeline(const std::shared_ptr<const LocalizationMap>& map, cons
   }
   if (cameras_.size() > 1) {
     tracker_ = std::make_unique<RigTracker>(std::move(trackers), std::move(cam_from_ref),
-                                            options.rig_threads);
+                                            workers_.get(), threads_);
   }
 }
 
 void RigPipeline::SetThreads(int threads) {
+  threads_ = threads;
   if (tracker_) tracker_->set_threads(threads);
+}
+
+void RigPipeline::ForEachCamera(const std::function<void(size_t camera)>& fn) const {
+  workers_->ForEach(static_cast<int>(cameras_.size()), threads_,
+                    [&](int c) { fn(static_cast<size_t>(c)); });
 }
 
 RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& images) const {
@@ -49,17 +57,19 @@ RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& i
   const Timer timer;
   RelocalizationResult joint;
   joint.feature_passes = 0;
-  // Every camera's tracking features, for the verification: extracted once, when a camera
-  // has found a pose to verify.
-  std::vector<std::optional<QueryFrame>> frames;
+  // Every camera's tracking features, for the verification: those a camera's relocalization
+  // extracted in its first pass, the others extracted once (side by side), when a camera has
+  // found a pose to verify.
+  std::vector<std::optional<QueryFrame>> frames(cameras_.size());
   std::vector<const QueryFrame*> frame_pointers;
   const auto verified = [&](const Rigid3d& ref_from_map) {
-    if (frames.empty()) {
+    if (frame_pointers.empty()) {
       const Timer features;
-      frames.resize(cameras_.size());  // Sized first: the pointers below stay valid.
-      for (size_t c = 0; c < cameras_.size(); ++c) {
-        if (!images[c].empty()) frames[c].emplace(cameras_[c]->Extract(images[c]));
-        frame_pointers.push_back(frames[c] ? &*frames[c] : nullptr);
+      ForEachCamera([&](size_t c) {
+        if (!frames[c] && !images[c].empty()) frames[c].emplace(cameras_[c]->Extract(images[c]));
+      });
+      for (const std::optional<QueryFrame>& frame : frames) {
+        frame_pointers.push_back(frame ? &*frame : nullptr);
       }
       joint.times.features_ms += features.ElapsedMs();
     }
@@ -70,7 +80,10 @@ RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& i
   };
   for (size_t c = 0; c < cameras_.size() && !joint.success; ++c) {
     if (images[c].empty()) continue;
-    RelocalizationResult found = cameras_[c]->RelocalizeImage(images[c]);
+    std::optional<QueryFrame> tracking_frame;
+    RelocalizationResult found =
+        cameras_[c]->RelocalizeImage(images[c], frame_pointers.empty() ? &tracking_frame : nullptr);
+    if (tracking_frame) frames[c] = std::move(tracking_frame);
     joint.candidates.insert(joint.candidates.end(), found.candidates.begin(),
                             found.candidates.end());
     joint.times += found.times;

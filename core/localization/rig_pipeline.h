@@ -4,6 +4,7 @@
 // tracker over all of them (RigTracker). Shared, as QueryPipeline is for one camera, by a rig
 // session's Localizer and by the Relocalize RPC of several images.
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -38,8 +39,10 @@ class RigPipeline {
   const QueryPipeline& camera(size_t c) const { return *cameras_[c]; }
   // The tracker over every camera; nullptr for a rig of one camera (its tracker is camera(0)'s).
   const RigTracker* tracker() const { return tracker_.get(); }
-  // The threads the tracker works on the cameras with (LocalizerOptions::rig_threads).
+  // The threads the cameras are worked on with (LocalizerOptions::rig_threads).
   void SetThreads(int threads);
+  // fn(c) for every camera, on up to that many threads (helpers kept from frame to frame).
+  void ForEachCamera(const std::function<void(size_t camera)>& fn) const;
 
   // Global relocalization of one frame of the rig, with nothing known of where it was taken:
   // each camera's image (`images[c]`; an empty one: that camera gave none) is relocalized as
@@ -51,6 +54,10 @@ class RigPipeline {
 
  private:
   std::vector<std::unique_ptr<QueryPipeline>> cameras_;
+  // A helper per camera beside the reference's; its threads start when first used (never for
+  // one camera, or one thread).
+  std::unique_ptr<WorkerPool> workers_;
+  int threads_ = 1;
   std::unique_ptr<RigTracker> tracker_;
 };
 

@@ -4,15 +4,17 @@
 
 #include "core/localization/relocalizer.h"
 #include "core/util/check.h"
-#include "core/util/parallel.h"
 #include "core/util/timer.h"
 
 namespace visloc {
 
 RigTracker::RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref,
-                       int threads)
-    : trackers_(std::move(trackers)), cam_from_ref_(std::move(cam_from_ref)), threads_(threads) {
-  VISLOC_CHECK(threads_ >= 1, "rig threads ", threads_);
+                       WorkerPool* workers, int threads)
+    : trackers_(std::move(trackers)),
+      cam_from_ref_(std::move(cam_from_ref)),
+      workers_(workers),
+      threads_(threads) {
+  VISLOC_CHECK(workers_ != nullptr && threads_ >= 1, "rig threads ", threads_);
   VISLOC_CHECK(!trackers_.empty() && trackers_.size() == cam_from_ref_.size(),
                "rig: ", trackers_.size(), " trackers for ", cam_from_ref_.size(), " placements");
 }
@@ -35,9 +37,8 @@ void RigTracker::set_threads(int threads) {
 }
 
 void RigTracker::ForEachCamera(const std::function<void(size_t)>& fn) const {
-  ParallelRanges(static_cast<int>(trackers_.size()), threads_, [&](int begin, int end) {
-    for (int c = begin; c < end; ++c) fn(static_cast<size_t>(c));
-  });
+  workers_->ForEach(static_cast<int>(trackers_.size()), threads_,
+                    [&](int c) { fn(static_cast<size_t>(c)); });
 }
 
 int RigTracker::CoarsePointsPerCamera(const std::vector<const QueryFrame*>& frames) const {

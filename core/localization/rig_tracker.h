@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/localization/pose_tracker.h"
+#include "core/util/worker_pool.h"
 
 namespace visloc {
 
@@ -22,10 +23,11 @@ class RigTracker {
  public:
   // `trackers[c]` tracks camera c (each built for its own camera, with its radii); they must
   // outlive this. `cam_from_ref[c]` places camera c on the rig (the identity for camera 0). The
-  // cameras' predictions and searches run on up to `threads` threads (each camera's tracker on
-  // one: a PoseTracker is not thread-safe, the map is); the result is the same for any count.
+  // cameras' predictions and searches run on up to `threads` threads of `workers` (each camera's
+  // tracker on one: a PoseTracker is not thread-safe, the map is), which must outlive this; the
+  // result is the same for any count.
   RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref,
-             int threads = 1);
+             WorkerPool* workers, int threads = 1);
 
   // Full guided estimation from the reference camera's prior. `frames[c]` is camera c's frame;
   // nullptr for a camera without one this time. PoseFix::cameras holds each camera's share.
@@ -70,6 +72,7 @@ class RigTracker {
 
   std::vector<const PoseTracker*> trackers_;
   std::vector<Rigid3d> cam_from_ref_;
+  WorkerPool* workers_ = nullptr;
   int threads_ = 1;
   const PoseTracker& reference() const { return *trackers_.front(); }
 };

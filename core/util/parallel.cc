@@ -37,12 +37,17 @@ void RunOnThreads(int count, const std::function<void(int thread)>& body) {
 
 }  // namespace
 
+std::pair<int, int> PartRange(int n, int part, int parts) {
+  return {static_cast<int>(static_cast<long>(n) * part / parts),
+          static_cast<int>(static_cast<long>(n) * (part + 1) / parts)};
+}
+
 void ParallelRanges(int n, int threads, const std::function<void(int begin, int end)>& fn) {
   if (n <= 0) return;
   const int parts = std::clamp(threads, 1, n);
   RunOnThreads(parts, [&](int part) {
-    fn(static_cast<int>(static_cast<long>(n) * part / parts),
-       static_cast<int>(static_cast<long>(n) * (part + 1) / parts));
+    const auto [begin, end] = PartRange(n, part, parts);
+    fn(begin, end);
   });
 }
 

@@ -5,12 +5,17 @@
 // depend on the thread count: each index is the same computation on whichever thread runs it.
 
 #include <functional>
+#include <utility>
 
 namespace visloc {
 
 // The threads a caller asking for `requested` gets: `requested` itself when positive, else
 // every core the machine reports (at least 1).
 int ResolveThreads(int requested);
+
+// Part `part` of [0, n) cut into `parts` contiguous ranges of sizes differing by at most one:
+// {begin, end}.
+std::pair<int, int> PartRange(int n, int part, int parts);
 
 // Calls fn(begin, end) on contiguous ranges that cover [0, n), one range per thread (at most
 // `threads`, none empty), the first on the calling thread. An exception thrown by any range is
