@@ -84,6 +84,9 @@ struct RigRun {
   std::vector<std::string> cameras;
   int threads = 2;
   ErrorStats one_camera_ms, rig_ms, rig_threaded_ms;  // Engine time per frame.
+  // Per step of FrameTimes: where the rig's extra time goes. A rig's steps sum its cameras'
+  // (CPU time); its total is the wall time, on one thread or side by side.
+  std::vector<StepSummary> one_camera_steps, rig_steps, rig_threaded_steps;
   double localized_fraction = 0.0;
   std::vector<double> camera_inliers_median;  // Per camera, over the rig's fixes.
 };
@@ -100,12 +103,12 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
   Localizer one(map, dataset.left.camera, LocalizerOptions{});
   Localizer serial(map, rig, LocalizerOptions{});
   Localizer threaded(map, rig, threaded_options);
-  std::vector<double> one_ms, rig_ms, threaded_ms;
+  std::vector<LocalizationResult> one_results, rig_results, threaded_results;
   std::vector<std::vector<double>> inliers(cameras.size());
   int localized = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     FrameInput input = InputFor(dataset, images, i);
-    one_ms.push_back(one.Process(input).stats.times.total_ms);
+    one_results.push_back(one.Process(input));
     for (size_t c = 1; c < cameras.size(); ++c) {
       const auto image = CameraImageAt(dataset, cameras[c], i, LocalizerOptions{}.max_rig_skew_ns);
       RigImage& rig_image = input.rig_images.emplace_back();
@@ -114,18 +117,20 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
       rig_image.image =
           LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
     }
-    const LocalizationResult r = serial.Process(input);
-    rig_ms.push_back(r.stats.times.total_ms);
-    threaded_ms.push_back(threaded.Process(input).stats.times.total_ms);
+    const LocalizationResult& r = rig_results.emplace_back(serial.Process(input));
+    threaded_results.push_back(threaded.Process(input));
     if (!r.has_pose || r.source == PoseSource::kMotion) continue;
     ++localized;
     for (size_t c = 0; c < r.stats.cameras.size(); ++c) {
       inliers[c].push_back(r.stats.cameras[c].inliers);
     }
   }
-  run.one_camera_ms = ComputeErrorStats(one_ms);
-  run.rig_ms = ComputeErrorStats(rig_ms);
-  run.rig_threaded_ms = ComputeErrorStats(threaded_ms);
+  run.one_camera_steps = SummarizeSteps(one_results);
+  run.rig_steps = SummarizeSteps(rig_results);
+  run.one_camera_ms = run.one_camera_steps.back().ms;  // "total", the last step.
+  run.rig_ms = run.rig_steps.back().ms;
+  run.rig_threaded_steps = SummarizeSteps(threaded_results);
+  run.rig_threaded_ms = run.rig_threaded_steps.back().ms;
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
   for (const auto& camera : inliers) {
     run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
@@ -389,6 +394,17 @@ int RunBench(const Args& raw_args) {
         .Field("localized_fraction", visibility.localized_fraction)
         .Field("no_visibility_localized_fraction", transparent.localized_fraction)
         .Field("brute_force_localized_fraction", brute.localized_fraction);
+    const auto write_steps = [&](const char* key, const std::vector<StepSummary>& summaries) {
+      out.Key(key).BeginObject();
+      for (const StepSummary& step : summaries) {
+        out.Key(step.name)
+            .BeginObject()
+            .Field("median", step.ms.median)
+            .Field("p95", step.ms.p95)
+            .EndObject();
+      }
+      out.EndObject();
+    };
     if (rig) {
       out.Key("rig")
           .BeginObject()
@@ -403,7 +419,11 @@ int RunBench(const Args& raw_args) {
           .Key("camera_inliers_median")
           .BeginArray();
       for (double inliers : rig->camera_inliers_median) out.Value(inliers);
-      out.EndArray().EndObject();
+      out.EndArray();
+      write_steps("one_camera_steps", rig->one_camera_steps);
+      write_steps("steps", rig->rig_steps);
+      write_steps("threaded_steps", rig->rig_threaded_steps);
+      out.EndObject();
     }
     if (grpc) {
       out.Field("grpc_ms_per_frame_median", grpc->round_trip_ms.median)
@@ -412,17 +432,6 @@ int RunBench(const Args& raw_args) {
           .Field("grpc_in_process_ms_per_frame_median", grpc->in_process_ms.median)
           .Field("grpc_no_engine_ms_per_frame_median", grpc->no_engine_ms.median);
     }
-    const auto write_steps = [&](const char* key, const std::vector<StepSummary>& summaries) {
-      out.Key(key).BeginObject();
-      for (const StepSummary& step : summaries) {
-        out.Key(step.name)
-            .BeginObject()
-            .Field("median", step.ms.median)
-            .Field("p95", step.ms.p95)
-            .EndObject();
-      }
-      out.EndObject();
-    };
     write_steps("steps", steps);
     write_steps("relocalization_steps", relocalization.steps);
     out.EndObject();
