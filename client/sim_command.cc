@@ -69,6 +69,11 @@ int RunSim(const Args& args) {
   parser.AddFlag("right-yaw-error", &options.rig.right_yaw_error_deg,
                  "the right camera is really turned by this many degrees about its y axis against "
                  "its written calibration (a stereo calibration's residual error)");
+  parser.AddFlag("camera-pitch", &options.rig.camera_pitch_deg,
+                 "the stereo pair is mounted pitched down by this many degrees (the map frame, its "
+                 "first left camera's, then is not level)");
+  parser.AddFlag("camera-roll", &options.rig.camera_roll_deg,
+                 "the stereo pair is mounted rolled right by this many degrees");
   std::string rig_layout = "stereo";
   parser.AddFlag(
       "rig", &rig_layout,
@@ -105,6 +110,10 @@ int RunSim(const Args& args) {
   options.rig.layout = sim::ParseRigLayout(rig_layout);
   if (!(options.rig.fisheye_fov_deg >= 90 && options.rig.fisheye_fov_deg < 180)) {
     throw UsageError("--fisheye-fov must be in [90, 180)");
+  }
+  if (!(std::abs(options.rig.camera_pitch_deg) <= 45.0) ||
+      !(std::abs(options.rig.camera_roll_deg) <= 45.0)) {
+    throw UsageError("--camera-pitch and --camera-roll must be within +-45 degrees");
   }
   if (!(std::abs(options.rig.right_yaw_error_deg) <= 5.0)) {
     throw UsageError("--right-yaw-error must be within +-5 degrees");

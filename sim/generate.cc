@@ -274,6 +274,8 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       .Field("lens", rig_options.fisheye ? "fisheye" : "pinhole")
       .Field("imperfect_rig", rig_options.imperfect)
       .Field("right_yaw_error_deg", rig_options.right_yaw_error_deg)
+      .Field("camera_pitch_deg", rig_options.camera_pitch_deg)
+      .Field("camera_roll_deg", rig_options.camera_roll_deg)
       .Field("camera_effects", options_.effects.has_value())
       .Field("rig", RigLayoutName(rig_options.layout))
       .Field("seed", static_cast<int64_t>(options_.seed))

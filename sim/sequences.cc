@@ -63,6 +63,14 @@ StereoRig MakeRig(const RigOptions& options) {
         RotationFromRollPitchYaw(0.35 * M_PI / 180, -0.45 * M_PI / 180, 0.25 * M_PI / 180);
     rig.right.body_from_cam.translation += Eigen::Vector3d(0.0015, 0.0, 0.002);
   }
+  if (options.camera_pitch_deg != 0 || options.camera_roll_deg != 0) {
+    // Roll about body x, then pitch about body y (positive: the optical axis down).
+    const Rigid3d tilt(RotationFromRollPitchYaw(options.camera_roll_deg * M_PI / 180,
+                                                options.camera_pitch_deg * M_PI / 180, 0),
+                       Eigen::Vector3d::Zero());
+    rig.left.body_from_cam = tilt * rig.left.body_from_cam;
+    rig.right.body_from_cam = tilt * rig.right.body_from_cam;
+  }
   return rig;
 }
 
@@ -114,6 +122,8 @@ RigOptions CarRig(const RigOptions& base) {
   car.baseline_m = 0.54;
   car.fps = 10.0;
   car.right_yaw_error_deg = base.right_yaw_error_deg;
+  car.camera_pitch_deg = base.camera_pitch_deg;
+  car.camera_roll_deg = base.camera_roll_deg;
   return car;
 }
 

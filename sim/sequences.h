@@ -37,6 +37,11 @@ struct RigOptions {
   // f tan(angle) pixels (KITTI 01's rig behaves as if by 0.1 deg: 1.3 px), and a map that
   // trusts the calibration comes out metrically wrong, most where disparities are small.
   double right_yaw_error_deg = 0.0;
+  // The stereo pair mounted tilted on the head, turned about the body origin: pitched down by
+  // this much (about the body's y axis) and rolled right (about its x axis). A map's frame is
+  // its first left camera's, so a tilted pair gives a map frame that is not level.
+  double camera_pitch_deg = 0.0;
+  double camera_roll_deg = 0.0;
   double fps = 15.0;
   // Further cameras on the head beside the stereo pair, with the left camera's lens
   // (OtherCameras): none; a rear one (front-back); rear, left and right ones (four).
