@@ -282,6 +282,9 @@ int RunBuild(const Args& args) {
                  "the map's origin. The map records it, and every pose in the map reports it in "
                  "its covariance. 0,0 for a generated sequence, whose calibration is exact");
   parser.SetDefaultText("rig-error", "a real rig's, measured on EuRoC MH_01: 0.0025,0.0026");
+  parser.AddSwitch("level-body", &options.level_body,
+                   "the rig's body frame (cam0's T_BS) is level, z up, as a ground robot's base "
+                   "is: the map's up direction when the recording has no accelerometer");
   int max_features = 0;
   parser.AddFlag("max-features", &max_features, "corners per image");
   parser.SetDefaultText("max-features", "0: 600 at 320x240, more for larger images");
@@ -408,7 +411,16 @@ int RunBuild(const Args& args) {
         .Field("right_camera_yaw_deg", stats.disparity_correction.yaw_deg())
         .Field("calibration_passes", stats.calibration_passes)
         .Field("visibility_fit_rmse", stats.visibility.final_rmse)
-        .Field("features_ms", stats.features_ms)
+        .Field("up", stats.gravity);
+    writer.Key("up_in_map");
+    if (const auto& gravity = map.metadata.gravity) {
+      writer.BeginArray();
+      for (int i = 0; i < 3; ++i) writer.Value(gravity->up_in_map[i]);
+      writer.EndArray();
+    } else {
+      writer.Null();
+    }
+    writer.Field("features_ms", stats.features_ms)
         .Field("tracking_ms", stats.tracking_ms)
         .Field("local_ba_ms", stats.local_ba_ms)
         .Field("loop_closure_ms", stats.loop_ms)
@@ -436,6 +448,7 @@ int RunBuild(const Args& args) {
   std::printf("  the rig's disparities: %.2f px offset, right camera turned %.3f deg (%s)\n",
               stats.disparity_correction.offset_px, stats.disparity_correction.yaw_deg(),
               how.c_str());
+  std::printf("  up: %s\n", stats.gravity.c_str());
   std::printf(
       "  time: features %.1f s, tracking %.1f s, local BA %.1f s, loop closure %.1f s, global BA "
       "%.1f s, "

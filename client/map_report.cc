@@ -12,6 +12,20 @@
 namespace visloc::cli {
 namespace {
 
+const char* GravitySourceText(MapGravity::Source source) {
+  switch (source) {
+    case MapGravity::Source::kImu:
+      return "IMU";
+    case MapGravity::Source::kLevelRig:
+      return "level rig";
+    case MapGravity::Source::kFloor:
+      return "floor";
+    case MapGravity::Source::kMotionPlane:
+      return "motion plane";
+  }
+  return "unknown";
+}
+
 using mapstore::MapInfo;
 
 std::string FormatTime(int64_t unix_s) {
@@ -84,6 +98,18 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   } else {
     json.Null();
   }
+  json.Key("gravity");
+  if (const auto& gravity = info.metadata.gravity) {
+    json.BeginObject().Key("up_in_map").BeginArray();
+    for (int i = 0; i < 3; ++i) json.Value(gravity->up_in_map[i]);
+    json.EndArray()
+        .Field("sigma_deg", gravity->sigma_deg)
+        .Field("source", GravitySourceName(gravity->source))
+        .Field("map_frame_tilt_deg", MapFrameTiltDeg(*gravity))
+        .EndObject();
+  } else {
+    json.Null();
+  }
   json.Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
@@ -143,6 +169,16 @@ void PrintInfo(const MapInfo& info) {
     std::printf("stereo        baseline %.1f mm (how well its points are known, in every fix's "
                 "covariance)\n",
                 1e3 * *baseline_m);
+  }
+  if (const auto& gravity = info.metadata.gravity) {
+    const Eigen::Vector3d& up = gravity->up_in_map;
+    std::printf(
+        "up            (%.4f, %.4f, %.4f) in the map frame, from the %s, sigma %.2f deg; "
+        "the map frame is %.1f deg off level\n",
+        up.x(), up.y(), up.z(), GravitySourceText(gravity->source), gravity->sigma_deg,
+        MapFrameTiltDeg(*gravity));
+  } else {
+    std::printf("up            not known (no IMU, level rig or floor told the build)\n");
   }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);

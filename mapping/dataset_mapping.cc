@@ -31,6 +31,43 @@ DatasetCheck CheckRig(const Dataset& dataset, const DatasetMappingOptions& optio
   return CheckDataset(dataset, check);
 }
 
+// The map's up direction from the best the recording offers; what told it, or why nothing did,
+// in `report`.
+std::optional<MapGravity> FindGravity(const Dataset& dataset, const DatasetMappingOptions& options,
+                                      const Trajectory& map_from_cam, const Map& map,
+                                      std::string* report) {
+  std::vector<std::string> reasons;
+  if (!dataset.imu.empty()) {
+    std::vector<AccelerometerSample> samples;
+    samples.reserve(dataset.imu.size());
+    for (const ImuSample& s : dataset.imu) samples.push_back({s.timestamp_ns, s.accel_mps2});
+    const GravityResult imu =
+        GravityFromImu(map_from_cam, samples, dataset.left.body_from_cam, options.gravity);
+    if (imu.gravity) {
+      *report =
+          StrCat("from the accelerometer (", FormatFixed(imu.measured_gravity_mps2, 3), " m/s^2)");
+      return imu.gravity;
+    }
+    reasons.push_back(imu.why_not);
+  }
+  if (options.level_body) {
+    *report = "from the rig's body, declared level";
+    return GravityFromLevelBody(map, dataset.left.body_from_cam, options.gravity);
+  }
+  const GravityResult floor = GravityFromFloor(map, options.gravity);
+  if (floor.gravity) {
+    *report = floor.gravity->source == MapGravity::Source::kFloor
+                  ? "from the floor"
+                  : "from the keyframes' motion plane";
+    if (!reasons.empty()) *report += " (the accelerometer: " + reasons.front() + ")";
+    return floor.gravity;
+  }
+  reasons.push_back(floor.why_not);
+  *report = "not found:";
+  for (size_t i = 0; i < reasons.size(); ++i) *report += (i ? "; " : " ") + reasons[i];
+  return std::nullopt;
+}
+
 }  // namespace
 
 DatasetSource::DatasetSource(const Dataset& dataset, std::string name)
@@ -75,8 +112,13 @@ Map BuildMap(const Dataset& dataset, const DatasetMappingOptions& options,
                               " ('visloc dataset check' gives the full report)"));
     }
   }
-  Map map = MapStereoFrames(DatasetSource(dataset), options.builder, metadata, stats,
-                            frame_trajectory, progress);
+  Trajectory map_from_cam;
+  Map map = MapStereoFrames(DatasetSource(dataset), options.builder, metadata, stats, &map_from_cam,
+                            progress);
+  std::string gravity_report;
+  map.metadata.gravity = FindGravity(dataset, options, map_from_cam, map, &gravity_report);
+  if (stats) stats->gravity = gravity_report;
+  if (frame_trajectory) *frame_trajectory = std::move(map_from_cam);
   if (static_cast<int>(map.points.size()) < options.min_points) {
     const DatasetCheck check = CheckRig(dataset, options, std::max(3, options.check_frames));
     throw InputError(

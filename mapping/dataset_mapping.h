@@ -8,6 +8,7 @@
 
 #include "dataset/dataset.h"
 #include "mapping/dataset_check.h"
+#include "mapping/gravity.h"
 #include "mapping/map_builder.h"
 #include "mapping/stereo_source.h"
 
@@ -20,6 +21,10 @@ struct DatasetMappingOptions {
   int check_frames = 3;
   // A map with fewer points is refused, with the stereo evidence, rather than written.
   int min_points = 100;
+  // Up (gravity.h): from the accelerometer when the recording has one, else from the rig's body
+  // when the operator declares it level (`level_body`), else from the floor.
+  bool level_body = false;
+  GravityOptions gravity;
   void Check() const;
 };
 

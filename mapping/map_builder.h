@@ -108,6 +108,8 @@ struct MapBuildStats {
   DisparityCorrection disparity_correction;
   int calibration_passes = 0;  // Adjustments that estimated it (each but the last remaps).
   VisibilityLearningStats visibility;
+  // How the map's up direction was found (MapMetadata::gravity), or why it was not.
+  std::string gravity;
   double features_ms = 0, tracking_ms = 0, local_ba_ms = 0, loop_ms = 0, global_ba_ms = 0,
          learning_ms = 0, total_ms = 0;
 };

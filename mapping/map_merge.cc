@@ -302,6 +302,13 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
   if (!merged.metadata.stereo_baseline_m) {
     merged.metadata.stereo_baseline_m = b.metadata.stereo_baseline_m;
   }
+  // Up: the better known of the two, b's turned into a's frame.
+  if (auto b_gravity = b.metadata.gravity;
+      b_gravity &&
+      (!merged.metadata.gravity || b_gravity->sigma_deg < merged.metadata.gravity->sigma_deg)) {
+    b_gravity->up_in_map = (a_from_b.rotation * b_gravity->up_in_map).normalized();
+    merged.metadata.gravity = b_gravity;
+  }
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;

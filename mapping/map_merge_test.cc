@@ -100,6 +100,32 @@ TEST(MapMergeTest, RecoversTheSecondSessionsFrameAndFusesItsPoints) {
             "merge('monday' <- synthetic; 'tuesday' <- /data/tue)");
 }
 
+// Up: the better known of the two maps', B's turned into A's frame.
+TEST(MapMergeTest, TheMergedMapKeepsTheBetterKnownUpInItsOwnFrame) {
+  const Map a = MondayMap(1);
+  const Rigid3d b_from_a(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(0.2, 1, 0.1).normalized())),
+      Eigen::Vector3d(3.0, -1.0, 0.5));
+  const Eigen::Vector3d up_in_a = Eigen::Vector3d(0.1, -0.95, -0.3).normalized();
+  Map b = SecondSession(a, b_from_a, 0.005);
+  b.metadata.gravity = MapGravity{b_from_a.rotation * up_in_a, 0.05, MapGravity::Source::kImu};
+  Map a_floor = a;
+  a_floor.metadata.gravity = MapGravity{Eigen::Vector3d(0, -1, 0), 1.0, MapGravity::Source::kFloor};
+  for (const Map* first : {&a, static_cast<const Map*>(&a_floor)}) {
+    MergeStats stats;
+    const Map merged = MergeMaps(*first, b, RigidOnlyMerge(), &stats);
+    ASSERT_TRUE(merged.metadata.gravity);
+    EXPECT_EQ(merged.metadata.gravity->source, MapGravity::Source::kImu);
+    EXPECT_LT((merged.metadata.gravity->up_in_map - up_in_a).norm(), 0.005);
+    EXPECT_TRUE(FindMapProblems(merged).empty());
+  }
+  // A's own, when it is the better known.
+  b.metadata.gravity->sigma_deg = 2.0;
+  MergeStats stats;
+  EXPECT_EQ(MergeMaps(a_floor, b, RigidOnlyMerge(), &stats).metadata.gravity,
+            a_floor.metadata.gravity);
+}
+
 TEST(MapMergeTest, AFusedPointLiesHalfwayBetweenItsTwoMapsEstimates) {
   const Map a = MondayMap(1);
   const Rigid3d b_from_a(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ())),

@@ -26,6 +26,11 @@ void ChecksumHead(const Map& map, Crc& crc) {
     crc.Pod(rig->drift_fraction);
   }
   if (const auto& baseline_m = map.metadata.stereo_baseline_m) crc.Pod(*baseline_m);
+  if (const auto& gravity = map.metadata.gravity) {
+    for (int i = 0; i < 3; ++i) crc.Pod(gravity->up_in_map[i]);
+    crc.Pod(gravity->sigma_deg);
+    crc.Pod(static_cast<int32_t>(gravity->source));
+  }
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());

@@ -82,6 +82,37 @@ std::optional<double> ReadStereoBaseline(const Database& db, const MetaRows& row
   return *value;
 }
 
+// The meta keys 'gravity_up' ("x y z", a unit vector in the map frame), 'gravity_sigma_deg' (0
+// or more) and 'gravity_source' (GravitySourceName): all three or none.
+std::optional<MapGravity> ReadGravity(const Database& db, const MetaRows& rows) {
+  const std::optional<std::string> up = Find(rows, "gravity_up");
+  const std::optional<std::string> sigma = Find(rows, "gravity_sigma_deg");
+  const std::optional<std::string> source = Find(rows, "gravity_source");
+  if (!up && !sigma && !source) return std::nullopt;
+  if (!up || !sigma || !source) {
+    throw InputError(StrCat(db.path(), ": meta has part of the map's up direction (",
+                            "'gravity_up', 'gravity_sigma_deg' and 'gravity_source' go together)"));
+  }
+  MapGravity gravity;
+  const std::vector<std::string> parts = Split(*up, ' ');
+  bool sound = parts.size() == 3;
+  for (size_t i = 0; sound && i < 3; ++i) {
+    const auto value = ParseDouble(parts[i]);
+    sound = value && std::isfinite(*value);
+    if (sound) gravity.up_in_map[static_cast<Eigen::Index>(i)] = *value;
+  }
+  const auto sigma_deg = ParseDouble(*sigma);
+  const auto parsed_source = ParseGravitySource(*source);
+  if (!sound || std::abs(gravity.up_in_map.norm() - 1) > 1e-6 || !sigma_deg ||
+      !std::isfinite(*sigma_deg) || *sigma_deg < 0 || !parsed_source) {
+    throw InputError(StrCat(db.path(), ": malformed up direction in meta ('", *up, "', '", *sigma,
+                            "', '", *source, "')"));
+  }
+  gravity.sigma_deg = *sigma_deg;
+  gravity.source = *parsed_source;
+  return gravity;
+}
+
 Meta ReadMeta(Database& db, Map* map) {
   if (!db.HasTable("meta")) throw InputError(db.path() + ": not a visloc map (no 'meta' table)");
   MetaRows rows;
@@ -115,6 +146,7 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.disparity_correction = ReadDisparityCorrection(db, rows);  // Schema 3; optional.
   map->metadata.rig_error = ReadRigError(db, rows);                          // Schema 4; optional.
   map->metadata.stereo_baseline_m = ReadStereoBaseline(db, rows);            // Schema 5; optional.
+  map->metadata.gravity = ReadGravity(db, rows);                             // Schema 6; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

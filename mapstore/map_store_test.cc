@@ -191,6 +191,41 @@ TEST(MapStoreTest, TheRigsStereoBaselineIsKeptExactlyAndOnlyWhereThereIsOne) {
             rig + ": malformed stereo baseline in meta ('wide'; a positive number of metres)");
 }
 
+TEST(MapStoreTest, TheMapsUpDirectoryIsKeptExactlyWithHowItWasFound) {
+  TempDir dir;
+  const std::string path = dir.File("up.db");
+  Map map = SmallMap();
+  map.metadata.gravity = MapGravity{Eigen::Vector3d(0.0881, -0.936, -0.3407).normalized(), 0.37,
+                                    MapGravity::Source::kFloor};
+  SaveMap(map, path);
+  const Map loaded = LoadMap(path);
+  EXPECT_TRUE(MapsEqual(loaded, map));
+  ASSERT_TRUE(loaded.metadata.gravity);
+  EXPECT_EQ(*loaded.metadata.gravity, *map.metadata.gravity);  // Bit for bit.
+  EXPECT_EQ(SummarizeMap(loaded, path).schema_version, 6);
+  EXPECT_TRUE(VerifyMapFile(path).ok());
+  map.metadata.gravity.reset();
+  EXPECT_FALSE(MapsEqual(loaded, map));
+
+  // Each damage named; a changed value the checksum catches.
+  const auto damaged = [&](const std::string& key, const std::string& value) {
+    SaveMap(loaded, path);
+    return LoadErrorWithMeta(path, key, value);
+  };
+  EXPECT_EQ(damaged("gravity_sigma_deg", "0.5"),
+            path + ": content checksum mismatch: the file is corrupt or was modified");
+  const std::string source_error = damaged("gravity_source", "tea leaves");
+  EXPECT_EQ(source_error.rfind(path + ": malformed up direction in meta ('", 0), 0u)
+      << source_error;
+  EXPECT_NE(source_error.find("', '0.37', 'tea leaves')"), std::string::npos) << source_error;
+  EXPECT_NE(damaged("gravity_up", "0 2 0").find(": malformed up direction in meta ('0 2 0'"),
+            std::string::npos);
+  EXPECT_EQ(damaged("gravity_sigma_deg", ""),
+            path +
+                ": meta has part of the map's up direction ('gravity_up', "
+                "'gravity_sigma_deg' and 'gravity_source' go together)");
+}
+
 // Each kind of bad file gets its own clear message.
 class BadMapFileTest : public ::testing::Test {
  protected:
@@ -232,11 +267,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '6' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '7' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 6; this visloc reads up to 5): upgrade visloc");
+          ": written by a newer visloc (map schema 7; this visloc reads up to 6): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {

@@ -49,6 +49,16 @@ void WriteMeta(Database& db, const Map& map) {
   if (const auto& baseline_m = map.metadata.stereo_baseline_m) {
     insert_double("stereo_baseline_m", *baseline_m);
   }
+  if (const auto& gravity = map.metadata.gravity) {
+    char up[80];
+    std::snprintf(up, sizeof up, "%.17g %.17g %.17g", gravity->up_in_map.x(),
+                  gravity->up_in_map.y(), gravity->up_in_map.z());
+    insert.Bind(1, std::string("gravity_up")).Bind(2, std::string(up)).Run();
+    insert_double("gravity_sigma_deg", gravity->sigma_deg);
+    insert.Bind(1, std::string("gravity_source"))
+        .Bind(2, std::string(GravitySourceName(gravity->source)))
+        .Run();
+  }
 }
 
 void WriteCameraAndFeatures(Database& db, const Map& map) {

@@ -62,6 +62,14 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
     out->mutable_rig_error()->set_drift_fraction(rig->drift_fraction);
   }
   if (const auto& baseline_m = info.metadata.stereo_baseline_m) out->set_stereo_baseline_m(*baseline_m);
+  if (const auto& gravity = info.metadata.gravity) {
+    v1::MapGravity* wire = out->mutable_gravity();
+    wire->set_up_x(gravity->up_in_map.x());
+    wire->set_up_y(gravity->up_in_map.y());
+    wire->set_up_z(gravity->up_in_map.z());
+    wire->set_sigma_deg(gravity->sigma_deg);
+    wire->set_source(GravitySourceName(gravity->source));
+  }
   DetailsToProto(info, out->mutable_details());
 }
 
@@ -87,6 +95,14 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
     info.metadata.rig_error = RigError{wire.rig_error().floor_m(), wire.rig_error().drift_fraction()};
   }
   if (wire.has_stereo_baseline_m()) info.metadata.stereo_baseline_m = wire.stereo_baseline_m();
+  if (wire.has_gravity()) {
+    // A listing from a server: shown, never trusted for arithmetic, so an unknown source (a
+    // newer server's) reads as the IMU's rather than failing the listing.
+    const v1::MapGravity& gravity = wire.gravity();
+    info.metadata.gravity = MapGravity{
+        Eigen::Vector3d(gravity.up_x(), gravity.up_y(), gravity.up_z()), gravity.sigma_deg(),
+        ParseGravitySource(gravity.source()).value_or(MapGravity::Source::kImu)};
+  }
   info.features.kind = wire.feature_kind();
   info.keyframes = wire.keyframes();
   info.points = wire.points();

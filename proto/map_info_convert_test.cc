@@ -18,6 +18,8 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   map.metadata.disparity_correction = DisparityCorrection{-0.6, 1.2e-3};
   map.metadata.rig_error = RigError{0.0, 0.0};
   map.metadata.stereo_baseline_m = 0.110077;
+  map.metadata.gravity =
+      MapGravity{Eigen::Vector3d(0.6, -0.8, 0.0), 0.25, MapGravity::Source::kLevelRig};
   mapstore::SaveMap(map, dir.File("lab.db"));
   const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
   ASSERT_TRUE(local.info.has_value()) << local.error;
@@ -55,6 +57,7 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   ASSERT_TRUE(b.metadata.rig_error.has_value());  // An exact rig is not "none".
   EXPECT_EQ(*b.metadata.rig_error, RigError{});
   EXPECT_EQ(b.metadata.stereo_baseline_m, 0.110077);
+  EXPECT_EQ(b.metadata.gravity, map.metadata.gravity);
 
   // A map that records none says so on the wire too (not a zero correction).
   mapstore::SaveMap(MakeSyntheticMap({}), dir.File("plain.db"));
@@ -66,6 +69,8 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.rig_error.has_value());
   EXPECT_FALSE(plain.has_stereo_baseline_m());
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.stereo_baseline_m.has_value());
+  EXPECT_FALSE(plain.has_gravity());
+  EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.gravity.has_value());
 }
 
 TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {

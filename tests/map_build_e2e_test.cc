@@ -38,7 +38,8 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
   ASSERT_EQ(build.exit_code, 0) << build.err;
   const ProcessResult info = Visloc({"map", "info", map_path, "--json"});
   EXPECT_THAT(info.out, HasSubstr("\"rig_error\":{\"floor_m\":0,\"drift_fraction\":0}"));
-  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 5);
+  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 6);  // It knows where up is (its IMU's).
+  EXPECT_THAT(info.out, HasSubstr("\"source\":\"imu\""));
   // The rig's baseline, from which a fix counts how well the map knows its points.
   EXPECT_NEAR(JsonNumber(info.out, "stereo_baseline_m"), 0.144, 1e-6);
   EXPECT_THAT(build.out, HasSubstr("\"frames\":150"));
@@ -147,7 +148,8 @@ TEST(OutdoorMapE2eTest, ARigWhoseRightCameraIsTurnedIsCalibratedByItsMotionAndMa
   ASSERT_EQ(info.exit_code, 0) << info.err;
   EXPECT_NEAR(JsonNumber(info.out, "disparity_correction", "right_camera_yaw_deg"), yaw_deg, 1e-9);
   EXPECT_NEAR(JsonNumber(info.out, "disparity_correction", "offset_px"), offset_px, 1e-9);
-  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 5);  // With the rig's baseline.
+  // With the rig's baseline and where up is.
+  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 6);
   EXPECT_FALSE(mapstore::LoadMap(dir.File("trusting.db")).metadata.disparity_correction);
 
   // The rig's correction, once known, is taken off from the first frame: the first 12 m, too

@@ -1,5 +1,6 @@
 #include "core/map/map.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -102,6 +103,34 @@ void CheckAppearance(const Map& map, ProblemList& problems) {
 
 }  // namespace
 
+const char* GravitySourceName(MapGravity::Source source) {
+  switch (source) {
+    case MapGravity::Source::kImu:
+      return "imu";
+    case MapGravity::Source::kLevelRig:
+      return "level_rig";
+    case MapGravity::Source::kFloor:
+      return "floor";
+    case MapGravity::Source::kMotionPlane:
+      return "motion_plane";
+  }
+  return "unknown";
+}
+
+double MapFrameTiltDeg(const MapGravity& gravity) {
+  const double cosine = std::clamp(-gravity.up_in_map.normalized().y(), -1.0, 1.0);
+  return std::acos(cosine) * 180.0 / M_PI;
+}
+
+std::optional<MapGravity::Source> ParseGravitySource(const std::string& text) {
+  for (const MapGravity::Source source :
+       {MapGravity::Source::kImu, MapGravity::Source::kLevelRig, MapGravity::Source::kFloor,
+        MapGravity::Source::kMotionPlane}) {
+    if (text == GravitySourceName(source)) return source;
+  }
+  return std::nullopt;
+}
+
 std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
   ProblemList problems(max_problems);
   if (map.metadata.name.empty()) problems.Add("map name is empty");
@@ -118,6 +147,11 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
   if (const auto& baseline_m = map.metadata.stereo_baseline_m;
       baseline_m && !(*baseline_m > 0 && std::isfinite(*baseline_m))) {
     problems.Add("the rig's stereo baseline is not a positive number (", *baseline_m, " m)");
+  }
+  if (const auto& gravity = map.metadata.gravity;
+      gravity && !(Finite(gravity->up_in_map) && std::abs(gravity->up_in_map.norm() - 1) < 1e-6 &&
+                   gravity->sigma_deg >= 0 && std::isfinite(gravity->sigma_deg))) {
+    problems.Add("the map's up direction is not a unit vector with a sigma of 0 or more degrees");
   }
   for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
     if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
@@ -172,7 +206,8 @@ bool MapsEqual(const Map& a, const Map& b) {
       a.metadata.builder != b.metadata.builder || a.metadata.lineage != b.metadata.lineage ||
       a.metadata.disparity_correction != b.metadata.disparity_correction ||
       a.metadata.rig_error != b.metadata.rig_error ||
-      a.metadata.stereo_baseline_m != b.metadata.stereo_baseline_m) {
+      a.metadata.stereo_baseline_m != b.metadata.stereo_baseline_m ||
+      a.metadata.gravity != b.metadata.gravity) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

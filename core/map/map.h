@@ -37,6 +37,32 @@ struct RigError {
   bool operator!=(const RigError& other) const { return !(*this == other); }
 };
 
+// Where up is in a map: the direction opposite to gravity, in the map frame (the first left
+// camera's optical frame, whose y axis points down only when that camera was held level), as
+// its builder found it.
+struct MapGravity {
+  enum class Source {
+    kImu,          // The recording's accelerometer, its motion's own acceleration taken off.
+    kLevelRig,     // The rig's body declared level by the operator (a ground robot's base).
+    kFloor,        // The mapped floor's plane, beneath the keyframes.
+    kMotionPlane,  // The plane the keyframes moved in (a ground robot's), no floor seen.
+  };
+  Eigen::Vector3d up_in_map = Eigen::Vector3d::UnitZ();  // Unit.
+  double sigma_deg = 0.0;  // One sigma of the direction's error, degrees.
+  Source source = Source::kImu;
+  bool operator==(const MapGravity& other) const {
+    return up_in_map == other.up_in_map && sigma_deg == other.sigma_deg && source == other.source;
+  }
+  bool operator!=(const MapGravity& other) const { return !(*this == other); }
+};
+// "imu", "level_rig", "floor", "motion_plane": how maps store and print it.
+const char* GravitySourceName(MapGravity::Source source);
+// The inverse; nullopt for any other text.
+std::optional<MapGravity::Source> ParseGravitySource(const std::string& text);
+// How far the map frame is from level (degrees): the angle between up and the map frame's -y,
+// which is up when the first left camera was held level (OpenCV: y down).
+double MapFrameTiltDeg(const MapGravity& gravity);
+
 struct MapMetadata {
   std::string name;
   int64_t created_unix_s = 0;
@@ -57,6 +83,8 @@ struct MapMetadata {
   // its stereo depths pinned its points (point_uncertainty.h); none in maps made before it was
   // recorded, whose fixes count the map's error without it.
   std::optional<double> stereo_baseline_m = std::nullopt;
+  // Up, when the build could tell (MapGravity); none: it could not, or the map is older.
+  std::optional<MapGravity> gravity = std::nullopt;
 };
 
 struct Keyframe {

@@ -1,0 +1,357 @@
+#include "mapping/gravity.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include "core/util/check.h"
+#include "core/util/random.h"
+#include "core/util/strings.h"
+
+namespace visloc::mapping {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * kRadToDeg;
+}
+
+// A window of consecutive samples that all have a pose, at most GravityOptions::imu_window_s
+// long: the integrals over it of the specific force turned into the map frame (m/s) and of the
+// body's rotation (s), and its span.
+struct Window {
+  Eigen::Vector3d force_integral = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d rotation_integral = Eigen::Matrix3d::Zero();
+  double duration_s = 0.0;
+  int64_t start_ns = 0, end_ns = 0;
+};
+
+// The body's position at t in the map frame, where the trajectory has a pose.
+std::optional<Eigen::Vector3d> BodyPosition(const Trajectory& map_from_cam,
+                                            const Rigid3d& cam_from_body, int64_t t_ns,
+                                            int64_t max_gap_ns) {
+  const auto map_from_cam_t = InterpolateAt(map_from_cam, t_ns, max_gap_ns);
+  if (!map_from_cam_t) return std::nullopt;
+  return *map_from_cam_t * cam_from_body.translation;
+}
+
+// The body's velocity at t (m/s), by differences over `h_ns` inside [start, end].
+std::optional<Eigen::Vector3d> BodyVelocity(const Trajectory& map_from_cam,
+                                            const Rigid3d& cam_from_body, int64_t t_ns,
+                                            int64_t start_ns, int64_t end_ns, int64_t h_ns,
+                                            int64_t max_gap_ns) {
+  const int64_t before = std::max(start_ns, t_ns - h_ns), after = std::min(end_ns, t_ns + h_ns);
+  if (after <= before) return std::nullopt;
+  const auto p0 = BodyPosition(map_from_cam, cam_from_body, before, max_gap_ns);
+  const auto p1 = BodyPosition(map_from_cam, cam_from_body, after, max_gap_ns);
+  if (!p0 || !p1) return std::nullopt;
+  return (*p1 - *p0) / NsToSeconds(after - before);
+}
+
+}  // namespace
+
+GravityResult GravityFromImu(const Trajectory& map_from_cam,
+                             const std::vector<AccelerometerSample>& samples,
+                             const Rigid3d& body_from_cam, const GravityOptions& options) {
+  GravityResult result;
+  if (samples.empty()) {
+    result.why_not = "the recording has no accelerometer";
+    return result;
+  }
+  if (map_from_cam.size() < 2) {
+    result.why_not = "too few camera poses to turn the accelerometer into the map";
+    return result;
+  }
+  // No pose is interpolated across a gap longer than this (frames the build could not track).
+  constexpr int64_t kMaxGapNs = 500'000'000;
+  constexpr int64_t kVelocityHalfWindowNs = 100'000'000;
+  // A velocity from positions a millimetre off over 0.1 s: 1 cm/s.
+  constexpr double kVelocitySigmaMps = 0.01;
+  const Rigid3d cam_from_body = body_from_cam.Inverse();
+  const int64_t first_ns = map_from_cam.front().timestamp_ns;
+  const int64_t last_ns = map_from_cam.back().timestamp_ns;
+  const int64_t window_ns = SecondsToNs(options.imu_window_s);
+  // Rectangle rule over consecutive samples with poses; a sample without one ends a window.
+  std::vector<Window> windows;
+  bool open = false;
+  for (size_t i = 0; i + 1 < samples.size(); ++i) {
+    const int64_t t_ns = samples[i].timestamp_ns;
+    const int64_t next_ns = samples[i + 1].timestamp_ns;
+    std::optional<Rigid3d> map_from_cam_t;
+    if (t_ns >= first_ns && next_ns <= last_ns && next_ns > t_ns) {
+      map_from_cam_t = InterpolateAt(map_from_cam, t_ns, kMaxGapNs);
+    }
+    if (!map_from_cam_t) {
+      open = false;
+      continue;
+    }
+    if (!open || t_ns - windows.back().start_ns >= window_ns) windows.push_back({});
+    if (!open || windows.back().duration_s == 0) windows.back().start_ns = t_ns;
+    open = true;
+    const double dt_s = NsToSeconds(next_ns - t_ns);
+    const Eigen::Matrix3d map_from_body =
+        (map_from_cam_t->rotation * cam_from_body.rotation).toRotationMatrix();
+    Window& window = windows.back();
+    window.force_integral += map_from_body * samples[i].specific_force_mps2 * dt_s;
+    window.rotation_integral += map_from_body * dt_s;
+    window.duration_s += dt_s;
+    window.end_ns = next_ns;
+  }
+  // Over a window, with the bias b (body frame, constant over the run) and gravity g (map):
+  //   integral of R (f - b) dt = v(end) - v(start) - g T,
+  // so -T g + (integral of R dt) b = F - dv.
+  // Least squares over the windows for x = (g, b), b held near zero by its prior: a run that
+  // turns tells the bias from gravity, a still one leaves them confounded, and the covariance
+  // says so.
+  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
+  information.bottomRightCorner<3, 3>() =
+      Eigen::Matrix3d::Identity() / (options.accel_bias_sigma_mps2 * options.accel_bias_sigma_mps2);
+  double duration_s = 0.0;
+  Eigen::Vector3d plain_gravity_times_s = Eigen::Vector3d::Zero();  // Without a bias.
+  struct Equation {
+    Eigen::Matrix<double, 3, 6> jacobian;
+    Eigen::Vector3d residual;
+    double variance;
+  };
+  std::vector<Equation> equations;
+  for (const Window& window : windows) {
+    const auto v0 = BodyVelocity(map_from_cam, cam_from_body, window.start_ns, window.start_ns,
+                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
+    const auto v1 = BodyVelocity(map_from_cam, cam_from_body, window.end_ns, window.start_ns,
+                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
+    if (!v0 || !v1) continue;
+    Eigen::Matrix<double, 3, 6> jacobian;
+    jacobian << -window.duration_s * Eigen::Matrix3d::Identity(), window.rotation_integral;
+    const Eigen::Vector3d residual = window.force_integral - (*v1 - *v0);
+    // Two velocities and the accelerometer's white noise integrated over the window.
+    const double variance =
+        2 * kVelocitySigmaMps * kVelocitySigmaMps +
+        options.accel_noise_density * options.accel_noise_density * window.duration_s;
+    information += jacobian.transpose() * jacobian / variance;
+    rhs += jacobian.transpose() * residual / variance;
+    duration_s += window.duration_s;
+    plain_gravity_times_s -= residual;
+    equations.push_back({jacobian, residual, variance});
+  }
+  if (duration_s < options.min_imu_duration_s) {
+    result.why_not =
+        StrCat("the accelerometer overlaps the camera poses for ", FormatFixed(duration_s, 2),
+               " s, under ", FormatFixed(options.min_imu_duration_s, 1), " s");
+    return result;
+  }
+  Eigen::Matrix<double, 6, 6> covariance = information.inverse();
+  const Eigen::Matrix<double, 6, 1> solution = covariance * rhs;
+  // The windows' scatter about the fit, where it exceeds the noise model (poses and samples a
+  // little off in time, a motion the poses' interpolation smooths), widens the covariance.
+  double chi2 = 0.0;
+  for (const Equation& e : equations) {
+    chi2 += (e.residual - e.jacobian * solution).squaredNorm() / e.variance;
+  }
+  const double dof = std::max(1.0, 3.0 * equations.size() - 6.0);
+  covariance *= std::max(1.0, chi2 / dof);
+  const Eigen::Vector3d gravity = solution.head<3>();
+  // The bias along gravity is confounded with its magnitude wherever the body's z stays near
+  // vertical (a walk turns about it): the magnitude is checked without a bias, and the joint
+  // solution gives the direction only.
+  const double magnitude_mps2 = plain_gravity_times_s.norm() / duration_s;
+  result.measured_gravity_mps2 = magnitude_mps2;
+  if (std::abs(magnitude_mps2 / options.gravity_mps2 - 1) > options.max_magnitude_error) {
+    result.why_not = StrCat("the accelerometer gives gravity of ", FormatFixed(magnitude_mps2, 2),
+                            " m/s^2, not ", FormatFixed(options.gravity_mps2, 2),
+                            ": its units, the rig's T_BS or the clocks are wrong");
+    return result;
+  }
+  MapGravity found;
+  found.source = MapGravity::Source::kImu;
+  found.up_in_map = -gravity.normalized();
+  // The direction's error: gravity's covariance across up, per axis, over its magnitude.
+  const Eigen::Matrix3d across_up =
+      Eigen::Matrix3d::Identity() - found.up_in_map * found.up_in_map.transpose();
+  const double across_variance =
+      (across_up * covariance.topLeftCorner<3, 3>() * across_up).trace() / 2;
+  found.sigma_deg =
+      std::max(options.min_imu_sigma_deg,
+               std::atan(std::sqrt(across_variance) / options.gravity_mps2) * kRadToDeg);
+  result.gravity = found;
+  return result;
+}
+
+MapGravity GravityFromLevelBody(const Map& map, const Rigid3d& body_from_cam,
+                                const GravityOptions& options) {
+  const Rigid3d map_from_first =
+      map.keyframes.empty() ? Rigid3d() : map.keyframes.front().map_from_cam;
+  MapGravity gravity;
+  gravity.source = MapGravity::Source::kLevelRig;
+  gravity.up_in_map =
+      (map_from_first.rotation * body_from_cam.rotation.inverse() * Eigen::Vector3d::UnitZ())
+          .normalized();
+  gravity.sigma_deg = options.level_body_sigma_deg;
+  return gravity;
+}
+
+namespace {
+
+// A plane n.x = d with n unit, and how well its normal is known.
+struct Plane {
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double offset = 0.0;
+  int inliers = 0;
+  double sigma_deg = 0.0;
+  // The points' spread (rms, m) along the normal, then the two in-plane principal directions.
+  Eigen::Vector3d spread_m = Eigen::Vector3d::Zero();
+};
+
+// Least-squares plane through `points` (at least 3): the normal is the direction of least
+// spread; its sigma from the residual and the spread across the plane.
+Plane FitPlane(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : points) scatter += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(scatter / points.size());
+  Plane plane;
+  plane.normal = eigen.eigenvectors().col(0);
+  plane.offset = plane.normal.dot(mean);
+  plane.inliers = static_cast<int>(points.size());
+  plane.spread_m = eigen.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  // The normal's tilt: residual rms over the in-plane spread, shrunk by sqrt(N).
+  plane.sigma_deg = plane.spread_m(0) / std::max(1e-6, plane.spread_m(1)) /
+                    std::sqrt(static_cast<double>(points.size())) * kRadToDeg;
+  return plane;
+}
+
+// The keyframes' mean down direction (each camera's +y, OpenCV), map frame.
+Eigen::Vector3d CamerasDown(const Map& map) {
+  Eigen::Vector3d down = Eigen::Vector3d::Zero();
+  for (const Keyframe& k : map.keyframes) {
+    down += k.map_from_cam.rotation * Eigen::Vector3d::UnitY();
+  }
+  return down.normalized();
+}
+
+// The largest plane beneath every keyframe whose upward normal is near the cameras' up.
+std::optional<Plane> FindFloor(const Map& map, const Eigen::Vector3d& cameras_up,
+                               const GravityOptions& options) {
+  const int n = static_cast<int>(map.points.size());
+  if (n < options.floor_min_points) return std::nullopt;
+  Rng rng(options.seed);
+  const double max_tilt_rad = options.floor_max_tilt_from_cameras_deg / kRadToDeg;
+  std::optional<Plane> best;
+  for (int iteration = 0; iteration < options.floor_ransac_iterations; ++iteration) {
+    const Eigen::Vector3d& a = map.points[rng.UniformInt(0, n - 1)].position_in_map;
+    const Eigen::Vector3d& b = map.points[rng.UniformInt(0, n - 1)].position_in_map;
+    const Eigen::Vector3d& c = map.points[rng.UniformInt(0, n - 1)].position_in_map;
+    Eigen::Vector3d normal = (b - a).cross(c - a);
+    if (normal.norm() < 1e-9) continue;
+    normal.normalize();
+    if (normal.dot(cameras_up) < 0) normal = -normal;
+    if (std::acos(std::clamp(normal.dot(cameras_up), -1.0, 1.0)) > max_tilt_rad) continue;
+    const double offset = normal.dot(a);
+    // Every keyframe well above it: a floor, not a wall or a table the cameras passed under.
+    bool beneath = true;
+    for (const Keyframe& k : map.keyframes) {
+      if (normal.dot(k.map_from_cam.translation) - offset < options.floor_min_depth_below_m) {
+        beneath = false;
+        break;
+      }
+    }
+    if (!beneath) continue;
+    int inliers = 0;
+    for (const MapPoint& p : map.points) {
+      inliers += std::abs(normal.dot(p.position_in_map) - offset) <= options.floor_band_m;
+    }
+    if (!best || inliers > best->inliers) best = Plane{normal, offset, inliers, 0.0};
+  }
+  if (!best || best->inliers < options.floor_min_points) return std::nullopt;
+  // Refined on its inliers, twice (the refit takes in what the sample's plane missed).
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Eigen::Vector3d> inliers;
+    for (const MapPoint& p : map.points) {
+      if (std::abs(best->normal.dot(p.position_in_map) - best->offset) <= options.floor_band_m) {
+        inliers.push_back(p.position_in_map);
+      }
+    }
+    if (static_cast<int>(inliers.size()) < options.floor_min_points) return std::nullopt;
+    Plane refit = FitPlane(inliers);
+    if (refit.normal.dot(cameras_up) < 0) {
+      refit.normal = -refit.normal;
+      refit.offset = -refit.offset;
+    }
+    best = refit;
+  }
+  return best;
+}
+
+// The plane the keyframes moved in, when they spread over one and kept to it.
+std::optional<Plane> FindMotionPlane(const Map& map, const Eigen::Vector3d& cameras_up,
+                                     const GravityOptions& options, std::string* why_not) {
+  std::vector<Eigen::Vector3d> centres;
+  for (const Keyframe& k : map.keyframes) centres.push_back(k.map_from_cam.translation);
+  if (centres.size() < 3) {
+    *why_not = "fewer than 3 keyframes";
+    return std::nullopt;
+  }
+  Plane plane = FitPlane(centres);
+  const Eigen::Vector3d& spread = plane.spread_m;
+  if (2 * spread(1) < options.motion_min_extent_m) {
+    *why_not = StrCat("the keyframes spread over ", FormatFixed(2 * spread(1), 2),
+                      " m across their second direction, too little to span a plane");
+    return std::nullopt;
+  }
+  if (spread(0) > options.motion_max_flatness * spread(1)) {
+    *why_not = StrCat("the keyframes did not keep to a plane (", FormatFixed(spread(0) * 100, 1),
+                      " cm across it)");
+    return std::nullopt;
+  }
+  if (plane.normal.dot(cameras_up) < 0) plane.normal = -plane.normal;
+  if (plane.normal.dot(cameras_up) < std::cos(60.0 / kRadToDeg)) {
+    *why_not = "the keyframes' plane is not the cameras' floor (its normal is far from their up)";
+    return std::nullopt;
+  }
+  return plane;
+}
+
+}  // namespace
+
+GravityResult GravityFromFloor(const Map& map, const GravityOptions& options) {
+  GravityResult result;
+  if (map.keyframes.empty()) {
+    result.why_not = "the map has no keyframes";
+    return result;
+  }
+  const Eigen::Vector3d cameras_up = -CamerasDown(map);
+  const std::optional<Plane> floor = FindFloor(map, cameras_up, options);
+  std::string motion_why_not;
+  const std::optional<Plane> motion = FindMotionPlane(map, cameras_up, options, &motion_why_not);
+  MapGravity gravity;
+  if (floor && motion) {
+    const double disagreement_deg = AngleDeg(floor->normal, motion->normal);
+    if (disagreement_deg > options.max_floor_motion_disagreement_deg) {
+      result.why_not = StrCat("the floor and the keyframes' motion plane disagree by ",
+                              FormatFixed(disagreement_deg, 1), " deg");
+      return result;
+    }
+  }
+  if (floor) {
+    gravity.source = MapGravity::Source::kFloor;
+    gravity.up_in_map = floor->normal;
+    gravity.sigma_deg = std::hypot(floor->sigma_deg, options.floor_level_sigma_deg);
+  } else if (motion) {
+    gravity.source = MapGravity::Source::kMotionPlane;
+    gravity.up_in_map = motion->normal;
+    // A walking robot's head bobs and a wheeled one's floor is not flat: a degree at least.
+    gravity.sigma_deg = std::max(1.0, motion->sigma_deg);
+  } else {
+    result.why_not = StrCat("no floor beneath the keyframes, and ", motion_why_not);
+    return result;
+  }
+  result.gravity = gravity;
+  return result;
+}
+
+}  // namespace visloc::mapping

@@ -1,0 +1,94 @@
+#pragma once
+// Where up is in a map (MapGravity), from what its recording offers, best first:
+//   - the accelerometer: over a window of the run, the specific force turned into the map frame
+//     by the camera's poses integrates to the change of velocity minus gravity's, so gravity is
+//     what is left once the motion's own velocity change (from the poses) is taken off; with
+//     the accelerometer's bias, which the windows tell from gravity where the body turns. A
+//     still recording gives gravity plus the bias (its sigma says so), a moving one as well,
+//     without a model of its accelerations;
+//   - the rig's body declared level (a ground robot's base): its z axis is up;
+//   - the floor: the largest plane beneath the keyframes whose normal is near the cameras' mean
+//     down direction, checked against the plane the keyframes moved in when they did (a ground
+//     robot's), else that motion plane alone.
+// Each says how well it knows up (sigma_deg), or why it cannot tell.
+//
+// Frames: the map frame (the first left camera's); `body` the IMU's (EuRoC's T_BS: body_from_cam).
+// Units: metres, seconds, m/s^2, degrees.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/geometry/trajectory.h"
+#include "core/map/map.h"
+
+namespace visloc::mapping {
+
+// One accelerometer reading: the specific force in the body frame (m/s^2; at rest, +9.81 up).
+struct AccelerometerSample {
+  int64_t timestamp_ns = 0;
+  Eigen::Vector3d specific_force_mps2 = Eigen::Vector3d::Zero();
+};
+
+struct GravityOptions {
+  double gravity_mps2 = 9.81;
+  // The accelerometer's bias: its prior (a MEMS IMU's can be half a metre a second squared:
+  // EuRoC V1_01's is estimated at 0.55 m/s^2), estimated with gravity where the run turns.
+  double accel_bias_sigma_mps2 = 0.3;
+  double accel_noise_density = 2.0e-3;  // m/s^2/sqrt(Hz), EuRoC's ADIS16448.
+  // The run is cut into windows this long (s), each an equation for gravity and the bias.
+  double imu_window_s = 1.0;
+  // The direction is never claimed better than this (deg): the map's own keyframe orientations,
+  // which turn the samples into the map frame, are known to a few hundredths of a degree.
+  double min_imu_sigma_deg = 0.05;
+  // Shortest stretch of poses and samples the accelerometer is trusted over.
+  double min_imu_duration_s = 1.0;
+  // A measured gravity whose magnitude is off by more than this fraction is refused: wrong units,
+  // a wrong T_BS, or poses and samples on different clocks.
+  double max_magnitude_error = 0.05;
+  // The operator's word for a level body (`map build --level-body`): its sigma.
+  double level_body_sigma_deg = 1.0;
+  // Floor: planes found by RANSAC over the map's points, inlier band (m), and how far from the
+  // cameras' mean down direction its normal may be (deg) and how far below the lowest keyframe
+  // it must lie (m).
+  double floor_band_m = 0.03;
+  double floor_max_tilt_from_cameras_deg = 40.0;
+  double floor_min_depth_below_m = 0.3;
+  int floor_min_points = 60;
+  // A floor is level only as well as it was laid, and a map's floor only as well as it was
+  // mapped: its up is never claimed better than this (deg).
+  double floor_level_sigma_deg = 1.0;
+  int floor_ransac_iterations = 300;
+  // Motion plane: the keyframes' positions spread over at least this extent (m) in the plane and
+  // at most this fraction of it across it.
+  double motion_min_extent_m = 0.5;
+  double motion_max_flatness = 0.05;
+  // The floor and the motion plane must agree within this (deg) for the floor to be taken.
+  double max_floor_motion_disagreement_deg = 5.0;
+  uint64_t seed = 1;
+};
+
+// What GravityFromImu found, or why it found nothing.
+struct GravityResult {
+  std::optional<MapGravity> gravity;
+  std::string why_not;  // When there is no gravity: the reason, for the build's report.
+  double measured_gravity_mps2 = 0.0;  // The accelerometer's gravity magnitude, when measured.
+};
+
+// From the accelerometer. `map_from_cam` is the left camera's pose at each frame of the build
+// (sorted by time); samples outside its time span are not used.
+GravityResult GravityFromImu(const Trajectory& map_from_cam,
+                             const std::vector<AccelerometerSample>& samples,
+                             const Rigid3d& body_from_cam, const GravityOptions& options = {});
+
+// From a body the operator declares level: up is its z axis, in the first keyframe's frame.
+MapGravity GravityFromLevelBody(const Map& map, const Rigid3d& body_from_cam,
+                                const GravityOptions& options = {});
+
+// From the mapped floor and the keyframes' motion plane.
+GravityResult GravityFromFloor(const Map& map, const GravityOptions& options = {});
+
+}  // namespace visloc::mapping
