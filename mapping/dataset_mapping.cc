@@ -38,9 +38,11 @@ std::optional<MapGravity> FindGravity(const Dataset& dataset, const DatasetMappi
                                       std::string* report) {
   std::vector<std::string> reasons;
   if (!dataset.imu.empty()) {
-    std::vector<AccelerometerSample> samples;
+    std::vector<ImuReading> samples;
     samples.reserve(dataset.imu.size());
-    for (const ImuSample& s : dataset.imu) samples.push_back({s.timestamp_ns, s.accel_mps2});
+    for (const ImuSample& s : dataset.imu) {
+      samples.push_back({s.timestamp_ns, s.accel_mps2, s.gyro_radps});
+    }
     const GravityResult imu =
         GravityFromImu(map_from_cam, samples, dataset.left.body_from_cam, options.gravity);
     if (imu.gravity) {

@@ -51,10 +51,173 @@ std::optional<Eigen::Vector3d> BodyVelocity(const Trajectory& map_from_cam,
   return (*p1 - *p0) / NsToSeconds(after - before);
 }
 
+// No pose is interpolated across a gap longer than this (frames the build could not track).
+constexpr int64_t kMaxGapNs = 500'000'000;
+constexpr int64_t kVelocityHalfWindowNs = 100'000'000;
+// A velocity from positions a millimetre off over 0.1 s: 1 cm/s.
+constexpr double kVelocitySigmaMps = 0.01;
+
+// The run's windows: samples with poses, the body's rotation from the pose before each sample
+// carried forward by the gyro.
+std::vector<Window> IntegrateWindows(const Trajectory& map_from_cam,
+                                     const std::vector<ImuReading>& samples,
+                                     const Rigid3d& cam_from_body, const GravityOptions& options) {
+  const int64_t first_ns = map_from_cam.front().timestamp_ns;
+  const int64_t last_ns = map_from_cam.back().timestamp_ns;
+  const int64_t window_ns = SecondsToNs(options.imu_window_s);
+  // Rectangle rule over consecutive samples with poses; a sample without one ends a window.
+  std::vector<Window> windows;
+  bool open = false;
+  // The body's rotation at the current sample: the pose of frame `frame` carried forward by
+  // the gyro since it (`carried_ns`).
+  size_t frame = 0;
+  std::optional<size_t> anchored_frame;
+  Eigen::Quaterniond map_from_body_q = Eigen::Quaterniond::Identity();
+  int64_t carried_ns = 0;
+  for (size_t i = 0; i + 1 < samples.size(); ++i) {
+    const int64_t t_ns = samples[i].timestamp_ns;
+    const int64_t next_ns = samples[i + 1].timestamp_ns;
+    while (frame + 1 < map_from_cam.size() && map_from_cam[frame + 1].timestamp_ns <= t_ns) {
+      ++frame;
+    }
+    const bool covered =
+        t_ns >= first_ns && next_ns <= last_ns && next_ns > t_ns &&
+        frame + 1 < map_from_cam.size() &&
+        map_from_cam[frame + 1].timestamp_ns - map_from_cam[frame].timestamp_ns <= kMaxGapNs;
+    if (!covered) {
+      open = false;
+      continue;
+    }
+    if (anchored_frame != frame) {
+      anchored_frame = frame;
+      map_from_body_q = map_from_cam[frame].pose.rotation * cam_from_body.rotation;
+      carried_ns = map_from_cam[frame].timestamp_ns;
+    }
+    // Body rates: R(t) = R(t0) Exp(w (t - t0)), w the rate of the sample before t (held over
+    // its interval, which holds the stretch since the frame's pose too).
+    const Eigen::Vector3d turn =
+        samples[i > 0 ? i - 1 : i].angular_rate_radps * NsToSeconds(t_ns - carried_ns);
+    if (turn.norm() > 0) {
+      map_from_body_q =
+          (map_from_body_q * Eigen::Quaterniond(Eigen::AngleAxisd(turn.norm(), turn.normalized())))
+              .normalized();
+    }
+    carried_ns = t_ns;
+    if (!open || t_ns - windows.back().start_ns >= window_ns) windows.push_back({});
+    if (!open || windows.back().duration_s == 0) windows.back().start_ns = t_ns;
+    open = true;
+    const double dt_s = NsToSeconds(next_ns - t_ns);
+    const Eigen::Matrix3d map_from_body = map_from_body_q.toRotationMatrix();
+    Window& window = windows.back();
+    window.force_integral += map_from_body * samples[i].specific_force_mps2 * dt_s;
+    window.rotation_integral += map_from_body * dt_s;
+    window.duration_s += dt_s;
+    window.end_ns = next_ns;
+  }
+  return windows;
+}
+
+// Over a window, with the bias b (body frame, constant over the run) and gravity g (map):
+//   integral of R (f - b) dt = v(end) - v(start) - g T,
+// so e = (F - dv) + T g - (integral of R dt) b = 0.
+// Gravity's magnitude is known: without that, a bias along the body's z is gravity wherever
+// the body turns about up only (a walk), and the fit trades one for the other. So g = |g| n,
+// n a unit vector, and Gauss-Newton over n's two tangent directions and b, b held near zero
+// by its prior: a run that turns tells the bias's other components from n, a still one leaves
+// them confounded, and the covariance says so.
+struct Equation {
+  Eigen::Vector3d residual;           // F - dv (m/s).
+  Eigen::Matrix3d rotation_integral;  // Integral of R dt (s).
+  double duration_s;
+  double variance;
+};
+
+// Each window's equation (those whose ends have velocities), and the windows' total duration
+// and bias-free gravity times it.
+std::vector<Equation> WindowEquations(const std::vector<Window>& windows,
+                                      const Trajectory& map_from_cam, const Rigid3d& cam_from_body,
+                                      const GravityOptions& options, double* duration_s,
+                                      Eigen::Vector3d* plain_gravity_times_s) {
+  std::vector<Equation> equations;
+  *duration_s = 0.0;
+  *plain_gravity_times_s = Eigen::Vector3d::Zero();
+  for (const Window& window : windows) {
+    const auto v0 = BodyVelocity(map_from_cam, cam_from_body, window.start_ns, window.start_ns,
+                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
+    const auto v1 = BodyVelocity(map_from_cam, cam_from_body, window.end_ns, window.start_ns,
+                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
+    if (!v0 || !v1) continue;
+    const Eigen::Vector3d residual = window.force_integral - (*v1 - *v0);
+    // Two velocities and the accelerometer's white noise integrated over the window.
+    const double variance =
+        2 * kVelocitySigmaMps * kVelocitySigmaMps +
+        options.accel_noise_density * options.accel_noise_density * window.duration_s;
+    equations.push_back({residual, window.rotation_integral, window.duration_s, variance});
+    *duration_s += window.duration_s;
+    *plain_gravity_times_s -= residual;
+  }
+  return equations;
+}
+
+// Gravity's direction (down, map frame) and the bias fitted to the equations; the direction's
+// covariance (rad^2, in its tangent plane) in `direction_covariance`.
+Eigen::Vector3d FitGravityDirection(const std::vector<Equation>& equations,
+                                    const Eigen::Vector3d& initial_down,
+                                    const GravityOptions& options,
+                                    Eigen::Matrix2d* direction_covariance) {
+  using Matrix5d = Eigen::Matrix<double, 5, 5>;
+  using Vector5d = Eigen::Matrix<double, 5, 1>;
+  const double g = options.gravity_mps2;
+  const double prior = 1.0 / (options.accel_bias_sigma_mps2 * options.accel_bias_sigma_mps2);
+  Eigen::Vector3d down, bias;
+  Matrix5d information;
+  // `scale`: the windows' variance over the noise model's.
+  const auto solve = [&](double scale) {
+    down = initial_down;  // n: gravity's direction.
+    bias = Eigen::Vector3d::Zero();
+    for (int iteration = 0; iteration < 8; ++iteration) {
+      // Tangent basis at n: g(d) = |g| normalize(n + tangent d).
+      Eigen::Matrix<double, 3, 2> tangent;
+      tangent.col(0) = down.unitOrthogonal();
+      tangent.col(1) = down.cross(tangent.col(0));
+      information = Matrix5d::Zero();
+      Vector5d gradient = Vector5d::Zero();
+      information.bottomRightCorner<3, 3>() = prior * Eigen::Matrix3d::Identity();
+      gradient.tail<3>() = prior * bias;
+      for (const Equation& e : equations) {
+        const Eigen::Vector3d error =
+            e.residual + e.duration_s * g * down - e.rotation_integral * bias;
+        Eigen::Matrix<double, 3, 5> jacobian;
+        jacobian << e.duration_s * g * tangent, -e.rotation_integral;
+        information += jacobian.transpose() * jacobian / (scale * e.variance);
+        gradient += jacobian.transpose() * error / (scale * e.variance);
+      }
+      const Vector5d step = -information.ldlt().solve(gradient);
+      down = (down + tangent * step.head<2>()).normalized();
+      bias += step.tail<3>();
+      if (step.head<2>().norm() < 1e-9) break;
+    }
+    // The windows' scatter about the fit over the noise model's (chi^2 per degree of freedom).
+    double chi2 = 0.0;
+    for (const Equation& e : equations) {
+      chi2 += (e.residual + e.duration_s * g * down - e.rotation_integral * bias).squaredNorm() /
+              (scale * e.variance);
+    }
+    return chi2 / std::max(1.0, 3.0 * equations.size() - 5.0);
+  };
+  // Where the windows scatter more than the noise model says (poses and samples a little off
+  // in time, a motion the poses' interpolation smooths), the fit is made again with their
+  // measured variance: otherwise directions the data barely sees (the bias a walk hardly
+  // turns) are fitted to those errors instead of being held by the bias's prior.
+  const double scatter = std::max(1.0, solve(1.0));
+  if (scatter > 1.0) solve(scatter);
+  *direction_covariance = information.inverse().topLeftCorner<2, 2>();
+  return down;
+}
+
 }  // namespace
 
-GravityResult GravityFromImu(const Trajectory& map_from_cam,
-                             const std::vector<AccelerometerSample>& samples,
+GravityResult GravityFromImu(const Trajectory& map_from_cam, const std::vector<ImuReading>& samples,
                              const Rigid3d& body_from_cam, const GravityOptions& options) {
   GravityResult result;
   if (samples.empty()) {
@@ -65,98 +228,19 @@ GravityResult GravityFromImu(const Trajectory& map_from_cam,
     result.why_not = "too few camera poses to turn the accelerometer into the map";
     return result;
   }
-  // No pose is interpolated across a gap longer than this (frames the build could not track).
-  constexpr int64_t kMaxGapNs = 500'000'000;
-  constexpr int64_t kVelocityHalfWindowNs = 100'000'000;
-  // A velocity from positions a millimetre off over 0.1 s: 1 cm/s.
-  constexpr double kVelocitySigmaMps = 0.01;
   const Rigid3d cam_from_body = body_from_cam.Inverse();
-  const int64_t first_ns = map_from_cam.front().timestamp_ns;
-  const int64_t last_ns = map_from_cam.back().timestamp_ns;
-  const int64_t window_ns = SecondsToNs(options.imu_window_s);
-  // Rectangle rule over consecutive samples with poses; a sample without one ends a window.
-  std::vector<Window> windows;
-  bool open = false;
-  for (size_t i = 0; i + 1 < samples.size(); ++i) {
-    const int64_t t_ns = samples[i].timestamp_ns;
-    const int64_t next_ns = samples[i + 1].timestamp_ns;
-    std::optional<Rigid3d> map_from_cam_t;
-    if (t_ns >= first_ns && next_ns <= last_ns && next_ns > t_ns) {
-      map_from_cam_t = InterpolateAt(map_from_cam, t_ns, kMaxGapNs);
-    }
-    if (!map_from_cam_t) {
-      open = false;
-      continue;
-    }
-    if (!open || t_ns - windows.back().start_ns >= window_ns) windows.push_back({});
-    if (!open || windows.back().duration_s == 0) windows.back().start_ns = t_ns;
-    open = true;
-    const double dt_s = NsToSeconds(next_ns - t_ns);
-    const Eigen::Matrix3d map_from_body =
-        (map_from_cam_t->rotation * cam_from_body.rotation).toRotationMatrix();
-    Window& window = windows.back();
-    window.force_integral += map_from_body * samples[i].specific_force_mps2 * dt_s;
-    window.rotation_integral += map_from_body * dt_s;
-    window.duration_s += dt_s;
-    window.end_ns = next_ns;
-  }
-  // Over a window, with the bias b (body frame, constant over the run) and gravity g (map):
-  //   integral of R (f - b) dt = v(end) - v(start) - g T,
-  // so -T g + (integral of R dt) b = F - dv.
-  // Least squares over the windows for x = (g, b), b held near zero by its prior: a run that
-  // turns tells the bias from gravity, a still one leaves them confounded, and the covariance
-  // says so.
-  Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Matrix<double, 6, 1> rhs = Eigen::Matrix<double, 6, 1>::Zero();
-  information.bottomRightCorner<3, 3>() =
-      Eigen::Matrix3d::Identity() / (options.accel_bias_sigma_mps2 * options.accel_bias_sigma_mps2);
   double duration_s = 0.0;
-  Eigen::Vector3d plain_gravity_times_s = Eigen::Vector3d::Zero();  // Without a bias.
-  struct Equation {
-    Eigen::Matrix<double, 3, 6> jacobian;
-    Eigen::Vector3d residual;
-    double variance;
-  };
-  std::vector<Equation> equations;
-  for (const Window& window : windows) {
-    const auto v0 = BodyVelocity(map_from_cam, cam_from_body, window.start_ns, window.start_ns,
-                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
-    const auto v1 = BodyVelocity(map_from_cam, cam_from_body, window.end_ns, window.start_ns,
-                                 window.end_ns, kVelocityHalfWindowNs, kMaxGapNs);
-    if (!v0 || !v1) continue;
-    Eigen::Matrix<double, 3, 6> jacobian;
-    jacobian << -window.duration_s * Eigen::Matrix3d::Identity(), window.rotation_integral;
-    const Eigen::Vector3d residual = window.force_integral - (*v1 - *v0);
-    // Two velocities and the accelerometer's white noise integrated over the window.
-    const double variance =
-        2 * kVelocitySigmaMps * kVelocitySigmaMps +
-        options.accel_noise_density * options.accel_noise_density * window.duration_s;
-    information += jacobian.transpose() * jacobian / variance;
-    rhs += jacobian.transpose() * residual / variance;
-    duration_s += window.duration_s;
-    plain_gravity_times_s -= residual;
-    equations.push_back({jacobian, residual, variance});
-  }
+  Eigen::Vector3d plain_gravity_times_s;  // Without a bias.
+  const std::vector<Equation> equations =
+      WindowEquations(IntegrateWindows(map_from_cam, samples, cam_from_body, options), map_from_cam,
+                      cam_from_body, options, &duration_s, &plain_gravity_times_s);
   if (duration_s < options.min_imu_duration_s) {
     result.why_not =
         StrCat("the accelerometer overlaps the camera poses for ", FormatFixed(duration_s, 2),
                " s, under ", FormatFixed(options.min_imu_duration_s, 1), " s");
     return result;
   }
-  Eigen::Matrix<double, 6, 6> covariance = information.inverse();
-  const Eigen::Matrix<double, 6, 1> solution = covariance * rhs;
-  // The windows' scatter about the fit, where it exceeds the noise model (poses and samples a
-  // little off in time, a motion the poses' interpolation smooths), widens the covariance.
-  double chi2 = 0.0;
-  for (const Equation& e : equations) {
-    chi2 += (e.residual - e.jacobian * solution).squaredNorm() / e.variance;
-  }
-  const double dof = std::max(1.0, 3.0 * equations.size() - 6.0);
-  covariance *= std::max(1.0, chi2 / dof);
-  const Eigen::Vector3d gravity = solution.head<3>();
-  // The bias along gravity is confounded with its magnitude wherever the body's z stays near
-  // vertical (a walk turns about it): the magnitude is checked without a bias, and the joint
-  // solution gives the direction only.
+  // The magnitude, bias-free: a wrong one is wrong units, a wrong T_BS or wrong clocks.
   const double magnitude_mps2 = plain_gravity_times_s.norm() / duration_s;
   result.measured_gravity_mps2 = magnitude_mps2;
   if (std::abs(magnitude_mps2 / options.gravity_mps2 - 1) > options.max_magnitude_error) {
@@ -165,17 +249,15 @@ GravityResult GravityFromImu(const Trajectory& map_from_cam,
                             ": its units, the rig's T_BS or the clocks are wrong");
     return result;
   }
+  Eigen::Matrix2d direction_covariance;
+  const Eigen::Vector3d down = FitGravityDirection(equations, plain_gravity_times_s.normalized(),
+                                                   options, &direction_covariance);
   MapGravity found;
   found.source = MapGravity::Source::kImu;
-  found.up_in_map = -gravity.normalized();
-  // The direction's error: gravity's covariance across up, per axis, over its magnitude.
-  const Eigen::Matrix3d across_up =
-      Eigen::Matrix3d::Identity() - found.up_in_map * found.up_in_map.transpose();
-  const double across_variance =
-      (across_up * covariance.topLeftCorner<3, 3>() * across_up).trace() / 2;
+  found.up_in_map = -down;
+  // The direction's error per tangent axis (radians: the tangent step is an angle).
   found.sigma_deg =
-      std::max(options.min_imu_sigma_deg,
-               std::atan(std::sqrt(across_variance) / options.gravity_mps2) * kRadToDeg);
+      std::max(options.min_imu_sigma_deg, std::sqrt(direction_covariance.trace() / 2) * kRadToDeg);
   result.gravity = found;
   return result;
 }

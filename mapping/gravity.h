@@ -27,10 +27,12 @@
 
 namespace visloc::mapping {
 
-// One accelerometer reading: the specific force in the body frame (m/s^2; at rest, +9.81 up).
-struct AccelerometerSample {
+// One IMU reading in the body frame: the specific force (m/s^2; at rest, +9.81 up) and the
+// angular rate (rad/s), which carries the body's rotation from one camera pose to the next.
+struct ImuReading {
   int64_t timestamp_ns = 0;
   Eigen::Vector3d specific_force_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d angular_rate_radps = Eigen::Vector3d::Zero();
 };
 
 struct GravityOptions {
@@ -79,9 +81,10 @@ struct GravityResult {
 };
 
 // From the accelerometer. `map_from_cam` is the left camera's pose at each frame of the build
-// (sorted by time); samples outside its time span are not used.
-GravityResult GravityFromImu(const Trajectory& map_from_cam,
-                             const std::vector<AccelerometerSample>& samples,
+// (sorted by time); samples outside its time span are not used. Between two poses the body's
+// rotation is the earlier one carried forward by the gyro: a head that glances 110 degrees in a
+// second turns 17 degrees between frames at 5 fps, far from a slerp's path.
+GravityResult GravityFromImu(const Trajectory& map_from_cam, const std::vector<ImuReading>& samples,
                              const Rigid3d& body_from_cam, const GravityOptions& options = {});
 
 // From a body the operator declares level: up is its z axis, in the first keyframe's frame.

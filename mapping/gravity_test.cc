@@ -36,17 +36,22 @@ Scene TiltedScene() {
 }
 
 // The body (= camera here) walks a circle of radius 1 m in 20 s, turning with it, with a
-// vertical bob; IMU samples at 200 Hz from the exact motion, with a bias and white noise; poses
-// at 15 Hz.
+// vertical bob, and (`glance_rad`) a head turning that far and back every 2 s; IMU samples at
+// 200 Hz from the exact motion, with a bias and white noise; poses at `fps`.
 void CircleWalk(const Scene& scene, const Eigen::Vector3d& bias_body, bool still,
-                Trajectory* map_from_cam, std::vector<AccelerometerSample>* samples) {
+                Trajectory* map_from_cam, std::vector<ImuReading>* samples, double fps = 15,
+                double glance_rad = 0) {
   const Rigid3d map_from_world = scene.world_from_map.Inverse();
   const double radius = still ? 0.0 : 1.0, period_s = 20.0, bob = still ? 0.0 : 0.01;
+  const double turn_rate = still ? 0.0 : 2 * M_PI / period_s;
+  const auto yaw_at = [&](double t) {
+    return turn_rate * t + glance_rad * 0.5 * (1 - std::cos(M_PI * t));
+  };
   const auto world_from_cam = [&](double t) {
     const double a = 2 * M_PI * t / period_s;
     const Eigen::Vector3d position(radius * std::sin(a), radius * (1 - std::cos(a)),
                                    1.4 + bob * std::sin(2 * M_PI * 1.6 * t));
-    const Eigen::Quaterniond yaw(Eigen::AngleAxisd(still ? 0.0 : a, Eigen::Vector3d::UnitZ()));
+    const Eigen::Quaterniond yaw(Eigen::AngleAxisd(yaw_at(t), Eigen::Vector3d::UnitZ()));
     return Rigid3d(yaw * scene.world_from_map.rotation, position);
   };
   Rng rng(3);
@@ -56,15 +61,17 @@ void CircleWalk(const Scene& scene, const Eigen::Vector3d& bias_body, bool still
     const Eigen::Vector3d accel_world = (world_from_cam(t + h).translation - 2 * pose.translation +
                                          world_from_cam(t - h).translation) /
                                         (h * h);
-    AccelerometerSample sample;
+    ImuReading sample;
     sample.timestamp_ns = SecondsToNs(t);
     sample.specific_force_mps2 =
         pose.rotation.inverse() * (accel_world + Eigen::Vector3d(0, 0, kG)) + bias_body +
         Eigen::Vector3d(rng.Normal(0, 0.03), rng.Normal(0, 0.03), rng.Normal(0, 0.03));
+    const double yaw_rate = (yaw_at(t + h) - yaw_at(t - h)) / (2 * h);
+    sample.angular_rate_radps = pose.rotation.inverse() * Eigen::Vector3d(0, 0, yaw_rate);
     samples->push_back(sample);
   }
-  for (int f = 0; f <= 20 * 15; ++f) {
-    const double t = f / 15.0;
+  for (int f = 0; f <= 20 * fps; ++f) {
+    const double t = f / fps;
     map_from_cam->push_back({SecondsToNs(t), map_from_world * world_from_cam(t)});
   }
 }
@@ -72,7 +79,7 @@ void CircleWalk(const Scene& scene, const Eigen::Vector3d& bias_body, bool still
 TEST(GravityTest, AWalkThatTurnsTellsTheAccelerometersBiasFromGravity) {
   const Scene scene = TiltedScene();
   Trajectory poses;
-  std::vector<AccelerometerSample> samples;
+  std::vector<ImuReading> samples;
   const Eigen::Vector3d bias(0.25, -0.3, 0.1);  // Half a metre a second squared: 3 deg if ignored.
   CircleWalk(scene, bias, /*still=*/false, &poses, &samples);
   const GravityResult result = GravityFromImu(poses, samples, Rigid3d());
@@ -82,10 +89,23 @@ TEST(GravityTest, AWalkThatTurnsTellsTheAccelerometersBiasFromGravity) {
   EXPECT_LE(result.gravity->sigma_deg, 0.2);
 }
 
+// Poses at 5 fps while the head glances 110 deg and back every 2 s: 17 deg between frames, which
+// the gyro follows and a slerp between the poses would not.
+TEST(GravityTest, AHeadTurningFastBetweenFramesIsFollowedByTheGyro) {
+  const Scene scene = TiltedScene();
+  Trajectory poses;
+  std::vector<ImuReading> samples;
+  CircleWalk(scene, Eigen::Vector3d(0.05, -0.05, 0.02), /*still=*/false, &poses, &samples,
+             /*fps=*/5, /*glance_rad=*/110 * M_PI / 180);
+  const GravityResult result = GravityFromImu(poses, samples, Rigid3d());
+  ASSERT_TRUE(result.gravity) << result.why_not;
+  EXPECT_LT(AngleDeg(result.gravity->up_in_map, scene.UpInMap()), 0.1);
+}
+
 TEST(GravityTest, AStillRecordingCannotTellTheBiasAndItsSigmaSaysSo) {
   const Scene scene = TiltedScene();
   Trajectory poses;
-  std::vector<AccelerometerSample> samples;
+  std::vector<ImuReading> samples;
   const Eigen::Vector3d bias(0.45, 0.0, 0.0);  // The camera's x, across up: 2.6 deg.
   CircleWalk(scene, bias, /*still=*/true, &poses, &samples);
   const GravityResult result = GravityFromImu(poses, samples, Rigid3d());
@@ -98,16 +118,16 @@ TEST(GravityTest, AStillRecordingCannotTellTheBiasAndItsSigmaSaysSo) {
 TEST(GravityTest, AnAccelerometerInTheWrongUnitsIsRefusedByItsMagnitude) {
   const Scene scene = TiltedScene();
   Trajectory poses;
-  std::vector<AccelerometerSample> samples;
+  std::vector<ImuReading> samples;
   CircleWalk(scene, Eigen::Vector3d::Zero(), /*still=*/false, &poses, &samples);
-  for (AccelerometerSample& s : samples) s.specific_force_mps2 /= kG;  // In g.
+  for (ImuReading& s : samples) s.specific_force_mps2 /= kG;  // In g.
   const GravityResult result = GravityFromImu(poses, samples, Rigid3d());
   EXPECT_FALSE(result.gravity);
   EXPECT_NE(result.why_not.find("gravity of 1.00 m/s^2, not 9.81"), std::string::npos)
       << result.why_not;
   EXPECT_EQ(GravityFromImu(poses, {}, Rigid3d()).why_not, "the recording has no accelerometer");
   // Samples from another clock: none overlaps the poses.
-  for (AccelerometerSample& s : samples) s.timestamp_ns += SecondsToNs(100);
+  for (ImuReading& s : samples) s.timestamp_ns += SecondsToNs(100);
   EXPECT_NE(GravityFromImu(poses, samples, Rigid3d()).why_not.find("overlaps the camera poses"),
             std::string::npos);
 }
