@@ -16,6 +16,7 @@ int RunMap(const Args& args);
 int RunMapMerge(const Args& args);   // `visloc map merge`
 int RunMapExtend(const Args& args);  // `visloc map extend`
 int RunMapUpdate(const Args& args);  // `visloc map update`
+int RunMapAlign(const Args& args);   // `visloc map align`
 int RunDataset(const Args& args);
 int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);

@@ -100,32 +100,48 @@ int RunExport(const Args& args) {
   std::string map, maps_dir, keyframes_path, ply_path;
   ArgParser parser(
       "visloc map export",
-      "Writes a map's keyframe poses (TUM, map_from_cam) and/or a PLY point cloud with "
-      "the points (grey) and keyframe positions (red) for MeshLab or CloudCompare.");
+      "Writes a map's keyframe poses (TUM) and/or a PLY point cloud with the points (grey) and "
+      "keyframe positions (red) for MeshLab or CloudCompare, in the site frame when the map "
+      "knows one (z up: the frame `map align` tied it to, else its level frame), else in the "
+      "map frame.");
   parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
   parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
   parser.AddFlag("keyframes", &keyframes_path, "TUM file of keyframe poses to write");
   parser.AddFlag("ply", &ply_path, "PLY file to write");
+  std::string frame = "site";
+  parser.AddFlag("frame", &frame,
+                 "site (z up, when the map knows up; else the map frame) or map (the first "
+                 "camera's)");
   bool json = false;
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;
   if (keyframes_path.empty() && ply_path.empty())
     throw UsageError("nothing to export: give --keyframes and/or --ply");
+  if (frame != "site" && frame != "map") throw UsageError("--frame must be site or map");
   const Map loaded = mapstore::LoadMap(ResolveMap(map, maps_dir));
+  const std::optional<Rigid3d> site_from_map =
+      frame == "site" ? SiteFromMap(loaded.metadata) : std::nullopt;
+  const Rigid3d out_from_map = site_from_map.value_or(Rigid3d());
+  const std::string written_frame = site_from_map ? "site" : "map";
   std::string written;  // One line per file written.
   if (!keyframes_path.empty()) {
     Trajectory keyframes;
-    for (const Keyframe& k : loaded.keyframes)
-      keyframes.push_back({k.timestamp_ns, k.map_from_cam});
+    for (const Keyframe& k : loaded.keyframes) {
+      keyframes.push_back({k.timestamp_ns, out_from_map * k.map_from_cam});
+    }
     WriteTum(keyframes_path, keyframes);
-    written = StrCat(keyframes.size(), " keyframe poses -> ", keyframes_path);
+    written =
+        StrCat(keyframes.size(), " keyframe poses (", written_frame, " frame) -> ", keyframes_path);
   }
   if (!ply_path.empty()) {
     std::vector<ColoredPoint> cloud;
     cloud.reserve(loaded.points.size() + loaded.keyframes.size());
-    for (const MapPoint& p : loaded.points) cloud.push_back({p.position_in_map, {200, 200, 200}});
-    for (const Keyframe& k : loaded.keyframes)
-      cloud.push_back({k.map_from_cam.translation, {255, 0, 0}});
+    for (const MapPoint& p : loaded.points) {
+      cloud.push_back({out_from_map * p.position_in_map, {200, 200, 200}});
+    }
+    for (const Keyframe& k : loaded.keyframes) {
+      cloud.push_back({out_from_map * k.map_from_cam.translation, {255, 0, 0}});
+    }
     WritePly(ply_path, cloud,
              StrCat("visloc map ", loaded.metadata.name, ": ", loaded.points.size(),
                     " points (grey), ", loaded.keyframes.size(), " keyframes (red)"));
@@ -137,7 +153,8 @@ int RunExport(const Args& args) {
                        {"keyframes", static_cast<int64_t>(loaded.keyframes.size())},
                        {"points", static_cast<int64_t>(loaded.points.size())},
                        {"keyframes_tum", keyframes_path},
-                       {"ply", ply_path}});
+                       {"ply", ply_path},
+                       {"frame", written_frame}});
 }
 
 // A flag's A,B: two finite numbers, or a usage error that says what the flag `wants`.
@@ -559,6 +576,8 @@ int RunMap(const Args& args) {
       {"merge", "two maps of overlapping places into one, in the first one's frame", RunMapMerge},
       {"extend", "add a new stereo session to a map, in the map's frame", RunMapExtend},
       {"update", "the place changed: remove what is gone, add what is new", RunMapUpdate},
+      {"align", "tie a map to its site's frame (surveyed spots, a reference trajectory)",
+       RunMapAlign},
       {"list", "the maps in a maps folder or on a server", RunList},
       {"delete", "delete a map from a maps folder or a server", RunDelete},
       {"rename", "rename a map in a maps folder or on a server", RunRename},

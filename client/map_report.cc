@@ -110,6 +110,31 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   } else {
     json.Null();
   }
+  json.Key("site");
+  if (const std::optional<Rigid3d> site_from_map = SiteFromMap(info.metadata)) {
+    const auto& site = info.metadata.site;
+    json.BeginObject()
+        .Field("frame", site ? "aligned" : "level")
+        .Key("site_from_map")
+        .BeginObject()
+        .Field("tx", site_from_map->translation.x())
+        .Field("ty", site_from_map->translation.y())
+        .Field("tz", site_from_map->translation.z())
+        .Field("qw", site_from_map->rotation.w())
+        .Field("qx", site_from_map->rotation.x())
+        .Field("qy", site_from_map->rotation.y())
+        .Field("qz", site_from_map->rotation.z())
+        .EndObject();
+    if (site) {
+      json.Field("pairs", site->pairs)
+          .Field("rms_m", site->rms_m)
+          .Field("max_residual_m", site->max_residual_m)
+          .Field("reference", site->reference);
+    }
+    json.EndObject();
+  } else {
+    json.Null();
+  }
   json.Key("camera")
       .BeginObject()
       .Field("model", mapstore::CameraModelName(c.lens().model))
@@ -179,6 +204,17 @@ void PrintInfo(const MapInfo& info) {
         MapFrameTiltDeg(*gravity));
   } else {
     std::printf("up            not known (no IMU, level rig or floor told the build)\n");
+  }
+  if (const auto& site = info.metadata.site) {
+    std::printf("site          tied to %s by %d pairs, residual %.2f cm rms, %.2f cm at most\n",
+                site->reference.c_str(), site->pairs, 100 * site->rms_m,
+                100 * site->max_residual_m);
+  } else if (info.metadata.gravity) {
+    std::printf(
+        "site          the map's level frame (z up, x the first camera's heading, origin "
+        "at it); visloc map align ties it to the site's own\n");
+  } else {
+    std::printf("site          none: the map knows no up (visloc map align ties it to one)\n");
   }
   std::printf("features      %s (%s x %d)\n", info.features.kind.c_str(),
               ToString(info.features.descriptor_type).c_str(), info.features.descriptor_dim);

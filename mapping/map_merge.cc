@@ -309,6 +309,11 @@ Map MergeMaps(const Map& a, const Map& b, const MergeOptions& options, MergeStat
     b_gravity->up_in_map = (a_from_b.rotation * b_gravity->up_in_map).normalized();
     merged.metadata.gravity = b_gravity;
   }
+  // The site: A's, else B's through B's frame in A's.
+  if (!merged.metadata.site && b.metadata.site) {
+    merged.metadata.site = b.metadata.site;
+    merged.metadata.site->site_from_map = b.metadata.site->site_from_map * a_from_b.Inverse();
+  }
   merged.camera = a.camera;
   merged.features = a.features;
   merged.keyframes = a.keyframes;

@@ -31,6 +31,14 @@ void ChecksumHead(const Map& map, Crc& crc) {
     crc.Pod(gravity->sigma_deg);
     crc.Pod(static_cast<int32_t>(gravity->source));
   }
+  if (const auto& site = map.metadata.site) {
+    for (int i = 0; i < 3; ++i) crc.Pod(site->site_from_map.translation[i]);
+    for (int i = 0; i < 4; ++i) crc.Pod(site->site_from_map.rotation.coeffs()[i]);
+    crc.Pod(static_cast<int32_t>(site->pairs));
+    crc.Pod(site->rms_m);
+    crc.Pod(site->max_residual_m);
+    crc.Text(site->reference);
+  }
   crc.Pod(map.camera.width());
   crc.Pod(map.camera.height());
   crc.Pod(map.camera.Params());

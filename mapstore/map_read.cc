@@ -1,6 +1,7 @@
 // LoadMap and the readers of each table (map_file.h): every value checked as it is read, the
 // structure and the content checksum after.
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -113,6 +114,52 @@ std::optional<MapGravity> ReadGravity(const Database& db, const MetaRows& rows) 
   return gravity;
 }
 
+// The meta keys 'site_from_map' ("tx ty tz qw qx qy qz", a unit quaternion), 'site_pairs' (3 or
+// more), 'site_rms_m', 'site_max_residual_m' (not negative) and 'site_reference': all or none.
+std::optional<SiteAlignment> ReadSiteAlignment(const Database& db, const MetaRows& rows) {
+  const char* keys[] = {"site_from_map", "site_pairs", "site_rms_m", "site_max_residual_m",
+                        "site_reference"};
+  std::vector<std::optional<std::string>> values;
+  for (const char* key : keys) values.push_back(Find(rows, key));
+  const auto present = std::count_if(values.begin(), values.end(),
+                                     [](const auto& value) { return value.has_value(); });
+  if (present == 0) return std::nullopt;
+  if (present != 5) {
+    throw InputError(StrCat(db.path(),
+                            ": meta has part of the map's site alignment ('site_from_map', "
+                            "'site_pairs', 'site_rms_m', 'site_max_residual_m' and "
+                            "'site_reference' go together)"));
+  }
+  const auto malformed = [&] {
+    return InputError(StrCat(db.path(), ": malformed site alignment in meta ('", *values[0], "', '",
+                             *values[1], "', '", *values[2], "', '", *values[3], "')"));
+  };
+  const std::vector<std::string> parts = SplitWhitespace(*values[0]);
+  if (parts.size() != 7) throw malformed();
+  double v[7];
+  for (int i = 0; i < 7; ++i) {
+    const auto value = ParseDouble(parts[i]);
+    if (!value || !std::isfinite(*value)) throw malformed();
+    v[i] = *value;
+  }
+  SiteAlignment site;
+  site.site_from_map =
+      Rigid3d(Eigen::Quaterniond(v[3], v[4], v[5], v[6]), Eigen::Vector3d(v[0], v[1], v[2]));
+  const auto pairs = ParseInt64(*values[1]);
+  const auto rms = ParseDouble(*values[2]);
+  const auto max_residual = ParseDouble(*values[3]);
+  if (std::abs(site.site_from_map.rotation.norm() - 1) > 1e-6 || !pairs || *pairs < 3 ||
+      *pairs > (1 << 30) || !rms || !std::isfinite(*rms) || *rms < 0 || !max_residual ||
+      !std::isfinite(*max_residual) || *max_residual < 0) {
+    throw malformed();
+  }
+  site.pairs = static_cast<int>(*pairs);
+  site.rms_m = *rms;
+  site.max_residual_m = *max_residual;
+  site.reference = *values[4];
+  return site;
+}
+
 Meta ReadMeta(Database& db, Map* map) {
   if (!db.HasTable("meta")) throw InputError(db.path() + ": not a visloc map (no 'meta' table)");
   MetaRows rows;
@@ -147,6 +194,7 @@ Meta ReadMeta(Database& db, Map* map) {
   map->metadata.rig_error = ReadRigError(db, rows);                          // Schema 4; optional.
   map->metadata.stereo_baseline_m = ReadStereoBaseline(db, rows);            // Schema 5; optional.
   map->metadata.gravity = ReadGravity(db, rows);                             // Schema 6; optional.
+  map->metadata.site = ReadSiteAlignment(db, rows);                          // Schema 7; optional.
   const auto created = ParseInt64(value("created_unix_s"));
   const auto crc = ParseInt64(value("content_crc32"));
   if (!created || !crc || *crc < 0 || *crc > 0xffffffffLL) {

@@ -22,6 +22,7 @@ const char* CameraModelName(LensModel model) {
 }
 
 int SchemaVersionOf(const Map& map) {
+  if (map.metadata.site) return 7;
   if (map.metadata.gravity) return 6;
   if (map.metadata.stereo_baseline_m) return 5;
   if (map.metadata.rig_error) return 4;

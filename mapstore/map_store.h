@@ -30,13 +30,15 @@ namespace visloc::mapstore {
 // 'right_camera_yaw_rad' (the rig's disparity correction); 4: meta 'rig_error_floor_m' and
 // 'rig_error_drift_fraction' (the rig's calibration error, when its builder was told it); 5:
 // meta 'stereo_baseline_m' (the rig's baseline, which says how well its points are known); 6:
-// meta 'gravity_up', 'gravity_sigma_deg' and 'gravity_source' (the map's up direction).
-constexpr int kMapSchemaVersion = 6;
+// meta 'gravity_up', 'gravity_sigma_deg' and 'gravity_source' (the map's up direction); 7: meta
+// 'site_from_map', 'site_pairs', 'site_rms_m', 'site_max_residual_m' and 'site_reference' (the
+// site frame `visloc map align` tied it to).
+constexpr int kMapSchemaVersion = 7;
 
 // The schema a map is written in: the lowest that holds what it has, so older visloc versions
 // read every map they can: 1 without a lineage, a disparity correction or a rig error, 2 with a
 // lineage, 3 with a disparity correction, 4 with a rig error, 5 with a stereo baseline, 6 with
-// an up direction.
+// an up direction, 7 with a site alignment.
 int SchemaVersionOf(const Map& map);
 
 // The camera table's model column: "pinhole-radtan" (k1 k2 p1 p2 in the k1, k2, p1, p2

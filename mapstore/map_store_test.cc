@@ -226,6 +226,30 @@ TEST(MapStoreTest, TheMapsUpDirectoryIsKeptExactlyWithHowItWasFound) {
                 "'gravity_sigma_deg' and 'gravity_source' go together)");
 }
 
+TEST(MapStoreTest, TheSiteAlignmentIsKeptExactlyAndPartOfItIsRefused) {
+  TempDir dir;
+  const std::string path = dir.File("site.db");
+  Map map = SmallMap();
+  map.metadata.site = SiteAlignment{
+      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.1, 0.2, 1).normalized())),
+              Eigen::Vector3d(10.25, -2.5, 0.125)),
+      5, 0.0081, 0.0153, "pairs spots, the hall.csv"};
+  SaveMap(map, path);
+  const Map loaded = LoadMap(path);
+  EXPECT_TRUE(MapsEqual(loaded, map));
+  EXPECT_EQ(SummarizeMap(loaded, path).schema_version, 7);
+  EXPECT_TRUE(VerifyMapFile(path).ok());
+  EXPECT_EQ(LoadErrorWithMeta(path, "site_rms_m", "0.009"),
+            path + ": content checksum mismatch: the file is corrupt or was modified");
+  SaveMap(loaded, path);
+  EXPECT_NE(LoadErrorWithMeta(path, "site_pairs", "2").find(": malformed site alignment in meta"),
+            std::string::npos);
+  SaveMap(loaded, path);
+  EXPECT_NE(LoadErrorWithMeta(path, "site_reference", "")
+                .find(": meta has part of the map's site alignment"),
+            std::string::npos);
+}
+
 // Each kind of bad file gets its own clear message.
 class BadMapFileTest : public ::testing::Test {
  protected:

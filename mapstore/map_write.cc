@@ -59,6 +59,18 @@ void WriteMeta(Database& db, const Map& map) {
         .Bind(2, std::string(GravitySourceName(gravity->source)))
         .Run();
   }
+  if (const auto& site = map.metadata.site) {
+    const Rigid3d& pose = site->site_from_map;
+    char text[200];
+    std::snprintf(text, sizeof text, "%.17g %.17g %.17g %.17g %.17g %.17g %.17g",
+                  pose.translation.x(), pose.translation.y(), pose.translation.z(),
+                  pose.rotation.w(), pose.rotation.x(), pose.rotation.y(), pose.rotation.z());
+    insert.Bind(1, std::string("site_from_map")).Bind(2, std::string(text)).Run();
+    insert.Bind(1, std::string("site_pairs")).Bind(2, std::to_string(site->pairs)).Run();
+    insert_double("site_rms_m", site->rms_m);
+    insert_double("site_max_residual_m", site->max_residual_m);
+    insert.Bind(1, std::string("site_reference")).Bind(2, site->reference).Run();
+  }
 }
 
 void WriteCameraAndFeatures(Database& db, const Map& map) {

@@ -70,6 +70,14 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out) {
     wire->set_sigma_deg(gravity->sigma_deg);
     wire->set_source(GravitySourceName(gravity->source));
   }
+  if (const auto& site = info.metadata.site) {
+    v1::SiteAlignment* wire = out->mutable_site();
+    ToProto(site->site_from_map, wire->mutable_site_from_map());
+    wire->set_pairs(static_cast<uint32_t>(site->pairs));
+    wire->set_rms_m(site->rms_m);
+    wire->set_max_residual_m(site->max_residual_m);
+    wire->set_reference(site->reference);
+  }
   DetailsToProto(info, out->mutable_details());
 }
 
@@ -102,6 +110,12 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
     info.metadata.gravity = MapGravity{
         Eigen::Vector3d(gravity.up_x(), gravity.up_y(), gravity.up_z()), gravity.sigma_deg(),
         ParseGravitySource(gravity.source()).value_or(MapGravity::Source::kImu)};
+  }
+  if (wire.has_site()) {
+    const v1::SiteAlignment& site = wire.site();
+    info.metadata.site = SiteAlignment{FromProto(site.site_from_map(), "site_from_map"),
+                                       static_cast<int>(site.pairs()), site.rms_m(),
+                                       site.max_residual_m(), site.reference()};
   }
   info.features.kind = wire.feature_kind();
   info.keyframes = wire.keyframes();

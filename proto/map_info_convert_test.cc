@@ -20,6 +20,10 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   map.metadata.stereo_baseline_m = 0.110077;
   map.metadata.gravity =
       MapGravity{Eigen::Vector3d(0.6, -0.8, 0.0), 0.25, MapGravity::Source::kLevelRig};
+  map.metadata.site =
+      SiteAlignment{Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+                            Eigen::Vector3d(10, -2, 0.5)),
+                    5, 0.008, 0.015, "pairs spots.csv"};
   mapstore::SaveMap(map, dir.File("lab.db"));
   const mapstore::MapDirectory::Entry local = mapstore::MapDirectory(dir.path()).Describe("lab");
   ASSERT_TRUE(local.info.has_value()) << local.error;
@@ -58,6 +62,10 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_EQ(*b.metadata.rig_error, RigError{});
   EXPECT_EQ(b.metadata.stereo_baseline_m, 0.110077);
   EXPECT_EQ(b.metadata.gravity, map.metadata.gravity);
+  ASSERT_TRUE(b.metadata.site.has_value());
+  EXPECT_EQ(b.metadata.site->pairs, 5);
+  EXPECT_EQ(b.metadata.site->reference, "pairs spots.csv");
+  EXPECT_TRUE(b.metadata.site->site_from_map.translation.isApprox(Eigen::Vector3d(10, -2, 0.5)));
 
   // A map that records none says so on the wire too (not a zero correction).
   mapstore::SaveMap(MakeSyntheticMap({}), dir.File("plain.db"));
@@ -71,6 +79,7 @@ TEST(MapInfoConvertTest, AMapsSummaryRoundTrips) {
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.stereo_baseline_m.has_value());
   EXPECT_FALSE(plain.has_gravity());
   EXPECT_FALSE(proto::FromProto(plain, "plain").info->metadata.gravity.has_value());
+  EXPECT_FALSE(plain.has_site());
 }
 
 TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {

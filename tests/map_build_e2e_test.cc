@@ -51,7 +51,10 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
   EXPECT_EQ(JsonNumber(build.out, "map", "tracking_failures"), 0);
   EXPECT_EQ(Visloc({"map", "verify", map_path}).exit_code, 0);
 
-  ASSERT_EQ(Visloc({"map", "export", map_path, "--keyframes", dir.File("keyframes.tum")}).exit_code,
+  // In the map frame, as the ground truth is (the site frame is z up).
+  ASSERT_EQ(Visloc({"map", "export", map_path, "--keyframes", dir.File("keyframes.tum"), "--frame",
+                    "map"})
+                .exit_code,
             0);
   const ProcessResult eval = Visloc({"eval", "--gt", dir.File("map_square/groundtruth_map.tum"),
                                      "--est", dir.File("keyframes.tum"), "--json"});

@@ -104,7 +104,8 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   // B's keyframes in A's frame against the circle's ground truth (the fixture renders every
   // sequence's ground truth in the square map's frame).
   const std::string keyframes = dir_.File("keyframes.tum");
-  ASSERT_EQ(Visloc({"map", "export", merged, "--keyframes", keyframes}).exit_code, 0);
+  ASSERT_EQ(Visloc({"map", "export", merged, "--keyframes", keyframes, "--frame", "map"}).exit_code,
+            0);
   // Both sessions were rendered from the same start time, so the keyframes' times repeat.
   const Trajectory all = testing::ReadTumLines(keyframes);
   ASSERT_EQ(static_cast<int>(all.size()), keyframes_a + keyframes_b);

@@ -7,7 +7,11 @@
 #include <cmath>
 #include <filesystem>
 
+#include "core/util/check.h"
+#include "core/util/random.h"
+#include "core/util/strings.h"
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
 #include "dataset/dataset.h"
 #include "mapstore/map_store.h"
 #include "tests/support/e2e.h"
@@ -60,6 +64,28 @@ TEST(SiteE2eTest, AGeneratedMapKnowsUpFromItsAccelerometerWithinAFifthOfADegree)
   EXPECT_NE(text.out.find("from the IMU, sigma"), std::string::npos) << text.out;
 }
 
+// Exports speak the site frame once the map knows up: the square was walked on a level floor,
+// so its keyframes lie level there (the head's bob and the map's error: a few centimetres),
+// while in the map frame, its first camera's, they need not.
+TEST(SiteE2eTest, ExportsAreInTheLevelSiteFrameOnceTheMapKnowsUp) {
+  TempDir dir("visloc_site_export");
+  const auto heights = [&](const std::string& frame) {
+    const std::string path = dir.File(frame + ".tum");
+    const ProcessResult exported = Visloc(
+        {"map", "export", kData + "/map.db", "--keyframes", path, "--frame", frame, "--json"});
+    EXPECT_EQ(exported.exit_code, 0) << exported.err;
+    EXPECT_NE(exported.out.find("\"frame\":\"" + frame + "\""), std::string::npos) << exported.out;
+    double low = 1e9, high = -1e9;
+    for (const StampedPose& k : testing::ReadTumLines(path)) {
+      low = std::min(low, k.pose.translation.z());
+      high = std::max(high, k.pose.translation.z());
+    }
+    return high - low;
+  };
+  EXPECT_LT(heights("site"), 0.04);
+  EXPECT_GT(heights("map"), 1.0);  // The map's z is the first camera's optical axis.
+}
+
 // A rig mounted pitched and rolled, no accelerometer: the map frame is tilted, and the floor
 // beneath the keyframes says by how much.
 TEST(SiteE2eTest, ATiltedRigWithoutAnImuFindsUpFromTheFloorWithinADegree) {
@@ -108,6 +134,65 @@ TEST(SiteE2eTest, AStillRealRecordingsUpIsWithinItsSigmaOfTheGroundTruth) {
   EXPECT_LT(error_deg, 3.0);
   EXPECT_LT(error_deg, 2 * gravity.sigma_deg);
   EXPECT_GT(gravity.sigma_deg, 1.0);
+}
+
+// Surveyed spots: the robot localized at five places of the room (the map's keyframes there),
+// each spot's position surveyed in the world frame to 1 cm (rms, 3-D). `map align` ties the map to
+// the world, and every keyframe lands within 2 cm of where it truly was; a spot surveyed 1 m off is
+// named and refused, the map untouched.
+TEST(SiteE2eTest, SurveyedSpotsTieTheMapToTheSiteAndAWrongSpotIsRefusedByName) {
+  TempDir dir("visloc_align");
+  const std::string map_path = dir.File("square.db");
+  std::filesystem::copy_file(kData + "/map.db", map_path);
+  const Map map = mapstore::LoadMap(map_path);
+  const Dataset dataset = ReadDataset(kData + "/map_square");
+  const auto true_position = [&](int64_t t_ns) {
+    const auto world_from_body = InterpolateAt(dataset.world_from_body, t_ns, 50'000'000);
+    EXPECT_TRUE(world_from_body.has_value());
+    return (world_from_body.value_or(Rigid3d()) * dataset.left.body_from_cam).translation;
+  };
+  Rng rng(11);
+  std::string pairs = "name,map_x,map_y,map_z,site_x,site_y,site_z\n";
+  std::string wrong = pairs;
+  const size_t n = map.keyframes.size();
+  for (int s = 0; s < 5; ++s) {
+    const Keyframe& k = map.keyframes[s * (n - 1) / 4];
+    Eigen::Vector3d site = true_position(k.timestamp_ns);
+    for (int i = 0; i < 3; ++i) site[i] += rng.Normal(0, 0.01 / std::sqrt(3.0));  // 1 cm rms.
+    const Eigen::Vector3d& in_map = k.map_from_cam.translation;
+    const auto line = [&](const Eigen::Vector3d& at) {
+      return StrCat("spot ", s + 1, ",", in_map.x(), ",", in_map.y(), ",", in_map.z(), ",", at.x(),
+                    ",", at.y(), ",", at.z(), "\n");
+    };
+    pairs += line(site);
+    wrong += line(s == 2 ? Eigen::Vector3d(site + Eigen::Vector3d(1.0, 0, 0)) : site);
+  }
+  WriteFileAtomically(dir.File("wrong.csv"), wrong);
+  const ProcessResult refused =
+      Visloc({"map", "align", map_path, "--pairs", dir.File("wrong.csv")});
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.err.find("pair 'spot 3' is "), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("a wrong pair?"), std::string::npos) << refused.err;
+  EXPECT_FALSE(mapstore::LoadMap(map_path).metadata.site.has_value());
+
+  WriteFileAtomically(dir.File("spots.csv"), pairs);
+  const ProcessResult aligned =
+      Visloc({"map", "align", map_path, "--pairs", dir.File("spots.csv"), "--json"});
+  ASSERT_EQ(aligned.exit_code, 0) << aligned.err;
+  EXPECT_LT(JsonNumber(aligned.out, "rms_m"), 0.02);
+  EXPECT_LT(JsonNumber(aligned.out, "site_z_from_up_deg"), 1.0);  // The world's z is up.
+  const Map tied = mapstore::LoadMap(map_path);
+  ASSERT_TRUE(tied.metadata.site.has_value());
+  EXPECT_EQ(tied.metadata.site->pairs, 5);
+  double worst_m = 0;
+  for (const Keyframe& k : tied.keyframes) {
+    const Eigen::Vector3d in_site = tied.metadata.site->site_from_map * k.map_from_cam.translation;
+    worst_m = std::max(worst_m, (in_site - true_position(k.timestamp_ns)).norm());
+  }
+  EXPECT_LT(worst_m, 0.02) << "every keyframe within 2 cm of its true site position";
+  EXPECT_EQ(Visloc({"map", "verify", map_path}).exit_code, 0);
+  const ProcessResult info = Visloc({"map", "info", map_path});
+  EXPECT_NE(info.out.find("site          tied to pairs "), std::string::npos) << info.out;
 }
 
 }  // namespace

@@ -117,6 +117,33 @@ const char* GravitySourceName(MapGravity::Source source) {
   return "unknown";
 }
 
+bool SiteAlignment::operator==(const SiteAlignment& other) const {
+  return site_from_map.translation == other.site_from_map.translation &&
+         site_from_map.rotation.coeffs() == other.site_from_map.rotation.coeffs() &&
+         pairs == other.pairs && rms_m == other.rms_m && max_residual_m == other.max_residual_m &&
+         reference == other.reference;
+}
+
+Rigid3d LevelFromMap(const MapGravity& gravity) {
+  const Eigen::Vector3d up = gravity.up_in_map.normalized();
+  // x: the map's z (the first camera's optical axis) made level; a camera looking straight up
+  // or down takes its x instead.
+  Eigen::Vector3d forward = Eigen::Vector3d::UnitZ() - up.z() * up;
+  if (forward.norm() < 1e-6) forward = Eigen::Vector3d::UnitX() - up.x() * up;
+  forward.normalize();
+  Eigen::Matrix3d level_from_map;
+  level_from_map.row(0) = forward.transpose();
+  level_from_map.row(1) = up.cross(forward).transpose();
+  level_from_map.row(2) = up.transpose();
+  return Rigid3d(Eigen::Quaterniond(level_from_map).normalized(), Eigen::Vector3d::Zero());
+}
+
+std::optional<Rigid3d> SiteFromMap(const MapMetadata& metadata) {
+  if (metadata.site) return metadata.site->site_from_map;
+  if (metadata.gravity) return LevelFromMap(*metadata.gravity);
+  return std::nullopt;
+}
+
 double MapFrameTiltDeg(const MapGravity& gravity) {
   const double cosine = std::clamp(-gravity.up_in_map.normalized().y(), -1.0, 1.0);
   return std::acos(cosine) * 180.0 / M_PI;
@@ -152,6 +179,12 @@ std::vector<std::string> FindMapProblems(const Map& map, size_t max_problems) {
       gravity && !(Finite(gravity->up_in_map) && std::abs(gravity->up_in_map.norm() - 1) < 1e-6 &&
                    gravity->sigma_deg >= 0 && std::isfinite(gravity->sigma_deg))) {
     problems.Add("the map's up direction is not a unit vector with a sigma of 0 or more degrees");
+  }
+  if (const auto& site = map.metadata.site;
+      site && !(PoseIsSound(site->site_from_map) && site->pairs >= 3 && site->rms_m >= 0 &&
+                std::isfinite(site->rms_m) && site->max_residual_m >= site->rms_m &&
+                std::isfinite(site->max_residual_m))) {
+    problems.Add("the map's site alignment is not sound (a pose, 3 or more pairs, residuals)");
   }
   for (size_t i = 0; i < map.keyframes.size() && !problems.full(); ++i) {
     if (!PoseIsSound(map.keyframes[i].map_from_cam)) {
@@ -207,7 +240,7 @@ bool MapsEqual(const Map& a, const Map& b) {
       a.metadata.disparity_correction != b.metadata.disparity_correction ||
       a.metadata.rig_error != b.metadata.rig_error ||
       a.metadata.stereo_baseline_m != b.metadata.stereo_baseline_m ||
-      a.metadata.gravity != b.metadata.gravity) {
+      a.metadata.gravity != b.metadata.gravity || a.metadata.site != b.metadata.site) {
     return false;
   }
   if (a.camera.width() != b.camera.width() || a.camera.height() != b.camera.height() ||

@@ -63,6 +63,23 @@ std::optional<MapGravity::Source> ParseGravitySource(const std::string& text);
 // which is up when the first left camera was held level (OpenCV: y down).
 double MapFrameTiltDeg(const MapGravity& gravity);
 
+// The site's own frame a map is tied to (`visloc map align`): surveyed spots, a floor plan, a
+// motion-capture or total-station frame; metric, z up by the site's convention.
+struct SiteAlignment {
+  Rigid3d site_from_map;
+  int pairs = 0;                // Position pairs the fit used.
+  double rms_m = 0.0;           // Their residual after it.
+  double max_residual_m = 0.0;  // The largest.
+  std::string reference;        // What the map was tied to, e.g. "pairs spots.csv".
+  bool operator==(const SiteAlignment& other) const;
+  bool operator!=(const SiteAlignment& other) const { return !(*this == other); }
+};
+
+// The map's level frame: z up (MapGravity::up_in_map), x the first camera's optical axis
+// turned level (its heading), origin at the first camera. Identity rotation about up is kept
+// as close to the camera's as levelling allows.
+Rigid3d LevelFromMap(const MapGravity& gravity);
+
 struct MapMetadata {
   std::string name;
   int64_t created_unix_s = 0;
@@ -85,7 +102,13 @@ struct MapMetadata {
   std::optional<double> stereo_baseline_m = std::nullopt;
   // Up, when the build could tell (MapGravity); none: it could not, or the map is older.
   std::optional<MapGravity> gravity = std::nullopt;
+  // The site frame it is tied to, when an operator tied it (`visloc map align`).
+  std::optional<SiteAlignment> site = std::nullopt;
 };
+
+// The frame a map speaks to robots, ROS and operators by default: the site it was tied to, else
+// its level frame, else none (the map frame: it knows no up).
+std::optional<Rigid3d> SiteFromMap(const MapMetadata& metadata);
 
 struct Keyframe {
   int64_t timestamp_ns = 0;

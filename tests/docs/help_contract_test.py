@@ -22,7 +22,6 @@ NOT_YET = {
     ("visloc map build", "--server"): "issue 36 (mapping over the link)",
 }
 NOT_YET_VERBS = {
-    "visloc map align": "issue 57 (the site: a site frame)",
     "visloc map localizability": "issue 57 (the site: where robots will localize)",
 }
 BINARIES = {"visloc": VISLOC, "visloc-server": SERVER}
