@@ -101,17 +101,19 @@ int RunExport(const Args& args) {
   ArgParser parser(
       "visloc map export",
       "Writes a map's keyframe poses (TUM) and/or a PLY point cloud with the points (grey) and "
-      "keyframe positions (red) for MeshLab or CloudCompare, in the site frame when the map "
-      "knows one (z up: the frame `map align` tied it to, else its level frame), else in the "
-      "map frame.");
+      "keyframe positions (red) for MeshLab or CloudCompare, in the map frame (as trajectories "
+      "and ground truth are) or, with --frame site, in the site frame (z up: the frame `map "
+      "align` tied it to, else the map's level frame).");
   parser.AddPositional("MAP", &map, "a map file, or a map name with --maps");
   parser.AddFlag("maps", &maps_dir, "maps folder in which to find MAP by name");
   parser.AddFlag("keyframes", &keyframes_path, "TUM file of keyframe poses to write");
   parser.AddFlag("ply", &ply_path, "PLY file to write");
-  std::string frame = "site";
+  // The map frame by default while trajectories (localize, stream) are in it too: the surfaces
+  // move to the site frame together.
+  std::string frame = "map";
   parser.AddFlag("frame", &frame,
-                 "site (z up, when the map knows up; else the map frame) or map (the first "
-                 "camera's)");
+                 "map (the first camera's) or site (z up, when the map knows up; else the map "
+                 "frame)");
   bool json = false;
   parser.AddSwitch("json", &json, "print one JSON object");
   if (!parser.Parse(args, std::cout)) return 0;

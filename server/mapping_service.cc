@@ -8,6 +8,7 @@
 #include "core/util/strings.h"
 #include "core/util/timer.h"
 #include "core/util/version.h"
+#include "mapping/gravity.h"
 #include "mapping/map_builder.h"
 #include "mapping/session_merge.h"
 #include "mapstore/map_directory.h"
@@ -310,7 +311,9 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
       job->name, static_cast<int64_t>(std::time(nullptr)),
       StrCat("robot ", job->robot_id.empty() ? peer : job->robot_id, " over the link"),
       StrCat("visloc ", VislocVersion(), " mapping service"), ""};
-  const Map map = job->spool ? Extend(folder, job) : job->builder.Finish(metadata);
+  Map map = job->spool ? Extend(folder, job) : job->builder.Finish(metadata);
+  // Up, from the floor beneath the keyframes (frames over the link carry no accelerometer).
+  if (!map.metadata.gravity) map.metadata.gravity = mapping::GravityFromFloor(map).gravity;
   if (static_cast<int>(map.points.size()) < job->options.min_points) {
     return Fail(stream, job, StatusCode::FAILED_PRECONDITION,
                 StrCat("the map would have ", map.points.size(), " points, fewer than ",

@@ -576,7 +576,8 @@ def part_mapping(world, a, work, figures):
 
 def read_tum_positions(visloc, map_db, out):
     """timestamp_ns -> keyframe position (m) of a map file."""
-    run([visloc, "map", "export", map_db, "--keyframes", out])
+    # In the map frame (the first camera's): each map's level frame is its own estimate of up.
+    run([visloc, "map", "export", map_db, "--keyframes", out, "--frame", "map"])
     return {t: m[:3, 3] for t, m in read_tum(out).items()}
 
 
