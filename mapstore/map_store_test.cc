@@ -291,11 +291,11 @@ TEST_F(BadMapFileTest, TruncatedFile) {
 TEST_F(BadMapFileTest, MissingTableAndNewerSchema) {
   Sql("DROP TABLE vocabulary");
   EXPECT_EQ(LoadError(path_), path_ + ": missing table 'vocabulary'");
-  Sql("UPDATE meta SET value = '7' WHERE key = 'schema_version'");
+  Sql("UPDATE meta SET value = '8' WHERE key = 'schema_version'");
   EXPECT_EQ(
       LoadError(path_),
       path_ +
-          ": written by a newer visloc (map schema 7; this visloc reads up to 6): upgrade visloc");
+          ": written by a newer visloc (map schema 8; this visloc reads up to 7): upgrade visloc");
 }
 
 TEST_F(BadMapFileTest, DanglingObservation) {
