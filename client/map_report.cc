@@ -10,6 +10,19 @@
 #include "core/util/strings.h"
 
 namespace visloc::cli {
+void WritePoseField(JsonWriter& json, const char* key, const Rigid3d& pose) {
+  json.Key(key)
+      .BeginObject()
+      .Field("tx", pose.translation.x())
+      .Field("ty", pose.translation.y())
+      .Field("tz", pose.translation.z())
+      .Field("qw", pose.rotation.w())
+      .Field("qx", pose.rotation.x())
+      .Field("qy", pose.rotation.y())
+      .Field("qz", pose.rotation.z())
+      .EndObject();
+}
+
 namespace {
 
 const char* GravitySourceText(MapGravity::Source source) {
@@ -113,18 +126,8 @@ void WriteInfoJson(JsonWriter& json, const MapInfo& info) {
   json.Key("site");
   if (const std::optional<Rigid3d> site_from_map = SiteFromMap(info.metadata)) {
     const auto& site = info.metadata.site;
-    json.BeginObject()
-        .Field("frame", site ? "aligned" : "level")
-        .Key("site_from_map")
-        .BeginObject()
-        .Field("tx", site_from_map->translation.x())
-        .Field("ty", site_from_map->translation.y())
-        .Field("tz", site_from_map->translation.z())
-        .Field("qw", site_from_map->rotation.w())
-        .Field("qx", site_from_map->rotation.x())
-        .Field("qy", site_from_map->rotation.y())
-        .Field("qz", site_from_map->rotation.z())
-        .EndObject();
+    json.BeginObject().Field("frame", site ? "aligned" : "level");
+    WritePoseField(json, "site_from_map", *site_from_map);
     if (site) {
       json.Field("pairs", site->pairs)
           .Field("rms_m", site->rms_m)

@@ -6,10 +6,15 @@
 #include <string>
 #include <vector>
 
+#include "core/geometry/rigid3.h"
+#include "core/util/json.h"
 #include "mapstore/map_directory.h"
 #include "mapstore/map_store.h"
 
 namespace visloc::cli {
+
+// `pose` as the object {tx, ty, tz, qw, qx, qy, qz} under `key` (the wire's Pose fields).
+void WritePoseField(JsonWriter& json, const char* key, const Rigid3d& pose);
 
 // The map's summary as text, or as one JSON object. Returns 0.
 int PrintMapInfo(const mapstore::MapInfo& info, bool json);

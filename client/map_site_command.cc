@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "client/commands.h"
+#include "client/map_report.h"
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
@@ -112,18 +113,8 @@ int RunMapAlign(const Args& args) {
         .Field("stored", result.site.has_value() && !dry_run)
         .Field("pairs", static_cast<int64_t>(pairs.size()));
     if (result.site) {
-      const Rigid3d& pose = result.site->site_from_map;
       out.Field("rms_m", result.site->rms_m).Field("max_residual_m", result.site->max_residual_m);
-      out.Key("site_from_map")
-          .BeginObject()
-          .Field("tx", pose.translation.x())
-          .Field("ty", pose.translation.y())
-          .Field("tz", pose.translation.z())
-          .Field("qw", pose.rotation.w())
-          .Field("qx", pose.rotation.x())
-          .Field("qy", pose.rotation.y())
-          .Field("qz", pose.rotation.z())
-          .EndObject();
+      WritePoseField(out, "site_from_map", result.site->site_from_map);
     } else {
       out.Field("problem", result.why_not);
     }

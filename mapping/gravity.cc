@@ -103,8 +103,10 @@ std::vector<Window> IntegrateWindows(const Trajectory& map_from_cam,
               .normalized();
     }
     carried_ns = t_ns;
-    if (!open || t_ns - windows.back().start_ns >= window_ns) windows.push_back({});
-    if (!open || windows.back().duration_s == 0) windows.back().start_ns = t_ns;
+    if (!open || t_ns - windows.back().start_ns >= window_ns) {
+      windows.push_back({});
+      windows.back().start_ns = t_ns;
+    }
     open = true;
     const double dt_s = NsToSeconds(next_ns - t_ns);
     const Eigen::Matrix3d map_from_body = map_from_body_q.toRotationMatrix();
