@@ -17,6 +17,7 @@ int RunMapMerge(const Args& args);   // `visloc map merge`
 int RunMapExtend(const Args& args);  // `visloc map extend`
 int RunMapUpdate(const Args& args);  // `visloc map update`
 int RunMapAlign(const Args& args);   // `visloc map align`
+int RunMapLocalizability(const Args& args);  // `visloc map localizability`
 int RunDataset(const Args& args);
 int RunDatasetImport(const Args& args);  // `visloc dataset import`
 int RunCalibrate(const Args& args);

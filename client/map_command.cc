@@ -580,6 +580,8 @@ int RunMap(const Args& args) {
       {"update", "the place changed: remove what is gone, add what is new", RunMapUpdate},
       {"align", "tie a map to its site's frame (surveyed spots, a reference trajectory)",
        RunMapAlign},
+      {"localizability", "where a robot will localize well, looking which way, from the map alone",
+       RunMapLocalizability},
       {"list", "the maps in a maps folder or on a server", RunList},
       {"delete", "delete a map from a maps folder or a server", RunDelete},
       {"rename", "rename a map in a maps folder or on a server", RunRename},

@@ -51,6 +51,23 @@ int RemoteMapInfo(const Connection& server, const std::string& name, bool json) 
   return PrintMapInfo(*entry.info, json);
 }
 
+LocalizabilityReport RemoteLocalizability(const Connection& server, const std::string& name,
+                                          const LocalizabilityOptions& options) {
+  grpc::ClientContext context;
+  server.Prepare(&context);
+  v1::LocalizabilityRequest request;
+  request.set_map(name);
+  request.set_cell_m(options.cell_m);
+  request.set_headings(static_cast<uint32_t>(options.headings));
+  request.set_has_height(options.height_m.has_value());
+  request.set_height_m(options.height_m.value_or(0.0));
+  request.set_has_pitch(options.pitch_deg.has_value());
+  request.set_pitch_deg(options.pitch_deg.value_or(0.0));
+  v1::Localizability answer;
+  CheckCall(Connect(server)->GetLocalizability(&context, request, &answer), server.server);
+  return proto::FromProto(answer);
+}
+
 int RemoteMapUpload(const Connection& server, const std::string& path, const std::string& name,
                     bool replace, bool force, bool json) {
   // Refuse to send what the server would refuse anyway, with the local file's problem.

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "client/connection.h"
+#include "core/localization/localizability.h"
 
 namespace visloc::cli {
 
@@ -20,5 +21,10 @@ int RemoteMapDownload(const Connection& server, const std::string& name, const s
 int RemoteMapDelete(const Connection& server, const std::string& name, bool force, bool json);
 int RemoteMapRename(const Connection& server, const std::string& from, const std::string& to,
                     bool json);
+
+// The server's localizability grid of map `name` (GetLocalizability); zero cell and headings
+// take the server's defaults.
+LocalizabilityReport RemoteLocalizability(const Connection& server, const std::string& name,
+                                          const LocalizabilityOptions& options);
 
 }  // namespace visloc::cli

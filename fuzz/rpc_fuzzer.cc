@@ -4,6 +4,7 @@
 // into messages (fuzz_input.h), each parsed as that RPC's request type:
 //   0 Localize (up to 12 stream messages)  1 Relocalize  2 ListMaps  3 GetMapInfo
 //   4 UploadMap (up to 12 chunks)          5 DownloadMap 6 DeleteMap 7 RenameMap
+//   8 GetLocalizability (its grid bounded to 20,000 poses)
 // The server must answer every call with a status (never crash or hang); after each input the
 // seed map is restored if a call removed it, and other maps are cleared, so inputs stay
 // independent.
@@ -38,7 +39,8 @@ class InProcessServer {
       : maps_dir_("visloc-rpc-fuzz"),
         maps_(maps_dir_.path(), std::chrono::seconds(3600)),
         localization_(&maps_, Limits(), &auth_),
-        admin_(&maps_, server::MapAdminOptions{4 << 20, false}, &auth_) {
+        localizability_(&maps_, 20'000, 1),
+        admin_(&maps_, &localizability_, server::MapAdminOptions{4 << 20, false}, &auth_) {
     SyntheticMapOptions options;
     options.keyframes = 6;
     options.points = 200;
@@ -86,6 +88,7 @@ class InProcessServer {
   server::MapCache maps_;
   server::TokenAuth auth_;  // Disabled: every call allowed, so every handler is reached.
   server::LocalizationService localization_;
+  server::LocalizabilityCache localizability_;
   server::MapAdminService admin_;
   std::string seed_bytes_;
   std::unique_ptr<grpc::Server> server_;
@@ -163,7 +166,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static InProcessServer* server = new InProcessServer();  // Lives for the whole run.
   FuzzInput input(data, size);
   auto& admin = server->map_admin();
-  switch (input.Byte() % 8) {
+  switch (input.Byte() % 9) {
     case 0:
       Localize(*server, input);
       break;
@@ -190,9 +193,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       Unary<v1::MapName, v1::Empty>(
           input.Rest(), [&](auto* c, const auto& r, auto* a) { return admin.DeleteMap(c, r, a); });
       break;
-    default:
+    case 7:
       Unary<v1::RenameMapRequest, v1::MapInfo>(
           input.Rest(), [&](auto* c, const auto& r, auto* a) { return admin.RenameMap(c, r, a); });
+      break;
+    default:
+      Unary<v1::LocalizabilityRequest, v1::Localizability>(
+          input.Rest(),
+          [&](auto* c, const auto& r, auto* a) { return admin.GetLocalizability(c, r, a); });
       break;
   }
   server->Reset();

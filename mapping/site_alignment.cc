@@ -8,6 +8,7 @@
 #include "core/geometry/align.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "mapping/gravity.h"
 
 namespace visloc::mapping {
 namespace {
@@ -124,6 +125,24 @@ std::vector<PositionPair> PairsFromTrajectories(const Trajectory& map_from_cam,
                      estimated.pose.translation, nearest->pose.translation});
   }
   return pairs;
+}
+
+std::optional<PlanFrame> PlanFrameOf(const Map& map, std::string* why_not) {
+  if (const auto site_from_map = SiteFromMap(map.metadata)) {
+    if (map.metadata.site) {
+      return PlanFrame{*site_from_map, "site", "tied by " + map.metadata.site->reference};
+    }
+    return PlanFrame{*site_from_map, "level",
+                     StrCat("level, up from ", GravitySourceName(map.metadata.gravity->source))};
+  }
+  const GravityResult floor = GravityFromFloor(map);
+  if (!floor.gravity) {
+    if (why_not) *why_not = "the map records no up and its floor does not tell: " + floor.why_not;
+    return std::nullopt;
+  }
+  return PlanFrame{LevelFromMap(*floor.gravity), "floor",
+                   StrCat("level, up from the ", GravitySourceName(floor.gravity->source),
+                          " found now (the map records none)")};
 }
 
 }  // namespace visloc::mapping

@@ -55,4 +55,14 @@ std::vector<PositionPair> PairsFromTrajectories(const Trajectory& map_from_cam,
                                                 const Trajectory& site_from_cam,
                                                 int64_t max_dt_ns = 10'000'000);
 
+// The level frame a map is seen from above in (the operator's page, `map localizability`): its
+// site frame (map.h SiteFromMap); for a map that records no up, levelled on its floor now (not
+// stored); none when the floor does not tell either (`why_not` says why).
+struct PlanFrame {
+  Rigid3d site_from_map;
+  std::string name;  // "site" (tied by map align), "level" (the map's up) or "floor" (found now).
+  std::string how;   // For reports, e.g. "level, up from imu".
+};
+std::optional<PlanFrame> PlanFrameOf(const Map& map, std::string* why_not = nullptr);
+
 }  // namespace visloc::mapping

@@ -1,6 +1,8 @@
 #include "proto/map_info_convert.h"
 
+#include "core/util/check.h"
 #include "proto/convert.h"
+#include "proto/geometry_convert.h"
 
 namespace visloc::proto {
 namespace {
@@ -137,6 +139,83 @@ mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& wire, const std::stri
   info.memory_bytes = details.memory_bytes();
   entry.info = info;
   return entry;
+}
+
+}  // namespace visloc::proto
+
+namespace visloc::proto {
+
+void ToProto(const LocalizabilityReport& report, v1::Localizability* out) {
+  const LocalizabilityGrid& grid = report.grid;
+  out->set_map(report.map);
+  out->set_frame(report.frame);
+  out->set_frame_how(report.frame_how);
+  ToProto(grid.site_from_map, out->mutable_site_from_map());
+  out->set_min_x_m(grid.min_x_m);
+  out->set_min_y_m(grid.min_y_m);
+  out->set_cell_m(grid.cell_m);
+  out->set_cells_x(static_cast<uint32_t>(grid.cells_x));
+  out->set_cells_y(static_cast<uint32_t>(grid.cells_y));
+  out->set_headings(static_cast<uint32_t>(grid.headings));
+  out->set_height_m(grid.height_m);
+  out->set_pitch_deg(grid.pitch_deg);
+  const int poses = static_cast<int>(grid.estimates.size());
+  out->mutable_expected_inliers()->Reserve(poses);
+  out->mutable_position_sigma_m()->Reserve(poses);
+  out->mutable_point_variance_ratio()->Reserve(poses);
+  out->mutable_good()->Reserve(poses);
+  out->mutable_visible_points()->Reserve(poses);
+  for (const LocalizabilityEstimate& e : grid.estimates) {
+    out->add_expected_inliers(e.expected_inliers);
+    out->add_position_sigma_m(e.position_sigma_m);
+    out->add_point_variance_ratio(e.point_variance_ratio);
+    out->add_good(e.good);
+    out->add_visible_points(e.visible_points);
+  }
+  out->set_good_poses(static_cast<uint32_t>(report.stats.good_poses));
+  out->set_keyframes(static_cast<uint32_t>(report.stats.keyframes));
+  out->set_seconds(report.stats.seconds);
+}
+
+LocalizabilityReport FromProto(const v1::Localizability& in) {
+  LocalizabilityReport answer;
+  answer.map = in.map();
+  answer.frame = in.frame();
+  answer.frame_how = in.frame_how();
+  LocalizabilityGrid& grid = answer.grid;
+  grid.site_from_map = FromProto(in.site_from_map(), "site_from_map");
+  grid.min_x_m = in.min_x_m();
+  grid.min_y_m = in.min_y_m();
+  grid.cell_m = in.cell_m();
+  grid.cells_x = static_cast<int>(in.cells_x());
+  grid.cells_y = static_cast<int>(in.cells_y());
+  grid.headings = static_cast<int>(in.headings());
+  grid.height_m = in.height_m();
+  grid.pitch_deg = in.pitch_deg();
+  const size_t poses = static_cast<size_t>(in.cells_x()) * in.cells_y() * in.headings();
+  for (const int size :
+       {in.expected_inliers_size(), in.position_sigma_m_size(), in.point_variance_ratio_size(),
+        in.good_size(), in.visible_points_size()}) {
+    if (static_cast<size_t>(size) != poses) {
+      throw InputError(StrCat("a localizability grid of ", in.cells_x(), " x ", in.cells_y(),
+                              " cells and ", in.headings(), " headings with ", size,
+                              " values in a field"));
+    }
+  }
+  grid.estimates.resize(poses);
+  for (size_t i = 0; i < poses; ++i) {
+    LocalizabilityEstimate& e = grid.estimates[i];
+    e.expected_inliers = in.expected_inliers(static_cast<int>(i));
+    e.position_sigma_m = in.position_sigma_m(static_cast<int>(i));
+    e.point_variance_ratio = in.point_variance_ratio(static_cast<int>(i));
+    e.good = in.good(static_cast<int>(i));
+    e.visible_points = in.visible_points(static_cast<int>(i));
+  }
+  answer.stats.poses = static_cast<int>(poses);
+  answer.stats.good_poses = static_cast<int>(in.good_poses());
+  answer.stats.keyframes = static_cast<int>(in.keyframes());
+  answer.stats.seconds = in.seconds();
+  return answer;
 }
 
 }  // namespace visloc::proto

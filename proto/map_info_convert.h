@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "core/localization/localizability.h"
 #include "mapstore/map_directory.h"
 #include "visloc/v1/visloc.pb.h"
 
@@ -20,5 +21,10 @@ void ToProto(const mapstore::MapDirectory::Entry& entry, v1::MapInfo* out);
 // A map the server could not load has no info and its problem as the error. Throws InputError
 // for an invalid camera or descriptor type.
 mapstore::MapDirectory::Entry FromProto(const v1::MapInfo& info, const std::string& path);
+
+// A map's localizability grid (core/localization/localizability.h) on the wire.
+void ToProto(const LocalizabilityReport& report, v1::Localizability* out);
+// Throws InputError when the grid's values do not match its size.
+LocalizabilityReport FromProto(const v1::Localizability& in);
 
 }  // namespace visloc::proto

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "core/map/synthetic_map.h"
+#include "core/util/check.h"
 #include "core/util/temp_dir.h"
 #include "mapstore/map_store.h"
 
@@ -99,6 +100,54 @@ TEST(MapInfoConvertTest, ABrokenMapCarriesItsProblemAndAnEmptyBoxStaysEmpty) {
   proto::ToProto(empty, &wire);
   EXPECT_FALSE(wire.details().has_point_extent());
   EXPECT_TRUE(proto::FromProto(wire, "x").info->point_extent.isEmpty());
+}
+
+TEST(MapInfoConvertTest, ALocalizabilityGridCrossesTheWireValueForValue) {
+  LocalizabilityReport report;
+  report.map = "hall";
+  report.frame = "site";
+  report.frame_how = "tied by pairs spots.csv";
+  LocalizabilityGrid& grid = report.grid;
+  grid.site_from_map = Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX())),
+                               Eigen::Vector3d(1, 2, 3));
+  grid.min_x_m = -2.5;
+  grid.min_y_m = 4.0;
+  grid.cell_m = 0.5;
+  grid.cells_x = 3;
+  grid.cells_y = 2;
+  grid.headings = 4;
+  grid.height_m = 1.2;
+  grid.pitch_deg = 10.0;
+  for (int i = 0; i < 24; ++i) {
+    grid.estimates.push_back({static_cast<float>(i * 10), i % 5 ? 0.01f * i : INFINITY,
+                              static_cast<float>(i), 0.1f * i, i % 2 == 0});
+  }
+  report.stats = {24, 12, 89, 0.25};
+  v1::Localizability wire;
+  proto::ToProto(report, &wire);
+  const LocalizabilityReport back = proto::FromProto(wire);
+  EXPECT_EQ(back.map, "hall");
+  EXPECT_EQ(back.frame_how, report.frame_how);
+  EXPECT_TRUE(back.grid.site_from_map.rotation.isApprox(grid.site_from_map.rotation));
+  EXPECT_EQ(back.grid.cells_x, 3);
+  EXPECT_EQ(back.grid.headings, 4);
+  ASSERT_EQ(back.grid.estimates.size(), 24u);
+  for (int i = 0; i < 24; ++i) {
+    EXPECT_EQ(back.grid.estimates[i].expected_inliers, grid.estimates[i].expected_inliers);
+    EXPECT_EQ(back.grid.estimates[i].position_sigma_m, grid.estimates[i].position_sigma_m);
+    EXPECT_EQ(back.grid.estimates[i].good, grid.estimates[i].good);
+  }
+  EXPECT_EQ(back.stats.good_poses, 12);
+
+  wire.mutable_good()->RemoveLast();
+  try {
+    proto::FromProto(wire);
+    FAIL() << "a grid short of values was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("3 x 2 cells and 4 headings with 23 values"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

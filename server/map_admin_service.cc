@@ -36,9 +36,9 @@ Status RefuseIfInUse(const MapCache& maps, const std::string& name, bool force,
 
 }  // namespace
 
-MapAdminService::MapAdminService(MapCache* maps, const MapAdminOptions& options,
-                                 const TokenAuth* auth)
-    : maps_(maps), options_(options), auth_(auth) {}
+MapAdminService::MapAdminService(MapCache* maps, LocalizabilityCache* localizability,
+                                 const MapAdminOptions& options, const TokenAuth* auth)
+    : maps_(maps), localizability_(localizability), options_(options), auth_(auth) {}
 
 Status MapAdminService::RefuseIfReadOnly() const {
   if (!options_.read_only) return Status::OK;
@@ -59,6 +59,20 @@ Status MapAdminService::GetMapInfo(grpc::ServerContext* context, const v1::MapNa
                                    v1::MapInfo* response) {
   return HandleRpc(*auth_, *context, Role::kAdmin, "GetMapInfo", [&] {
     ToProto(maps_->directory().Describe(request->name()), response);
+    return Status::OK;
+  });
+}
+
+Status MapAdminService::GetLocalizability(grpc::ServerContext* context,
+                                          const v1::LocalizabilityRequest* request,
+                                          v1::Localizability* response) {
+  return HandleRpc(*auth_, *context, Role::kLocalize, "GetLocalizability", [&] {
+    LocalizabilityRequest wanted;
+    if (request->cell_m() != 0) wanted.cell_m = request->cell_m();
+    if (request->headings() != 0) wanted.headings = static_cast<int>(request->headings());
+    if (request->has_height()) wanted.height_m = request->height_m();
+    if (request->has_pitch()) wanted.pitch_deg = request->pitch_deg();
+    proto::ToProto(*localizability_->Get(request->map(), wanted), response);
     return Status::OK;
   });
 }

@@ -5,6 +5,7 @@
 // or replace.
 
 #include "server/auth.h"
+#include "server/localizability_cache.h"
 #include "server/map_cache.h"
 #include "visloc/v1/visloc.grpc.pb.h"
 
@@ -20,8 +21,10 @@ struct MapAdminOptions {
 
 class MapAdminService final : public v1::MapAdmin::Service {
  public:
-  // Every call needs the admin role. `auth` must outlive the service.
-  MapAdminService(MapCache* maps, const MapAdminOptions& options, const TokenAuth* auth);
+  // Every call but GetLocalizability needs the admin role. `maps`, `localizability` and `auth`
+  // must outlive the service.
+  MapAdminService(MapCache* maps, LocalizabilityCache* localizability,
+                  const MapAdminOptions& options, const TokenAuth* auth);
 
   grpc::Status ListMaps(grpc::ServerContext*, const v1::ListMapsRequest*,
                         v1::ListMapsResponse* response) override;
@@ -35,6 +38,8 @@ class MapAdminService final : public v1::MapAdmin::Service {
                          v1::Empty* response) override;
   grpc::Status RenameMap(grpc::ServerContext*, const v1::RenameMapRequest* request,
                          v1::MapInfo* response) override;
+  grpc::Status GetLocalizability(grpc::ServerContext*, const v1::LocalizabilityRequest* request,
+                                 v1::Localizability* response) override;
 
  private:
   // FAILED_PRECONDITION on a read-only replica, for the methods that change the folder.
@@ -45,6 +50,7 @@ class MapAdminService final : public v1::MapAdmin::Service {
   grpc::Status RefuseUpload(const v1::UploadHeader& header) const;
 
   MapCache* maps_;
+  LocalizabilityCache* localizability_;
   MapAdminOptions options_;
   const TokenAuth* auth_;
 };

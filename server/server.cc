@@ -1,5 +1,7 @@
 #include "server/server.h"
 
+#include "mapping/site_alignment.h"
+
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/resource_quota.h>
@@ -150,13 +152,19 @@ int ServerConfig::Workers() const {
                      : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
 }
 
+// A localizability grid a request may ask for: 250,000 cells times headings (3.3 MB on the wire),
+// e.g. 125 x 125 m in 0.5 m cells with 16 headings.
+constexpr int kMaxLocalizabilityPoses = 250'000;
+
 Server::Server(const ServerConfig& config)
     : config_(Checked(config)),
       auth_(config.tokens.empty() ? TokenAuth() : TokenAuth::FromFile(config.tokens)),
       maps_(config.maps_dir, std::chrono::seconds(config.idle_unload_s),
             static_cast<size_t>(config.map_memory_mib) << 20),
+      // One thread: a grid is an operator's question, and the robots' frames come first.
+      localizability_(&maps_, kMaxLocalizabilityPoses, /*threads=*/1),
       localization_(&maps_, LimitsOf(config), &auth_),
-      admin_(&maps_, AdminOptionsOf(config), &auth_),
+      admin_(&maps_, &localizability_, AdminOptionsOf(config), &auth_),
       mapping_(&maps_, MappingLimitsOf(config), &auth_),
       fleet_(&localization_.registry(), &auth_, config.max_sessions) {
   const auto credentials = Credentials(config_);
@@ -204,6 +212,9 @@ Server::Server(const ServerConfig& config)
     sources.readiness = [this] { return Readiness(); };
     sources.maps = [this] { return Maps(); };
     sources.top_view = [this](const std::string& name) { return TopView(name); };
+    sources.localizability = [this](const std::string& name) {
+      return localizability_.Get(name, LocalizabilityRequest{});
+    };
     sources.mapping_jobs = [this] { return mapping_.job_views(); };
     http_ = std::make_unique<HttpEndpoint>(
         HttpOptions{config_.http, config_.tls_cert, config_.tls_key, VislocVersion()},
@@ -304,15 +315,29 @@ MapTopView Server::TopView(const std::string& name, size_t max_points, size_t ma
   view.name = name;
   view.total_keyframes = static_cast<int64_t>(map.keyframes.size());
   view.total_points = static_cast<int64_t>(map.points.size());
+  // From above: the level frame's x-y, else the map's x-z (the first camera's ground plane).
+  Eigen::Matrix<double, 2, 3> plane;
+  plane << 1, 0, 0, 0, 0, 1;
+  if (const auto frame = mapping::PlanFrameOf(map)) {
+    view.frame = frame->name;
+    view.frame_how = frame->how;
+    view.site_from_map = frame->site_from_map;
+    plane = frame->site_from_map.rotation.toRotationMatrix().topRows<2>();
+  }
+  const Eigen::Vector2d offset = view.frame == "map"
+                                     ? Eigen::Vector2d::Zero().eval()
+                                     : Eigen::Vector2d(view.site_from_map.translation.head<2>());
+  const auto top = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector2d xy = plane * p + offset;
+    return std::make_pair(static_cast<float>(xy.x()), static_cast<float>(xy.y()));
+  };
   const size_t keyframe_step = map.keyframes.size() / std::max<size_t>(1, max_keyframes) + 1;
   for (size_t k = 0; k < map.keyframes.size(); k += keyframe_step) {
-    const Eigen::Vector3d& c = map.keyframes[k].map_from_cam.translation;
-    view.keyframes.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.z()));
+    view.keyframes.push_back(top(map.keyframes[k].map_from_cam.translation));
   }
   const size_t point_step = map.points.size() / std::max<size_t>(1, max_points) + 1;
   for (size_t p = 0; p < map.points.size(); p += point_step) {
-    const Eigen::Vector3d& x = map.points[p].position_in_map;
-    view.points.emplace_back(static_cast<float>(x.x()), static_cast<float>(x.z()));
+    view.points.push_back(top(map.points[p].position_in_map));
   }
   return view;
 }

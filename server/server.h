@@ -19,6 +19,7 @@
 #include "server/auth.h"
 #include "server/fleet_service.h"
 #include "server/http/http_endpoint.h"
+#include "server/localizability_cache.h"
 #include "server/localization_service.h"
 #include "server/map_admin_service.h"
 #include "server/map_cache.h"
@@ -95,6 +96,7 @@ class Server {
   ServerConfig config_;
   TokenAuth auth_;
   MapCache maps_;
+  LocalizabilityCache localizability_;
   LocalizationService localization_;
   MapAdminService admin_;
   MappingService mapping_;

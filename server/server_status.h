@@ -85,8 +85,13 @@ struct MapSummary {
 // decimated for drawing: at most the asked numbers of keyframe centres and points.
 struct MapTopView {
   std::string name;
-  std::vector<std::pair<float, float>> keyframes;  // (x, z) in metres.
-  std::vector<std::pair<float, float>> points;     // (x, z); none for a map served paged.
+  // The level frame it is seen in (mapping::PlanFrame: "site", "level" or "floor", with
+  // site_from_map), or "map" for a map with no level frame: then the map's x-z plane.
+  std::string frame = "map";
+  std::string frame_how;
+  Rigid3d site_from_map;
+  std::vector<std::pair<float, float>> keyframes;  // (x, y) of the frame, metres; (x, z) for "map".
+  std::vector<std::pair<float, float>> points;     // Likewise; none for a map served paged.
   int64_t total_keyframes = 0;
   int64_t total_points = 0;
 };

@@ -10,6 +10,12 @@ run the kidnap and the square sequences at 15 Hz.
   pixels) and a robot's arrow;
 - the browser console has no errors.
 
+- the page is a floor plan: the map drawn in its level frame (z up), the localizability overlay
+  loaded and drawn, the robots' arrows placed by the site frame's transform; with the real
+  recordings (VISLOC_REAL_DATA), a map of EuRoC MH_01 (no IMU: up from its floor) is drawn with
+  its up within 5 degrees of the ground truth's vertical (a level floor across the drawn hall
+  then lies within a band of extent x sin(error)), screenshot beside SCREENSHOT as *_mh01.png.
+
 - a map of 10,000 keyframes and 200,000 points, chosen on the page, is drawn (decimated) within
   2 s of the click;
 - a mapping job (`visloc map build --server`) is listed, its map grows on the canvas with the
@@ -22,6 +28,7 @@ and the 2 s bounds become 8 s (the release build is held to 2 s).
 Exit 77 (skipped) when Chromium or its driver is not installed.
 """
 
+import math
 import os
 import shutil
 import subprocess
@@ -33,6 +40,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "sup
 from http_harness import Checks, square_maps, start_server  # noqa: E402
 
 server_bin, visloc_bin, map_writer, data, sanitize = sys.argv[1:6]
+REAL = os.environ.get("VISLOC_REAL_DATA", "")
 screenshot_out = sys.argv[6] if len(sys.argv) > 6 else ""
 USABLE_S = 8.0 if sanitize else 2.0
 
@@ -67,6 +75,80 @@ def robot_statuses(driver):
         ".map(c => [c.dataset.robot, c.dataset.status]);"))
 
 
+def wait_for(driver, script, seconds):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.1)
+    return None
+
+
+def check_floor_plan(driver, check):
+    """The square map in its level frame, the overlay loaded, a robot placed by site_from_map."""
+    view = driver.execute_script("return state.view;")
+    info = driver.execute_script("return document.getElementById('viewinfo').textContent;")
+    check(view["frame"] == "level" and "level frame" in info,
+          f"the square map drawn in its level frame: {view['frame']}, '{info}'")
+    grid = wait_for(driver, "return state.localizability;", 20)
+    check(grid is not None, "the localizability overlay loaded")
+    if grid is None:
+        return "no overlay"
+    cells = grid["cells_x"] * grid["cells_y"]
+    good = sum(1 for b in grid["best"] if b >= 30)
+    check(len(grid["best"]) == cells and good > cells // 4,
+          f"the overlay's cells: {good} of {cells} expect 30 inliers or more")
+    # A robot's arrow: where the page puts it is its map position turned by site_from_map.
+    s = wait_for(driver, "return state.sessions.find(s => s.map === 'square' && s.has_pose);", 10)
+    check(s is not None, "a robot with a pose on the square map")
+    if s is None:
+        return f"{good}/{cells} cells good"
+    m = view["site_from_map"]
+    expected = [m[0] * s["x"] + m[1] * s["y"] + m[2] * s["z"] + m[3],
+                m[4] * s["x"] + m[5] * s["y"] + m[6] * s["z"] + m[7]]
+    drawn = driver.execute_script(f"return toPlan(state.view, {s['x']}, {s['y']}, {s['z']});")
+    check(math.dist(drawn, expected) < 1e-6 and math.dist(drawn, [s["x"], s["z"]]) > 0.05,
+          f"the robot drawn at the site frame's {expected}, not the map's x-z: {drawn}")
+    return f"{good}/{cells} cells good, robot at {[round(v, 2) for v in drawn]}"
+
+
+def true_up_in_map(recording):
+    """The ground truth's vertical in the map frame (the first left camera's)."""
+    with open(os.path.join(recording, "groundtruth_cam0_tum.txt")) as f:
+        first = next(line.split() for line in f if not line.startswith("#"))
+    qx, qy, qz, qw = (float(v) for v in first[4:8])
+    # Third row of R(world_from_cam): the world's z in the camera frame.
+    return [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)]
+
+
+def check_real_map_level(driver, check, recording, screenshot_out):
+    driver.execute_script("document.querySelector('#maprows tr[data-name=mh01]').click();")
+    view = wait_for(driver, "return state.view && state.view.name === 'mh01' && state.view;", 10)
+    check(view is not None and view["frame"] == "level",
+          f"MH_01 drawn in its level frame (up from its floor): {view and view['frame']}")
+    if view is None or "site_from_map" not in view:
+        return "not drawn level"
+    m = view["site_from_map"]
+    page_up = [m[8], m[9], m[10]]  # The map-frame direction the page draws as z.
+    truth = true_up_in_map(recording)
+    error_deg = math.degrees(math.acos(max(-1.0, min(1.0, sum(a * b for a, b in zip(page_up, truth))
+                                                     / math.hypot(*truth)))))
+    xs, ys = view["points"][0::2], view["points"][1::2]
+    extent = max(max(xs) - min(xs), max(ys) - min(ys))
+    band = extent * math.sin(math.radians(error_deg))
+    check(error_deg < 5.0, f"MH_01's up {error_deg:.2f} deg from the ground truth's vertical")
+    grid = wait_for(driver, "return state.localizability && state.localizability.map === 'mh01'"
+                            " && state.localizability;", 30)
+    check(grid is not None, "MH_01's localizability overlay loaded")
+    if screenshot_out:
+        time.sleep(0.5)
+        with open(screenshot_out.replace(".png", "_mh01.png"), "wb") as f:
+            f.write(driver.get_screenshot_as_png())
+    return (f"up {error_deg:.2f} deg from the truth: a level floor across its {extent:.1f} m lies "
+            f"within {band:.2f} m")
+
+
 def main():
     check = Checks()
     with tempfile.TemporaryDirectory() as tmp:
@@ -74,6 +156,12 @@ def main():
         subprocess.run([map_writer, os.path.join(maps, "big.db"), "200000", "7", "10000", "big"],
                        check=True)
         os.remove(os.path.join(maps, "big.db.ready"))
+        mh01 = os.path.join(REAL, "euroc_mh01_moving") if REAL else ""
+        if mh01 and os.path.isdir(mh01):
+            subprocess.run([visloc_bin, "map", "build", "--dataset", mh01, "--out",
+                            os.path.join(maps, "mh01.db")], check=True, stdout=subprocess.DEVNULL)
+        else:
+            mh01 = ""
         server, grpc_address, http_address = start_server(server_bin, maps)
         robots = []
         driver = None
@@ -138,13 +226,14 @@ def main():
             check(keyframe_pixels > 200, f"keyframes drawn: {keyframe_pixels} blue pixels")
             check(grey_pixels > 500, f"points drawn: {grey_pixels} grey pixels")
             check(robot_pixels > 50, f"a robot's arrow drawn: {robot_pixels} pixels")
+            floor_plan = check_floor_plan(driver, check)
             # The big map: chosen by a click, drawn decimated.
             clicked = time.monotonic()
             driver.execute_script("document.querySelector('#maprows tr[data-name=big]').click();")
             big_s = None
             while time.monotonic() - clicked < 10:
                 info = driver.execute_script("return document.getElementById('viewinfo').textContent;")
-                if info.startswith("big: 10000 keyframes"):
+                if info.startswith("big (") and "10000 keyframes" in info:
                     big_s = time.monotonic() - clicked
                     break
                 time.sleep(0.05)
@@ -191,6 +280,8 @@ def main():
             check(published, "the mapping job shows published when the run ends")
             errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
             check(not errors, f"browser console errors: {errors}")
+            level = check_real_map_level(driver, check, mh01, screenshot_out) if mh01 else "skipped"
+            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}")
             print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
                   f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click; mapping "

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
 
 #include "core/util/check.h"
 #include "core/util/random.h"
@@ -193,6 +194,95 @@ TEST(SiteE2eTest, SurveyedSpotsTieTheMapToTheSiteAndAWrongSpotIsRefusedByName) {
   EXPECT_EQ(Visloc({"map", "verify", map_path}).exit_code, 0);
   const ProcessResult info = Visloc({"map", "info", map_path});
   EXPECT_NE(info.out.find("site          tied to pairs "), std::string::npos) << info.out;
+}
+
+// A CSV's rows as field maps by its header.
+std::vector<std::map<std::string, std::string>> ReadCsv(const std::string& path) {
+  const std::vector<TextLine> lines = ReadTextLines(path);
+  std::vector<std::map<std::string, std::string>> rows;
+  if (lines.empty()) return rows;
+  const std::vector<std::string> header = Split(lines[0].text, ',');
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const std::vector<std::string> fields = Split(lines[i].text, ',');
+    std::map<std::string, std::string> row;
+    for (size_t f = 0; f < header.size() && f < fields.size(); ++f) row[header[f]] = fields[f];
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+// Issue 57's localizability targets on a walk facing out of the mapped square (views the map
+// never had, many frames limited): the frames the localizer reported limited were predicted
+// poor from the map alone, and the frames predicted good localized.
+TEST(SiteE2eTest, TheMapAlonePredictsWhereAWalkFacingOutOfItWentLimited) {
+  const TempDir dir("visloc-localizability");
+  const std::string walk = kData + "/outward";
+  ASSERT_EQ(Visloc({"localize", "--map", kData + "/map.db", "--dataset", walk, "--stats",
+                    dir.File("walk.csv")})
+                .exit_code,
+            0);
+  const ProcessResult grid =
+      Visloc({"map", "localizability", kData + "/map.db", "--out", dir.File("grid"), "--at",
+              walk + "/groundtruth_map.tum", "--json"});
+  ASSERT_EQ(grid.exit_code, 0) << grid.err;
+  EXPECT_NE(grid.out.find("\"frame\":\"level\""), std::string::npos) << grid.out;
+
+  // One row per cell and heading; the picture written.
+  const int poses =
+      static_cast<int>(JsonNumber(grid.out, "cells_x") * JsonNumber(grid.out, "cells_y") * 16);
+  EXPECT_EQ(ReadCsv(dir.File("grid.csv")).size(), static_cast<size_t>(poses));
+  EXPECT_EQ(static_cast<int>(JsonNumber(grid.out, "poses")), poses);
+  EXPECT_GT(std::filesystem::file_size(dir.File("grid.png")), 10'000u);
+
+  std::map<std::string, std::map<std::string, std::string>> predicted;
+  for (auto& row : ReadCsv(dir.File("grid.path.csv"))) predicted[row["timestamp_ns"]] = row;
+  int limited = 0, limited_poor = 0, predicted_good = 0, good_localized = 0;
+  for (auto& frame : ReadCsv(dir.File("walk.csv"))) {
+    ASSERT_TRUE(predicted.count(frame["timestamp_ns"])) << frame["timestamp_ns"];
+    const auto& p = predicted[frame["timestamp_ns"]];
+    const bool poor_status = frame["status"] == "lost" || frame["status"] == "limited";
+    limited += poor_status;
+    limited_poor += poor_status && p.at("good") == "0";
+    predicted_good += p.at("good") == "1";
+    good_localized +=
+        p.at("good") == "1" && (frame["status"] == "tracking" || frame["status"] == "relocalized");
+  }
+  ASSERT_GT(limited, 20) << "the walk should go limited facing out";
+  ASSERT_GT(predicted_good, 20);
+  EXPECT_GE(limited_poor, 0.9 * limited) << limited_poor << " of " << limited;
+  EXPECT_GE(good_localized, 0.9 * predicted_good) << good_localized << " of " << predicted_good;
+}
+
+// The server answers a map's grid over gRPC as the map file gives it, and names what it refuses.
+TEST(SiteE2eTest, TheServerAnswersAMapsLocalizabilityAsTheFileGivesIt) {
+  const TempDir dir("visloc-localizability-server");
+  std::filesystem::create_directories(dir.File("maps"));
+  std::filesystem::copy_file(kData + "/map.db", dir.File("maps/square.db"));
+  testing::ServerProcess server(VISLOC_SERVER_PATH, dir.File("maps"));
+  const ProcessResult remote =
+      Visloc({"map", "localizability", "square", "--server", server.address(), "--out",
+              dir.File("remote"), "--cell", "0.4", "--json"});
+  ASSERT_EQ(remote.exit_code, 0) << remote.err;
+  const ProcessResult local = Visloc(
+      {"map", "localizability", kData + "/map.db", "--out", dir.File("local"), "--cell", "0.4"});
+  ASSERT_EQ(local.exit_code, 0) << local.err;
+  EXPECT_EQ(ReadFileBytes(dir.File("remote.csv")), ReadFileBytes(dir.File("local.csv")));
+  EXPECT_GT(JsonNumber(remote.out, "good_poses"), 0);
+
+  const ProcessResult unknown = Visloc(
+      {"map", "localizability", "nosuch", "--server", server.address(), "--out", dir.File("x")});
+  EXPECT_NE(unknown.exit_code, 0);
+  EXPECT_NE(unknown.err.find("no map named 'nosuch'"), std::string::npos) << unknown.err;
+  const ProcessResult too_fine =
+      Visloc({"map", "localizability", "square", "--server", server.address(), "--out",
+              dir.File("x"), "--cell", "0.05", "--headings", "72"});
+  EXPECT_NE(too_fine.exit_code, 0);
+  EXPECT_NE(too_fine.err.find("take larger cells or fewer headings"), std::string::npos)
+      << too_fine.err;
+  const ProcessResult at_remote =
+      Visloc({"map", "localizability", "square", "--server", server.address(), "--out",
+              dir.File("x"), "--at", kData + "/outward/groundtruth_map.tum"});
+  EXPECT_EQ(at_remote.exit_code, 2) << at_remote.err;  // A usage error.
 }
 
 }  // namespace

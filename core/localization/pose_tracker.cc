@@ -106,11 +106,18 @@ Eigen::Matrix<double, 6, 6> PoseTracker::SystematicCovariance(
 
 Eigen::Matrix<double, 6, 6> PoseTracker::MapAndRigCovariance(double median_depth_m,
                                                              double from_origin_m) const {
-  const double angle_rad = options_.map_error_px / camera_.fx();
-  const RigError rig = map_->map().metadata.rig_error.value_or(
-      RigError{options_.rig_floor_m, options_.rig_drift_fraction});
-  const double floor_sq = std::pow(options_.map_floor_m, 2) + std::pow(rig.floor_m, 2);
-  const double drift_sq = std::pow(options_.map_drift_fraction, 2) + std::pow(rig.drift_fraction, 2);
+  return visloc::MapAndRigCovariance(options_, map_->map().metadata, camera_.fx(), median_depth_m,
+                                     from_origin_m);
+}
+
+Eigen::Matrix<double, 6, 6> MapAndRigCovariance(const PoseTrackerOptions& options,
+                                                const MapMetadata& metadata, double focal_px,
+                                                double median_depth_m, double from_origin_m) {
+  const double angle_rad = options.map_error_px / focal_px;
+  const RigError rig =
+      metadata.rig_error.value_or(RigError{options.rig_floor_m, options.rig_drift_fraction});
+  const double floor_sq = std::pow(options.map_floor_m, 2) + std::pow(rig.floor_m, 2);
+  const double drift_sq = std::pow(options.map_drift_fraction, 2) + std::pow(rig.drift_fraction, 2);
   const double position_variance =
       std::pow(angle_rad * median_depth_m, 2) + floor_sq + drift_sq * from_origin_m * from_origin_m;
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();

@@ -136,6 +136,13 @@ struct PointSpread {
   Eigen::Matrix<double, 6, 6> Matrix() const;  // Not scaled by to_all.
 };
 
+// The map's and the rig calibration's share of a fix's covariance (PoseTrackerOptions::
+// map_error_px and after; the map's recorded rig error, when it has one) for a camera of focal
+// length `focal_px`, its inliers at `median_depth_m`, `from_origin_m` from the map's origin.
+Eigen::Matrix<double, 6, 6> MapAndRigCovariance(const PoseTrackerOptions& options,
+                                                const MapMetadata& metadata, double focal_px,
+                                                double median_depth_m, double from_origin_m);
+
 class PoseTracker {
  public:
   PoseTracker(std::shared_ptr<const LocalizationMap> map, const Camera& camera,

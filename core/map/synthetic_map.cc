@@ -48,19 +48,31 @@ Map MakeSyntheticMap(const SyntheticMapOptions& options) {
   // Parameters every extractor kind accepts, so sessions can run on synthetic maps.
   map.features.params = {{"max_features", 500}, {"grid_cols", 8}};
 
-  // Keyframes on a loop of ~0.15 m spacing, looking outwards, as a robot walking a circle.
+  // Keyframes ~0.15 m apart: on a loop, looking outwards, as a robot walking a circle; or along
+  // lanes, looking where they walk.
   const double radius = std::max(0.5, options.keyframes * 0.15 / (2 * M_PI));
+  const int per_lane = std::max(1, static_cast<int>(options.lane_length_m / 0.15));
   for (int k = 0; k < options.keyframes; ++k) {
-    const double angle = 2 * M_PI * k / options.keyframes;
-    // Camera z (forward) points radially out, camera y down (world -z), x completes it.
-    const Eigen::Vector3d forward(std::cos(angle), std::sin(angle), 0);
+    Eigen::Vector3d forward, center;
+    if (options.lane_length_m > 0) {
+      const int lane = k / per_lane;
+      const double along = 0.15 * (k % per_lane);
+      const bool back = lane % 2 == 1;
+      forward = Eigen::Vector3d(back ? -1 : 1, 0, 0);
+      center = Eigen::Vector3d(back ? options.lane_length_m - along : along, 3.0 * lane, 0);
+    } else {
+      const double angle = 2 * M_PI * k / options.keyframes;
+      forward = Eigen::Vector3d(std::cos(angle), std::sin(angle), 0);
+      center = radius * forward;
+    }
+    // Camera z (forward), camera y down (world -z), x completes it.
     const Eigen::Vector3d down(0, 0, -1);
     Eigen::Matrix3d map_from_cam_rotation;
     map_from_cam_rotation.col(0) = down.cross(forward);
     map_from_cam_rotation.col(1) = down;
     map_from_cam_rotation.col(2) = forward;
-    map.keyframes.push_back({1'700'000'000'000'000'000 + k * 500'000'000LL,
-                             Rigid3d(map_from_cam_rotation, radius * forward)});
+    map.keyframes.push_back(
+        {1'700'000'000'000'000'000 + k * 500'000'000LL, Rigid3d(map_from_cam_rotation, center)});
   }
   // Each point sits 1-6 m in front of its first keyframe; the next keyframes see it too.
   std::vector<std::vector<uint32_t>> seen_by(options.keyframes);

@@ -23,6 +23,9 @@ struct SyntheticMapOptions {
   bool appearance_from_descriptors = false;
   uint64_t seed = 1;
   std::string name = "synthetic";  // metadata.name
+  // 0: the keyframes walk a loop looking out. Otherwise they walk lanes of this length (m), 3 m
+  // apart, back and forth, looking along the walk: a building floor covered row by row.
+  double lane_length_m = 0.0;
 };
 
 Map MakeSyntheticMap(const SyntheticMapOptions& options);

@@ -38,6 +38,20 @@ bool Allowed(const TokenAuth& auth, const httplib::Request& request, httplib::Re
   return false;
 }
 
+// A map's JSON (its view, its localizability): 404 for an unknown map, 422 for one that does not
+// load or cannot answer (the reason, redacted as gRPC errors are).
+void AnswerMapJson(httplib::Response* response, const std::function<std::string()>& json) {
+  try {
+    response->set_content(json(), "application/json");
+  } catch (const NotFoundError& e) {
+    response->status = 404;
+    response->set_content(RedactForClient(e.what()) + "\n", "text/plain");
+  } catch (const InputError& e) {
+    response->status = 422;
+    response->set_content(RedactForClient(e.what()) + "\n", "text/plain");
+  }
+}
+
 }  // namespace
 
 HttpEndpoint::HttpEndpoint(const HttpOptions& options, HttpSources sources, const TokenAuth* auth)
@@ -113,16 +127,24 @@ void HttpEndpoint::RouteOperatorPage() {
   http_->Get(R"(/api/maps/([A-Za-z0-9_.-]+)/view)", [this](const httplib::Request& request,
                                                            httplib::Response& response) {
     if (!Allowed(*auth_, request, &response)) return;
-    try {
-      response.set_content(TopViewJson(sources_.top_view(request.matches[1])), "application/json");
-    } catch (const NotFoundError& e) {
-      response.status = 404;
-      response.set_content(RedactForClient(e.what()) + "\n", "text/plain");
-    } catch (const InputError& e) {
-      response.status = 422;
-      response.set_content(RedactForClient(e.what()) + "\n", "text/plain");
-    }
+    AnswerMapJson(&response, [&] { return TopViewJson(sources_.top_view(request.matches[1])); });
   });
+  http_->Get(R"(/api/maps/([A-Za-z0-9_.-]+)/localizability)",
+             [this](const httplib::Request& request, httplib::Response& response) {
+               if (!Allowed(*auth_, request, &response)) return;
+               // A map whose grid cannot be computed (no level frame, too large) is an answer
+               // the page shows, not a failed request.
+               AnswerMapJson(&response, [&] {
+                 const std::string name = request.matches[1];
+                 try {
+                   return LocalizabilityJson(*sources_.localizability(name));
+                 } catch (const NotFoundError&) {
+                   throw;
+                 } catch (const InputError& e) {
+                   return LocalizabilityProblemJson(name, RedactForClient(e.what()));
+                 }
+               });
+             });
   http_->Get("/api/events", [this](const httplib::Request& request, httplib::Response& response) {
     if (!Allowed(*auth_, request, &response)) return;
     if (++event_streams_ > kMaxEventStreams) {

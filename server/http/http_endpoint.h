@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/localization/localizability.h"
 #include "server/auth.h"
 #include "server/server_status.h"
 
@@ -44,6 +45,10 @@ struct HttpSources {
   std::function<std::vector<MapSummary>()> maps;
   // Throws NotFoundError for an unknown map, InputError for one that does not load.
   std::function<MapTopView(const std::string& name)> top_view;
+  // The map's localizability grid at the default options (LocalizabilityCache); throws as
+  // top_view does, and InputError for a map with no level frame.
+  std::function<std::shared_ptr<const LocalizabilityReport>(const std::string& name)>
+      localizability;
   // The mapping jobs (running and recently ended) with their maps so far.
   std::function<std::vector<MappingJobView>()> mapping_jobs;
 };

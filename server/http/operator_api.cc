@@ -1,5 +1,6 @@
 #include "server/http/operator_api.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/localization/localizer.h"
@@ -49,6 +50,10 @@ std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_ses
           .Field("z", t.z())
           .Field("yaw_deg", YawDeg(s.map_from_cam))
           .Field("position_sigma_m", s.position_sigma_m);
+      // The optical axis in the map frame, for a page drawing the map's level frame.
+      const Eigen::Vector3d forward = s.map_from_cam.rotation * Eigen::Vector3d::UnitZ();
+      json.Key("forward").BeginArray().Value(forward.x()).Value(forward.y()).Value(forward.z());
+      json.EndArray();
     }
     json.Field("inliers", s.inliers).Key("camera_inliers").BeginArray();
     for (int inliers : s.camera_inliers) json.Value(static_cast<int64_t>(inliers));
@@ -92,9 +97,20 @@ std::string TopViewJson(const MapTopView& view) {
   JsonWriter json;
   json.BeginObject()
       .Field("name", view.name)
+      .Field("frame", view.frame)
+      .Field("frame_how", view.frame_how)
       .Field("total_keyframes", view.total_keyframes)
-      .Field("total_points", view.total_points)
-      .Key("keyframes");
+      .Field("total_points", view.total_points);
+  if (view.frame != "map") {  // Row-major 3x4 [R | t]: the page turns robots' poses with it.
+    const Eigen::Matrix3d r = view.site_from_map.rotation.toRotationMatrix();
+    json.Key("site_from_map").BeginArray();
+    for (int row = 0; row < 3; ++row) {
+      for (int col = 0; col < 3; ++col) json.Value(r(row, col));
+      json.Value(view.site_from_map.translation[row]);
+    }
+    json.EndArray();
+  }
+  json.Key("keyframes");
   Pairs(json, view.keyframes);
   json.Key("points");
   Pairs(json, view.points);
@@ -128,6 +144,50 @@ std::string MappingJobsJson(const std::vector<MappingJobView>& jobs) {
     json.EndObject();
   }
   json.EndArray().EndObject();
+  return json.str();
+}
+
+std::string LocalizabilityJson(const LocalizabilityReport& report) {
+  const LocalizabilityGrid& grid = report.grid;
+  JsonWriter json;
+  json.BeginObject()
+      .Field("map", report.map)
+      .Field("frame", report.frame)
+      .Field("min_x", grid.min_x_m)
+      .Field("min_y", grid.min_y_m)
+      .Field("cell", grid.cell_m)
+      .Field("cells_x", grid.cells_x)
+      .Field("cells_y", grid.cells_y)
+      .Field("headings", grid.headings)
+      .Field("height_m", grid.height_m)
+      .Field("pitch_deg", grid.pitch_deg)
+      .Field("good_poses", report.stats.good_poses);
+  // Per cell (iy * cells_x + ix): the best heading's expected inliers, and how many headings
+  // are good.
+  json.Key("best").BeginArray();
+  for (int cell = 0; cell < grid.cells_x * grid.cells_y; ++cell) {
+    float best = 0.0f;
+    for (int h = 0; h < grid.headings; ++h) {
+      best = std::max(
+          best, grid.estimates[static_cast<size_t>(cell) * grid.headings + h].expected_inliers);
+    }
+    json.Value(static_cast<int64_t>(std::lround(best)));
+  }
+  json.EndArray().Key("good").BeginArray();
+  for (int cell = 0; cell < grid.cells_x * grid.cells_y; ++cell) {
+    int64_t good = 0;
+    for (int h = 0; h < grid.headings; ++h) {
+      good += grid.estimates[static_cast<size_t>(cell) * grid.headings + h].good ? 1 : 0;
+    }
+    json.Value(good);
+  }
+  json.EndArray().EndObject();
+  return json.str();
+}
+
+std::string LocalizabilityProblemJson(const std::string& map, const std::string& problem) {
+  JsonWriter json;
+  json.BeginObject().Field("map", map).Field("problem", problem).EndObject();
   return json.str();
 }
 

@@ -21,9 +21,7 @@ NOT_YET = {
     ("visloc", "jobs"): "issue 36 (mapping over the link)",
     ("visloc map build", "--server"): "issue 36 (mapping over the link)",
 }
-NOT_YET_VERBS = {
-    "visloc map localizability": "issue 57 (the site: where robots will localize)",
-}
+NOT_YET_VERBS = {}
 BINARIES = {"visloc": VISLOC, "visloc-server": SERVER}
 
 
