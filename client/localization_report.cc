@@ -5,6 +5,7 @@
 #include <map>
 #include <utility>
 
+#include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
@@ -288,6 +289,19 @@ void RunReport::WriteSummaryJson(JsonWriter& json, const Trajectory* ground_trut
         .Field("bridged_position_median_m", s.bridged->position_m.median)
         .EndObject();
   }
+}
+
+Trajectory InFrame(const std::string& frame, const Map& map, Trajectory trajectory) {
+  if (frame == "map") return trajectory;
+  if (frame != "site") throw UsageError("--frame must be map or site, not '" + frame + "'");
+  const std::optional<Rigid3d> site_from_map = SiteFromMap(map.metadata);
+  if (!site_from_map) {
+    throw InputError(StrCat("map '", map.metadata.name,
+                            "' records no up, so it has no site frame: write --frame map, or "
+                            "rebuild it (map build finds up) or tie it with map align"));
+  }
+  for (StampedPose& pose : trajectory) pose.pose = *site_from_map * pose.pose;
+  return trajectory;
 }
 
 }  // namespace visloc::cli

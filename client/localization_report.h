@@ -58,4 +58,9 @@ class RunReport {
   std::vector<LocalizationResult> results_;
 };
 
+// `trajectory` (map_from_cam) in the frame named by `--frame`: "map" as it is, "site" turned by
+// the map's site_from_map (map.h SiteFromMap). Throws UsageError for another name and InputError
+// for "site" on a map that records no up.
+Trajectory InFrame(const std::string& frame, const Map& map, Trajectory trajectory);
+
 }  // namespace visloc::cli

@@ -27,6 +27,7 @@ struct LocalizeArgs {
   std::string mode = "visibility";
   std::string blackout;  // "START,DURATION" in seconds from the first frame.
   std::string cameras = "cam0";
+  std::string frame = "map";  // Of the trajectory: map or site.
   bool odometry = false, no_gyro = false, planar = false, bridge_constant_velocity = false;
   bool json = false, all_scales = false;
   int k = 10;
@@ -85,6 +86,9 @@ int RunLocalize(const Args& raw_args) {
   parser.AddFlag("dataset", &args.dataset_dir, "dataset folder (EuRoC or KITTI layout)", true);
   parser.AddFlag("format", &args.format, "euroc or kitti (default: detected)");
   parser.AddFlag("trajectory", &args.trajectory_path, "write the estimated poses (TUM)");
+  parser.AddFlag("frame", &args.frame,
+                 "the trajectory's frame: map (the first camera's) or site (z up: the frame map "
+                 "align tied the map to, else its level frame; a map that knows up)");
   parser.AddFlag("stats", &args.stats_path, "write per-frame statistics (CSV)");
   parser.AddSwitch("odometry", &args.odometry, "fuse the dataset's odometry (and gyro)");
   parser.AddSwitch("no-gyro", &args.no_gyro, "with --odometry: leave the gyro out");
@@ -150,7 +154,9 @@ int RunLocalize(const Args& raw_args) {
     }
   }
   if (ShowProgress() && !args.json) std::fprintf(stderr, "\n");
-  if (!args.trajectory_path.empty()) WriteTum(args.trajectory_path, report.PosedTrajectory());
+  if (!args.trajectory_path.empty()) {
+    WriteTum(args.trajectory_path, InFrame(args.frame, map->map(), report.PosedTrajectory()));
+  }
   if (!args.stats_path.empty()) report.WriteStatsCsv(args.stats_path);
   const Trajectory* gt = ground_truth.empty() ? nullptr : &ground_truth;
   if (args.json) {

@@ -110,10 +110,18 @@ std::unique_ptr<Canvas> MakeCanvas(const std::string& path, int width, int heigh
 // Map frame -> 2D top-view coordinates (metres): two axes spanning the ground plane.
 struct TopView {
   Eigen::Vector3d e1, e2;
-  Eigen::Vector2d operator()(const Eigen::Vector3d& p) const { return {e1.dot(p), e2.dot(p)}; }
+  Eigen::Vector2d offset = Eigen::Vector2d::Zero();
+  Eigen::Vector2d operator()(const Eigen::Vector3d& p) const {
+    return Eigen::Vector2d(e1.dot(p), e2.dot(p)) + offset;
+  }
 };
 
 TopView MakeTopView(const LocalizationMap& map) {
+  // The site frame's x-y (z up) when the map knows up, as the operator's page draws it.
+  if (const auto site_from_map = SiteFromMap(map.map().metadata)) {
+    const Eigen::Matrix3d r = site_from_map->rotation.toRotationMatrix();
+    return {r.row(0).transpose(), r.row(1).transpose(), site_from_map->translation.head<2>()};
+  }
   const auto plane = FitKeyframePlane(map);
   const Eigen::Vector3d up = plane ? plane->first : Eigen::Vector3d(0, -1, 0);
   Eigen::Vector3d e1 = Eigen::Vector3d::UnitX() - up * up.x();

@@ -5,8 +5,10 @@
 // the two ends are joined by a dashed line, so a kidnapping shows as a jump. PNG or SVG by the
 // output's extension.
 //
-// "Top" is along the normal of the plane the keyframes lie in (a ground robot's head), or the
-// map's -y axis (up for the first camera) when they do not span a plane.
+// "Top" is the map's site frame's z (up: the frame map align tied it to, else its level frame),
+// x to the right and y up the picture as on the operator's page; for a map that records no up,
+// the normal of the plane the keyframes lie in (a ground robot's head), or the map's -y axis (up
+// for the first camera) when they do not span a plane.
 
 #include <map>
 #include <string>

@@ -46,6 +46,7 @@ struct StreamArgs {
   // with its sensor.yaml.
   std::vector<std::string> camera_sources, sensor_paths;
   std::string robot_id = "visloc-stream";
+  std::string frame = "map";  // Of the trajectory: map or site (the answers' site_from_cam).
   double rate_hz = -1.0;  // Negative: the dataset's timestamps; 0: as fast as possible.
   std::string policy = "all";
   std::string encoding;  // Empty: DefaultEncoding().
@@ -146,7 +147,7 @@ class StreamRecorder {
  public:
   // `dataset` (may be null: a live camera) names frames by their index in messages.
   StreamRecorder(const StreamArgs& args, const Dataset* dataset)
-      : json_(args.json), dataset_(dataset) {
+      : json_(args.json), site_frame_(args.frame == "site"), dataset_(dataset) {
     if (!args.trajectory_path.empty()) Open(&trajectory_, args.trajectory_path, TumHeader());
     if (!args.stats_path.empty()) Open(&stats_, args.stats_path, StatsCsvHeader() + "\n");
     if (!args.events_path.empty()) {
@@ -233,7 +234,14 @@ class StreamRecorder {
     result.timestamp_ns = e.timestamp_ns;
     report.Add(result);
     if (trajectory_ && result.has_pose) {
-      trajectory_ << TumLine({result.timestamp_ns, result.map_from_cam}) << std::flush;
+      if (site_frame_ && !r.has_site_from_cam()) {
+        throw InputError(
+            "the server gave no site pose: the map records no up (write --frame "
+            "map, or rebuild the map or tie it with map align)");
+      }
+      const Rigid3d pose =
+          site_frame_ ? proto::FromProto(r.site_from_cam(), "site_from_cam") : result.map_from_cam;
+      trajectory_ << TumLine({result.timestamp_ns, pose}) << std::flush;
     }
     if (stats_) stats_ << StatsCsvRow(result) << std::endl;
     if (ShowProgress() && !json_) {
@@ -253,6 +261,7 @@ class StreamRecorder {
   }
 
   bool json_;
+  bool site_frame_;  // The trajectory in the site frame.
   const Dataset* dataset_;
   std::ofstream trajectory_, stats_, events_;
   std::string skipped_reason_;
@@ -299,6 +308,9 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
   parser.SetDefaultText("stall-timeout-ms", "2000; 60000 with --rate 0");
   parser.AddSwitch("odometry", &args->odometry, "send the dataset's odometry and gyro");
   parser.AddFlag("trajectory", &args->trajectory_path, "write the estimated poses (TUM)");
+  parser.AddFlag("frame", &args->frame,
+                 "the trajectory's frame: map (the first camera's) or site (z up: the frame map "
+                 "align tied the map to, else its level frame; a map that knows up)");
   parser.AddFlag("stats", &args->stats_path, "write per-frame statistics (CSV)");
   parser.AddFlag("events", &args->events_path,
                  "write every answer, drop and link change as it happens (CSV)");
@@ -335,6 +347,9 @@ void ParseStreamArgs(const Args& raw_args, StreamArgs* args, bool* run) {
     throw UsageError("--stall-timeout-ms must not be negative (0: the default)");
   if (args->policy != "all" && args->policy != "newest")
     throw UsageError("--policy is all or newest");
+  if (args->frame != "map" && args->frame != "site") {
+    throw UsageError("--frame must be map or site, not '" + args->frame + "'");
+  }
   if (args->encoding != "file" && args->encoding != "jpeg" && args->encoding != "png" &&
       args->encoding != "raw") {
     throw UsageError("--encoding is file, jpeg, png or raw");

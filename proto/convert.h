@@ -38,4 +38,16 @@ void ToProto(const LocalizationResult& result, uint64_t frame_index, v1::Localiz
 void ToProto(const RelocalizationResult& found, v1::RelocalizeResponse* out);
 LocalizationResult FromProto(const v1::LocalizeResponse& response);
 
+// An answer's (LocalizeResponse, RelocalizeResponse) site_from_cam: its pose in the map's site
+// frame (map.h SiteFromMap: the frame map align tied it to, else its level frame), and
+// site_frame, that frame's name ("site" or "level"); both left unset for a map that records no
+// up.
+template <typename Response>
+void SetSitePose(const MapMetadata& metadata, const Rigid3d& map_from_cam, Response* response) {
+  const std::optional<Rigid3d> site_from_map = SiteFromMap(metadata);
+  if (!site_from_map) return;
+  ToProto(*site_from_map * map_from_cam, response->mutable_site_from_cam());
+  response->set_site_frame(metadata.site ? "site" : "level");
+}
+
 }  // namespace visloc::proto

@@ -130,6 +130,10 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     const std::vector<cv::Mat> images = proto::RigImagesFromProto(*request, rig);
     const RigPipeline pipeline(map, rig, LocalizerOptions{});
     proto::ToProto(pipeline.RelocalizeImages(images), response);
+    if (response->localized()) {
+      proto::SetSitePose(map->map().metadata, proto::FromProto(response->map_from_cam(), "pose"),
+                         response);
+    }
     response->set_ms(timer.ElapsedMs());
     return Status::OK;
   });

@@ -66,7 +66,8 @@ LocalizationSession::LocalizationSession(std::shared_ptr<const LocalizationMap> 
       registry_(registry),
       before_frame_(before_frame),
       rig_(proto::RigFromProto(start, limits)),
-      localizer_(std::move(map), rig_, proto::FromProto(start.options())) {
+      localizer_(map, rig_, proto::FromProto(start.options())),
+      map_metadata_(map->map().metadata) {
   tally_.map = start.map_name();
   if (start.rig_cameras_size() > 0) {
     tally_.camera_names.push_back("reference");
@@ -100,6 +101,9 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     localizer_.SetRigThreads(1 + spare.taken());
     answered = localizer_.Process(proto::FromProto(frame, rig_));
     proto::ToProto(*answered, index, &response);
+    if (answered->has_pose) {
+      proto::SetSitePose(map_metadata_, answered->map_from_cam, &response);
+    }
   } catch (const InputError& e) {
     Refuse(request, index, RedactForClient(e.what()), &response);
   } catch (const std::exception& e) {

@@ -93,6 +93,7 @@ class LocalizationSession {
   std::vector<v1::ImuSample> carried_imu_;
   CameraRig rig_;  // The session's cameras: the reference first (SessionStart.rig_cameras after).
   Localizer localizer_;
+  const MapMetadata map_metadata_;  // For the answers' site_from_cam.
   // A frame arrived now: the arrival rate over the last 2 s.
   double ArrivalRateHz(std::chrono::steady_clock::time_point now);
 

@@ -14,6 +14,7 @@
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/dataset.h"
+#include "dataset/tum.h"
 #include "mapstore/map_store.h"
 #include "tests/support/e2e.h"
 #include "tests/support/process.h"
@@ -196,6 +197,65 @@ TEST(SiteE2eTest, SurveyedSpotsTieTheMapToTheSiteAndAWrongSpotIsRefusedByName) {
   EXPECT_NE(info.out.find("site          tied to pairs "), std::string::npos) << info.out;
 }
 
+// A run's poses in the map beside the same stamps of a reference trajectory (motion capture's)
+// tie the map to the reference's frame; pair files that are not pairs are named by line.
+TEST(SiteE2eTest, ARunBesideAReferenceTrajectoryTiesTheMapAndBrokenPairFilesAreNamed) {
+  TempDir dir("visloc_align_trajectory");
+  const std::string map_path = dir.File("square.db");
+  std::filesystem::copy_file(kData + "/map.db", map_path);
+  const std::string walk = kData + "/outward";  // A 0.8 m circle: the pairs span a plane.
+  ASSERT_EQ(Visloc({"localize", "--map", map_path, "--dataset", walk, "--trajectory",
+                    dir.File("est.tum"), "--frames", "0::4"})
+                .exit_code,
+            0);
+  // The reference: the walk's ground truth (map frame) in a motion-capture room's frame, turned
+  // and moved against the map's.
+  const Rigid3d mocap_from_map(
+      Eigen::Quaterniond(Eigen::AngleAxisd(1.2, Eigen::Vector3d(0.2, 1.0, -0.3).normalized())),
+      Eigen::Vector3d(4.0, -2.5, 1.3));
+  const Trajectory truth = testing::ReadTumLines(walk + "/groundtruth_map.tum");
+  Trajectory reference;
+  for (const StampedPose& pose : testing::ReadTumLines(dir.File("est.tum"))) {
+    const auto at = InterpolateAt(truth, pose.timestamp_ns, 1'000'000);
+    ASSERT_TRUE(at.has_value()) << pose.timestamp_ns;
+    reference.push_back({pose.timestamp_ns, mocap_from_map * *at});
+  }
+  ASSERT_GT(reference.size(), 20u);
+  WriteTum(dir.File("mocap.tum"), reference);
+  const ProcessResult aligned =
+      Visloc({"map", "align", map_path, "--trajectory", dir.File("est.tum"), "--reference",
+              dir.File("mocap.tum"), "--json"});
+  ASSERT_EQ(aligned.exit_code, 0) << aligned.err;
+  EXPECT_LT(JsonNumber(aligned.out, "rms_m"), 0.01);
+  const Map tied = mapstore::LoadMap(map_path);
+  ASSERT_TRUE(tied.metadata.site.has_value());
+  EXPECT_EQ(tied.metadata.site->pairs, static_cast<int>(reference.size()));
+  // Every keyframe where the reference's frame has it.
+  double worst_m = 0;
+  for (const Keyframe& k : tied.keyframes) {
+    const Eigen::Vector3d& p = k.map_from_cam.translation;
+    worst_m =
+        std::max(worst_m, (tied.metadata.site->site_from_map * p - mocap_from_map * p).norm());
+  }
+  EXPECT_LT(worst_m, 0.02);
+
+  // Broken pair files: refused with the file and line, and the map left as it was.
+  const std::string before = ReadFileBytes(map_path);
+  const auto refused = [&](const std::string& name, const std::string& text,
+                           const std::string& expected) {
+    WriteFileAtomically(dir.File(name), text);
+    const ProcessResult result = Visloc({"map", "align", map_path, "--pairs", dir.File(name)});
+    EXPECT_EQ(result.exit_code, 1) << name;
+    EXPECT_NE(result.err.find(expected), std::string::npos) << name << ": " << result.err;
+  };
+  refused("six.csv", "a,1,2,3,4,5,6\nb,1,2,3,4,5\n",
+          "six.csv:2: expected NAME,MAP_X,MAP_Y,MAP_Z,SITE_X,SITE_Y,SITE_Z, found 6 fields");
+  refused("word.csv", "a,0,0,0,0,0,0\nb,1,0,0,1,0,x\nc,0,1,0,0,1,0\n",
+          "word.csv:2: the coordinates are not all finite numbers");
+  refused("two.csv", "a,0,0,0,0,0,0\nb,1,0,0,1,0,0\n", "2 position pairs; a rigid fit needs");
+  EXPECT_EQ(ReadFileBytes(map_path), before);
+}
+
 // A CSV's rows as field maps by its header.
 std::vector<std::map<std::string, std::string>> ReadCsv(const std::string& path) {
   const std::vector<TextLine> lines = ReadTextLines(path);
@@ -283,6 +343,62 @@ TEST(SiteE2eTest, TheServerAnswersAMapsLocalizabilityAsTheFileGivesIt) {
       Visloc({"map", "localizability", "square", "--server", server.address(), "--out",
               dir.File("x"), "--at", kData + "/outward/groundtruth_map.tum"});
   EXPECT_EQ(at_remote.exit_code, 2) << at_remote.err;  // A usage error.
+}
+
+// Robots hear their pose in the map's site frame too (z up), and `localize` and `stream` write
+// it: the same poses as the map frame's, turned by the map's site_from_map.
+TEST(SiteE2eTest, ARobotsPosesComeInTheSiteFrameAsTheMapTurnsThem) {
+  const TempDir dir("visloc-site-poses");
+  std::filesystem::create_directories(dir.File("maps"));
+  std::filesystem::copy_file(kData + "/map.db", dir.File("maps/square.db"));
+  const std::string walk = kData + "/query_square";
+  const std::vector<std::string> frames = {"--frames", "120"};
+  auto run = [&](std::vector<std::string> args) {
+    args.insert(args.end(), frames.begin(), frames.end());
+    const ProcessResult result = Visloc(args);
+    EXPECT_EQ(result.exit_code, 0) << result.err;
+  };
+  run({"localize", "--map", kData + "/map.db", "--dataset", walk, "--trajectory",
+       dir.File("map.tum")});
+  run({"localize", "--map", kData + "/map.db", "--dataset", walk, "--trajectory",
+       dir.File("site.tum"), "--frame", "site"});
+  testing::ServerProcess server(VISLOC_SERVER_PATH, dir.File("maps"));
+  run({"stream", "--server", server.address(), "--map", "square", "--dataset", walk, "--trajectory",
+       dir.File("streamed.tum"), "--frame", "site"});
+
+  const std::optional<Rigid3d> site_from_map =
+      SiteFromMap(mapstore::LoadMap(kData + "/map.db").metadata);
+  ASSERT_TRUE(site_from_map.has_value());
+  const Trajectory in_map = testing::ReadTumLines(dir.File("map.tum"));
+  const Trajectory in_site = testing::ReadTumLines(dir.File("site.tum"));
+  const Trajectory streamed = testing::ReadTumLines(dir.File("streamed.tum"));
+  ASSERT_EQ(in_map.size(), 120u);
+  ASSERT_EQ(in_site.size(), in_map.size());
+  ASSERT_EQ(streamed.size(), in_map.size());
+  for (size_t i = 0; i < in_map.size(); ++i) {
+    const Rigid3d expected = *site_from_map * in_map[i].pose;
+    EXPECT_LT((in_site[i].pose.translation - expected.translation).norm(), 1e-6) << i;
+    // Through the server the frames travel encoded and tracking differs by a millimetre; a
+    // wrong frame would be metres or a right angle off.
+    EXPECT_LT((streamed[i].pose.translation - expected.translation).norm(), 0.01) << i;
+    EXPECT_LT(streamed[i].pose.rotation.angularDistance(expected.rotation), 0.01) << i;
+  }
+  // The walk's camera stays level: its optical axis in the site frame is horizontal.
+  const Eigen::Vector3d forward = in_site[60].pose.rotation * Eigen::Vector3d::UnitZ();
+  EXPECT_LT(std::abs(forward.z()), 0.05) << forward.transpose();
+
+  // A map that records no up has no site frame: refused by name, not written in another frame.
+  Map no_up = mapstore::LoadMap(kData + "/map.db");
+  no_up.metadata.gravity.reset();
+  mapstore::SaveMap(no_up, dir.File("no_up.db"));
+  std::vector<std::string> refused_args = {"localize",        "--map",   dir.File("no_up.db"),
+                                           "--dataset",       walk,      "--trajectory",
+                                           dir.File("x.tum"), "--frame", "site",
+                                           "--frames",        "5"};
+  const ProcessResult refused = Visloc(refused_args);
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.err.find("records no up, so it has no site frame"), std::string::npos)
+      << refused.err;
 }
 
 }  // namespace

@@ -15,11 +15,24 @@
 
 #include "core/geometry/rigid3.h"
 #include "core/geometry/trajectory.h"
+#include "proto/geometry_convert.h"
 #include "visloc/v1/visloc.pb.h"
 
 namespace visloc::ros_node {
 
 bool IsPublishable(const v1::LocalizeResponse& response);
+
+// The pose the node publishes in its map frame. REP 105 wants `map` with z up: the answer's
+// pose in the map's site frame (site_from_cam: the frame map align tied it to, else its level
+// frame) when `site_frame` asks for it and the server gives it; else the map frame's (the first
+// camera's, a map that records no up, or servers before it). `in_site` says which.
+template <typename Answer>
+Rigid3d PublishedPose(const Answer& answer, bool site_frame, bool* in_site = nullptr) {
+  const bool site = site_frame && answer.has_site_from_cam();
+  if (in_site) *in_site = site;
+  return proto::FromProto(site ? answer.site_from_cam() : answer.map_from_cam(),
+                          site ? "site_from_cam" : "map_from_cam");
+}
 
 // visloc's covariance is over a right perturbation of map_from_cam (camera frame; translation
 // in m, then rotation in rad); ROS's is over the pose in its parent (map) frame with fixed-axis

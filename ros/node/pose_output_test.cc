@@ -65,3 +65,29 @@ TEST(PoseOutputTest, OdometryBufferInterpolatesAndDoesNotInvent) {
 
 }  // namespace
 }  // namespace visloc::ros_node
+
+namespace visloc::ros_node {
+namespace {
+
+// REP 105's map is z up: the site pose when the server gives one and the node asks for it, the
+// map frame's otherwise (a map that records no up, an older server, ~site_frame false).
+TEST(PoseOutputTest, ThePublishedPoseIsTheSiteFramesWhenTheServerGivesIt) {
+  v1::LocalizeResponse answer;
+  proto::ToProto(Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 2, 3)),
+                 answer.mutable_map_from_cam());
+  bool in_site = true;
+  EXPECT_TRUE(PublishedPose(answer, true, &in_site).translation.isApprox(Eigen::Vector3d(1, 2, 3)));
+  EXPECT_FALSE(in_site);
+  proto::ToProto(Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(3, -1, -2)),
+                 answer.mutable_site_from_cam());
+  answer.set_site_frame("level");
+  EXPECT_TRUE(
+      PublishedPose(answer, true, &in_site).translation.isApprox(Eigen::Vector3d(3, -1, -2)));
+  EXPECT_TRUE(in_site);
+  EXPECT_TRUE(
+      PublishedPose(answer, false, &in_site).translation.isApprox(Eigen::Vector3d(1, 2, 3)));
+  EXPECT_FALSE(in_site);
+}
+
+}  // namespace
+}  // namespace visloc::ros_node

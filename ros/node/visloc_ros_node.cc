@@ -15,7 +15,10 @@
 // With ~mode:=map the node streams a stereo camera to the server's mapper instead
 // (mapping_node.h, launch/visloc_mapping.launch).
 // Frames: the image's frame_id is the camera's optical frame (x right, y down, z forward, as
-// visloc's camera frame). Poses are map_from_cam. No pose is published while lost.
+// visloc's camera frame). Poses are map_from_cam, ~map_frame being the map's site frame (z up,
+// REP 105: the frame map align tied it to, else its level frame) while ~site_frame is true (the
+// default) and the map knows up; else the map's own frame (its first camera's). The hint sent
+// back to the server stays in the map's own frame. No pose is published while lost.
 
 #include <algorithm>
 #include <deque>
@@ -159,6 +162,8 @@ class LocalizationNode {
       options_.session.set_camera_height_m(camera_height_m);
     }
     map_frame_ = pnh_.param<std::string>("map_frame", "map");
+    // REP 105's map has z up: the map's site frame, when the server knows it (pose_output.h).
+    site_frame_ = pnh_.param("site_frame", true);
     camera_frame_override_ = pnh_.param<std::string>("camera_frame", "");
     publish_tf_ = pnh_.param("publish_tf", true);
     use_odometry_ = pnh_.param("use_odometry", false);
@@ -495,7 +500,7 @@ class LocalizationNode {
     if (status != last_status_) PublishStatus(status);
     if (!IsPublishable(event.response)) return;
     ++poses_published_;
-    const Rigid3d map_from_cam = FromProto(event.response.map_from_cam(), "map_from_cam");
+    const Rigid3d map_from_cam = PublishedPose(event.response, site_frame_);
     PublishPose(event.timestamp_ns, map_from_cam,
                 std::vector<double>(event.response.covariance().begin(),
                                     event.response.covariance().end()));
@@ -613,7 +618,7 @@ class LocalizationNode {
                       " candidates, none verified";
         return true;
       }
-      const Rigid3d map_from_cam = FromProto(answer.map_from_cam(), "map_from_cam");
+      const Rigid3d map_from_cam = PublishedPose(answer, site_frame_);
       std::lock_guard<std::mutex> lock(mutex_);
       pending_hint_ = answer.map_from_cam();
       PublishPose(frame.timestamp_ns, map_from_cam,
@@ -649,6 +654,7 @@ class LocalizationNode {
   std::unique_ptr<vc::Session> session_;
   bool failed_ = false;
   std::string map_frame_, camera_frame_, camera_frame_override_;
+  bool site_frame_ = true;
   std::string odom_frame_, odom_child_frame_, imu_frame_;
   bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
   double sensor_wait_s_ = 0.1;

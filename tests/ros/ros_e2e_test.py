@@ -98,6 +98,17 @@ def read_tum(path):
     return poses
 
 
+def site_ground_truth(visloc, map_db, path):
+    """A sequence's ground truth (map frame) in the map's site frame, as the node publishes its
+    poses (REP 105's map, z up): turned by the map's site_from_map (`map info`); unchanged for a
+    map that records no up."""
+    info = json.loads(run([visloc, "map", "info", map_db, "--json"]))
+    s = info.get("site", {}).get("site_from_map")
+    site_from_map = np.eye(4) if s is None else pose_matrix(
+        [s["tx"], s["ty"], s["tz"]], [s["qx"], s["qy"], s["qz"], s["qw"]])
+    return {t: site_from_map @ m for t, m in read_tum(path).items()}
+
+
 def read_odometry(path):
     poses = {}
     with open(path) as f:
@@ -374,7 +385,7 @@ def part_node(a, work, map_db, figures):
     world = RosWorld(a, work, map_db)
     try:
         # Query: raw images, odometry, TF map -> odom.
-        gt = read_tum(os.path.join(data, "query_square", "groundtruth_map.tum"))
+        gt = site_ground_truth(a.visloc, map_db, os.path.join(data, "query_square", "groundtruth_map.tum"))
         odom = read_odometry(os.path.join(data, "query_square", "mav0", "odometry0", "data.csv"))
         listener, node, played_s = play(world, "query", ["use_odometry:=true", "use_imu:=true",
                                                          "sensor_wait_s:=%g" % a.sensor_wait_s],
@@ -387,6 +398,10 @@ def part_node(a, work, map_db, figures):
         check(len(errs) > 0 and np.median(errs) < 1.0 and errs.max() < 3.0,
               "query: error against ground truth median %.3f cm, max %.3f cm" % (np.median(errs), errs.max()))
         check(all(f == "map" for f, _, _ in listener.poses.values()), "query: poses in the map frame")
+        # REP 105's map has z up: the level walk's camera looks level, its image's down along -z.
+        tilts = [np.degrees(np.arccos(np.clip(-m[2, 1], -1, 1))) for _, m, _ in listener.poses.values()]
+        check(len(tilts) > 0 and np.median(tilts) < 5.0,
+              "query: published z up (the camera's down %.2f deg from -z, median)" % np.median(tilts))
         cov_ok = all(c[0] > 0 and c[7] > 0 and c[14] > 0 and c[21] > 0 for _, _, c in listener.poses.values())
         check(cov_ok, "query: every pose carries a positive covariance")
         chain = []
@@ -473,7 +488,7 @@ def part_node(a, work, map_db, figures):
 
         # Kidnap: compressed images, no odometry (TF map -> camera); covered frames get no pose.
         meta = json.load(open(os.path.join(data, "kidnap", "sequence.json")))
-        gt = read_tum(os.path.join(data, "kidnap", "groundtruth_map.tum"))
+        gt = site_ground_truth(a.visloc, map_db, os.path.join(data, "kidnap", "groundtruth_map.tum"))
         stamps = sorted(gt)
         covered = {stamps[i] for i in meta["covered_frames"] if i < len(stamps)}
         listener, node, played_s = play(world, "kidnap", ["transport:=compressed"], kidnap_bag,
@@ -506,7 +521,7 @@ def part_node(a, work, map_db, figures):
         run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), walk, rig_bag, "--mono",
              "--rig-camera", "cam2"])
         meta = json.load(open(os.path.join(walk, "sequence.json")))
-        gt = read_tum(os.path.join(walk, "groundtruth_map.tum"))
+        gt = site_ground_truth(a.visloc, map_db, os.path.join(walk, "groundtruth_map.tum"))
         stamps = sorted(gt)
         covered = {stamps[i] for i in meta["covered_frames"] if i < len(stamps)}
         listener, node, played_s = play(world, "rig", ["rig_cameras:=/cam2"], rig_bag,
