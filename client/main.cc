@@ -28,9 +28,8 @@ const std::vector<Subcommand> kCommands = {
     {"calibrate", "calibrate a camera or a stereo pair from chessboard images", RunCalibrate},
     {"dataset", "inspect and prepare datasets: check, import, groundtruth", RunDataset},
     {"map",
-     "build and manage maps: build, info, verify, export, merge, extend, update, align, list, "
-     "delete, "
-     "rename, upload, download",
+     "build and manage maps: build, info, verify, export, merge, extend, update, align, "
+     "localizability, list, delete, rename, upload, download",
      RunMap},
     {"localize", "localize a dataset's images in a map, in-process (no server)", RunLocalize},
     {"stream", "stream a dataset to visloc-server as one robot session", RunStream},
