@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <deque>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -109,7 +110,8 @@ class LocalizationNode {
     status_pub_ = pnh_.advertise<std_msgs::String>("status", 10, /*latch=*/true);
     diagnostics_pub_ = nh_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     info_sub_ = nh_.subscribe("camera_info", 1, &LocalizationNode::OnCameraInfo, this);
-    if (pnh_.param<std::string>("transport", "raw") == "compressed") {
+    compressed_ = pnh_.param<std::string>("transport", "raw") == "compressed";
+    if (compressed_) {
       // Debian ships no compressed image_transport plugin: the CompressedImage topic is read
       // directly, and its JPEG/PNG bytes go to the server as they are (no re-encoding).
       compressed_sub_ = nh_.subscribe(nh_.resolveName("image") + "/compressed", 2,
@@ -303,7 +305,8 @@ class LocalizationNode {
     Receive(static_cast<int64_t>(msg->header.stamp.toNSec()), std::move(frame));
   }
 
-  // A rig's further cameras: each one's image_raw and camera_info in its namespace.
+  // A rig's further cameras: each one's image_raw (or, with ~transport:=compressed, its
+  // image_raw/compressed) and camera_info in its namespace.
   void SubscribeRigCameras() {
     for (size_t c = 0; c < rig_.size(); ++c) {
       RigCameraTopics& camera = *rig_[c];
@@ -312,26 +315,43 @@ class LocalizationNode {
             std::lock_guard<std::mutex> lock(mutex_);
             rig_[c]->info = *msg;
           });
+      if (compressed_) {
+        camera.compressed_sub = nh_.subscribe<sensor_msgs::CompressedImage>(
+            camera.ns + "/image_raw/compressed", 2,
+            [this, c](const sensor_msgs::CompressedImageConstPtr& msg) {
+              OnRigImage(c, static_cast<int64_t>(msg->header.stamp.toNSec()), [&] {
+                return ros_msg::DecodeCompressedImage(
+                    msg->format, std::string_view(reinterpret_cast<const char*>(msg->data.data()),
+                                                  msg->data.size()));
+              });
+            });
+        continue;
+      }
       camera.image_sub = transport_.subscribe(
           camera.ns + "/image_raw", 2,
           boost::function<void(const sensor_msgs::ImageConstPtr&)>(
-              [this, c](const sensor_msgs::ImageConstPtr& msg) { OnRigImage(c, msg); }));
+              [this, c](const sensor_msgs::ImageConstPtr& msg) {
+                OnRigImage(c, static_cast<int64_t>(msg->header.stamp.toNSec()), [&] {
+                  return ros_msg::DecodeRawImage(
+                      msg->width, msg->height, msg->encoding, msg->is_bigendian != 0, msg->step,
+                      std::string_view(reinterpret_cast<const char*>(msg->data.data()),
+                                       msg->data.size()));
+                });
+              }));
     }
   }
 
-  void OnRigImage(size_t c, const sensor_msgs::ImageConstPtr& msg) {
+  // A rig camera's image at `stamp_ns`, decoded by `decode` (raw or compressed).
+  void OnRigImage(size_t c, int64_t stamp_ns, const std::function<cv::Mat()>& decode) {
     cv::Mat image;
     try {
-      image = ros_msg::DecodeRawImage(
-          msg->width, msg->height, msg->encoding, msg->is_bigendian != 0, msg->step,
-          std::string_view(reinterpret_cast<const char*>(msg->data.data()), msg->data.size()));
+      image = decode();
     } catch (const std::exception& e) {
       ROS_ERROR_THROTTLE(5.0, "visloc: %s image refused: %s", rig_[c]->ns.c_str(), e.what());
       return;
     }
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      const auto stamp_ns = static_cast<int64_t>(msg->header.stamp.toNSec());
       auto& images = rig_[c]->images;
       images.emplace_back(stamp_ns, std::move(image));
       if (images.size() > 10) images.pop_front();
@@ -655,6 +675,7 @@ class LocalizationNode {
   bool failed_ = false;
   std::string map_frame_, camera_frame_, camera_frame_override_;
   bool site_frame_ = true;
+  bool compressed_ = false;  // ~transport:=compressed: every camera's CompressedImage topic.
   std::string odom_frame_, odom_child_frame_, imu_frame_;
   bool publish_tf_ = true, use_odometry_ = false, use_imu_ = false;
   double sensor_wait_s_ = 0.1;
@@ -674,7 +695,7 @@ class LocalizationNode {
     std::string ns;
     std::optional<sensor_msgs::CameraInfo> info;
     std::deque<std::pair<int64_t, cv::Mat>> images;  // By stamp, the last few.
-    ros::Subscriber info_sub;
+    ros::Subscriber info_sub, compressed_sub;
     image_transport::Subscriber image_sub;
   };
   std::vector<std::unique_ptr<RigCameraTopics>> rig_;

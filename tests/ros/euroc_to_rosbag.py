@@ -4,7 +4,7 @@ python3-rosbag: the independent side of visloc's bag import and ROS node tests.
 
   euroc_to_rosbag.py DIR OUT.bag [--mono] [--right-compressed] [--left-compressed]
                      [--odometry] [--odometry-lag-ms MS] [--imu] [--drop-right N]
-                     [--rig-camera CAM ...]
+                     [--rig-camera CAM ...] [--rig-compressed]
 
 Topics: /cam0/image_raw (sensor_msgs/Image mono8, or .../compressed JPEG), /cam0/camera_info,
 /cam1/image_raw (or /cam1/image_raw/compressed, PNG), /cam1/camera_info, /odom
@@ -16,7 +16,8 @@ Every --drop-right'th right image is left out, to exercise pairing reports. With
 --odometry-lag-ms, every other odometry message is recorded (so played) that long after its own
 stamp, as odometry from another node arrives after the image of the same instant. Each
 --rig-camera CAM (a rig's further camera, as `visloc sim --rig` writes cam2, ...) adds
-/CAM/image_raw, /CAM/camera_info and /tf_static cam0 -> CAM (from both cameras' T_BS).
+/CAM/image_raw (with --rig-compressed, /CAM/image_raw/compressed JPEG), /CAM/camera_info and
+/tf_static cam0 -> CAM (from both cameras' T_BS).
 """
 import argparse
 import csv
@@ -158,6 +159,8 @@ def main():
     p.add_argument("--drop-right", type=int, default=0)
     p.add_argument("--imu", action="store_true")
     p.add_argument("--rig-camera", action="append", default=[])
+    p.add_argument("--rig-compressed", action="store_true",
+                   help="the rig's further cameras as /CAM/image_raw/compressed (JPEG)")
     a = p.parse_args()
     mav0 = os.path.join(a.dir, "mav0")
     left, body_from_left = read_camera(os.path.join(mav0, "cam0", "sensor.yaml"))
@@ -189,7 +192,7 @@ def main():
             write_image(bag, mav0, "cam0", name, t, "jpeg" if a.left_compressed else None)
             bag.write("/cam0/camera_info", camera_info(left, "cam0", t, r_left), t)
             for cam, sensor, _ in rig:
-                write_image(bag, mav0, cam, name, t, None)
+                write_image(bag, mav0, cam, name, t, "jpeg" if a.rig_compressed else None)
                 bag.write("/%s/camera_info" % cam, camera_info(sensor, cam, t), t)
             if stereo:
                 bag.write("/cam1/camera_info", camera_info(right, "cam1", t, r_right, baseline), t)

@@ -15,6 +15,9 @@
      resume;
    - kidnap (JPEG CompressedImage, no odometry, TF map -> camera): no pose while the camera is
      covered, a status that says lost, poses again after relocalization;
+   - a rig (the front camera and a rear one, both JPEG CompressedImage, placed by /tf_static):
+     the pose kept while the front camera is covered;
+   Poses are compared with the ground truth in the map's site frame (REP 105's z-up map).
    - mapping mode: the generated square's stereo bag through visloc_mapping.launch to the
      server's mapper, ended by the node's finish_map service, against the same frames mapped here;
    - with --real, the real EuRoC snippet: its bag (camera_info with OpenCV's rectification, as
@@ -518,14 +521,15 @@ def part_node(a, work, map_db, figures):
         # its pose while the front camera is covered.
         walk = os.path.join(data, "front-back", "kidnap")
         rig_bag = os.path.join(work, "rig.bag")
+        # Every camera's images compressed (JPEG), as a robot short of bandwidth sends them.
         run(["/usr/bin/python3", os.path.join(HERE, "euroc_to_rosbag.py"), walk, rig_bag, "--mono",
-             "--rig-camera", "cam2"])
+             "--rig-camera", "cam2", "--left-compressed", "--rig-compressed"])
         meta = json.load(open(os.path.join(walk, "sequence.json")))
         gt = site_ground_truth(a.visloc, map_db, os.path.join(walk, "groundtruth_map.tum"))
         stamps = sorted(gt)
         covered = {stamps[i] for i in meta["covered_frames"] if i < len(stamps)}
-        listener, node, played_s = play(world, "rig", ["rig_cameras:=/cam2"], rig_bag,
-                                        "/cam0/image_raw", Image)
+        listener, node, played_s = play(world, "rig", ["rig_cameras:=/cam2", "transport:=compressed"],
+                                        rig_bag, "/cam0/image_raw/compressed", CompressedImage)
         during = [s for s in covered if nearest(listener.poses, s) is not None]
         errs = errors_cm(listener.poses, gt)
         dropped = dropped_frames(listener)
