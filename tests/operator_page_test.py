@@ -85,7 +85,16 @@ def wait_for(driver, script, seconds):
     return None
 
 
-def check_floor_plan(driver, check):
+def sample_robot(driver):
+    """A live robot on the square map as the page has it: the session, where the page draws it,
+    and the view's site_from_map (taken while the robots stream: they end after their walks)."""
+    return driver.execute_script(
+        "const s = state.sessions.find(s => s.map === 'square' && s.has_pose);"
+        "return s && state.view && state.view.site_from_map ?"
+        " [s, toPlan(state.view, s.x, s.y, s.z), state.view.site_from_map] : null;")
+
+
+def check_floor_plan(driver, check, robot):
     """The square map in its level frame, the overlay loaded, a robot placed by site_from_map."""
     view = driver.execute_script("return state.view;")
     info = driver.execute_script("return document.getElementById('viewinfo').textContent;")
@@ -100,14 +109,12 @@ def check_floor_plan(driver, check):
     check(len(grid["best"]) == cells and good > cells // 4,
           f"the overlay's cells: {good} of {cells} expect 30 inliers or more")
     # A robot's arrow: where the page puts it is its map position turned by site_from_map.
-    s = wait_for(driver, "return state.sessions.find(s => s.map === 'square' && s.has_pose);", 10)
-    check(s is not None, "a robot with a pose on the square map")
-    if s is None:
+    check(robot is not None, "a robot with a pose on the square map, sampled while streaming")
+    if robot is None:
         return f"{good}/{cells} cells good"
-    m = view["site_from_map"]
+    s, drawn, m = robot
     expected = [m[0] * s["x"] + m[1] * s["y"] + m[2] * s["z"] + m[3],
                 m[4] * s["x"] + m[5] * s["y"] + m[6] * s["z"] + m[7]]
-    drawn = driver.execute_script(f"return toPlan(state.view, {s['x']}, {s['y']}, {s['z']});")
     check(math.dist(drawn, expected) < 1e-6 and math.dist(drawn, [s["x"], s["z"]]) > 0.05,
           f"the robot drawn at the site frame's {expected}, not the map's x-z: {drawn}")
     return f"{good}/{cells} cells good, robot at {[round(v, 2) for v in drawn]}"
@@ -179,10 +186,12 @@ def main():
             driver.get("http://" + http_address + "/")
             usable_s = None
             seen = []
+            robot = None  # A live robot as the page drew it (sample_robot).
             rig_cameras = set()  # The rig robot's camera lines as drawn ("cam2 179", blind ones).
             deadline = time.monotonic() + 40
             while time.monotonic() < deadline:
                 statuses = robot_statuses(driver)
+                robot = robot or sample_robot(driver)
                 drawn = "keyframes" in driver.execute_script(
                     "return document.getElementById('viewinfo').textContent;")
                 if usable_s is None and drawn and len(statuses) == 3:
@@ -226,7 +235,7 @@ def main():
             check(keyframe_pixels > 200, f"keyframes drawn: {keyframe_pixels} blue pixels")
             check(grey_pixels > 500, f"points drawn: {grey_pixels} grey pixels")
             check(robot_pixels > 50, f"a robot's arrow drawn: {robot_pixels} pixels")
-            floor_plan = check_floor_plan(driver, check)
+            floor_plan = check_floor_plan(driver, check, robot)
             # The big map: chosen by a click, drawn decimated.
             clicked = time.monotonic()
             driver.execute_script("document.querySelector('#maprows tr[data-name=big]').click();")
