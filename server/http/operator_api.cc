@@ -163,24 +163,24 @@ std::string LocalizabilityJson(const LocalizabilityReport& report) {
       .Field("pitch_deg", grid.pitch_deg)
       .Field("good_poses", report.stats.good_poses);
   // Per cell (iy * cells_x + ix): the best heading's expected inliers, and how many headings
-  // are good.
+  // are good, in one pass over the grid.
+  std::vector<int64_t> best, good;
+  for (int iy = 0; iy < grid.cells_y; ++iy) {
+    for (int ix = 0; ix < grid.cells_x; ++ix) {
+      float cell_best = 0.0f;
+      int64_t cell_good = 0;
+      for (int h = 0; h < grid.headings; ++h) {
+        cell_best = std::max(cell_best, grid.at(ix, iy, h).expected_inliers);
+        cell_good += grid.at(ix, iy, h).good ? 1 : 0;
+      }
+      best.push_back(std::lround(cell_best));
+      good.push_back(cell_good);
+    }
+  }
   json.Key("best").BeginArray();
-  for (int cell = 0; cell < grid.cells_x * grid.cells_y; ++cell) {
-    float best = 0.0f;
-    for (int h = 0; h < grid.headings; ++h) {
-      best = std::max(
-          best, grid.estimates[static_cast<size_t>(cell) * grid.headings + h].expected_inliers);
-    }
-    json.Value(static_cast<int64_t>(std::lround(best)));
-  }
+  for (int64_t value : best) json.Value(value);
   json.EndArray().Key("good").BeginArray();
-  for (int cell = 0; cell < grid.cells_x * grid.cells_y; ++cell) {
-    int64_t good = 0;
-    for (int h = 0; h < grid.headings; ++h) {
-      good += grid.estimates[static_cast<size_t>(cell) * grid.headings + h].good ? 1 : 0;
-    }
-    json.Value(good);
-  }
+  for (int64_t value : good) json.Value(value);
   json.EndArray().EndObject();
   return json.str();
 }
