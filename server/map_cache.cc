@@ -121,6 +121,12 @@ int MapCache::UsersOf(const std::string& name) const {
   return it == users_->count.end() ? 0 : it->second;
 }
 
+std::weak_ptr<const LocalizationMap> MapCache::Loaded(const std::string& name) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = entries_.find(name);
+  return it == entries_.end() ? std::weak_ptr<const LocalizationMap>() : it->second.map;
+}
+
 int MapCache::UnloadIdle() {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto now = std::chrono::steady_clock::now();

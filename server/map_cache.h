@@ -45,6 +45,10 @@ class MapCache {
   // How many holders of Acquire()'s pointers NAME has now (sessions localizing in it, a
   // relocalization under way), whichever version of the file they hold.
   int UsersOf(const std::string& name) const;
+  // The map NAME as loaded now, without counting as its user: it expires once the cache has
+  // dropped or replaced it and no holder of an Acquire() pointer to it remains. Empty when NAME
+  // is not loaded. For what is computed once per loaded map (a localizability grid).
+  std::weak_ptr<const LocalizationMap> Loaded(const std::string& name) const;
   // Drops maps no session holds that have been idle longer than the limit. Returns how many.
   int UnloadIdle();
 
