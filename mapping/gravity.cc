@@ -287,7 +287,20 @@ struct Plane {
   double sigma_deg = 0.0;
   // The points' spread (rms, m) along the normal, then the two in-plane principal directions.
   Eigen::Vector3d spread_m = Eigen::Vector3d::Zero();
+  // The width (m) along in-plane direction i (0: the wider, 1: the narrower) of points spread
+  // evenly with this rms.
+  double width_m(int i) const { return std::sqrt(12.0) * spread_m(2 - i); }
 };
+
+// How well a found floor tells up (deg): the fit's, the floor's laying, and the patch's own
+// rise across its narrower width.
+double FloorSigmaDeg(const Plane& floor, const GravityOptions& options) {
+  const double patch_deg =
+      std::atan2(options.floor_unevenness_m, std::max(1e-3, floor.width_m(1))) * kRadToDeg;
+  return std::sqrt(floor.sigma_deg * floor.sigma_deg +
+                   options.floor_level_sigma_deg * options.floor_level_sigma_deg +
+                   patch_deg * patch_deg);
+}
 
 // Least-squares plane through `points` (at least 3): the normal is the direction of least
 // spread; its sigma from the residual and the spread across the plane.
@@ -421,17 +434,29 @@ GravityResult GravityFromFloor(const Map& map, const GravityOptions& options) {
       return result;
     }
   }
+  std::string floor_why_not;
   if (floor) {
     gravity.source = MapGravity::Source::kFloor;
     gravity.up_in_map = floor->normal;
-    gravity.sigma_deg = std::hypot(floor->sigma_deg, options.floor_level_sigma_deg);
+    gravity.sigma_deg = FloorSigmaDeg(*floor, options);
+    if (gravity.sigma_deg > options.max_floor_sigma_deg) {
+      floor_why_not = StrCat("the floor seen spans only ", FormatFixed(floor->width_m(1), 1), " x ",
+                             FormatFixed(floor->width_m(0), 1), " m: level within ",
+                             FormatFixed(gravity.sigma_deg, 1), " deg, over the ",
+                             FormatFixed(options.max_floor_sigma_deg, 1), " deg taken");
+    }
+  }
+  if (floor && floor_why_not.empty()) {
+    // Taken as found.
   } else if (motion) {
     gravity.source = MapGravity::Source::kMotionPlane;
     gravity.up_in_map = motion->normal;
     // A walking robot's head bobs and a wheeled one's floor is not flat: a degree at least.
     gravity.sigma_deg = std::max(1.0, motion->sigma_deg);
   } else {
-    result.why_not = StrCat("no floor beneath the keyframes, and ", motion_why_not);
+    result.why_not =
+        StrCat(floor_why_not.empty() ? "no floor beneath the keyframes" : floor_why_not, ", and ",
+               motion_why_not);
     return result;
   }
   result.gravity = gravity;

@@ -63,6 +63,13 @@ struct GravityOptions {
   // A floor is level only as well as it was laid, and a map's floor only as well as it was
   // mapped: its up is never claimed better than this (deg).
   double floor_level_sigma_deg = 1.0;
+  // What a patch of floor may rise across its width (m): a mat, a ramp, a drain's fall, the
+  // pad a robot starts on. Over the patch's narrower width it bounds how well the patch tells
+  // level: EuRoC MH_01's start sees 0.7 x 0.9 m of floor, tilted 3.8 deg from the hall's
+  // vertical; a room's floor seen across 6 m tells it within half a degree.
+  double floor_unevenness_m = 0.05;
+  // A floor that tells up no better than this (deg, one sigma) is not taken as the map's up.
+  double max_floor_sigma_deg = 2.0;
   int floor_ransac_iterations = 300;
   // Motion plane: the keyframes' positions spread over at least this extent (m) in the plane and
   // at most this fraction of it across it.

@@ -135,14 +135,19 @@ std::optional<PlanFrame> PlanFrameOf(const Map& map, std::string* why_not) {
     return PlanFrame{*site_from_map, "level",
                      StrCat("level, up from ", GravitySourceName(map.metadata.gravity->source))};
   }
-  const GravityResult floor = GravityFromFloor(map);
+  // A drawing takes a floor too small to be the map's up: a few degrees off level still reads
+  // as a floor plan, and the report says how level it is.
+  GravityOptions to_draw;
+  to_draw.max_floor_sigma_deg = kMaxDrawnFloorSigmaDeg;
+  const GravityResult floor = GravityFromFloor(map, to_draw);
   if (!floor.gravity) {
     if (why_not) *why_not = "the map records no up and its floor does not tell: " + floor.why_not;
     return std::nullopt;
   }
-  return PlanFrame{LevelFromMap(*floor.gravity), "floor",
-                   StrCat("level, up from the ", GravitySourceName(floor.gravity->source),
-                          " found now (the map records none)")};
+  return PlanFrame{
+      LevelFromMap(*floor.gravity), "floor",
+      StrCat("level within ", FormatFixed(floor.gravity->sigma_deg, 1), " deg, up from the ",
+             GravitySourceName(floor.gravity->source), " found now (the map records none)")};
 }
 
 }  // namespace visloc::mapping

@@ -57,7 +57,9 @@ std::vector<PositionPair> PairsFromTrajectories(const Trajectory& map_from_cam,
 
 // The level frame a map is seen from above in (the operator's page, `map localizability`): its
 // site frame (map.h SiteFromMap); for a map that records no up, levelled on its floor now (not
-// stored); none when the floor does not tell either (`why_not` says why).
+// stored, and taken at up to kMaxDrawnFloorSigmaDeg); none when the floor does not tell either
+// (`why_not` says why).
+constexpr double kMaxDrawnFloorSigmaDeg = 8.0;
 struct PlanFrame {
   Rigid3d site_from_map;
   std::string name;  // "site" (tied by map align), "level" (the map's up) or "floor" (found now).
