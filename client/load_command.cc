@@ -46,6 +46,7 @@ struct LoadArgs {
   int jpeg_quality = 90;
   std::string policy = "newest";
   double max_p99_ms = 50.0;  // The capacity criterion the summary checks.
+  double arrive_every_s = 0.0;  // Robot r opens its session r times this after the first.
   bool json = false;
 };
 
@@ -57,6 +58,13 @@ struct RobotRecord {
                                    // for a worker and the engine.
   int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
   std::string failure;  // The server refused the session.
+  // The server refused the session for capacity (RESOURCE_EXHAUSTED) this many times; a robot
+  // refused and never answered was not admitted, and its frames are not the server's latency.
+  int capacity_refusals = 0;
+  // Frames dropped while the robot waited to be admitted (refused, backing off): not the
+  // latency of a robot the server serves.
+  int awaiting_admission = 0;
+  bool refused() const { return capacity_refusals > 0 && answered == 0; }
 };
 
 // Frame k of a forwards-then-backwards play of `count` frames.
@@ -94,7 +102,7 @@ void Record(const client::Event& e, RobotRecord* robot) {
       ++robot->late;
       break;
     case client::Event::Kind::kDropped:
-      ++robot->dropped;
+      ++(robot->refused() ? robot->awaiting_admission : robot->dropped);
       break;
     case client::Event::Kind::kUndelivered:
       ++robot->undelivered;
@@ -103,6 +111,7 @@ void Record(const client::Event& e, RobotRecord* robot) {
       if (e.link_state == client::LinkState::kFailed && robot->failure.empty()) {
         robot->failure = e.detail;
       }
+      robot->capacity_refusals += e.detail.find("server at capacity") != std::string::npos;
       break;
   }
 }
@@ -118,10 +127,13 @@ client::SessionOptions RobotOptions(const LoadArgs& args, const Dataset& dataset
   return o;
 }
 
-// One robot: frames at the rate from `start`, until `end`.
-void DriveRobot(client::Session* session, const std::vector<std::string>& encoded,
-                const Dataset& dataset, double rate_hz, Clock::time_point start,
-                Clock::time_point end) {
+// One robot: its session opened at `start`, then frames at the rate until `end`.
+void DriveRobot(const client::SessionOptions& options, std::unique_ptr<client::Session>* opened,
+                const std::vector<std::string>& encoded, const Dataset& dataset, double rate_hz,
+                Clock::time_point start, Clock::time_point end) {
+  std::this_thread::sleep_until(start);
+  *opened = client::Session::Open(options);
+  client::Session* session = opened->get();
   const auto period = std::chrono::nanoseconds(static_cast<int64_t>(1e9 / rate_hz));
   for (size_t k = 0;; ++k) {
     const Clock::time_point due = start + k * period;
@@ -152,6 +164,9 @@ void ParseLoadArgs(const Args& raw_args, LoadArgs* args, bool* run) {
   parser.AddFlag("jpeg-quality", &args->jpeg_quality, "1..100, the frames' JPEG quality");
   parser.AddFlag("policy", &args->policy,
                  "newest (a live robot: the server drops stale frames) or all");
+  parser.AddFlag("arrive-every-s", &args->arrive_every_s,
+                 "robots join one after another this far apart (each streams until the end); "
+                 "0: all at once");
   parser.AddFlag("max-p99-ms", &args->max_p99_ms,
                  "the latency the summary holds the server to: p99 over every answer");
   parser.AddSwitch("json", &args->json, "print the summary as one JSON object");
@@ -162,6 +177,10 @@ void ParseLoadArgs(const Args& raw_args, LoadArgs* args, bool* run) {
   if (!(args->rate_hz > 0 && args->rate_hz <= 1000)) throw UsageError("--rate is (0, 1000] Hz");
   if (!(args->duration_s > 0 && args->duration_s <= 3600)) {
     throw UsageError("--duration-s is (0, 3600] s");
+  }
+  if (!(args->arrive_every_s >= 0 &&
+        args->arrive_every_s * (args->robots - 1) < args->duration_s)) {
+    throw UsageError("--arrive-every-s must let the last robot arrive within --duration-s");
   }
   if (args->jpeg_quality < 1 || args->jpeg_quality > 100) {
     throw UsageError("--jpeg-quality is 1..100");
@@ -191,40 +210,54 @@ int RunLoad(const Args& raw_args) {
 
   std::vector<RobotRecord> records(args.robots);
   std::mutex records_mutex;
-  std::vector<std::unique_ptr<client::Session>> sessions;
+  std::vector<client::SessionOptions> options(args.robots);
   for (int r = 0; r < args.robots; ++r) {
-    client::SessionOptions options = RobotOptions(args, dataset, r);
-    options.on_event = [&records, &records_mutex, r](const client::Event& e) {
+    options[r] = RobotOptions(args, dataset, r);
+    options[r].on_event = [&records, &records_mutex, r](const client::Event& e) {
       const std::lock_guard<std::mutex> lock(records_mutex);
       Record(e, &records[r]);
     };
-    sessions.push_back(client::Session::Open(options));
   }
+  std::vector<std::unique_ptr<client::Session>> sessions(args.robots);
   const double cpu_before_s = CpuSeconds();
   const Clock::time_point start = Clock::now() + std::chrono::milliseconds(200);
   const Clock::time_point end =
       start + std::chrono::nanoseconds(static_cast<int64_t>(args.duration_s * 1e9));
   std::vector<std::thread> drivers;
   for (int r = 0; r < args.robots; ++r) {
-    // Staggered over one period, as robots started at random would be.
+    // Staggered over one period, as robots started at random would be; arriving one after
+    // another with --arrive-every-s.
     const auto offset =
-        std::chrono::nanoseconds(static_cast<int64_t>(1e9 / args.rate_hz * r / args.robots));
-    drivers.emplace_back(DriveRobot, sessions[r].get(), std::cref(encoded), std::cref(dataset),
-                         args.rate_hz, start + offset, end);
+        std::chrono::nanoseconds(static_cast<int64_t>(1e9 / args.rate_hz * r / args.robots)) +
+        std::chrono::nanoseconds(static_cast<int64_t>(1e9 * args.arrive_every_s * r));
+    drivers.emplace_back(DriveRobot, std::cref(options[r]), &sessions[r], std::cref(encoded),
+                         std::cref(dataset), args.rate_hz, start + offset, end);
   }
   for (std::thread& d : drivers) d.join();
-  for (auto& s : sessions) s->Close(std::chrono::milliseconds(2000));
+  for (auto& s : sessions) {
+    if (s) s->Close(std::chrono::milliseconds(2000));
+  }
   const double streamed_s = std::chrono::duration<double>(Clock::now() - start).count();
   const double cpu_s = CpuSeconds() - cpu_before_s;
-  int submitted = 0;
-  for (auto& s : sessions) submitted += static_cast<int>(s->stats().submitted);
+  std::vector<int> submitted_by(args.robots);
+  for (int r = 0; r < args.robots; ++r) {
+    submitted_by[r] = sessions[r] ? static_cast<int>(sessions[r]->stats().submitted) : 0;
+  }
   sessions.clear();
 
   const std::lock_guard<std::mutex> lock(records_mutex);
   std::vector<double> all_ms, robot_p99_ms, engine_ms, server_ms;
   int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
-  for (const RobotRecord& r : records) {
+  int submitted = 0, refused_robots = 0, awaiting_admission = 0;
+  for (int i = 0; i < args.robots; ++i) {
+    const RobotRecord& r = records[i];
     if (!r.failure.empty()) throw InputError("server " + args.server.server + ": " + r.failure);
+    if (r.refused()) {
+      ++refused_robots;
+      continue;
+    }
+    submitted += submitted_by[i] - r.awaiting_admission;
+    awaiting_admission += r.awaiting_admission;
     all_ms.insert(all_ms.end(), r.latency_ms.begin(), r.latency_ms.end());
     engine_ms.insert(engine_ms.end(), r.engine_ms.begin(), r.engine_ms.end());
     server_ms.insert(server_ms.end(), r.server_ms.begin(), r.server_ms.end());
@@ -239,7 +272,8 @@ int RunLoad(const Args& raw_args) {
   const int frames = submitted;
   const double p50 = LatencyPercentile(all_ms, 0.5), p95 = LatencyPercentile(all_ms, 0.95),
                p99 = LatencyPercentile(all_ms, 0.99);
-  const double worst_robot_p99 = *std::max_element(robot_p99_ms.begin(), robot_p99_ms.end());
+  const double worst_robot_p99 =
+      robot_p99_ms.empty() ? 0.0 : *std::max_element(robot_p99_ms.begin(), robot_p99_ms.end());
   const int not_answered = skipped + late + dropped + undelivered;
   const bool held = p99 <= args.max_p99_ms && not_answered <= 0.01 * frames;
   if (args.json) {
@@ -248,6 +282,8 @@ int RunLoad(const Args& raw_args) {
         .Field("robots", static_cast<int64_t>(args.robots))
         .Field("rate_hz", args.rate_hz)
         .Field("duration_s", args.duration_s)
+        .Field("refused_robots", static_cast<int64_t>(refused_robots))
+        .Field("frames_awaiting_admission", static_cast<int64_t>(awaiting_admission))
         .Field("frames", static_cast<int64_t>(frames))
         .Field("answered", static_cast<int64_t>(answered))
         .Field("localized", static_cast<int64_t>(localized))
@@ -272,6 +308,12 @@ int RunLoad(const Args& raw_args) {
                 args.robots, args.rate_hz, args.duration_s, dataset.left.camera.width(),
                 dataset.left.camera.height(), args.jpeg_quality,
                 encoded_bytes / encoded.size() / 1024.0, args.map_name.c_str());
+    if (refused_robots > 0 || awaiting_admission > 0) {
+      std::printf(
+          "%d of %d robots refused: the server was at capacity (their frames are left "
+          "out, and the %d frames of admitted robots sent while they waited)\n",
+          refused_robots, args.robots, awaiting_admission);
+    }
     std::printf("answered %d of %d frames (%d localized), %.1f answers/s; skipped %d, late %d, "
                 "dropped %d, undelivered %d\n",
                 answered, frames, localized, answered / streamed_s, skipped, late, dropped,

@@ -81,6 +81,15 @@ Status LocalizationService::Localize(
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   StrCat("session limit reached (", limits_.max_sessions, " concurrent sessions)"));
   }
+  // The newcomer is not yet among the active sessions the load is shared by.
+  if (const AdmissionDecision admission = Admission(); !admission.admit) {
+    ++refused_at_capacity_;
+    Log("session_refused", {{"map", start.map_name()},
+                            {"robot", start.robot_id()},
+                            {"peer", context->peer()},
+                            {"reason", admission.why}});
+    return Status(StatusCode::RESOURCE_EXHAUSTED, admission.why);
+  }
   std::unique_ptr<LocalizationSession> session;
   std::shared_ptr<const LocalizationMap> map;
   try {
@@ -111,6 +120,14 @@ Status LocalizationService::Localize(
   LogSessionEnd(*session, *map, end, *context);
   // An idle session's call is cancelled: the client has the reason in its final answer.
   return Status::OK;
+}
+
+AdmissionDecision LocalizationService::Admission() const {
+  // The sessions listed are the ones open now (the newcomer's is not yet).
+  std::vector<double> session_loads;
+  for (const SessionStatus& s : registry_.Snapshot()) session_loads.push_back(s.cpu_load);
+  return DecideAdmission(workers_.load().Over(WorkerLoad::Clock::now()), workers_.permits(),
+                         session_loads, limits_.admission);
 }
 
 Status LocalizationService::Relocalize(grpc::ServerContext* context,

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "proto/convert.h"
+#include "server/admission.h"
 #include "server/auth.h"
 #include "server/map_cache.h"
 #include "server/server_status.h"
@@ -27,6 +28,7 @@ struct ServiceLimits {
   // the call is cancelled) and its slot freed: a robot whose link froze with its stream open
   // must not hold a slot forever. 0: off.
   std::chrono::milliseconds session_idle_timeout{30000};
+  AdmissionOptions admission;
   proto::WireLimits wire;
 };
 
@@ -48,6 +50,11 @@ class LocalizationService final : public v1::Localization::Service {
   const WorkPermits& workers() const { return workers_; }
   // Sessions closed for idleness since the start.
   int idle_sessions_closed() const { return idle_closed_.load(); }
+  // What admission control would decide for one more session now (admission.h).
+  AdmissionDecision Admission() const;
+  const AdmissionOptions& admission_options() const { return limits_.admission; }
+  // Sessions refused because the server was at capacity, since the start.
+  uint64_t sessions_refused_at_capacity() const { return refused_at_capacity_.load(); }
 
   // For tests: called inside a session with each frame before the engine sees it, so a test can
   // make the engine's side throw what it never should, or see what the engine gets. Set it
@@ -66,6 +73,7 @@ class LocalizationService final : public v1::Localization::Service {
   BeforeFrameHook before_frame_;
 
   std::atomic<int> idle_closed_{0};
+  std::atomic<uint64_t> refused_at_capacity_{0};
 };
 
 }  // namespace visloc::server

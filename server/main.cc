@@ -2,6 +2,7 @@
 //
 //   visloc-server --maps DIR [--listen 127.0.0.1:50051] [--tls-cert F --tls-key F]
 //                 [--tls-client-ca F] [--tokens F] [--threads N] [--max-sessions N]
+//                 [--admit-busy F] [--admit-wait-ms MS]
 //                 [--max-frame-rate-hz HZ] [--session-idle-timeout-s S] [--keepalive-*-s ...]
 //
 // Serves Localization, MapAdmin, grpc.health.v1 and server reflection. Prints
@@ -30,6 +31,11 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
   parser.AddFlag("http", &c->http,
                  "HOST:PORT for /healthz, /readyz and /metrics (Prometheus); off unless given");
   parser.AddFlag("max-sessions", &c->max_sessions, "concurrent Localize streams");
+  parser.AddFlag("admit-busy", &c->admit_busy,
+                 "refuse a new session (RESOURCE_EXHAUSTED) when one more would take the "
+                 "workers past this busy fraction over the last 10 s; 0: off");
+  parser.AddFlag("admit-wait-ms", &c->admit_wait_ms,
+                 "refuse a new session while frames wait longer than this for a worker (p95)");
   parser.AddFlag("idle-unload-s", &c->idle_unload_s, "unload maps idle this long");
   parser.AddFlag("map-memory-mib", &c->map_memory_mib,
                  "memory bound per map: larger maps are served paged, their points read per "

@@ -83,6 +83,8 @@ ServiceLimits LimitsOf(const ServerConfig& config) {
   limits.session_idle_timeout =
       std::chrono::milliseconds(static_cast<int64_t>(config.session_idle_timeout_s * 1000));
   limits.workers = config.Workers();
+  limits.admission.max_busy_fraction = config.admit_busy;
+  limits.admission.max_wait_p95_ms = config.admit_wait_ms;
   return limits;
 }
 
@@ -118,6 +120,10 @@ void ServerConfig::Check() const {
     throw UsageError("--map-memory-mib must be 0 (no bound) to 16777216");
   }
   if (max_sessions < 1) throw UsageError("--max-sessions must be at least 1");
+  AdmissionOptions admission;
+  admission.max_busy_fraction = admit_busy;
+  admission.max_wait_p95_ms = admit_wait_ms;
+  admission.Check();
   for (const std::string& address : {listen, http}) {
     if (!address.empty() && !IsLoopback(address) && tokens.empty() && !allow_remote) {
       throw UsageError("without --tokens the server listens on loopback only (got " + address +
@@ -278,6 +284,10 @@ ServerStatus Server::Status() const {
   status.workers = localization_.workers().permits();
   status.workers_busy = localization_.workers().in_use();
   status.workers_peak = localization_.workers().peak_in_use();
+  status.worker_load = localization_.workers().load().Over(WorkerLoad::Clock::now());
+  status.admit_busy_fraction = localization_.admission_options().max_busy_fraction;
+  status.projected_busy_fraction = localization_.Admission().projected_busy_fraction;
+  status.sessions_refused_at_capacity = localization_.sessions_refused_at_capacity();
   return status;
 }
 

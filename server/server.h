@@ -33,6 +33,10 @@ struct ServerConfig {
   std::string maps_dir;
   std::string listen = "127.0.0.1:50051";  // Port 0 picks a free port.
   int max_sessions = 64;
+  // Admission control (admission.h): a new session is refused when one more would take the
+  // workers past this busy fraction (0: off), or frames already wait longer than this for one.
+  double admit_busy = 0.8;
+  double admit_wait_ms = 20.0;
   int idle_unload_s = 300;
   int64_t map_memory_mib = 0;  // Per map; 0: no bound.
   double drain_s = 5.0;

@@ -13,6 +13,7 @@
 
 #include "core/geometry/rigid3.h"
 #include "core/localization/localizer.h"
+#include "server/worker_load.h"
 
 namespace visloc::server {
 
@@ -39,6 +40,9 @@ struct SessionStatus {
   std::vector<std::string> camera_names;  // The rig's, as its SessionStart names them.
   double server_ms = 0.0;
   double frame_rate_hz = 0.0;  // Arrivals per second over the last few seconds.
+  // The cores the session's frames take: its frame rate times its frames' recent CPU time
+  // (admission.h); negative until it has answered a few frames.
+  double cpu_load = -1.0;
   std::chrono::system_clock::time_point last_frame;  // Epoch before the first frame.
   // Since when the robot has had no pose (from the start until its first); none while it has.
   std::optional<std::chrono::system_clock::time_point> without_pose_since;
@@ -126,6 +130,12 @@ struct ServerStatus {
   int workers = 0;       // Frames processed at once at most.
   int workers_busy = 0;  // Now.
   int workers_peak = 0;  // Since the start.
+  WorkerLoadStats worker_load;  // Over the last window (worker_load.h).
+  // Admission control (admission.h): its limit (0: off), what one more session would make the
+  // workers' busy fraction, and the sessions it refused since the start.
+  double admit_busy_fraction = 0.0;
+  double projected_busy_fraction = 0.0;
+  uint64_t sessions_refused_at_capacity = 0;
 };
 
 }  // namespace visloc::server

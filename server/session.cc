@@ -93,6 +93,7 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     if (!request.has_frame()) throw InputError("expected a frame, got another SessionStart");
     // Decoding and the engine are the CPU work: one permit per core across all sessions.
     const WorkPermit permit(workers_);
+    const ThreadCpuTimer work;
     v1::Frame merged;
     const v1::Frame& frame = WithCarriedImu(request.frame(), &merged);
     if (before_frame_) before_frame_(frame);
@@ -104,6 +105,8 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     if (answered->has_pose) {
       proto::SetSitePose(map_metadata_, answered->map_from_cam, &response);
     }
+    const double work_s = work.ElapsedS();
+    work_s_smoothed_ = worked_frames_++ ? 0.9 * work_s_smoothed_ + 0.1 * work_s : work_s;
   } catch (const InputError& e) {
     Refuse(request, index, RedactForClient(e.what()), &response);
   } catch (const std::exception& e) {
@@ -130,6 +133,8 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     s->server_ms = ms;
     s->frame_rate_hz = rate_hz;
     s->last_frame = now;
+    // A rate needs a few arrivals to mean anything.
+    if (worked_frames_ >= kFramesBeforeCosted) s->cpu_load = rate_hz * work_s_smoothed_;
     if (!answered) {
       ++s->errors;
       return;

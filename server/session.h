@@ -99,6 +99,10 @@ class LocalizationSession {
 
   SessionStatus tally_;  // This thread's copy of the registry entry.
   double server_ms_sum_ = 0.0;
+  // A frame's CPU time on its worker (decoding and the engine, s), smoothed over recent frames.
+  double work_s_smoothed_ = 0.0;
+  uint64_t worked_frames_ = 0;
+  static constexpr uint64_t kFramesBeforeCosted = 5;
   std::deque<std::chrono::steady_clock::time_point> arrivals_;
 };
 

@@ -12,8 +12,10 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "core/util/temp_dir.h"
+#include "core/util/text_file.h"
 #include "tests/support/e2e.h"
 #include "tests/support/process.h"
 #include "visloc/v1/visloc.grpc.pb.h"
@@ -21,6 +23,7 @@
 namespace visloc {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using testing::ProcessResult;
 using testing::ServerProcess;
@@ -149,6 +152,70 @@ TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
   const ProcessResult usage = Visloc(no_robots);
   EXPECT_EQ(usage.exit_code, 2);
   EXPECT_THAT(usage.err, HasSubstr("--robots is 1..256"));
+}
+
+// Admission control (server/admission.h): robots streaming on a server whose one worker their
+// frames keep busy; newcomers are refused with RESOURCE_EXHAUSTED and the reason, the client
+// library backs off instead of knocking at once, and the robots already on it keep every frame.
+TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKeepTheirPace) {
+  // A limit low enough that three robots of the fixture reach it on any machine.
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
+                       {"--threads", "1", "--admit-busy", "0.02", "--admit-wait-ms", "1000"});
+  TempDir out("visloc_admission_out");
+  const auto load = [&](int robots, int seconds) {
+    return std::vector<std::string>{VISLOC_CLI_PATH, "load",
+                                    "--server",      server.address(),
+                                    "--map",         "square",
+                                    "--dataset",     kData + "/query_square",
+                                    "--robots",      std::to_string(robots),
+                                    "--rate",        "20",
+                                    "--duration-s",  std::to_string(seconds),
+                                    "--json"};
+  };
+  const int first =
+      testing::SpawnProcess(load(3, 8), out.File("first.json"), out.File("first.err"));
+  // A newcomer on the raw wire, once the first robots' frames fill the server's window.
+  auto stub = v1::Localization::NewStub(
+      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+  grpc::Status refused;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(7);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    auto call = stub->Localize(&context);
+    v1::LocalizeRequest start;
+    start.mutable_start()->set_map_name("square");
+    call->Write(start);
+    call->WritesDone();
+    refused = call->Finish();  // Admitted: the session ends with the writes (no frames).
+    if (refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) break;
+  }
+  ASSERT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.error_message();
+  EXPECT_THAT(refused.error_message(),
+              AllOf(HasSubstr("server at capacity: its workers (1) were"), HasSubstr("sessions"),
+                    HasSubstr("over the 2% that keeps its robots on time"),
+                    HasSubstr("Retry in a few seconds, or on another replica")));
+  // Two robots arriving through the client library: refused, and counted so.
+  const ProcessResult newcomers = testing::RunProcess(load(2, 2));
+  ASSERT_EQ(newcomers.exit_code, 0) << newcomers.err;
+  EXPECT_EQ(testing::JsonNumber(newcomers.out, "refused_robots"), 2) << newcomers.out;
+  EXPECT_EQ(testing::WaitProcess(first), 0);
+  const std::string first_out = ReadFileBytes(out.File("first.json"));
+  EXPECT_EQ(testing::JsonNumber(first_out, "refused_robots"), 0) << first_out;
+  EXPECT_GE(testing::JsonNumber(first_out, "answered"),
+            0.95 * testing::JsonNumber(first_out, "frames"))
+      << first_out;
+  // Each refusal logged with its reason; the newcomers' retries spaced by the library's backoff
+  // (a second, doubling), not at the link's pace: a handful in their 2 s, not dozens.
+  const std::string log = server.Log();
+  int refusals = 0;
+  for (size_t at = log.find("server at capacity"); at != std::string::npos;
+       at = log.find("server at capacity", at + 1)) {
+    ++refusals;
+  }
+  EXPECT_GE(refusals, 3);
+  EXPECT_LE(refusals, 12) << "the library retried a refused session without backing off";
 }
 
 TEST_F(FleetE2eTest, TheListNeedsAToken) {

@@ -222,6 +222,9 @@ def main():
             # front camera is covered, the front one is drawn blind and the rear one seeing.
             check(("cam2", "seeing") in rig_cameras and ("reference", "seeing") in rig_cameras,
                   f"the rig's cameras shown: {sorted(rig_cameras)}")
+            load = driver.execute_script("return document.getElementById('load').textContent;")
+            check(re.match(r"workers \d+% busy, wait p95 [0-9.]+ ms · admission control off", load),
+                  f"the server's load in the header: '{load}'")
             check("lost" in seen, f"the kidnapped robot never showed lost: {seen}")
             check(seen and "lost" in seen and seen[-1] in ("tracking", "relocalized"),
                   f"the kidnapped robot did not come back: {seen}")

@@ -51,6 +51,11 @@ double MsBetween(Clock::time_point from, Clock::time_point to) {
 }
 
 // Statuses after which reconnecting cannot help: the request itself is refused.
+// How long a session refused for capacity (RESOURCE_EXHAUSTED) waits before asking again,
+// doubling while it is refused.
+constexpr std::chrono::milliseconds kFirstCapacityBackoff{1000};
+constexpr std::chrono::milliseconds kMaxCapacityBackoff{8000};
+
 bool Permanent(grpc::StatusCode code) {
   switch (code) {
     case grpc::StatusCode::INVALID_ARGUMENT:
@@ -117,7 +122,8 @@ class SessionImpl final : public Session {
   bool OpenStream(Events* events, grpc::Status* refused);
   void ReadAnswers(Stream* stream);
   void FinishWriting();
-  void EndStream(Events* events, bool* permanent);
+  // Ends the stream; true when the server refused it for capacity before answering a frame.
+  bool EndStream(Events* events, bool* permanent);
   bool SendNext();
   void ExpireQueued(Clock::time_point now, Events* events);
   void CheckLink(Clock::time_point now, Events* events);
@@ -400,7 +406,7 @@ void SessionImpl::FinishWriting() {
 }
 
 // Tears the ended (or to-be-ended) stream down: its unanswered frames are undelivered.
-void SessionImpl::EndStream(Events* events, bool* permanent) {
+bool SessionImpl::EndStream(Events* events, bool* permanent) {
   std::unique_ptr<Stream> stream;
   bool ended;
   {
@@ -438,6 +444,7 @@ void SessionImpl::EndStream(Events* events, bool* permanent) {
   } else if (!closing_) {
     SetState(LinkState::kReconnecting, why, events);
   }
+  return !stream->answered && status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED;
 }
 
 // Sends the oldest queued frame. Called with no lock held; false when the write failed.
@@ -501,6 +508,7 @@ bool SessionImpl::SendNext() {
 
 void SessionImpl::Work() {
   std::chrono::milliseconds backoff = options_.backoff_initial;
+  std::chrono::milliseconds capacity_backoff = kFirstCapacityBackoff;
   bool ever_connected = false;
   Clock::time_point last_stream = Clock::now();  // Opened, or the start.
   while (true) {
@@ -583,8 +591,20 @@ void SessionImpl::Work() {
     if (end) {
       bool permanent = false;
       FinishWriting();
-      EndStream(&events, &permanent);
+      const bool at_capacity = EndStream(&events, &permanent);
       last_stream = Clock::now();  // Giving up counts from the break.
+      if (at_capacity) {
+        // A server at capacity: ask again later, not at once (every robot it refused would
+        // otherwise knock at the link's pace). A replica list's next stream may go elsewhere.
+        Emit(std::move(events));
+        events.clear();
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait_for(lock, capacity_backoff, [this] { return closing_; });
+        capacity_backoff = std::min(capacity_backoff * 2, kMaxCapacityBackoff);
+        ExpireQueued(Clock::now(), &events);
+      } else {
+        capacity_backoff = kFirstCapacityBackoff;
+      }
     }
     wake_.notify_all();  // A Submit waiting for room sees drops and refusals.
     Emit(std::move(events));

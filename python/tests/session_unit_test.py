@@ -18,7 +18,7 @@ from unittest import mock
 import grpc
 import numpy as np
 
-from visloc import Session, SessionOptions, pinhole_camera
+from visloc import LinkState, Session, SessionOptions, pinhole_camera
 from visloc.v1 import visloc_pb2 as pb
 from visloc.v1 import visloc_pb2_grpc as pb_grpc
 
@@ -107,6 +107,57 @@ class ResumeTest(unittest.TestCase):
         self.assertEqual(first.map_from_cam_hint, ANSWERED)
         # And the first stream's first frame had no hint: there was nothing to resume.
         self.assertFalse(self.service.first_frame_of(0).HasField("map_from_cam_hint"))
+
+
+class FullService(pb_grpc.LocalizationServicer):
+    """A server at capacity: every stream is refused at its start."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.refusals = []  # When each stream was refused (monotonic s).
+
+    def Localize(self, request_iterator, context):
+        next(request_iterator)
+        with self.lock:
+            self.refusals.append(time.monotonic())
+        context.abort(grpc.StatusCode.RESOURCE_EXHAUSTED,
+                      "server at capacity: ... Retry in a few seconds, or on another replica")
+
+
+class CapacityTest(unittest.TestCase):
+    """A session refused for capacity backs off (1 s, doubling) instead of asking at once."""
+
+    def test_a_refused_session_asks_again_later_and_says_why(self):
+        service = FullService()
+        server = grpc.server(concurrent.futures.ThreadPoolExecutor(max_workers=4))
+        pb_grpc.add_LocalizationServicer_to_server(service, server)
+        port = server.add_insecure_port("127.0.0.1:0")
+        server.start()
+        try:
+            links = []
+            options = SessionOptions(server=f"127.0.0.1:{port}", map_name="lab",
+                                     camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5),
+                                     encoding="raw",
+                                     on_event=lambda e: e.kind == "link" and links.append(e))
+            session = Session(options)
+            image = np.zeros((240, 320), np.uint8)
+            started = time.monotonic()
+            while time.monotonic() - started < 3.5:
+                session.submit(int(time.monotonic() * 1e9), image)
+                time.sleep(0.05)
+            state = session.link_state
+            session.close(drain_s=0.0)
+        finally:
+            server.stop(grace=None)
+        with service.lock:
+            refusals = list(service.refusals)
+        # At 0, ~1 and ~3 s: three in 3.5 s (at the link's pace it would be dozens).
+        self.assertGreaterEqual(len(refusals), 2)
+        self.assertLessEqual(len(refusals), 4, refusals)
+        self.assertGreaterEqual(refusals[1] - refusals[0], 0.9)
+        self.assertTrue(any("server at capacity" in e.detail for e in links),
+                        [e.detail for e in links])
+        self.assertNotEqual(state, LinkState.FAILED)
 
 
 class RefusedFramesTest(unittest.TestCase):

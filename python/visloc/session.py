@@ -16,6 +16,11 @@ from visloc.v1 import visloc_pb2 as pb
 from visloc.v1 import visloc_pb2_grpc as pb_grpc
 
 # Statuses after which reconnecting cannot help: the request itself is refused.
+# How long a session refused for capacity (RESOURCE_EXHAUSTED) waits before asking again,
+# doubling while it is refused (server/admission.h).
+_FIRST_CAPACITY_BACKOFF_S = 1.0
+_MAX_CAPACITY_BACKOFF_S = 8.0
+
 _PERMANENT = {grpc.StatusCode.INVALID_ARGUMENT, grpc.StatusCode.NOT_FOUND,
               grpc.StatusCode.PERMISSION_DENIED, grpc.StatusCode.UNAUTHENTICATED,
               grpc.StatusCode.UNIMPLEMENTED, grpc.StatusCode.FAILED_PRECONDITION}
@@ -420,7 +425,8 @@ class Session:
         reader.start()
         return channel, call, reader, stream_state
 
-    def _end(self, stream, events: List[Event]) -> None:
+    def _end(self, stream, events: List[Event]) -> bool:
+        """Ends the stream; True when the server refused it for capacity before any answer."""
         channel, call, reader, stream_state = stream
         call.cancel()
         reader.join()
@@ -444,6 +450,7 @@ class Session:
                                               "the server ended the stream")
                 self._set_state(LinkState.RECONNECTING, why, events)
             self._lock.notify_all()
+        return code == grpc.StatusCode.RESOURCE_EXHAUSTED and not stream_state["answered"]
 
     def _check_link(self, stream_state, events: List[Event]) -> bool:
         """True when the stream has stalled (and should be reopened)."""
@@ -466,6 +473,7 @@ class Session:
 
     def _work(self) -> None:
         backoff = self._o.backoff_initial_s
+        capacity_backoff = _FIRST_CAPACITY_BACKOFF_S
         last_stream = time.monotonic()
         stream = None
         while True:
@@ -503,7 +511,18 @@ class Session:
                 stalled = self._check_link(stream_state, events)
                 end = stalled or stream_state["ended"] or self._closing
             if end:
-                self._end(stream, events)
+                at_capacity = self._end(stream, events)
                 stream = None
                 last_stream = time.monotonic()
+                if at_capacity:
+                    # A server at capacity: ask again later, not at once (as the C++ library).
+                    self._emit(events)
+                    events = []
+                    retry_at = time.monotonic() + capacity_backoff
+                    with self._lock:  # Submits notify: wait out the whole backoff.
+                        while not self._closing and time.monotonic() < retry_at:
+                            self._lock.wait(retry_at - time.monotonic())
+                    capacity_backoff = min(capacity_backoff * 2, _MAX_CAPACITY_BACKOFF_S)
+                else:
+                    capacity_backoff = _FIRST_CAPACITY_BACKOFF_S
             self._emit(events)

@@ -110,9 +110,8 @@ void HttpEndpoint::RouteOperatorPage() {
   http_->Get("/api/sessions", [this](const httplib::Request& request, httplib::Response& response) {
     if (!Allowed(*auth_, request, &response)) return;
     const ServerStatus status = sources_.status();
-    response.set_content(
-        SessionsJson(status.sessions, status.max_sessions, std::chrono::system_clock::now()),
-        "application/json");
+    response.set_content(SessionsJson(status, std::chrono::system_clock::now()),
+                         "application/json");
   });
   http_->Get("/api/mapping", [this](const httplib::Request& request, httplib::Response& response) {
     if (!Allowed(*auth_, request, &response)) return;
@@ -160,9 +159,7 @@ void HttpEndpoint::RouteOperatorPage() {
           if (stopping_) return false;
           const ServerStatus status = sources_.status();
           const std::string event =
-              "data: " +
-              SessionsJson(status.sessions, status.max_sessions, std::chrono::system_clock::now()) +
-              "\n\n";
+              "data: " + SessionsJson(status, std::chrono::system_clock::now()) + "\n\n";
           if (!sink.write(event.data(), event.size())) return false;
           std::this_thread::sleep_for(std::chrono::milliseconds(kEventIntervalMs));
           return !stopping_.load();

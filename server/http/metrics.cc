@@ -142,6 +142,23 @@ void MapAndWorkerMetrics(const ServerStatus& status, Exposition& e) {
       .Sample("visloc_workers", status.workers);
   e.Family("visloc_workers_busy", "gauge", "Frames in the engine now.")
       .Sample("visloc_workers_busy", status.workers_busy);
+  const WorkerLoadStats& load = status.worker_load;
+  e.Family("visloc_worker_busy_ratio", "gauge",
+           "The workers' time on frames over the last window (0..1).")
+      .Sample("visloc_worker_busy_ratio", load.busy_fraction);
+  e.Family("visloc_worker_wait_p95_seconds", "gauge",
+           "How long frames waited for a free worker over the last window, 95th percentile.")
+      .Sample("visloc_worker_wait_p95_seconds", load.wait_p95_ms / 1000.0);
+  e.Family("visloc_admission_busy_limit_ratio", "gauge",
+           "Admission control's busy limit: new sessions are refused past it (0: off).")
+      .Sample("visloc_admission_busy_limit_ratio", status.admit_busy_fraction);
+  e.Family("visloc_admission_projected_busy_ratio", "gauge",
+           "What one more session would make the workers' busy fraction.")
+      .Sample("visloc_admission_projected_busy_ratio", status.projected_busy_fraction);
+  e.Family("visloc_sessions_refused_at_capacity_total", "counter",
+           "Sessions refused (RESOURCE_EXHAUSTED) because the server was at capacity.")
+      .Sample("visloc_sessions_refused_at_capacity_total",
+              static_cast<double>(status.sessions_refused_at_capacity));
 }
 
 }  // namespace

@@ -32,11 +32,24 @@ void Pairs(JsonWriter& json, const std::vector<std::pair<float, float>>& xz) {
 
 }  // namespace
 
-std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_sessions,
-                         std::chrono::system_clock::time_point now) {
+std::string SessionsJson(const ServerStatus& status, std::chrono::system_clock::time_point now) {
   JsonWriter json;
-  json.BeginObject().Field("max_sessions", max_sessions).Key("sessions").BeginArray();
-  for (const SessionStatus& s : sessions) {
+  // The workers' load and admission control (admission.h), for the page's header.
+  const WorkerLoadStats& load = status.worker_load;
+  json.BeginObject()
+      .Field("max_sessions", status.max_sessions)
+      .Key("load")
+      .BeginObject()
+      .Field("busy_fraction", load.busy_fraction)
+      .Field("wait_p95_ms", load.wait_p95_ms)
+      .Field("frames_per_s", load.frames_per_s)
+      .Field("admit_busy_fraction", status.admit_busy_fraction)
+      .Field("projected_busy_fraction", status.projected_busy_fraction)
+      .Field("refused_at_capacity", status.sessions_refused_at_capacity)
+      .EndObject()
+      .Key("sessions")
+      .BeginArray();
+  for (const SessionStatus& s : status.sessions) {
     json.BeginObject()
         .Field("session", s.id)
         .Field("robot", s.robot_id)

@@ -13,9 +13,10 @@
 
 namespace visloc::server {
 
-// {"sessions":[{"session","robot","map","status","has_pose","x","y","z","yaw_deg",...}]}
-std::string SessionsJson(const std::vector<SessionStatus>& sessions, int max_sessions,
-                         std::chrono::system_clock::time_point now);
+// {"max_sessions","load":{"busy_fraction","wait_p95_ms","frames_per_s","admit_busy_fraction",
+//  "projected_busy_fraction","refused_at_capacity"},
+//  "sessions":[{"session","robot","map","status","has_pose","x","y","z","yaw_deg",...}]}
+std::string SessionsJson(const ServerStatus& status, std::chrono::system_clock::time_point now);
 // {"maps":[{"name","file_bytes","keyframes","points","problem"}]}
 std::string MapsJson(const std::vector<MapSummary>& maps);
 // {"name","frame","frame_how","total_keyframes","total_points","site_from_map":[12, row-major

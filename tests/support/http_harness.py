@@ -32,7 +32,11 @@ def square_maps(tmp, data):
 
 
 def start_server(server_bin, maps, extra=()):
-    """(process, gRPC address, HTTP address) of a visloc-server on free loopback ports."""
+    """(process, gRPC address, HTTP address) of a visloc-server on free loopback ports.
+    Admission by load is off unless `extra` sets it, as in tests/support/process.cc: under a
+    sanitizer a robot that reconnects beside others would be refused for a sanitizer's load."""
+    if "--admit-busy" not in extra:
+        extra = [*extra, "--admit-busy", "0"]
     process = subprocess.Popen(
         [server_bin, "--maps", maps, "--listen", "127.0.0.1:0", "--http", "127.0.0.1:0", *extra],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
