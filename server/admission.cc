@@ -30,43 +30,65 @@ double Median(std::vector<double> values) {
 
 }  // namespace
 
-AdmissionDecision DecideAdmission(const WorkerLoadStats& load, int workers,
-                                  const std::vector<double>& session_loads,
-                                  const AdmissionOptions& options) {
-  workers = std::max(1, workers);
+namespace {
+
+// From the sessions' own CPU costs: committed cores with one more session, over the workers.
+// `per_session` (cores) is what the newcomer is taken to cost.
+double CpuProjection(const WorkerLoadStats& load, int workers,
+                     const std::vector<SessionLoad>& sessions, double* per_session) {
   std::vector<double> measured;
   double measured_sum = 0.0;
-  for (const double cores : session_loads) {
-    if (cores < 0.0) continue;
-    measured.push_back(cores);
-    measured_sum += cores;
+  for (const SessionLoad& s : sessions) {
+    if (s.cpu_cores < 0.0) continue;
+    measured.push_back(s.cpu_cores);
+    measured_sum += s.cpu_cores;
   }
-  const int sessions = static_cast<int>(session_loads.size());
   // What the process spends beyond its sessions' frames, per core of theirs: the link's threads
   // receiving and parsing each frame, the replies. Bounded: a mapping job's core is not a
   // robot's.
   const double overhead = measured_sum > 0.0 && load.process_cpu_cores > 0.0
                               ? std::clamp(load.process_cpu_cores / measured_sum, 1.0, kMaxOverhead)
                               : 1.0;
-  // A session's cost in cores: the median measured one, else the window's load shared out.
-  const double per_session = !measured.empty()
-                                 ? overhead * Median(measured)
-                                 : (sessions > 0 ? load.busy_fraction * workers / sessions : 0.0);
-  const double committed =
-      overhead * measured_sum + per_session * static_cast<double>(sessions - measured.size());
-  const double busy_now =
-      std::max({load.busy_fraction, load.process_cpu_cores / workers, committed / workers});
-  AdmissionDecision decision;
-  decision.projected_busy_fraction = busy_now + per_session / workers;
-  if (!options.enabled() || (load.frames < options.min_frames && measured.empty())) {
-    return decision;
+  *per_session = measured.empty() ? 0.0 : overhead * Median(measured);
+  const double committed = overhead * measured_sum +
+                           *per_session * static_cast<double>(sessions.size() - measured.size());
+  return std::max(load.process_cpu_cores, committed) / workers + *per_session / workers;
+}
+
+// From the workers' window: its busy fraction spread over the sessions as much of the window as
+// each was there for (a session that arrived 2 s into a 10 s window is a fifth in it), then
+// every session whole and one more. It sees what CPU times miss: cores taken by the link's
+// threads and anything else, and frames slowed by that contention.
+double WindowProjection(const WorkerLoadStats& load, const std::vector<SessionLoad>& sessions,
+                        double* sessions_in_window) {
+  *sessions_in_window = 0.0;
+  for (const SessionLoad& s : sessions) {
+    *sessions_in_window += std::clamp(s.age_s / std::max(1e-3, load.window_s), 0.0, 1.0);
   }
+  // Less than half a session's worth says too little to scale up.
+  if (*sessions_in_window < 0.5) return load.busy_fraction;
+  return load.busy_fraction * static_cast<double>(sessions.size() + 1) / *sessions_in_window;
+}
+
+}  // namespace
+
+AdmissionDecision DecideAdmission(const WorkerLoadStats& load, int workers,
+                                  const std::vector<SessionLoad>& sessions,
+                                  const AdmissionOptions& options) {
+  workers = std::max(1, workers);
+  double per_session_cores = 0.0, sessions_in_window = 0.0;
+  const double by_cpu = CpuProjection(load, workers, sessions, &per_session_cores);
+  const double by_window = WindowProjection(load, sessions, &sessions_in_window);
+  AdmissionDecision decision;
+  decision.projected_busy_fraction = std::max(by_cpu, by_window);
+  const bool measured = load.frames >= options.min_frames || per_session_cores > 0.0;
+  if (!options.enabled() || !measured) return decision;
   const std::string measured_text =
       StrCat("its workers (", workers, ") were ", FormatFixed(100 * load.busy_fraction, 0),
-             "% busy over the last ", FormatFixed(load.window_s, 0), " s, the process used ",
-             FormatFixed(load.process_cpu_cores, 2), " cores, and its ", sessions,
-             " sessions take ", FormatFixed(100 * busy_now, 0), "% of them (",
-             FormatFixed(per_session, 3), " cores a session); frames waited ",
+             "% busy over the last ", FormatFixed(load.window_s, 0), " s with ", sessions.size(),
+             " sessions (", FormatFixed(sessions_in_window, 1),
+             " of them over that time), the process used ", FormatFixed(load.process_cpu_cores, 2),
+             " cores (", FormatFixed(per_session_cores, 3), " a session); frames waited ",
              FormatFixed(load.wait_p95_ms, 1), " ms for a worker (p95)");
   std::string over;
   if (decision.projected_busy_fraction > options.max_busy_fraction) {

@@ -1,17 +1,21 @@
 #pragma once
 // Admission control: a server that cannot take another robot without making the robots it has
 // late refuses the new session (RESOURCE_EXHAUSTED, with the reason and what to do) instead of
-// slowing everyone. The rule projects the workers' busy fraction with one more session:
-//   - the load committed: each session's own measured cost (its frame rate times its frames'
-//     CPU time, in cores), a session too new to have one costed as the median session; and at
-//     least what the workers' window measured (worker_load.h: their wall-clock time on frames,
-//     which also sees the cores taken by the link's threads and anything else);
-//   - plus the newcomer, costed as the median session;
+// slowing everyone. It projects the workers' busy fraction with one more session, two ways, and
+// takes the larger:
+//   - from the sessions' own costs: each one's frame rate times its frames' CPU time on a
+//     worker (cores), scaled by the process's overhead (the cores the whole process uses over
+//     its sessions' own, at most 3: the link's threads), a session too new to be measured
+//     costed as the median one, and the newcomer as the median one;
+//   - from the workers' window (worker_load.h): its busy fraction spread over the sessions as
+//     much of the window as each was there for, then every session whole and one more. Wall
+//     time sees what CPU times miss: the cores taken by anything else, and contention.
 // and refuses when that passes max_busy_fraction: past about nine tenths of two cores, queues
-// grow and every robot's latency with them (docs/capacity.md), so the limit keeps headroom.
-// Counting sessions too new to be measured keeps a group of robots arriving at once from all
-// being admitted on the load before them. Frames already waiting long for a worker
-// (max_wait_p95_ms) refuse too. With nothing measured yet, a session is admitted.
+// grow and every robot's latency with them (docs/admission.md), so the limit keeps headroom.
+// Counting sessions too new for the window at their whole cost keeps robots that arrive
+// together, or retry together, from all being admitted on the load before them. Frames
+// already waiting long for a worker (max_wait_p95_ms) refuse too. With nothing measured yet, a
+// session is admitted.
 
 #include <string>
 #include <vector>
@@ -34,10 +38,16 @@ struct AdmissionDecision {
   std::string why;                       // When refused: the load, the limit, what to do.
 };
 
-// `session_loads`: each open session's measured cost (cores; negative for a session not
-// measured yet), not counting the newcomer. `workers`: the cores the engine runs on.
+// An open session, as admission weighs it.
+struct SessionLoad {
+  double cpu_cores = -1.0;  // Its measured cost (SessionStatus::cpu_load); negative: not yet.
+  double age_s = 0.0;       // Since it started.
+};
+
+// `sessions`: the sessions open now, not counting the newcomer. `workers`: the cores the engine
+// runs on.
 AdmissionDecision DecideAdmission(const WorkerLoadStats& load, int workers,
-                                  const std::vector<double>& session_loads,
+                                  const std::vector<SessionLoad>& sessions,
                                   const AdmissionOptions& options);
 
 }  // namespace visloc::server

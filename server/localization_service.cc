@@ -124,10 +124,13 @@ Status LocalizationService::Localize(
 
 AdmissionDecision LocalizationService::Admission() const {
   // The sessions listed are the ones open now (the newcomer's is not yet).
-  std::vector<double> session_loads;
-  for (const SessionStatus& s : registry_.Snapshot()) session_loads.push_back(s.cpu_load);
+  const auto now = std::chrono::system_clock::now();
+  std::vector<SessionLoad> sessions;
+  for (const SessionStatus& s : registry_.Snapshot()) {
+    sessions.push_back({s.cpu_load, std::chrono::duration<double>(now - s.started).count()});
+  }
   return DecideAdmission(workers_.load().Over(WorkerLoad::Clock::now()), workers_.permits(),
-                         session_loads, limits_.admission);
+                         sessions, limits_.admission);
 }
 
 Status LocalizationService::Relocalize(grpc::ServerContext* context,
