@@ -11,6 +11,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -53,6 +54,7 @@ struct LoadArgs {
 // What happened to one robot's frames.
 struct RobotRecord {
   std::vector<double> latency_ms;  // Answered in time.
+  std::vector<double> answered_s;  // When each of those came, from the run's start.
   std::vector<double> engine_ms;   // Their time inside the engine (the server's timings).
   std::vector<double> server_ms;   // From the server's receipt to its reply: decoding, waiting
                                    // for a worker and the engine.
@@ -81,7 +83,7 @@ double CpuSeconds() {
          1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
 }
 
-void Record(const client::Event& e, RobotRecord* robot) {
+void Record(const client::Event& e, double since_start_s, RobotRecord* robot) {
   switch (e.kind) {
     case client::Event::Kind::kResult:
       if (e.response.status() == v1::STATUS_SKIPPED) {
@@ -95,6 +97,7 @@ void Record(const client::Event& e, RobotRecord* robot) {
       ++robot->answered;
       robot->localized += e.response.has_map_from_cam();
       robot->latency_ms.push_back(e.latency_ms);
+      robot->answered_s.push_back(since_start_s);
       robot->engine_ms.push_back(e.response.timings().total_ms());
       robot->server_ms.push_back(e.response.timings().server_ms());
       break;
@@ -211,16 +214,17 @@ int RunLoad(const Args& raw_args) {
   std::vector<RobotRecord> records(args.robots);
   std::mutex records_mutex;
   std::vector<client::SessionOptions> options(args.robots);
+  const Clock::time_point start = Clock::now() + std::chrono::milliseconds(200);
   for (int r = 0; r < args.robots; ++r) {
     options[r] = RobotOptions(args, dataset, r);
-    options[r].on_event = [&records, &records_mutex, r](const client::Event& e) {
+    options[r].on_event = [&records, &records_mutex, r, start](const client::Event& e) {
+      const double since_start_s = std::chrono::duration<double>(Clock::now() - start).count();
       const std::lock_guard<std::mutex> lock(records_mutex);
-      Record(e, &records[r]);
+      Record(e, since_start_s, &records[r]);
     };
   }
   std::vector<std::unique_ptr<client::Session>> sessions(args.robots);
   const double cpu_before_s = CpuSeconds();
-  const Clock::time_point start = Clock::now() + std::chrono::milliseconds(200);
   const Clock::time_point end =
       start + std::chrono::nanoseconds(static_cast<int64_t>(args.duration_s * 1e9));
   std::vector<std::thread> drivers;
@@ -247,6 +251,9 @@ int RunLoad(const Args& raw_args) {
 
   const std::lock_guard<std::mutex> lock(records_mutex);
   std::vector<double> all_ms, robot_p99_ms, engine_ms, server_ms;
+  // The answers of each third of the run: a load at steady state has the same p99 in the last
+  // third as in the second.
+  std::array<std::vector<double>, 3> thirds_ms;
   int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
   int submitted = 0, refused_robots = 0, awaiting_admission = 0;
   for (int i = 0; i < args.robots; ++i) {
@@ -259,6 +266,10 @@ int RunLoad(const Args& raw_args) {
     submitted += submitted_by[i] - r.awaiting_admission;
     awaiting_admission += r.awaiting_admission;
     all_ms.insert(all_ms.end(), r.latency_ms.begin(), r.latency_ms.end());
+    for (size_t k = 0; k < r.latency_ms.size(); ++k) {
+      const int third = std::clamp(static_cast<int>(3 * r.answered_s[k] / args.duration_s), 0, 2);
+      thirds_ms[third].push_back(r.latency_ms[k]);
+    }
     engine_ms.insert(engine_ms.end(), r.engine_ms.begin(), r.engine_ms.end());
     server_ms.insert(server_ms.end(), r.server_ms.begin(), r.server_ms.end());
     robot_p99_ms.push_back(LatencyPercentile(r.latency_ms, 0.99));
@@ -296,6 +307,9 @@ int RunLoad(const Args& raw_args) {
         .Field("latency_ms_p95", p95)
         .Field("latency_ms_p99", p99)
         .Field("worst_robot_p99_ms", worst_robot_p99)
+        .Field("latency_ms_p99_first_third", LatencyPercentile(thirds_ms[0], 0.99))
+        .Field("latency_ms_p99_second_third", LatencyPercentile(thirds_ms[1], 0.99))
+        .Field("latency_ms_p99_last_third", LatencyPercentile(thirds_ms[2], 0.99))
         .Field("engine_ms_p50", LatencyPercentile(engine_ms, 0.5))
         .Field("server_ms_p50", LatencyPercentile(server_ms, 0.5))
         .Field("jpeg_bytes_mean", encoded_bytes / encoded.size())
@@ -321,6 +335,9 @@ int RunLoad(const Args& raw_args) {
     std::printf("latency (submit to answer): p50 %.1f ms, p95 %.1f ms, p99 %.1f ms; worst robot's "
                 "p99 %.1f ms\n",
                 p50, p95, p99, worst_robot_p99);
+    std::printf("p99 by thirds of the run: %.1f, %.1f, %.1f ms\n",
+                LatencyPercentile(thirds_ms[0], 0.99), LatencyPercentile(thirds_ms[1], 0.99),
+                LatencyPercentile(thirds_ms[2], 0.99));
     std::printf("in the server (p50): %.2f ms from receipt to reply, %.2f ms of it in the engine\n",
                 LatencyPercentile(server_ms, 0.5), LatencyPercentile(engine_ms, 0.5));
     std::printf("this generator used %.0f%% of one core\n", 100.0 * cpu_s / streamed_s);
