@@ -31,11 +31,12 @@ declare -A FIRST_ROBOTS=([1]=4 [2]=12)
 mkdir -p "$WORK/maps"
 [[ -d $REC ]] || { echo "no $REC: the capacity needs the real recordings" >&2; exit 1; }
 
+# VISLOC_CAPACITY_REPORT_ONLY=1 writes the report again from the runs kept in WORK_DIR.
+if [[ -z ${VISLOC_CAPACITY_REPORT_ONLY:-} ]]; then
 [[ -f $WORK/maps/mh01.db ]] || $V map build --dataset "$REC" --out "$WORK/maps/mh01.db" > /dev/null
 $V bench --dataset "$REC" --map "$WORK/maps/mh01.db" --relocalization-queries 1 --json \
   > "$WORK/bench.json"
-engine_ms=$(field "$WORK/bench.json" ms_per_frame_median)
-decode_ms=$(/usr/bin/python3 - "$REC" << 'EOF'
+/usr/bin/python3 - "$REC" > "$WORK/decode_ms.txt" << 'EOF'
 import glob, sys, time
 import cv2
 import numpy as np
@@ -50,15 +51,12 @@ for _ in range(5):
     times.append((time.perf_counter() - t) / len(encoded) * 1e3)
 print("%.2f" % sorted(times)[len(times) // 2])
 EOF
-)
 
 : > "$WORK/loads.tsv"
-declare -A capacity
 for threads in 1 2; do
   rm -f "$WORK/server.out"
   start_server "$WORK/maps" "$WORK" --max-sessions 256 --threads "$threads" --admit-busy 0
   address=$SERVER_ADDRESS
-  capacity[$threads]=0
   misses=0
   for robots in $(seq "${FIRST_ROBOTS[$threads]}" 4 "$MAX_ROBOTS"); do
     out=$WORK/load_t${threads}_r${robots}.json
@@ -82,16 +80,23 @@ for threads in 1 2; do
       "$(field "$out" latency_ms_p99_second_third)" "$(field "$out" latency_ms_p99_last_third)" \
       "$steady" >> "$WORK/loads.tsv"
     echo "threads $threads, $robots robots, $duration s: held $held, p99 $(field "$out" latency_ms_p99) ms"
-    if [[ $held == true ]]; then
-      capacity[$threads]=$robots
-      # The largest load tried and held bounds the capacity from below only.
-      [[ $robots -eq $MAX_ROBOTS ]] && capacity[$threads]=">= $robots (the largest load tried)"
-    else
+    if [[ $held != true ]]; then
       misses=$((misses + 1))
       [[ $misses -ge 2 ]] && break
     fi
   done
   stop_server
+done
+fi
+
+engine_ms=$(field "$WORK/bench.json" ms_per_frame_median)
+decode_ms=$(cat "$WORK/decode_ms.txt")
+# The capacity: the largest load held (the largest tried bounds it from below only).
+declare -A capacity
+for threads in 1 2; do
+  capacity[$threads]=$(awk -F'\t' -v t="$threads" -v max="$MAX_ROBOTS" '
+    $1 == t && $3 == "true" && $2 > c { c = $2 }
+    END { if (c == max) print ">= " c " (the largest load tried)"; else print c + 0 }' "$WORK/loads.tsv")
 done
 
 commit=$(git rev-parse --short HEAD)
@@ -120,11 +125,11 @@ commit=$(git rev-parse --short HEAD)
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   awk -F'\t' '{ printf "| %s | %s | %s | %s | %s | %.0f | %.1f | %.1f | %.1f / %.1f | %.1f | %s | %s | %.2f |\n", $1, $2, $11, $14, $3, $4, $5, $6, $12, $13, $10, $7, $8, $9 }' "$WORK/loads.tsv"
   echo
-  light=$WORK/load_t2_r4.json
+  light=$WORK/load_t2_r${FIRST_ROBOTS[2]}.json
   echo "Where a frame's time goes, measured in the same run. Alone on the machine, the engine tracks a"
   echo "752x480 frame in $(printf %.2f "$engine_ms") ms (\`visloc bench\`, median) and decoding its JPEG takes ${decode_ms} ms"
   awk -v e="$engine_ms" -v d="$decode_ms" 'BEGIN { printf "(OpenCV, one thread): %.2f ms a frame, so two cores could answer at most %.0f frames/s, %.0f robots at\n20 Hz. ", e + d, 2000 / (e + d), 2000 / (e + d) / 20 }'
-  echo "Inside the server, at 4 robots (the medians the answers carry): $(printf %.2f "$(field "$light" engine_ms_p50)") ms in the engine,"
+  echo "Inside the server, at ${FIRST_ROBOTS[2]} robots on two threads (the medians the answers carry): $(printf %.2f "$(field "$light" engine_ms_p50)") ms in the engine,"
   echo "$(printf %.2f "$(field "$light" server_ms_p50)") ms from the frame's receipt to the reply (decoding and the session's bookkeeping"
   echo "added), $(printf %.2f "$(field "$light" latency_ms_p50)") ms from the robot's submit to its answer (gRPC and protobuf on both ends, loopback)."
   echo "The engine is slower in the server than alone, as it shares caches and cores with decoding,"
