@@ -11,9 +11,9 @@
 #include <sys/resource.h>
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <mutex>
@@ -74,6 +74,19 @@ size_t PingPong(size_t k, size_t count) {
   if (count < 2) return 0;
   const size_t period = 2 * (count - 1), phase = k % period;
   return phase < count ? phase : period - phase;
+}
+
+// The latencies answered in each of `periods` spans of `span_s` from the run's start (answers
+// after the last span count in it).
+std::vector<std::vector<double>> ByPeriod(const std::vector<double>& latency_ms,
+                                          const std::vector<double>& answered_s, double span_s,
+                                          int periods) {
+  std::vector<std::vector<double>> by_period(periods);
+  for (size_t k = 0; k < latency_ms.size(); ++k) {
+    const int period = std::clamp(static_cast<int>(answered_s[k] / span_s), 0, periods - 1);
+    by_period[period].push_back(latency_ms[k]);
+  }
+  return by_period;
 }
 
 double CpuSeconds() {
@@ -251,9 +264,7 @@ int RunLoad(const Args& raw_args) {
 
   const std::lock_guard<std::mutex> lock(records_mutex);
   std::vector<double> all_ms, robot_p99_ms, engine_ms, server_ms;
-  // The answers of each third of the run: a load at steady state has the same p99 in the last
-  // third as in the second.
-  std::array<std::vector<double>, 3> thirds_ms;
+  std::vector<double> all_answered_s;  // When each of all_ms came.
   int answered = 0, localized = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0;
   int submitted = 0, refused_robots = 0, awaiting_admission = 0;
   for (int i = 0; i < args.robots; ++i) {
@@ -266,10 +277,7 @@ int RunLoad(const Args& raw_args) {
     submitted += submitted_by[i] - r.awaiting_admission;
     awaiting_admission += r.awaiting_admission;
     all_ms.insert(all_ms.end(), r.latency_ms.begin(), r.latency_ms.end());
-    for (size_t k = 0; k < r.latency_ms.size(); ++k) {
-      const int third = std::clamp(static_cast<int>(3 * r.answered_s[k] / args.duration_s), 0, 2);
-      thirds_ms[third].push_back(r.latency_ms[k]);
-    }
+    all_answered_s.insert(all_answered_s.end(), r.answered_s.begin(), r.answered_s.end());
     engine_ms.insert(engine_ms.end(), r.engine_ms.begin(), r.engine_ms.end());
     server_ms.insert(server_ms.end(), r.server_ms.begin(), r.server_ms.end());
     robot_p99_ms.push_back(LatencyPercentile(r.latency_ms, 0.99));
@@ -281,6 +289,11 @@ int RunLoad(const Args& raw_args) {
     undelivered += r.undelivered;
   }
   const int frames = submitted;
+  // A load at steady state has the same p99 in the last third of its run as in the second; a
+  // soak reads its minutes.
+  const auto thirds_ms = ByPeriod(all_ms, all_answered_s, args.duration_s / 3, 3);
+  const int minutes = std::max(1, static_cast<int>(std::ceil(args.duration_s / 60.0)));
+  const auto minutes_ms = ByPeriod(all_ms, all_answered_s, 60.0, minutes);
   const double p50 = LatencyPercentile(all_ms, 0.5), p95 = LatencyPercentile(all_ms, 0.95),
                p99 = LatencyPercentile(all_ms, 0.99);
   const double worst_robot_p99 =
@@ -315,7 +328,19 @@ int RunLoad(const Args& raw_args) {
         .Field("jpeg_bytes_mean", encoded_bytes / encoded.size())
         .Field("client_cpu_fraction", cpu_s / streamed_s)
         .Field("held", held)
-        .EndObject();
+        .Key("minutes")
+        .BeginArray();
+    for (int m = 0; m < minutes; ++m) {
+      json.BeginObject()
+          .Field("minute", static_cast<int64_t>(m + 1))
+          .Field("answers", static_cast<int64_t>(minutes_ms[m].size()))
+          // Named apart from the run's own figures, which scripts read by first occurrence.
+          .Field("p50_ms", LatencyPercentile(minutes_ms[m], 0.5))
+          .Field("p95_ms", LatencyPercentile(minutes_ms[m], 0.95))
+          .Field("p99_ms", LatencyPercentile(minutes_ms[m], 0.99))
+          .EndObject();
+    }
+    json.EndArray().EndObject();
     std::cout << json.str() << "\n";
   } else {
     std::printf("%d robots at %.0f Hz for %.1f s (%dx%d JPEG q%d, %.0f KiB a frame), map %s\n",

@@ -154,29 +154,11 @@ TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
   EXPECT_THAT(usage.err, HasSubstr("--robots is 1..256"));
 }
 
-// Admission control (server/admission.h): robots streaming on a server whose one worker their
-// frames keep busy; newcomers are refused with RESOURCE_EXHAUSTED and the reason, the client
-// library backs off instead of knocking at once, and the robots already on it keep every frame.
-TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKeepTheirPace) {
-  // A limit low enough that three robots of the fixture reach it on any machine.
-  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
-                       {"--threads", "1", "--admit-busy", "0.02", "--admit-wait-ms", "1000"});
-  TempDir out("visloc_admission_out");
-  const auto load = [&](int robots, int seconds) {
-    return std::vector<std::string>{VISLOC_CLI_PATH, "load",
-                                    "--server",      server.address(),
-                                    "--map",         "square",
-                                    "--dataset",     kData + "/query_square",
-                                    "--robots",      std::to_string(robots),
-                                    "--rate",        "20",
-                                    "--duration-s",  std::to_string(seconds),
-                                    "--json"};
-  };
-  const int first =
-      testing::SpawnProcess(load(3, 8), out.File("first.json"), out.File("first.err"));
-  // A newcomer on the raw wire, once the first robots' frames fill the server's window.
-  auto stub = v1::Localization::NewStub(
-      grpc::CreateChannel(server.address(), grpc::InsecureChannelCredentials()));
+// A newcomer on the raw wire, tried every 300 ms for 7 s until the server refuses it for
+// capacity (once the robots streaming on it fill its window); its last answer.
+grpc::Status RefusalOf(const std::string& address) {
+  auto stub =
+      v1::Localization::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
   grpc::Status refused;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(7);
   while (std::chrono::steady_clock::now() < deadline) {
@@ -191,6 +173,35 @@ TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKee
     refused = call->Finish();  // Admitted: the session ends with the writes (no frames).
     if (refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) break;
   }
+  return refused;
+}
+
+// `visloc load` of ROBOTS robots at 20 Hz for SECONDS on the square map at SERVER.
+std::vector<std::string> LoadOf(const std::string& server, int robots, int seconds) {
+  return {VISLOC_CLI_PATH, "load",
+          "--server",      server,
+          "--map",         "square",
+          "--dataset",     kData + "/query_square",
+          "--robots",      std::to_string(robots),
+          "--rate",        "20",
+          "--duration-s",  std::to_string(seconds),
+          "--json"};
+}
+
+// Admission control (server/admission.h): robots streaming on a server whose one worker their
+// frames keep busy; newcomers are refused with RESOURCE_EXHAUSTED and the reason, the client
+// library backs off instead of knocking at once, and the robots already on it keep every frame.
+TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKeepTheirPace) {
+  // A limit low enough that three robots of the fixture reach it on any machine.
+  ServerProcess server(VISLOC_SERVER_PATH, maps_.path(),
+                       {"--threads", "1", "--admit-busy", "0.02", "--admit-wait-ms", "1000"});
+  TempDir out("visloc_admission_out");
+  const auto load = [&](int robots, int seconds) {
+    return LoadOf(server.address(), robots, seconds);
+  };
+  const int first =
+      testing::SpawnProcess(load(3, 12), out.File("first.json"), out.File("first.err"));
+  const grpc::Status refused = RefusalOf(server.address());
   ASSERT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << refused.error_message();
   EXPECT_THAT(refused.error_message(),
               AllOf(HasSubstr("server at capacity: its workers (1) were"), HasSubstr("sessions"),
@@ -216,6 +227,33 @@ TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKee
   }
   EXPECT_GE(refusals, 3);
   EXPECT_LE(refusals, 12) << "the library retried a refused session without backing off";
+}
+
+// Two replicas, one at capacity: robots given both (a replica list, each robot's shuffled) are
+// all served, those that asked the full one first by the other after its refusal.
+TEST_F(FleetE2eTest, ARobotRefusedByAReplicaAtCapacityIsServedByTheOther) {
+  ServerProcess full(VISLOC_SERVER_PATH, maps_.path(),
+                     {"--threads", "1", "--admit-busy", "0.02", "--admit-wait-ms", "1000"});
+  ServerProcess other(VISLOC_SERVER_PATH, maps_.path());
+  TempDir out("visloc_replicas_out");
+  const int on_full = testing::SpawnProcess(LoadOf(full.address(), 3, 12), out.File("full.json"),
+                                            out.File("full.err"));
+  ASSERT_EQ(RefusalOf(full.address()).error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  const ProcessResult newcomers =
+      testing::RunProcess(LoadOf("ipv4:" + full.address() + "," + other.address(), 6, 3));
+  ASSERT_EQ(newcomers.exit_code, 0) << newcomers.err;
+  EXPECT_EQ(testing::JsonNumber(newcomers.out, "refused_robots"), 0) << newcomers.out;
+  EXPECT_GE(testing::JsonNumber(newcomers.out, "answered"),
+            0.9 * testing::JsonNumber(newcomers.out, "frames"))
+      << newcomers.out;
+  const std::string other_log = other.Log();
+  int started = 0;
+  for (size_t at = other_log.find("event=session_start"); at != std::string::npos;
+       at = other_log.find("event=session_start", at + 1)) {
+    ++started;
+  }
+  EXPECT_EQ(started, 6) << "every newcomer ends on the replica with room";
+  EXPECT_EQ(testing::WaitProcess(on_full), 0);
 }
 
 TEST_F(FleetE2eTest, TheListNeedsAToken) {

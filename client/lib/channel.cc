@@ -14,6 +14,15 @@ std::shared_ptr<grpc::ChannelCredentials> ChannelCredentials(const Credentials& 
 
 }  // namespace
 
+std::string NextReplicaFirst(const std::string& target) {
+  const size_t colon = target.find(':');
+  const std::string scheme = colon == std::string::npos ? "" : target.substr(0, colon);
+  const size_t comma = target.find(',');
+  if ((scheme != "ipv4" && scheme != "ipv6") || comma == std::string::npos) return target;
+  const std::string first = target.substr(colon + 1, comma - colon - 1);
+  return scheme + ":" + target.substr(comma + 1) + "," + first;
+}
+
 std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,
                                                 const Credentials& credentials,
                                                 const ChannelTiming& timing) {

@@ -28,6 +28,11 @@ inline void Authorize(grpc::ClientContext* context, const Credentials& credentia
   }
 }
 
+// A replica list ("ipv4:A:PORT,B:PORT", "ipv6:...") with its first address moved to the end, so
+// a new channel's round robin starts at the next replica (gRPC 1.51 starts at the first); any
+// other target unchanged. A session refused by a replica at capacity asks the next one.
+std::string NextReplicaFirst(const std::string& target);
+
 std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,
                                                 const Credentials& credentials,
                                                 const ChannelTiming& timing);

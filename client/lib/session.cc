@@ -5,6 +5,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <mutex>
@@ -70,15 +71,15 @@ bool Permanent(grpc::StatusCode code) {
   }
 }
 
-std::shared_ptr<grpc::Channel> NewChannel(const SessionOptions& o) {
+std::shared_ptr<grpc::Channel> NewChannel(const SessionOptions& o, const std::string& target) {
   return NewStreamChannel(
-      o.server, o.credentials,
+      target, o.credentials,
       {o.keepalive_time, o.keepalive_timeout, o.backoff_initial, o.backoff_max});
 }
 
 class SessionImpl final : public Session {
  public:
-  explicit SessionImpl(const SessionOptions& options) : options_(options) {
+  explicit SessionImpl(const SessionOptions& options) : options_(options), target_(options.server) {
     worker_ = std::thread([this] { Work(); });
   }
   ~SessionImpl() override { Close(std::chrono::milliseconds(0)); }
@@ -133,6 +134,9 @@ class SessionImpl final : public Session {
   void DropAllQueued(const std::string& why, Events* events);
 
   const SessionOptions options_;
+  // Where the next stream goes: options_.server, its replica list turned on by each refusal for
+  // capacity. The worker thread's alone.
+  std::string target_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;  // Queue, in-flight, stream end or closing changed.
   std::deque<Queued> queue_;
@@ -321,7 +325,7 @@ void SessionImpl::CheckLink(Clock::time_point now, Events* events) {
 
 bool SessionImpl::OpenStream(Events* events, grpc::Status* refused) {
   auto stream = std::make_unique<Stream>();
-  stream->channel = NewChannel(options_);
+  stream->channel = NewChannel(options_, target_);
   if (!stream->channel->WaitForConnected(std::chrono::system_clock::now() +
                                          options_.connect_timeout)) {
     *refused = grpc::Status(grpc::StatusCode::UNAVAILABLE, "cannot connect to " + options_.server);
@@ -509,6 +513,7 @@ bool SessionImpl::SendNext() {
 void SessionImpl::Work() {
   std::chrono::milliseconds backoff = options_.backoff_initial;
   std::chrono::milliseconds capacity_backoff = kFirstCapacityBackoff;
+  int capacity_refusals = 0;  // In a row.
   bool ever_connected = false;
   Clock::time_point last_stream = Clock::now();  // Opened, or the start.
   while (true) {
@@ -594,16 +599,24 @@ void SessionImpl::Work() {
       const bool at_capacity = EndStream(&events, &permanent);
       last_stream = Clock::now();  // Giving up counts from the break.
       if (at_capacity) {
-        // A server at capacity: ask again later, not at once (every robot it refused would
-        // otherwise knock at the link's pace). A replica list's next stream may go elsewhere.
-        Emit(std::move(events));
-        events.clear();
-        std::unique_lock<std::mutex> lock(mutex_);
-        wake_.wait_for(lock, capacity_backoff, [this] { return closing_; });
-        capacity_backoff = std::min(capacity_backoff * 2, kMaxCapacityBackoff);
-        ExpireQueued(Clock::now(), &events);
+        // A server at capacity: the next replica of a list at once, and once every replica has
+        // refused, again later, not at once (every robot refused would otherwise knock at the
+        // link's pace).
+        ++capacity_refusals;
+        const std::string next = NextReplicaFirst(target_);
+        const int replicas = 1 + static_cast<int>(std::count(next.begin(), next.end(), ','));
+        target_ = next;
+        if (capacity_refusals % replicas == 0) {
+          Emit(std::move(events));
+          events.clear();
+          std::unique_lock<std::mutex> lock(mutex_);
+          wake_.wait_for(lock, capacity_backoff, [this] { return closing_; });
+          capacity_backoff = std::min(capacity_backoff * 2, kMaxCapacityBackoff);
+          ExpireQueued(Clock::now(), &events);
+        }
       } else {
         capacity_backoff = kFirstCapacityBackoff;
+        capacity_refusals = 0;
       }
     }
     wake_.notify_all();  // A Submit waiting for room sees drops and refusals.
@@ -642,8 +655,8 @@ v1::RelocalizeResponse Relocalize(const SessionOptions& options, const Frame& fr
   context.set_deadline(std::chrono::system_clock::now() + timeout);
   Authorize(&context, options.credentials);
   v1::RelocalizeResponse response;
-  const grpc::Status status =
-      v1::Localization::NewStub(NewChannel(options))->Relocalize(&context, request, &response);
+  const grpc::Status status = v1::Localization::NewStub(NewChannel(options, options.server))
+                                  ->Relocalize(&context, request, &response);
   if (!status.ok()) {
     throw std::runtime_error("Relocalize: " + status.error_message() + " (" +
                              std::to_string(static_cast<int>(status.error_code())) + ")");

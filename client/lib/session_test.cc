@@ -12,6 +12,7 @@
 #include <mutex>
 #include <thread>
 
+#include "client/lib/channel.h"
 #include "core/util/temp_dir.h"
 #include "server/localization_service.h"
 #include "server/test_session.h"
@@ -82,6 +83,16 @@ class ClientSessionTest : public ::testing::Test {
   std::mutex engine_mutex_;
   std::vector<int64_t> engine_imu_ns_;  // The gyro sample stamps the engine got, in order.
 };
+
+// A refused session's next stream starts at the next replica of a list.
+TEST(ReplicaListTest, TheNextReplicaComesFirst) {
+  EXPECT_EQ(NextReplicaFirst("ipv4:10.0.0.5:50051,10.0.0.6:50051,10.0.0.7:50051"),
+            "ipv4:10.0.0.6:50051,10.0.0.7:50051,10.0.0.5:50051");
+  EXPECT_EQ(NextReplicaFirst("ipv6:[::1]:5001,[::1]:5002"), "ipv6:[::1]:5002,[::1]:5001");
+  for (const char* one : {"ipv4:10.0.0.5:50051", "localhost:50051", "dns:///fleet:50051"}) {
+    EXPECT_EQ(NextReplicaFirst(one), one);
+  }
+}
 
 TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
   for (const Encoding encoding : {Encoding::kJpeg, Encoding::kPng, Encoding::kRaw}) {
