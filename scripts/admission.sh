@@ -15,16 +15,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh > /dev/null
 source scripts/report-lib.sh
-V=$PWD/build/client/visloc
-REAL=${VISLOC_REAL_DATA:-$PWD/../shared/real}
-REC=$REAL/euroc_mh01_moving
 WORK=${1:-out/admission}
 REPORT=docs/admission.md
 ROBOTS=${VISLOC_ADMISSION_ROBOTS:-48}
 DURATION_S=${VISLOC_ADMISSION_DURATION_S:-70}
-mkdir -p "$WORK/maps"
-[[ -d $REC ]] || { echo "no $REC: admission needs the real recordings" >&2; exit 1; }
-[[ -f $WORK/maps/mh01.db ]] || $V map build --dataset "$REC" --out "$WORK/maps/mh01.db" > /dev/null
+mh01_setup "$WORK"
 
 # run TAG [SERVER FLAGS...]: the arrival run; WORK/TAG.json (visloc load) and WORK/TAG.tsv
 # (second, sessions open, busy, projected busy, refused so far).

@@ -18,9 +18,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh > /dev/null
 source scripts/report-lib.sh
-V=$PWD/build/client/visloc
-REAL=${VISLOC_REAL_DATA:-$PWD/../shared/real}
-REC=$REAL/euroc_mh01_moving
 WORK=${1:-out/capacity}
 REPORT=docs/capacity.md
 DURATION_S=${VISLOC_CAPACITY_DURATION_S:-60}
@@ -28,12 +25,10 @@ DURATION_S=${VISLOC_CAPACITY_DURATION_S:-60}
 # or MAX_ROBOTS.
 MAX_ROBOTS=${VISLOC_CAPACITY_MAX_ROBOTS:-64}
 declare -A FIRST_ROBOTS=([1]=4 [2]=12)
-mkdir -p "$WORK/maps"
-[[ -d $REC ]] || { echo "no $REC: the capacity needs the real recordings" >&2; exit 1; }
+mh01_setup "$WORK"
 
 # VISLOC_CAPACITY_REPORT_ONLY=1 writes the report again from the runs kept in WORK_DIR.
 if [[ -z ${VISLOC_CAPACITY_REPORT_ONLY:-} ]]; then
-[[ -f $WORK/maps/mh01.db ]] || $V map build --dataset "$REC" --out "$WORK/maps/mh01.db" > /dev/null
 $V bench --dataset "$REC" --map "$WORK/maps/mh01.db" --relocalization-queries 1 --json \
   > "$WORK/bench.json"
 /usr/bin/python3 - "$REC" > "$WORK/decode_ms.txt" << 'EOF'

@@ -19,6 +19,17 @@ field_in() {
 # VALUE times SCALE (default 1) with DIGITS decimals (default 2).
 fmt() { awk -v v="$1" -v s="${2:-1}" -v d="${3:-2}" 'BEGIN { printf "%.*f", d, v * s }'; }
 
+# mh01_setup WORK_DIR: for the scripts that load a server with EuRoC MH_01's frames
+# (capacity.sh, admission.sh, soak-held.sh): V (the CLI), REC (the recording, which must be
+# there) and WORK_DIR/maps/mh01.db (its map, built once).
+mh01_setup() {
+  V=$PWD/build/client/visloc
+  REC=${VISLOC_REAL_DATA:-$PWD/../shared/real}/euroc_mh01_moving
+  [[ -d $REC ]] || { echo "no $REC: this needs the real recordings" >&2; exit 1; }
+  mkdir -p "$1/maps"
+  [[ -f $1/maps/mh01.db ]] || "$V" map build --dataset "$REC" --out "$1/maps/mh01.db" > /dev/null
+}
+
 # start_server MAPS_DIR WORK_DIR [SERVER FLAGS...]: a visloc-server (SERVER_BIN, by default the
 # release build's) on a free loopback port; sets SERVER_PID and SERVER_ADDRESS. stop_server ends it.
 start_server() {

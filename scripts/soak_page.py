@@ -5,22 +5,14 @@ start, left open, sampled every minute, and checked live at the end. Prints one 
 Usage: soak_page.py URL DURATION_S ROBOTS
 """
 import json
-import shutil
+import os
+import subprocess
 import sys
 import time
 
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
-
-
-def browser():
-    options = webdriver.ChromeOptions()
-    options.binary_location = shutil.which("chromium")
-    for argument in ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,900",
-                     "--disable-dev-shm-usage"]:
-        options.add_argument(argument)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests",
+                                "support"))
+from http_harness import browser  # noqa: E402
 
 
 def sample(driver):
@@ -30,6 +22,13 @@ def sample(driver):
         " load: document.getElementById('load').textContent,"
         " view: document.getElementById('viewinfo').textContent,"
         " since_event_s: (Date.now() - state.lastEvent) / 1000};")
+
+
+def browser_cpu_s():
+    """The CPU time (s) of every Chromium process so far."""
+    out = subprocess.run(["ps", "-C", "chromium,chrome", "-o", "times="], capture_output=True,
+                         text=True).stdout
+    return sum(int(v) for v in out.split())
 
 
 def main():
@@ -46,12 +45,14 @@ def main():
             samples.append(dict(sample(driver), t_s=round(time.monotonic() - start)))
             next_sample += 60
         errors = [e["message"] for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+        cores = browser_cpu_s() / max(1.0, time.monotonic() - start)
     finally:
         driver.quit()
     last = samples[-1] if samples else {}
     live = (last.get("link") == "live" and last.get("robots") == robots
             and last.get("since_event_s", 99) < 2 and "keyframes" in last.get("view", ""))
-    print(json.dumps({"live_at_end": live, "console_errors": errors, "samples": samples}))
+    print(json.dumps({"live_at_end": live, "console_errors": errors, "browser_cores": cores,
+                      "samples": samples}))
 
 
 if __name__ == "__main__":

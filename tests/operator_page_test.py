@@ -38,7 +38,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
-from http_harness import Checks, square_maps, start_server  # noqa: E402
+from http_harness import Checks, browser, square_maps, start_server  # noqa: E402
 
 server_bin, visloc_bin, map_writer, data, sanitize = sys.argv[1:6]
 REAL = os.environ.get("VISLOC_REAL_DATA", "")
@@ -48,8 +48,7 @@ USABLE_S = 8.0 if sanitize else 2.0
 try:
     import cv2
     import numpy as np
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
+    import selenium  # noqa: F401 (http_harness.browser drives it)
     from selenium.webdriver.common.by import By
 except ImportError as e:
     print("skipped:", e)
@@ -57,16 +56,6 @@ except ImportError as e:
 if not shutil.which("chromium") or not os.path.exists("/usr/bin/chromedriver"):
     print("skipped: chromium and chromium-driver are not installed")
     sys.exit(77)
-
-
-def browser():
-    options = webdriver.ChromeOptions()
-    options.binary_location = shutil.which("chromium")
-    for argument in ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,900",
-                     "--disable-dev-shm-usage"]:
-        options.add_argument(argument)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
 
 
 def robot_statuses(driver):

@@ -1,6 +1,6 @@
-"""What the HTTP-side tests share (http_e2e_test.py, operator_page_test.py): a failures list,
-a maps folder holding the fixture's map as "square", and a real visloc-server with --http on
-free loopback ports."""
+"""What the HTTP-side tests share (http_e2e_test.py, operator_page_test.py, and
+scripts/soak_page.py): a failures list, a maps folder holding the fixture's map as "square", a
+real visloc-server with --http on free loopback ports, and headless Chromium."""
 
 import os
 import shutil
@@ -44,3 +44,16 @@ def start_server(server_bin, maps, extra=()):
     http_line = process.stdout.readline()
     assert http_line.startswith("http on "), http_line
     return process, grpc_address, http_line.split()[-1]
+
+
+def browser():
+    """Headless Chromium through chromedriver (Debian's), its console log kept."""
+    from selenium import webdriver  # Only the page tests need selenium.
+    from selenium.webdriver.chrome.service import Service
+    options = webdriver.ChromeOptions()
+    options.binary_location = shutil.which("chromium")
+    for argument in ["--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1400,900",
+                     "--disable-dev-shm-usage"]:
+        options.add_argument(argument)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
