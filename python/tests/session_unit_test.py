@@ -19,6 +19,7 @@ import grpc
 import numpy as np
 
 from visloc import LinkState, Session, SessionOptions, pinhole_camera
+from visloc.session import next_replica_first
 from visloc.v1 import visloc_pb2 as pb
 from visloc.v1 import visloc_pb2_grpc as pb_grpc
 
@@ -28,17 +29,19 @@ ANSWERED = pb.Pose(tx=1.0, ty=0.5, tz=0.2, qw=0.7071067811865476, qx=0.0, qy=0.0
 
 
 class ScriptedService(pb_grpc.LocalizationServicer):
-    """Answers every frame with ANSWERED; the first stream breaks after its first answer."""
+    """Answers every frame with ANSWERED; the first stream breaks after its first answer (unless
+    breaks_first is False)."""
 
-    def __init__(self):
+    def __init__(self, breaks_first=True):
         self.lock = threading.Lock()
         self.streams = []  # The frames received, per stream.
+        self.breaks_first = breaks_first
 
     def Localize(self, request_iterator, context):
         with self.lock:
             frames = []
             self.streams.append(frames)
-            breaks = len(self.streams) == 1
+            breaks = self.breaks_first and len(self.streams) == 1
         for request in request_iterator:
             if not request.HasField("frame"):
                 continue
@@ -158,6 +161,50 @@ class CapacityTest(unittest.TestCase):
         self.assertTrue(any("server at capacity" in e.detail for e in links),
                         [e.detail for e in links])
         self.assertNotEqual(state, LinkState.FAILED)
+
+
+class ReplicaTest(unittest.TestCase):
+    """A session refused by a replica at capacity goes on to the next one of its list at once."""
+
+    def test_the_next_replica_first(self):
+        self.assertEqual(next_replica_first("ipv4:10.0.0.5:50051,10.0.0.6:50051,10.0.0.7:50051"),
+                         "ipv4:10.0.0.6:50051,10.0.0.7:50051,10.0.0.5:50051")
+        self.assertEqual(next_replica_first("ipv6:[::1]:5001,[::1]:5002"),
+                         "ipv6:[::1]:5002,[::1]:5001")
+        for one in ["127.0.0.1:5001", "ipv4:127.0.0.1:5001", "dns:///visloc:50051"]:
+            self.assertEqual(next_replica_first(one), one)
+
+    def test_a_robot_refused_by_a_full_replica_is_served_by_the_other(self):
+        full, serving = FullService(), ScriptedService(breaks_first=False)
+        servers, ports = [], []
+        for service in (full, serving):
+            server = grpc.server(concurrent.futures.ThreadPoolExecutor(max_workers=4))
+            pb_grpc.add_LocalizationServicer_to_server(service, server)
+            ports.append(server.add_insecure_port("127.0.0.1:0"))
+            server.start()
+            servers.append(server)
+        try:
+            answers = []
+            options = SessionOptions(
+                server=f"ipv4:127.0.0.1:{ports[0]},127.0.0.1:{ports[1]}", map_name="lab",
+                camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5), encoding="raw",
+                on_event=lambda e: e.kind == "result" and answers.append(time.monotonic()))
+            session = Session(options)
+            image = np.zeros((240, 320), np.uint8)
+            started = time.monotonic()
+            while not answers and time.monotonic() - started < 5.0:
+                session.submit(int(time.monotonic() * 1e9), image)
+                time.sleep(0.05)
+            session.close(drain_s=0.0)
+        finally:
+            for server in servers:
+                server.stop(grace=None)
+        with full.lock:
+            refusals = list(full.refusals)
+        self.assertEqual(len(refusals), 1, "refused once, then served by the other replica")
+        self.assertTrue(answers, "the other replica never answered")
+        # At once: not after the second of backoff a lone server at capacity gets.
+        self.assertLess(answers[0] - refusals[0], 0.9)
 
 
 class RefusedFramesTest(unittest.TestCase):

@@ -112,6 +112,16 @@ class NotSent:
         return f"NotSent({self.reason!r})"
 
 
+def next_replica_first(target: str) -> str:
+    """A replica list ("ipv4:10.0.0.5:50051,10.0.0.6:50051") with its first address moved last,
+    so that the next stream goes to the next replica; any other target as it is."""
+    scheme, _, addresses = target.partition(":")
+    if scheme not in ("ipv4", "ipv6") or "," not in addresses:
+        return target
+    first, _, others = addresses.partition(",")
+    return f"{scheme}:{others},{first}"
+
+
 def open_channel(server: str, tls_ca_pem: bytes, tls_cert_pem: bytes, tls_key_pem: bytes,
                  keepalive_time_ms: int, backoff_initial_s: float,
                  backoff_max_s: float) -> grpc.Channel:
@@ -207,6 +217,7 @@ class Session:
         if problem:
             raise ValueError("SessionOptions: " + problem)
         self._o = options
+        self._target = options.server  # A replica list turns on each refusal for capacity.
         self._lock = threading.Condition()
         self._queue: Deque[_Queued] = collections.deque()
         self._in_flight: Deque[_Queued] = collections.deque()
@@ -326,7 +337,7 @@ class Session:
 
     def _channel(self) -> grpc.Channel:
         o = self._o
-        return open_channel(o.server, o.tls_ca_pem, o.tls_cert_pem, o.tls_key_pem,
+        return open_channel(self._target, o.tls_ca_pem, o.tls_cert_pem, o.tls_key_pem,
                             o.keepalive_time_ms, o.backoff_initial_s, o.backoff_max_s)
 
     def _requests(self, stream_state):
@@ -474,6 +485,7 @@ class Session:
     def _work(self) -> None:
         backoff = self._o.backoff_initial_s
         capacity_backoff = _FIRST_CAPACITY_BACKOFF_S
+        capacity_refusals = 0
         last_stream = time.monotonic()
         stream = None
         while True:
@@ -515,14 +527,19 @@ class Session:
                 stream = None
                 last_stream = time.monotonic()
                 if at_capacity:
-                    # A server at capacity: ask again later, not at once (as the C++ library).
-                    self._emit(events)
-                    events = []
-                    retry_at = time.monotonic() + capacity_backoff
-                    with self._lock:  # Submits notify: wait out the whole backoff.
-                        while not self._closing and time.monotonic() < retry_at:
-                            self._lock.wait(retry_at - time.monotonic())
-                    capacity_backoff = min(capacity_backoff * 2, _MAX_CAPACITY_BACKOFF_S)
+                    # A server at capacity: the next replica of a list at once, and once every
+                    # replica has refused, again later, not at once (as the C++ library).
+                    capacity_refusals += 1
+                    self._target = next_replica_first(self._target)
+                    if capacity_refusals % (1 + self._target.count(",")) == 0:
+                        self._emit(events)
+                        events = []
+                        retry_at = time.monotonic() + capacity_backoff
+                        with self._lock:  # Submits notify: wait out the whole backoff.
+                            while not self._closing and time.monotonic() < retry_at:
+                                self._lock.wait(retry_at - time.monotonic())
+                        capacity_backoff = min(capacity_backoff * 2, _MAX_CAPACITY_BACKOFF_S)
                 else:
                     capacity_backoff = _FIRST_CAPACITY_BACKOFF_S
+                    capacity_refusals = 0
             self._emit(events)
