@@ -84,6 +84,25 @@ def sample_robot(driver):
         " [s, toPlan(state.view, s.x, s.y, s.z), state.view.site_from_map] : null;")
 
 
+def check_still_layer(driver, check):
+    """Events move the robots only: the map's points are drawn once per view, a robot's card is
+    made once (redrawing everything five times a second took most of a core with 24 robots)."""
+    script = ("const c = document.querySelector('.robot');"
+              "if (c && !window.keptCard) window.keptCard = c;"
+              "const kept = window.keptCard;"
+              "const now = kept && document.querySelector("
+              "  `.robot[data-robot='${kept.dataset.robot}']`);"
+              "return [state.events, state.layerDraws, now ? now === kept : null];")
+    events0, draws0, _ = driver.execute_script(script)
+    time.sleep(1.5)
+    events1, draws1, card = driver.execute_script(script)
+    check(events1 - events0 >= 3, f"events while watching: {events1 - events0}")
+    check(draws1 == draws0, f"the map's layer drawn {draws1 - draws0} times over "
+          f"{events1 - events0} events")
+    check(card is not False, "a robot's card made again for an event")
+    return f"{events1 - events0} events, layer drawn {draws1 - draws0} times"
+
+
 def check_floor_plan(driver, check, robot):
     """The square map in its level frame, the overlay loaded, a robot placed by site_from_map."""
     view = driver.execute_script("return state.view;")
@@ -237,6 +256,7 @@ def main():
             check(grey_pixels > 500, f"points drawn: {grey_pixels} grey pixels")
             check(robot_pixels > 50, f"a robot's arrow drawn: {robot_pixels} pixels")
             floor_plan = check_floor_plan(driver, check, robot)
+            redraws = check_still_layer(driver, check)
             # The big map: chosen by a click, drawn decimated.
             clicked = time.monotonic()
             driver.execute_script("document.querySelector('#maprows tr[data-name=big]').click();")
@@ -291,7 +311,7 @@ def main():
             errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
             check(not errors, f"browser console errors: {errors}")
             level = check_real_map_level(driver, check, mh01, screenshot_out) if mh01 else "skipped"
-            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}")
+            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}")
             print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
                   f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click; mapping "
