@@ -5,6 +5,7 @@
 #include "core/util/args.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "core/util/thread_priority.h"
 #include "server/client_errors.h"
 #include "server/http/metrics.h"
 #include "server/http/operator_api.h"
@@ -13,11 +14,40 @@
 namespace visloc::server {
 namespace {
 
+// How far below the localization workers the HTTP threads run (nice levels). At +10 a thread
+// gets about a tenth of a core that a worker also wants: what the page asks of a large map (its
+// view, its localizability grid: seconds of a core for 10,000 keyframes) and every scrape wait
+// for the robots' frames, not the other way round.
+constexpr int kHttpNiceIncrement = 10;
+
+// httplib's pool, its threads lowered before their first request.
+class BackgroundPool : public httplib::TaskQueue {
+ public:
+  BackgroundPool() : pool_(CPPHTTPLIB_THREAD_POOL_COUNT) {}
+  void enqueue(std::function<void()> fn) override {
+    pool_.enqueue([fn = std::move(fn)] {
+      thread_local const bool lowered = (LowerThisThreadsPriority(kHttpNiceIncrement), true);
+      (void)lowered;
+      fn();
+    });
+  }
+  void shutdown() override { pool_.shutdown(); }
+
+ private:
+  httplib::ThreadPool pool_;
+};
+
 std::unique_ptr<httplib::Server> MakeServer(const HttpOptions& options) {
-  if (options.tls_cert.empty()) return std::make_unique<httplib::Server>();
-  auto server =
-      std::make_unique<httplib::SSLServer>(options.tls_cert.c_str(), options.tls_key.c_str());
-  if (!server->is_valid()) throw InputError("the HTTP endpoint cannot use the TLS certificate");
+  std::unique_ptr<httplib::Server> server;
+  if (options.tls_cert.empty()) {
+    server = std::make_unique<httplib::Server>();
+  } else {
+    auto tls =
+        std::make_unique<httplib::SSLServer>(options.tls_cert.c_str(), options.tls_key.c_str());
+    if (!tls->is_valid()) throw InputError("the HTTP endpoint cannot use the TLS certificate");
+    server = std::move(tls);
+  }
+  server->new_task_queue = [] { return new BackgroundPool(); };
   return server;
 }
 
