@@ -2,7 +2,11 @@
 """The operator's page open in headless Chromium for a soak (scripts/soak-held.sh): loaded at the
 start, left open, sampled every minute, and checked live at the end. Prints one JSON object.
 
-Usage: soak_page.py URL DURATION_S ROBOTS
+Usage: soak_page.py URL DURATION_S ROBOTS READY_FILE
+
+READY_FILE is written once the page is loaded and live, before the robots start: the browser's
+own start (seconds of several processes' CPU, on the server's cores here) is not the server's
+load. The run's DURATION_S counts from then.
 """
 import json
 import os
@@ -32,11 +36,18 @@ def browser_cpu_s():
 
 
 def main():
-    url, duration_s, robots = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
+    url, duration_s, robots, ready_file = (sys.argv[1], float(sys.argv[2]), int(sys.argv[3]),
+                                           sys.argv[4])
     driver = browser()
     samples = []
     try:
         driver.get(url)
+        deadline = time.monotonic() + 60
+        while sample(driver)["link"] != "live" and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(2)  # The map's view and overlay drawn.
+        with open(ready_file, "w") as f:
+            f.write("ready\n")
         start = time.monotonic()
         # Sampled each minute, and last a few seconds before the robots end.
         next_sample = start + 60
