@@ -31,12 +31,16 @@ mh01_setup() {
 }
 
 # start_server MAPS_DIR WORK_DIR [SERVER FLAGS...]: a visloc-server (SERVER_BIN, by default the
-# release build's) on a free loopback port; sets SERVER_PID and SERVER_ADDRESS. stop_server ends it.
+# release build's) on a free loopback port; sets SERVER_PID and SERVER_ADDRESS, and SERVER_HTTP
+# when the flags ask for --http. stop_server ends it.
 start_server() {
   "${SERVER_BIN:-build/server/visloc-server}" --maps "$1" --listen 127.0.0.1:0 "${@:3}" > "$2/server.out" 2> "$2/server.log" &
   SERVER_PID=$!
-  for _ in $(seq 100); do grep -q "listening on" "$2/server.out" 2>/dev/null && break; sleep 0.1; done
+  local wanted="listening on"
+  [[ " ${*:3} " == *" --http "* ]] && wanted="http on"  # Printed after the gRPC address.
+  for _ in $(seq 100); do grep -q "$wanted" "$2/server.out" 2>/dev/null && break; sleep 0.1; done
   SERVER_ADDRESS=$(sed -n 's/^listening on //p' "$2/server.out")
+  SERVER_HTTP=$(sed -n 's/^http on //p' "$2/server.out")
   [[ -n $SERVER_ADDRESS ]] || { cat "$2/server.log"; return 1; }
 }
 stop_server() {

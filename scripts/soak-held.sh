@@ -28,12 +28,7 @@ soak() {
   rm -rf "$run" && mkdir -p "$run/scrapes"
   git rev-parse --short HEAD > "$run/commit"
   start_server "$WORK/maps" "$run" --threads 2 --max-sessions 256 --http 127.0.0.1:0
-  local http=""
-  for _ in $(seq 50); do
-    http=$(sed -n 's/^http on //p' "$run/server.out")
-    [[ -n $http ]] && break
-    sleep 0.1
-  done
+  local http=$SERVER_HTTP
   # The page at the lowest priority: an operator's browser runs on another machine, and here
   # it shares the server's two cores. Opened before the robots start: Chromium's own start,
   # even at nice 19, held a full server's frames up to 220 ms.
@@ -41,7 +36,12 @@ soak() {
     "$run/page.ready" > "$run/page.json" &
   local page=$!
   for _ in $(seq 600); do [[ -f $run/page.ready ]] && break; sleep 0.1; done
-  [[ -f $run/page.ready ]] || { echo "the page did not load within 60 s" >&2; return 1; }
+  if [[ ! -f $run/page.ready ]]; then
+    echo "the page did not load within 60 s" >&2
+    kill "$page" 2>/dev/null || true
+    stop_server
+    return 1
+  fi
   # Scrapes every 5 s, bounded by the run's length: the Prometheus text and the server's RSS.
   (
     printf 's\trss_mib\tscrape_bytes\n'

@@ -28,7 +28,6 @@ double Median(std::vector<double> values) {
   return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
-
 // From the sessions' own CPU costs: committed cores with one more session, over the workers.
 // `per_session` (cores) is what the newcomer is taken to cost.
 double CpuProjection(const WorkerLoadStats& load, int workers,

@@ -57,6 +57,16 @@ def stream(address, robot, sequence, frames):
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
+def thread_nices(pid):
+    """(the process's main thread's nice, every thread's nice) from /proc."""
+    def nice(stat_path):
+        with open(stat_path) as f:
+            # Fields after the command's closing parenthesis start at field 3; nice is field 19.
+            return int(f.read().rsplit(")", 1)[1].split()[16])
+    tasks = os.listdir(f"/proc/{pid}/task")
+    return nice(f"/proc/{pid}/stat"), [nice(f"/proc/{pid}/task/{t}/stat") for t in tasks]
+
+
 def main():
     check = Checks()
     with tempfile.TemporaryDirectory() as tmp:
@@ -97,6 +107,11 @@ def main():
             check(not any("rover" in value for _, l, _ in found for value in l.values()),
                   "a label carries a robot id")
             check("/tmp" not in text and tmp not in text, "a server path in /metrics")
+            # The threads that served these requests run below the localization workers.
+            base, niced = thread_nices(server.pid)
+            wanted = min(19, base + 10)
+            check(niced.count(wanted) >= 1 and niced.count(base) >= 2,
+                  f"HTTP threads at nice {wanted}, the rest at {base}: {sorted(niced)}")
         finally:
             server.terminate()
             server.wait(timeout=30)

@@ -26,8 +26,11 @@ class BackgroundPool : public httplib::TaskQueue {
   BackgroundPool() : pool_(CPPHTTPLIB_THREAD_POOL_COUNT) {}
   void enqueue(std::function<void()> fn) override {
     pool_.enqueue([fn = std::move(fn)] {
-      thread_local const bool lowered = (LowerThisThreadsPriority(kHttpNiceIncrement), true);
-      (void)lowered;
+      thread_local bool lowered = false;
+      if (!lowered) {
+        LowerThisThreadsPriority(kHttpNiceIncrement);
+        lowered = true;
+      }
       fn();
     });
   }
