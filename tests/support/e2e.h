@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -68,9 +70,14 @@ inline Trajectory ReadTumLines(const std::string& path) {
   while (std::getline(in, line)) {
     if (line.empty() || line[0] == '#') continue;
     std::istringstream fields(line);
-    double t, x, y, z, qx, qy, qz, qw;
-    fields >> t >> x >> y >> z >> qx >> qy >> qz >> qw;
-    poses.push_back({SecondsToNs(t), Rigid3d(Eigen::Quaterniond(qw, qx, qy, qz), {x, y, z})});
+    std::string stamp;
+    double x, y, z, qx, qy, qz, qw;
+    fields >> stamp >> x >> y >> z >> qx >> qy >> qz >> qw;
+    // To the nanosecond, as written: through a double, a stamp of 1.7e9 s is 100 ns off, and
+    // matching it to ground truth then falls back to interpolation.
+    const std::optional<int64_t> t_ns = ParseSecondsToNs(stamp);
+    if (!t_ns) throw std::runtime_error("bad TUM timestamp '" + stamp + "' in " + path);
+    poses.push_back({*t_ns, Rigid3d(Eigen::Quaterniond(qw, qx, qy, qz), {x, y, z})});
   }
   return poses;
 }
