@@ -1,4 +1,4 @@
-// Microbenchmarks of map building's bundle adjustment (Google Benchmark). Run:
+// Microbenchmarks of map building's stereo frames and bundle adjustment (Google Benchmark). Run:
 //   build/mapping/mapping_benchmark
 // Speed is measured here, never asserted in tests. The input is synthetic and deterministic: a
 // rectified stereo rig (KITTI's geometry: 718 px, 0.54 m) driving forward a metre a keyframe
@@ -9,9 +9,15 @@
 
 #include <cmath>
 
+#include "core/features/features.h"
+#include "core/geometry/rigid3.h"
 #include "core/util/random.h"
 #include "mapping/bundle_adjustment.h"
 #include "mapping/keyframes.h"
+#include "mapping/stereo_frame.h"
+#include "sim/renderer.h"
+#include "sim/sequences.h"
+#include "sim/world.h"
 
 namespace visloc::mapping {
 namespace {
@@ -96,7 +102,41 @@ void BM_GlobalBundleAdjust(benchmark::State& state) {
   }
   state.counters["iterations"] = iterations;
 }
-BENCHMARK(BM_GlobalBundleAdjust)->Args({30, 0})->Args({30, 1})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GlobalBundleAdjust)
+    ->Args({30, 0})
+    ->Args({30, 1})
+    ->Args({60, 0})
+    ->Unit(benchmark::kMillisecond);
+
+// One frame of a map build's stereo matching at 320x240 (the generated head's rig in the
+// generated room): the left image's features, rectification, the row searches and (argument:
+// the refinement's patch radius, 0 for none) the disparity refinement, on one thread. The ratio
+// of the two is what refinement costs.
+void BM_BuildStereoFrame(benchmark::State& state) {
+  const sim::StereoRig rig = sim::MakeRig(sim::RigOptions{});
+  sim::RoomOptions room;
+  room.texel_m = 0.006;
+  const sim::World world = sim::MakeRoom(room);
+  const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
+  const sim::Renderer left_renderer(rig.left.camera, 2), right_renderer(rig.right.camera, 2);
+  sim::SensorModel sensor;
+  Rng noise(1);
+  const cv::Mat left =
+      sensor.Capture(left_renderer.RenderRadiance(world, body * rig.left.body_from_cam, 0), &noise);
+  const cv::Mat right = sensor.Capture(
+      right_renderer.RenderRadiance(world, body * rig.right.body_from_cam, 0), &noise);
+  const StereoRectifier rectifier(rig.left.camera, rig.right.camera,
+                                  rig.right.body_from_cam.Inverse() * rig.left.body_from_cam);
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  StereoMatchOptions options;
+  options.refine_patch_radius_px = static_cast<int>(state.range(0));
+  int matches = 0;
+  for (auto _ : state) {
+    matches = BuildStereoFrame(left, right, *extractor, rectifier, options).stereo_matches();
+  }
+  state.counters["matches"] = matches;
+}
+BENCHMARK(BM_BuildStereoFrame)->Arg(0)->Arg(7)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace visloc::mapping

@@ -34,17 +34,18 @@ constexpr int kGridCellPx = 16;
 // evenly, large enough that taking the next is nothing beside searching them.
 constexpr int kSearchChunk = 32;
 
-inline float Bilinear(const cv::Mat& image, double x, double y) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* r0 = image.ptr<float>(y0);
-  const float* r1 = image.ptr<float>(y0 + 1);
+// Bilinear interpolation along rows `r0` and `r1` (the one below) at column `x`, `fy` of the way
+// down: a patch's samples of one image row share the rows and their weight.
+inline float BilinearInRows(const float* r0, const float* r1, float fy, double x) {
+  const int x0 = static_cast<int>(std::floor(x));
+  const float fx = static_cast<float>(x - x0);
   return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
          fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
 }
 
-// Bilinear interpolation of two images of the same size at the same point (the right image and its
-// gradient): the weights and the rows are found once. Each value is computed as Bilinear does.
+// Bilinear interpolation of two images of the same size at the same point (the left image and its
+// gradient): the weights and the rows are found once. Each value is computed as BilinearInRows
+// does.
 inline void Bilinear2(const cv::Mat& a, const cv::Mat& b, double x, double y, float* value_a,
                       float* value_b) {
   const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
@@ -57,90 +58,97 @@ inline void Bilinear2(const cv::Mat& a, const cv::Mat& b, double x, double y, fl
   *value_b = (1 - fy) * ((1 - fx) * b0[0] + fx * b0[1]) + fy * ((1 - fx) * b1[0] + fx * b1[1]);
 }
 
-// Per-thread scratch of RefineDisparity: a map build refines hundreds of patches a frame.
+// Per-thread scratch of RefineDisparity, one entry per patch pixel: a map build refines hundreds
+// of patches a frame.
 struct RefinementScratch {
-  std::vector<float> template_values, values, gradients;
+  Eigen::ArrayXf template_values;                  // Zero mean.
+  Eigen::ArrayXf jacobian0, jacobian1, jacobian2;  // Columns of the Jacobian.
+  Eigen::ArrayXf values;                           // The right image under the current warp.
+  void Resize(int n) {
+    for (Eigen::ArrayXf* a : {&template_values, &jacobian0, &jacobian1, &jacobian2, &values}) {
+      a->resize(n);
+    }
+  }
 };
 
 }  // namespace
 
 // Built for AVX2 and AVX-512 too: there std::floor is one instruction, not a call (the same
 // values).
-VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& right,
-                                        const cv::Mat& right_gradient_x, double x, double y,
-                                        int radius, double* d) {
+VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left_gradient_x,
+                                        const cv::Mat& right, double x, double y, int radius,
+                                        double* d) {
   const int margin = radius + 2;
   if (x < margin || y < margin || x >= left.cols - margin || y >= left.rows - margin) return false;
   const int n = (2 * radius + 1) * (2 * radius + 1);
   thread_local RefinementScratch scratch;
-  std::vector<float>& template_values = scratch.template_values;
-  std::vector<float>& values = scratch.values;
-  std::vector<float>& gradients = scratch.gradients;
-  template_values.resize(n);
-  values.resize(n);
-  gradients.resize(n);
-  double template_mean = 0;
+  scratch.Resize(n);
+  // Disparity varies across the patch on slanted surfaces (the floor, the ceiling), so it is
+  // modelled as d(u, v) = d0 + gu u + gv v over patch offsets (u, v); d0 is the disparity at the
+  // patch centre. A pure shift would absorb the gradient as a bias. The patch offset (u, v) is
+  // seen in the right image at column x + u - d(u, v) of row y + v: an affine warp of the patch
+  // whose first row is (1 - gu, -gv, -d0).
+  //
+  // Inverse compositional Gauss-Newton (Baker and Matthews, IJCV 2004) on the zero-mean SSD: the
+  // Jacobian is the template's (the left patch's) at the identity warp, so it and the normal
+  // equations are made once, and an iteration samples the right image alone (the forward
+  // additive form sampled the right image's gradient too and solved its normal equations each
+  // time: half of a map build's time).
   int k = 0;
   for (int v = -radius; v <= radius; ++v) {
     for (int u = -radius; u <= radius; ++u, ++k) {
-      template_values[k] = Bilinear(left, x + u, y + v);
-      template_mean += template_values[k];
+      float gradient = 0.0f;
+      Bilinear2(left, left_gradient_x, x + u, y + v, &scratch.template_values[k], &gradient);
+      // dT(W(u, v; p))/dp at p = 0: the template's x gradient times dx/dp = (-1, -u, -v).
+      scratch.jacobian0[k] = -gradient;
+      scratch.jacobian1[k] = -gradient * static_cast<float>(u);
+      scratch.jacobian2[k] = -gradient * static_cast<float>(v);
     }
   }
-  template_mean /= n;
-  // Disparity varies across the patch on slanted surfaces (the floor, the ceiling), so it is
-  // modelled as d(u, v) = d0 + gu u + gv v over patch offsets (u, v); d0 is the disparity at the
-  // patch centre. A pure shift would absorb the gradient as a bias.
-  Eigen::Vector3d params(*d, 0.0, 0.0);
+  scratch.template_values -= scratch.template_values.mean();
+  const Eigen::ArrayXf* jacobian[3] = {&scratch.jacobian0, &scratch.jacobian1, &scratch.jacobian2};
+  Eigen::Matrix3d jtj;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c <= r; ++c) {
+      jtj(r, c) = jtj(c, r) = (jacobian[r]->cast<double>() * jacobian[c]->cast<double>()).sum();
+    }
+  }
+  if (jtj(0, 0) < 1e-9) return false;  // A flat patch along the row: nothing to align.
+  jtj.diagonal() += Eigen::Vector3d(0, 1e-3, 1e-3) * jtj(0, 0);  // gradients small unless needed
+  const Eigen::LDLT<Eigen::Matrix3d> normal_equations(jtj);
+  const int y0 = static_cast<int>(std::floor(y));
+  const float fy = static_cast<float>(y - y0);
+  double d0 = *d, gu = 0.0, gv = 0.0;
   for (int iteration = 0; iteration < 10; ++iteration) {
-    double mean = 0;
     k = 0;
     for (int v = -radius; v <= radius; ++v) {
+      const float* row = right.ptr<float>(y0 + v);
+      const float* next_row = right.ptr<float>(y0 + v + 1);
+      const double row_start = x - d0 - gv * v;
       for (int u = -radius; u <= radius; ++u, ++k) {
-        const double xr = x + u - (params[0] + params[1] * u + params[2] * v);
+        const double xr = row_start + u * (1.0 - gu);
         if (xr < 1 || xr >= right.cols - 2) return false;
-        Bilinear2(right, right_gradient_x, xr, y + v, &values[k], &gradients[k]);
-        mean += values[k];
+        scratch.values[k] = BilinearInRows(row, next_row, fy, xr);
       }
     }
-    mean /= n;
-    // r_k = (I_r(x + u - d(u, v)) - mean_r) - (I_l(x + u) - mean_l); dr/dparams = -g_k (1, u, v).
-    // The normal equations are summed as scalars, the six distinct entries of the symmetric J^T J
-    // (the same products as an Eigen outer product, to the bit): this loop is most of a map
-    // build, and Eigen's small temporaries cost several times more where they are not inlined
-    // (the -O1 sanitizer builds).
-    double jtj00 = 0, jtj01 = 0, jtj02 = 0, jtj11 = 0, jtj12 = 0, jtj22 = 0;
-    double jtr0 = 0, jtr1 = 0, jtr2 = 0;
-    k = 0;
-    for (int v = -radius; v <= radius; ++v) {
-      for (int u = -radius; u <= radius; ++u, ++k) {
-        const double r = (values[k] - mean) - (template_values[k] - template_mean);
-        const double g = -gradients[k];
-        const double j0 = g * 1.0, j1 = g * u, j2 = g * v;
-        jtj00 += j0 * j0;
-        jtj01 += j1 * j0;
-        jtj02 += j2 * j0;
-        jtj11 += j1 * j1;
-        jtj12 += j2 * j1;
-        jtj22 += j2 * j2;
-        jtr0 += j0 * r;
-        jtr1 += j1 * r;
-        jtr2 += j2 * r;
-      }
-    }
-    Eigen::Matrix3d jtj;
-    jtj << jtj00, jtj01, jtj02, jtj01, jtj11, jtj12, jtj02, jtj12, jtj22;
-    const Eigen::Vector3d jtr(jtr0, jtr1, jtr2);
-    if (jtj(0, 0) < 1e-9) return false;
-    jtj.diagonal() +=
-        Eigen::Vector3d(0, 1e-3, 1e-3) * jtj(0, 0);  // keep gradients small unless needed
-    const Eigen::Vector3d step = jtj.ldlt().solve(-jtr);
-    if (!step.allFinite()) return false;
-    params += step;
-    if (std::abs(step[0]) < 1e-3) break;
+    // r = (I_r(W(u, v; p)) - mean_r) - (T - mean_T): small numbers, summed in floats.
+    const Eigen::ArrayXf residuals =
+        scratch.values - scratch.values.mean() - scratch.template_values;
+    const Eigen::Vector3d jtr((scratch.jacobian0 * residuals).sum(),
+                              (scratch.jacobian1 * residuals).sum(),
+                              (scratch.jacobian2 * residuals).sum());
+    // The template warped by the step matches the right image where T + J step = I_r.
+    const Eigen::Vector3d step = normal_equations.solve(jtr);
+    if (!step.allFinite() || std::abs(step[1]) >= 0.5) return false;
+    // W(p) <- W(p) o W(step)^-1, composing the warps' first rows (1 - gu, -gv, -d0).
+    const double a = 1.0 - gu, step_a = 1.0 - step[1];
+    d0 -= a * step[0] / step_a;
+    gv -= a * step[2] / step_a;
+    gu = 1.0 - a / step_a;
+    if (std::abs(step[0]) < 5e-3) break;
   }
-  if (std::abs(params[1]) > 0.5 || std::abs(params[2]) > 0.5) return false;  // not a surface
-  *d = params[0];
+  if (std::abs(gu) > 0.5 || std::abs(gv) > 0.5) return false;  // not a surface
+  *d = d0;
   return true;
 }
 
@@ -150,7 +158,7 @@ namespace {
 // refinement need them.
 struct RectifiedPair {
   cv::Mat left, right;                      // 8-bit.
-  cv::Mat left_f, right_f, right_gradient;  // CV_32F, for the refinement.
+  cv::Mat left_f, left_gradient, right_f;   // CV_32F, for the refinement.
   cv::Mat right_sum, right_sum_sq;          // Integral images of `right` (CV_32S, CV_64F).
 };
 
@@ -164,7 +172,7 @@ RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
     pair.right.convertTo(pair.right_f, CV_32F);
     // Central difference, as the alignment's linearization assumes.
     const cv::Mat kernel = (cv::Mat_<float>(1, 3) << -0.5f, 0.0f, 0.5f);
-    cv::filter2D(pair.right_f, pair.right_gradient, CV_32F, kernel, cv::Point(-1, -1), 0,
+    cv::filter2D(pair.left_f, pair.left_gradient, CV_32F, kernel, cv::Point(-1, -1), 0,
                  cv::BORDER_REPLICATE);
   }
   return pair;
@@ -334,7 +342,7 @@ double MatchKeypoint(const RectifiedPair& pair, const StereoRectifier& rectifier
   // it shares its disparity (the refinement below measures it at the keypoint itself).
   if (options.refine_patch_radius_px > 0) {
     double refined = disparity;
-    if (!RefineDisparity(pair.left_f, pair.right_f, pair.right_gradient, c.x(), c.y(),
+    if (!RefineDisparity(pair.left_f, pair.left_gradient, pair.right_f, c.x(), c.y(),
                          options.refine_patch_radius_px, &refined) ||
         std::abs(refined - disparity) > options.refine_max_shift_px) {
       ++stats->refine_rejected;

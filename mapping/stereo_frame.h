@@ -74,10 +74,10 @@ struct StereoFrame {
 };
 
 // Refines disparity `d` of rectified left pixel (x, y) by aligning a (2r+1)^2 patch of `left`
-// with `right` along the row (both CV_32F rectified images; `right_gradient_x` is the right
+// with `right` along the row (both CV_32F rectified images; `left_gradient_x` is the left
 // image's central-difference x gradient). Returns false when the patch leaves the image or the
 // alignment does not converge.
-bool RefineDisparity(const cv::Mat& left, const cv::Mat& right, const cv::Mat& right_gradient_x,
+bool RefineDisparity(const cv::Mat& left, const cv::Mat& left_gradient_x, const cv::Mat& right,
                      double x, double y, int radius, double* d);
 
 // Takes a further `change` of the disparity correction off a frame's stereo matches (their
