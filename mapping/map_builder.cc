@@ -42,6 +42,9 @@ void MapBuilderOptions::Check() const {
   VISLOC_CHECK(threads >= 0, "map building threads: ", threads, " (0: every core)");
   VISLOC_CHECK(local_ba.max_iterations >= 1 && global_ba_iterations >= 1, "BA iterations ",
                local_ba.max_iterations, ", ", global_ba_iterations);
+  VISLOC_CHECK(global_ba_function_tolerance > 0 && global_ba_readjust_fraction >= 0,
+               "global BA tolerance ", global_ba_function_tolerance, ", readjustment after ",
+               global_ba_readjust_fraction);
 }
 
 namespace {
@@ -327,9 +330,13 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
   for (int k = 1; k < n; ++k) free.push_back(k);
   BundleAdjustmentOptions global = options_.local_ba;
   global.max_iterations = options_.global_ba_iterations;
+  global.function_tolerance = options_.global_ba_function_tolerance;
   if (!free.empty()) {
-    BundleAdjust(&state_, free, {0}, intrinsics_, global);
-    BundleAdjust(&state_, free, {0}, intrinsics_, global);  // again, after culling outliers
+    const BundleAdjustmentSummary first = BundleAdjust(&state_, free, {0}, intrinsics_, global);
+    if (first.culled_observations >
+        options_.global_ba_readjust_fraction * first.residual_blocks) {
+      BundleAdjust(&state_, free, {0}, intrinsics_, global);  // again, without the outliers
+    }
   }
   stats_.global_ba_ms += timer.ElapsedMs();
   timer.Restart();

@@ -82,6 +82,17 @@ struct MapBuilderOptions {
   BundleAdjustmentOptions local_ba;
   LoopClosureOptions loop_closure;
   int global_ba_iterations = 40;
+  // The global adjustment at the end stops once an iteration lowers its cost by less than this
+  // fraction. Local adjustment and loop closure leave it little to do: on the generated five-room
+  // suite (863 keyframes) Ceres's 1e-6 took 11 iterations and 17.7 s, 1e-3 four and 7.8 s, and
+  // the frames' median error against the truth was 0.69 cm and 0.73 cm (without the adjustment:
+  // 1.8 cm).
+  double global_ba_function_tolerance = 1e-3;
+  // The end adjustment culls observations its solution does not fit; when they were more than
+  // this fraction of its residuals, they may have pulled it, and it runs again without them.
+  // Fewer change nothing (the suite: 1 of 443,000, the second run's cost 0.463 px as the first's)
+  // and a second run costs as much as the first.
+  double global_ba_readjust_fraction = 0.005;
   DisparityCalibrationOptions disparity_calibration;
   AssemblyOptions assembly;
   // Threads a build uses (core/util/parallel.h; 0: every core): each frame's features beside its
