@@ -241,10 +241,10 @@ BundleAdjustmentSummary BundleAdjust(SlamState* state, const std::vector<int>& f
       problem.SetParameterBlockConstant(correction_change);
     }
   }
-  summary.iterations =
-      SolveQuietly(&problem, SchurSolverFor(problem_landmarks, window, *state), options.max_iterations,
-                   PointsFirst(problem, landmarks, state, window, correction_change),
-                   options.function_tolerance);
+  summary.iterations = SolveQuietly(
+      &problem, SchurSolverFor(problem_landmarks, window, *state), options.max_iterations,
+      PointsFirst(problem, landmarks, state, window, correction_change),
+      options.function_tolerance);
   for (int k : window.keyframes) {
     state->keyframes[k].cam_from_world = FromPoseBlock(*window.pose[k]);
   }

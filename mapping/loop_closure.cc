@@ -11,22 +11,18 @@ void LoopClosureOptions::Check() const {
   VISLOC_CHECK(radius_m > 0 && max_angle_deg > 0 && search_radius_px > 0,
                "loop closure search ", radius_m, " m, ", max_angle_deg, " deg, ",
                search_radius_px, " px");
-  VISLOC_CHECK(min_keyframe_gap >= 1 && max_candidates >= 1 && min_inliers >= 4 &&
-                   cooldown_keyframes >= 0 && adjust_iterations >= 1,
-               "loop closure counts");
+  VISLOC_CHECK(
+      min_keyframe_gap >= 1 && max_candidates >= 1 && min_inliers >= 4 && cooldown_keyframes >= 0,
+      "loop closure counts");
   VISLOC_CHECK(adjust_min_correction_m >= 0 && adjust_min_correction_deg >= 0,
                "loop adjustment thresholds ", adjust_min_correction_m, " m ",
                adjust_min_correction_deg, " deg");
+  pose_graph.Check();
 }
 
-LoopCloser::LoopCloser(const LoopClosureOptions& options, const FrameTracker& tracker,
-                       int window, const RectifiedIntrinsics& intrinsics,
-                       const BundleAdjustmentOptions& ba_options)
-    : options_(options),
-      tracker_(tracker),
-      window_(window),
-      intrinsics_(intrinsics),
-      ba_options_(ba_options) {
+LoopCloser::LoopCloser(const LoopClosureOptions& options, const FrameTracker& tracker, int window,
+                       const RectifiedIntrinsics& intrinsics)
+    : options_(options), tracker_(tracker), window_(window), intrinsics_(intrinsics) {
   options_.Check();
   options_.search_radius_px *= ResolutionScale(tracker.view().camera.width());
 }
@@ -94,27 +90,28 @@ LoopClosureEvent LoopCloser::TryClose(SlamState* state) {
                              intrinsics_),
         pnp);
     if (!result.success) continue;
-    // Geometrically verified: the current keypoints are the old landmarks.
-    MergeTracks(state, k, matches, result.inlier_mask);
     event.closed = true;
     keyframes_since_loop_ = 0;
-    // A large correction is spread over the whole trajectory now, while it is small enough for
-    // bundle adjustment to converge; the local window alone would bend the path at the closure.
-    // A small one (most closures: revisits of mapped places) is left to local bundle adjustment
-    // and to the global one at the end. Re-adjusting every keyframe at every closure made
-    // mapping quadratic in its length without making the map more accurate.
+    // A large correction is spread over the whole trajectory now, through the pose graph, while
+    // it is small enough for bundle adjustment to converge from where the graph leaves it; the
+    // local window alone would bend the path at the closure. A small one (most closures: revisits
+    // of mapped places) is left to local bundle adjustment and to the global one at the end.
     const double correction_m = (CameraCenter(result.cam_from_world) - center).norm();
     const double correction_deg = AngleBetweenDeg(result.cam_from_world, current.cam_from_world);
-    if (correction_m < options_.adjust_min_correction_m &&
-        correction_deg < options_.adjust_min_correction_deg) {
-      return event;
+    event.adjusted = correction_m >= options_.adjust_min_correction_m ||
+                     correction_deg >= options_.adjust_min_correction_deg;
+    // The graph's edges are the relative poses before the tracks are merged: the merged tracks
+    // join the drifted keyframe to the old ones, which is the loop edge's to say.
+    std::vector<PoseGraphEdge> edges;
+    if (event.adjusted) edges = CovisibilityEdges(*state, k + 1, options_.pose_graph);
+    // Geometrically verified: the current keypoints are the old landmarks.
+    MergeTracks(state, k, matches, result.inlier_mask);
+    if (event.adjusted) {
+      const int old = candidates[c].second;
+      const PoseGraphEdge loop_edge{
+          old, k, result.cam_from_world * state->keyframes[old].cam_from_world.Inverse()};
+      CorrectLoop(edges, loop_edge, options_.pose_graph, state);
     }
-    event.adjusted = true;
-    std::vector<int> all_free;
-    for (int kk = 1; kk <= k; ++kk) all_free.push_back(kk);
-    BundleAdjustmentOptions global = ba_options_;
-    global.max_iterations = options_.adjust_iterations;
-    BundleAdjust(state, all_free, {0}, intrinsics_, global);
     return event;
   }
   return event;

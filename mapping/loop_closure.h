@@ -3,13 +3,14 @@
 // of similar orientation, not among the recent ones, are candidates. Their landmarks that the
 // recent keyframes no longer see are matched to the new keyframe's keypoints by projection and
 // verified by PnP RANSAC; the verified matches merge the old tracks with the new ones. A
-// closure whose pose correction is large re-adjusts every keyframe at once.
+// closure whose pose correction is large corrects every keyframe through the pose graph
+// (pose_graph.h).
 
 #include <vector>
 
 #include "core/camera/camera.h"
-#include "mapping/bundle_adjustment.h"
 #include "mapping/frame_tracker.h"
+#include "mapping/pose_graph.h"
 #include "mapping/slam_state.h"
 
 namespace visloc::mapping {
@@ -26,24 +27,23 @@ struct LoopClosureOptions {
   // than a frame's motion (1.5 x the tracking radius).
   double search_radius_px = 22.5;
   // A closure whose pose correction (the keyframe's pose from the old landmarks against its
-  // tracked pose) reaches either bound re-adjusts every keyframe at once, with this many
-  // iterations.
+  // tracked pose) reaches either bound corrects every keyframe through the pose graph.
   double adjust_min_correction_m = 0.05;
   double adjust_min_correction_deg = 1.0;
-  int adjust_iterations = 10;
+  PoseGraphOptions pose_graph;
   void Check() const;
 };
 
 struct LoopClosureEvent {
   bool closed = false;
-  bool adjusted = false;  // Every keyframe was re-adjusted.
+  bool adjusted = false;  // Every keyframe was corrected through the pose graph.
 };
 
 class LoopCloser {
  public:
   // `window` is tracking's keyframe window: landmarks seen in it are current, not a loop.
   LoopCloser(const LoopClosureOptions& options, const FrameTracker& tracker, int window,
-             const RectifiedIntrinsics& intrinsics, const BundleAdjustmentOptions& ba_options);
+             const RectifiedIntrinsics& intrinsics);
 
   // Tries to close a loop at the state's last keyframe.
   LoopClosureEvent TryClose(SlamState* state);
@@ -61,7 +61,6 @@ class LoopCloser {
   const FrameTracker& tracker_;
   int window_;
   RectifiedIntrinsics intrinsics_;
-  BundleAdjustmentOptions ba_options_;
   int keyframes_since_loop_ = 1000;
 };
 

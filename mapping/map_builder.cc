@@ -82,8 +82,7 @@ MapBuilder::MapBuilder(const Camera& left, const Camera& right, const Rigid3d& r
       extractor_(CreateFeatureExtractor(FeaturesFor(options, left))),
       tracker_(options.tracking, ViewOf(rectifier_), intrinsics_,
                options.local_ba.disparity_weight),
-      loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_,
-                   options_.local_ba),
+      loop_closer_(options.loop_closure, tracker_, options.keyframes.window, intrinsics_),
       correction_(options.disparity_calibration.known.value_or(DisparityCorrection{})),
       calibrating_(options.disparity_calibration.enabled) {
   stats_.disparity_correction = correction_;

@@ -112,7 +112,7 @@ struct MapBuildStats {
   int points = 0;
   int observations = 0;
   int loop_closures = 0;
-  int loop_adjustments = 0;           // Closures large enough to re-adjust every keyframe at once.
+  int loop_adjustments = 0;  // Closures large enough to correct every keyframe (pose_graph.h).
   double reprojection_rmse_px = 0.0;  // Left image, after global BA.
   double disparity_rmse_px = 0.0;     // Predicted vs measured disparity, after global BA.
   // The rig's, as estimated (DisparityCalibrationOptions) or as given (its `known`).

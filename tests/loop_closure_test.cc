@@ -1,6 +1,7 @@
 // Loop closure on the whole mapping square (the localization fixture's 5 fps rendering): the
-// builder closes the loop either way, and only a closure whose correction is large re-adjusts
-// every keyframe at once; small ones are left to local and final bundle adjustment. The default
+// builder closes the loop either way, and only a closure whose correction is large corrects
+// every keyframe (through the pose graph); small ones are left to local and final bundle
+// adjustment. The default
 // build is the fixture's own (`visloc map build`: its JSON summary and trajectory), so only the
 // always-adjust build runs here.
 
