@@ -152,6 +152,7 @@ void MapBuilder::CalibrateDisparity() {
     for (int k = 1; k < static_cast<int>(state_.keyframes.size()); ++k) free.push_back(k);
     const DisparityCorrection change =
         BundleAdjust(&state_, free, {0}, intrinsics_, adjustment).correction_change;
+    counts_.reset();
     stats_.global_ba_ms += timer.ElapsedMs();
     correction_ = correction_ + change;
     stats_.calibration_passes = pass;
@@ -186,6 +187,7 @@ void MapBuilder::CalibrateDisparity() {
 
 void MapBuilder::Restart() {
   state_ = SlamState();
+  counts_.reset();
   frame_timestamps_ns_.clear();
   frame_from_keyframe_.clear();
   last_cam_from_world_ = Rigid3d::Identity();
@@ -203,6 +205,7 @@ void MapBuilder::Process(int64_t timestamp_ns, StereoFrame&& frame) {
     frame_from_keyframe_.emplace_back(0, Rigid3d::Identity());
     last_cam_from_world_ = Rigid3d::Identity();
     AddKeyframe(&state_, timestamp_ns, std::move(frame), Rigid3d::Identity(), {});
+    counts_.reset();
     stats_.tracking_ms += timer.ElapsedMs();
     return;
   }
@@ -239,6 +242,7 @@ void MapBuilder::StartKeyframe(int64_t timestamp_ns, StereoFrame&& frame,
   stats_.loop_closures += loop.closed;
   stats_.loop_adjustments += loop.adjusted;
   stats_.loop_ms += timer.ElapsedMs();
+  counts_.reset();  // New landmarks, and adjustment and closure culled some.
   last_cam_from_world_ = state_.keyframes.back().cam_from_world;
   frame_from_keyframe_.back() = {static_cast<int>(state_.keyframes.size()) - 1,
                                  Rigid3d::Identity()};
@@ -261,7 +265,7 @@ MapBuilderProgress MapBuilder::Progress() const {
   MapBuilderProgress progress;
   progress.frames = stats_.frames;
   progress.keyframes = static_cast<int>(state_.keyframes.size());
-  for (const Landmark& l : state_.landmarks) progress.landmarks += !l.culled;
+  progress.landmarks = Counts().live_landmarks;
   progress.tracked = last_tracked_;
   progress.features = last_features_;
   progress.stereo_matches = last_stereo_matches_;
@@ -285,12 +289,20 @@ size_t FeatureBytes(const FeatureSet& features) {
 
 }  // namespace
 
-size_t MapBuilder::MemoryBytes() const {
-  size_t bytes = 0;
-  for (const SlamKeyframe& k : state_.keyframes) bytes += FeatureBytes(k.features);
+const MapBuilder::StateCounts& MapBuilder::Counts() const {
+  if (counts_) return *counts_;
+  StateCounts counts;
+  for (const SlamKeyframe& k : state_.keyframes) counts.bytes += FeatureBytes(k.features);
   for (const Landmark& l : state_.landmarks) {
-    bytes += sizeof(Landmark) + l.observations.size() * sizeof(l.observations[0]);
+    counts.bytes += sizeof(Landmark) + l.observations.size() * sizeof(l.observations[0]);
+    counts.live_landmarks += !l.culled;
   }
+  counts_ = counts;
+  return *counts_;
+}
+
+size_t MapBuilder::MemoryBytes() const {
+  size_t bytes = Counts().bytes;
   for (const auto& [timestamp_ns, frame] : calibration_frames_) {
     bytes += FeatureBytes(frame.left) + frame.point_in_rect.size() * sizeof(Eigen::Vector3d);
   }
@@ -336,6 +348,7 @@ Map MapBuilder::Finish(const MapMetadata& metadata) {
         options_.global_ba_readjust_fraction * first.residual_blocks) {
       BundleAdjust(&state_, free, {0}, intrinsics_, global);  // again, without the outliers
     }
+    counts_.reset();
   }
   stats_.global_ba_ms += timer.ElapsedMs();
   timer.Restart();

@@ -189,6 +189,15 @@ class MapBuilder {
   void Restart();
   Rigid3d MapFromWorld() const;
   Rigid3d RectFromRaw() const;
+  // What the keyframes and landmarks amount to, counted once per change of them rather than per
+  // frame: a server asks for it every frame, and a building's run holds hundreds of thousands of
+  // landmarks. Keyframes and landmarks change only when a frame becomes a keyframe (adjustment
+  // and loop closure run then), when the build restarts, and at the end.
+  struct StateCounts {
+    int live_landmarks = 0;  // Not culled.
+    size_t bytes = 0;        // Keyframes' features and landmarks (MemoryBytes).
+  };
+  const StateCounts& Counts() const;
 
   Camera left_;
   MapBuilderOptions options_;
@@ -213,6 +222,7 @@ class MapBuilder {
   bool calibrating_ = false;
   // The frames so far while calibrating, with their matches as first made (zero correction).
   std::vector<std::pair<int64_t, StereoFrame>> calibration_frames_;
+  mutable std::optional<StateCounts> counts_;  // Reset whenever the state changes.
 };
 
 }  // namespace visloc::mapping
