@@ -213,16 +213,8 @@ PY
 git rev-parse --short HEAD > "$WORK/commit"
 measure "$PWD/build" "$WORK/now"
 if [[ -n $baseline_rev ]]; then
-  base_src=$WORK/baseline/src
-  base_commit=$(git rev-parse --short "$baseline_rev")
-  if [[ $(cat "$WORK/baseline/commit" 2>/dev/null) != "$base_commit" ]]; then
-    rm -rf "$WORK/baseline"
-    git worktree prune
-    git worktree add --detach "$base_src" "$base_commit" > /dev/null
-    cmake -S "$base_src" -B "$WORK/baseline/build" -DCMAKE_BUILD_TYPE=Release > /dev/null
-    cmake --build "$WORK/baseline/build" -j"$(nproc)" --target visloc visloc-server > /dev/null
-    echo "$base_commit" > "$WORK/baseline/commit"
-  fi
+  build_baseline "$baseline_rev" "$WORK/baseline"
+  base_commit=$BASELINE_COMMIT
   measure "$WORK/baseline/build" "$WORK/baseline/figures"
   cp "$WORK/baseline/figures/figures.tsv" "$WORK/before.tsv"
   before_label="commit $base_commit"

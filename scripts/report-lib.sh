@@ -30,6 +30,19 @@ mh01_setup() {
   [[ -f $1/maps/mh01.db ]] || "$V" map build --dataset "$REC" --out "$1/maps/mh01.db" > /dev/null
 }
 
+# build_baseline REV DIR: revision REV built (Release: visloc and visloc-server) in a worktree at
+# DIR/src, binaries in DIR/build; kept while DIR/commit names REV. Sets BASELINE_COMMIT.
+build_baseline() {
+  BASELINE_COMMIT=$(git rev-parse --short "$1")
+  [[ $(cat "$2/commit" 2>/dev/null) == "$BASELINE_COMMIT" ]] && return
+  rm -rf "$2"
+  git worktree prune
+  git worktree add --detach "$2/src" "$BASELINE_COMMIT" > /dev/null
+  cmake -S "$2/src" -B "$2/build" -DCMAKE_BUILD_TYPE=Release > /dev/null
+  cmake --build "$2/build" -j"$(nproc)" --target visloc visloc-server > /dev/null
+  echo "$BASELINE_COMMIT" > "$2/commit"
+}
+
 # start_server MAPS_DIR WORK_DIR [SERVER FLAGS...]: a visloc-server (SERVER_BIN, by default the
 # release build's) on a free loopback port; sets SERVER_PID and SERVER_ADDRESS, and SERVER_HTTP
 # when the flags ask for --http. stop_server ends it.
