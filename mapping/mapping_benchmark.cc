@@ -15,7 +15,6 @@
 #include "mapping/bundle_adjustment.h"
 #include "mapping/keyframes.h"
 #include "mapping/stereo_frame.h"
-#include "sim/renderer.h"
 #include "sim/sequences.h"
 #include "sim/world.h"
 
@@ -118,13 +117,8 @@ void BM_BuildStereoFrame(benchmark::State& state) {
   room.texel_m = 0.006;
   const sim::World world = sim::MakeRoom(room);
   const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
-  const sim::Renderer left_renderer(rig.left.camera, 2), right_renderer(rig.right.camera, 2);
-  sim::SensorModel sensor;
   Rng noise(1);
-  const cv::Mat left =
-      sensor.Capture(left_renderer.RenderRadiance(world, body * rig.left.body_from_cam, 0), &noise);
-  const cv::Mat right = sensor.Capture(
-      right_renderer.RenderRadiance(world, body * rig.right.body_from_cam, 0), &noise);
+  const sim::StereoShot shot = sim::RenderStereoShot(world, rig, body, sim::SensorModel{}, &noise);
   const StereoRectifier rectifier(rig.left.camera, rig.right.camera,
                                   rig.right.body_from_cam.Inverse() * rig.left.body_from_cam);
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
@@ -132,7 +126,8 @@ void BM_BuildStereoFrame(benchmark::State& state) {
   options.refine_patch_radius_px = static_cast<int>(state.range(0));
   int matches = 0;
   for (auto _ : state) {
-    matches = BuildStereoFrame(left, right, *extractor, rectifier, options).stereo_matches();
+    matches =
+        BuildStereoFrame(shot.left, shot.right, *extractor, rectifier, options).stereo_matches();
   }
   state.counters["matches"] = matches;
 }

@@ -142,14 +142,11 @@ std::vector<double> DisparityErrorsPx(int refine_radius_px, int* matches, size_t
   room.texel_m = 0.006;
   const sim::World world = sim::MakeRoom(room);
   const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
-  const sim::Renderer left_renderer(rig.left.camera, 2), right_renderer(rig.right.camera, 2);
-  cv::Mat depth;
-  sim::SensorModel sensor;
   Rng noise(1);
-  const cv::Mat left = sensor.Capture(
-      left_renderer.RenderRadiance(world, body * rig.left.body_from_cam, 0, &depth), &noise);
-  const cv::Mat right = sensor.Capture(
-      right_renderer.RenderRadiance(world, body * rig.right.body_from_cam, 0), &noise);
+  const sim::StereoShot shot = sim::RenderStereoShot(world, rig, body, sim::SensorModel{}, &noise);
+  const cv::Mat& left = shot.left;
+  const cv::Mat& right = shot.right;
+  const cv::Mat& depth = shot.left_depth;
   const StereoRectifier rectifier(rig.left.camera, rig.right.camera,
                                   rig.right.body_from_cam.Inverse() * rig.left.body_from_cam);
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));

@@ -268,6 +268,21 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
   return spec;
 }
 
+StereoShot RenderStereoShot(const World& world, const StereoRig& rig,
+                            const Rigid3d& world_from_body, const SensorModel& sensor, Rng* noise,
+                            int supersample) {
+  const Renderer left_renderer(rig.left.camera, supersample);
+  const Renderer right_renderer(rig.right.camera, supersample);
+  StereoShot shot;
+  shot.left =
+      sensor.Capture(left_renderer.RenderRadiance(world, world_from_body * rig.left.body_from_cam,
+                                                  0, &shot.left_depth),
+                     noise);
+  shot.right = sensor.Capture(
+      right_renderer.RenderRadiance(world, world_from_body * rig.right.body_from_cam, 0), noise);
+  return shot;
+}
+
 Rigid3d WorldFromMap(const RigOptions& rig) {
   const SequenceSpec map = MakeSequenceSpec("map_square", 1);
   return map.path.WorldFromBody(0.0) * MakeRig(rig).left.body_from_cam;

@@ -66,6 +66,16 @@ struct StereoRig {
 // 0.072 m right, both looking along the body's x axis (camera z = body x, camera x = -body y).
 StereoRig MakeRig(const RigOptions& options);
 
+// One stereo shot of `world` by `rig` with the head at `world_from_body`: both images as
+// `sensor` captures them (8-bit grey, noise from `noise`), and the left camera's rendered depth
+// (metres along its z axis, 0 where nothing is seen). For tests and benchmarks of stereo matching.
+struct StereoShot {
+  cv::Mat left, right, left_depth;
+};
+StereoShot RenderStereoShot(const World& world, const StereoRig& rig,
+                            const Rigid3d& world_from_body, const SensorModel& sensor, Rng* noise,
+                            int supersample = 2);
+
 // The layout's further cameras (cam2, cam3, ...): the rear camera 0.1 m behind the head's
 // centre looking back (front-back), then one on each side looking left and right (four).
 std::vector<CameraInfo> OtherCameras(const RigOptions& options, const StereoRig& rig);
