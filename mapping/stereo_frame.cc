@@ -64,8 +64,10 @@ struct RefinementScratch {
   Eigen::ArrayXf template_values;                  // Zero mean.
   Eigen::ArrayXf jacobian0, jacobian1, jacobian2;  // Columns of the Jacobian.
   Eigen::ArrayXf values;                           // The right image under the current warp.
+  Eigen::ArrayXf residuals;                        // Zero-mean values minus the template.
   void Resize(int n) {
-    for (Eigen::ArrayXf* a : {&template_values, &jacobian0, &jacobian1, &jacobian2, &values}) {
+    for (Eigen::ArrayXf* a :
+         {&template_values, &jacobian0, &jacobian1, &jacobian2, &values, &residuals}) {
       a->resize(n);
     }
   }
@@ -132,8 +134,8 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
       }
     }
     // r = (I_r(W(u, v; p)) - mean_r) - (T - mean_T): small numbers, summed in floats.
-    const Eigen::ArrayXf residuals =
-        scratch.values - scratch.values.mean() - scratch.template_values;
+    Eigen::ArrayXf& residuals = scratch.residuals;  // Allocated once per thread, not per step.
+    residuals = scratch.values - scratch.values.mean() - scratch.template_values;
     const Eigen::Vector3d jtr((scratch.jacobian0 * residuals).sum(),
                               (scratch.jacobian1 * residuals).sum(),
                               (scratch.jacobian2 * residuals).sum());
