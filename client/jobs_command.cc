@@ -45,6 +45,7 @@ std::string ToJson(const v1::ListJobsResponse& list, const std::string& server) 
         .Field("tracking_failures", static_cast<int64_t>(job.tracking_failures()))
         .Field("seconds", Seconds(job, list.server_time_unix_ns()))
         .Field("error", job.error())
+        .Field("note", job.note())
         .EndObject();
   }
   json.EndArray().EndObject();
@@ -59,7 +60,8 @@ std::string Table(const v1::ListJobsResponse& list, const std::string& server) {
   if (list.jobs_size() == 0) return out;
   char line[512];
   std::snprintf(line, sizeof(line), "%5s %-16s %-14s %-11s %7s %9s %8s %6s %8s  %s\n", "JOB", "MAP",
-                "ROBOT", "STATE", "FRAMES", "KEYFRAMES", "POINTS", "LOST", "SECONDS", "ERROR");
+                "ROBOT", "STATE", "FRAMES", "KEYFRAMES", "POINTS", "LOST", "SECONDS",
+                "ERROR OR NOTE");
   out += line;
   for (const v1::MappingJob& job : list.jobs()) {
     std::snprintf(
@@ -68,7 +70,8 @@ std::string Table(const v1::ListJobsResponse& list, const std::string& server) {
         job.robot_id().empty() ? "-" : job.robot_id().c_str(),
         proto::MappingStateText(job.state()).c_str(), static_cast<unsigned long long>(job.frames()),
         job.keyframes(), static_cast<unsigned long long>(job.points()), job.tracking_failures(),
-        Seconds(job, list.server_time_unix_ns()), job.error().c_str());
+        Seconds(job, list.server_time_unix_ns()),
+        (job.error().empty() ? job.note() : job.error()).c_str());
     out += line;
   }
   return out;

@@ -55,6 +55,12 @@ void AddFlags(ArgParser& parser, ServerConfig* c) {
   parser.AddFlag("mapping-resume-s", &c->mapping_resume_s,
                  "a mapping job whose link broke waits this long for its client to resume it, "
                  "keeping its map so far (0: dropped at once)");
+  parser.AddFlag("mapping-spool", &c->mapping_spool,
+                 "folder where mapping jobs are kept as their frames arrive, so that a restarted "
+                 "server (or a replica on the same folder) takes them up again");
+  parser.SetDefaultText("mapping-spool", "MAPS/.mapping-jobs");
+  parser.AddFlag("mapping-min-free-mib", &c->mapping_min_free_mib,
+                 "disk the mapping spool leaves free: jobs and frames beyond it are refused");
   parser.AddFlag("tls-cert", &c->tls_cert, "serve TLS with this certificate chain (PEM)");
   parser.AddFlag("tls-key", &c->tls_key, "the certificate's private key (PEM)");
   parser.AddFlag("tls-client-ca", &c->tls_client_ca,

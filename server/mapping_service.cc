@@ -1,11 +1,19 @@
 #include "server/mapping_service.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <climits>
 #include <ctime>
+#include <filesystem>
 #include <optional>
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
+#include "core/util/text_file.h"
 #include "core/util/timer.h"
 #include "core/util/version.h"
 #include "mapping/gravity.h"
@@ -15,9 +23,9 @@
 #include "proto/convert.h"
 #include "proto/map_info_convert.h"
 #include "proto/mapping_convert.h"
+#include "server/job_spool.h"
 #include "server/log.h"
 #include "server/rpc.h"
-#include "server/spooled_frames.h"
 
 namespace visloc::server {
 
@@ -45,6 +53,29 @@ std::pair<cv::Mat, cv::Mat> DecodePair(const v1::StereoFrame& frame,
                  rig.right, "right")};
 }
 
+// Bytes the spool's disk has free for this process, or -1 when it cannot tell.
+int64_t FreeDiskBytes(const std::string& dir) {
+  struct statvfs disk {};
+  if (statvfs(dir.c_str(), &disk) != 0) return -1;
+  return static_cast<int64_t>(disk.f_bavail) * static_cast<int64_t>(disk.f_frsize);
+}
+
+// Why the spool's disk cannot take more, or empty while it can.
+std::string DiskFull(const std::string& dir, int64_t min_free_bytes) {
+  const int64_t free_bytes = FreeDiskBytes(dir);
+  if (free_bytes < 0 || free_bytes >= min_free_bytes) return "";
+  return StrCat("the mapping spool's disk (", dir, ") has ", free_bytes >> 20,
+                " MiB free, below its reserve of ", min_free_bytes >> 20,
+                " MiB (--mapping-min-free-mib)");
+}
+
+std::string UnixTimeText(int64_t unix_ns) {
+  const std::time_t seconds = unix_ns / 1'000'000'000;
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%d %H:%M:%S UTC", std::gmtime(&seconds));
+  return text;
+}
+
 int64_t UnixNowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -63,6 +94,29 @@ uint64_t MappingJobs::Begin(const std::string& map_name, const std::string& robo
   job.set_state(v1::MAPPING_TRACKING);
   job.set_started_unix_ns(UnixNowNs());
   return id;
+}
+
+void MappingJobs::Adopt(uint64_t id, const std::string& map_name, const std::string& robot_id,
+                        const std::string& note) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  next_id_ = std::max(next_id_, id + 1);
+  v1::MappingJob& job = jobs_[id];
+  job.set_job_id(id);
+  job.set_map_name(map_name);
+  job.set_robot_id(robot_id);
+  job.set_state(v1::MAPPING_WAITING);
+  job.set_started_unix_ns(UnixNowNs());
+  job.set_note(note);
+}
+
+void MappingJobs::IdsAfter(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  next_id_ = std::max(next_id_, id + 1);
+}
+
+void MappingJobs::SetNote(uint64_t id, const std::string& note) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (const auto found = jobs_.find(id); found != jobs_.end()) found->second.set_note(note);
 }
 
 void MappingJobs::Update(uint64_t id, const v1::MappingProgress& progress) {
@@ -175,13 +229,14 @@ class JobSlot {
 };
 
 // One job from its MappingStart to its outcome, across the streams that feed it (a resumed job
-// is taken over by the next stream): its slot, the mapper and what arrived. Ends the job's record
-// as FAILED when it is left without an outcome (an exception on the way).
+// is taken over by the next stream) and the servers that run it (a restarted one takes it up from
+// its spool): its slot, the mapper and what arrived. Its outcome removes its spool. A job left
+// without an outcome (an exception on the way) is ended FAILED, unless it is parked for its
+// robot: a server that stops with a parked job leaves it to the next one.
 struct ActiveMappingJob {
-  // The mapper is made first: a rig it refuses leaves no job behind in the registry.
   ActiveMappingJob(MappingJobs* jobs, std::unique_ptr<JobSlot> slot_in,
                    const v1::MappingStart& start, const proto::StereoRigInput& rig_in,
-                   const proto::MappingJobOptions& options_in)
+                   const proto::MappingJobOptions& options_in, uint64_t id_in)
       : registry(jobs),
         slot(std::move(slot_in)),
         rig(rig_in),
@@ -189,12 +244,18 @@ struct ActiveMappingJob {
         builder(rig.left, rig.right, rig.right_from_left, options.builder),
         name(start.map_name()),
         robot_id(start.robot_id()),
-        id(jobs->Begin(name, robot_id)) {}
+        id(id_in) {}
   ~ActiveMappingJob() {
-    if (!registry->Ended(id)) registry->End(id, v1::MAPPING_FAILED, "the server failed the job");
+    if (!registry->Ended(id) && !parked) End(v1::MAPPING_FAILED, "the server failed the job");
   }
   ActiveMappingJob(const ActiveMappingJob&) = delete;
   ActiveMappingJob& operator=(const ActiveMappingJob&) = delete;
+
+  // The job's outcome (PUBLISHED, FAILED or ABANDONED): recorded, and its spool removed.
+  void End(v1::MappingState state, const std::string& error) {
+    registry->End(id, state, error);
+    if (spool) spool->Remove();
+  }
 
   MappingJobs* registry;
   std::unique_ptr<JobSlot> slot;
@@ -207,10 +268,9 @@ struct ActiveMappingJob {
   uint64_t frames = 0;  // Arrived.
   int64_t last_timestamp_ns = 0;
   int shared_keyframes = -1;  // Keyframes when the map so far was last shared.
-  // An extension's frames, read again by the merge after MappingEnd.
-  std::unique_ptr<SpooledFrames> spool =
-      options.extend ? std::make_unique<SpooledFrames>(robot_id.empty() ? name : robot_id, rig)
-                     : nullptr;
+  bool parked = false;        // Waiting for its robot to resume it.
+  // Its start and frames on disk; an extension's merge reads the frames again after MappingEnd.
+  std::unique_ptr<JobSpool> spool;
 };
 
 namespace {
@@ -230,8 +290,27 @@ void ShareMapSoFar(Job* job, int keyframes) {
   job->registry->SetMapSoFar(job->id, std::move(keyframes_xz), std::move(points_xz));
 }
 
+// A frame that is in the spool through the mapper (as it arrives, and again after a restart).
+void MapKeptFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::Mat& right, Job* job,
+                  v1::MappingProgress* progress) {
+  job->builder.AddFrame(timestamp_ns, left, right);
+  job->last_timestamp_ns = timestamp_ns;
+  proto::ToProto(job->builder.Progress(), progress);
+  ShareMapSoFar(job, static_cast<int>(progress->keyframes()));
+}
+
+// The job's record after a frame, with the frame's index and time.
+void Record(int64_t timestamp_ns, const Timer& timer, Job* job, v1::MappingProgress* progress) {
+  progress->set_frame_index(job->frames++);
+  progress->set_timestamp_ns(timestamp_ns);
+  progress->set_frame_ms(timer.ElapsedMs());
+  progress->set_job_id(job->id);
+  job->registry->Update(job->id, *progress);
+}
+
 // A frame through the mapper, answered with the build's progress; a bad frame is answered
-// MAPPING_FRAME_ERROR with the reason, and the job goes on.
+// MAPPING_FRAME_ERROR with the reason, and the job goes on. The frame is in the spool before it
+// is mapped, and so before it is answered: a frame answered is never lost with the server.
 v1::MappingProgress MapFrame(const v1::StereoFrame& frame, const MappingLimits& limits, Job* job) {
   const Timer timer;
   v1::MappingProgress progress;
@@ -249,22 +328,24 @@ v1::MappingProgress MapFrame(const v1::StereoFrame& frame, const MappingLimits& 
       throw InputError(StrCat("timestamp ", frame.timestamp_ns(), " ns is not after the last ",
                               job->last_timestamp_ns, " ns"));
     }
+    if (const std::string full = DiskFull(job->spool->dir(), limits.min_free_disk_bytes);
+        !full.empty()) {
+      throw InputError(full + "; end the stream to publish");
+    }
     const auto [left, right] = DecodePair(frame, job->rig);
-    job->builder.AddFrame(frame.timestamp_ns(), left, right);
-    if (job->spool) job->spool->Add(frame, left, right);
-    job->last_timestamp_ns = frame.timestamp_ns();
-    proto::ToProto(job->builder.Progress(), &progress);
-    ShareMapSoFar(job, static_cast<int>(progress.keyframes()));
+    job->spool->Add(frame, left, right);
+    MapKeptFrame(frame.timestamp_ns(), left, right, job, &progress);
   } catch (const InputError& e) {
     progress.set_state(v1::MAPPING_FRAME_ERROR);
     progress.set_error(e.what());
   }
-  progress.set_frame_index(job->frames++);
-  progress.set_timestamp_ns(frame.timestamp_ns());
-  progress.set_frame_ms(timer.ElapsedMs());
-  progress.set_job_id(job->id);
-  job->registry->Update(job->id, progress);
+  Record(frame.timestamp_ns(), timer, job, &progress);
   return progress;
+}
+
+// An answer to the job's stream; a job recovered after a restart has none.
+void Answer(Stream* stream, const v1::MappingProgress& answer) {
+  if (stream) stream->Write(answer);
 }
 
 // The job's last answer when nothing is published: FAILED with the reason, and the same reason
@@ -274,8 +355,8 @@ Status Fail(Stream* stream, Job* job, StatusCode code, const std::string& reason
   failed.set_state(v1::MAPPING_FAILED);
   failed.set_error(reason);
   failed.set_job_id(job->id);
-  stream->Write(failed);
-  job->registry->End(job->id, v1::MAPPING_FAILED, reason);
+  Answer(stream, failed);
+  job->End(v1::MAPPING_FAILED, reason);
   Log("mapping_failed", {{"map", job->name}, {"reason", reason}});
   return Status(code, reason);
 }
@@ -292,26 +373,41 @@ Map Extend(const mapstore::MapDirectory& folder, Job* job) {
                                &stats);
 }
 
-// After MappingEnd: global adjustment, learning, and the map published under its name.
+// How a published map names its job, so that a server restarted between the publication and
+// the removal of the job's spool sees that it was published.
+std::string PublishedBy(uint64_t job_id) { return StrCat(" (mapping job ", job_id, ")"); }
+
+// Whether the job's map was published before its server stopped.
+bool PublishedBefore(const mapstore::MapDirectory& folder, const Job& job) {
+  if (!folder.Contains(job.name)) return false;
+  const mapstore::MapDirectory::Entry entry = folder.Describe(job.name);
+  return entry.info && EndsWith(entry.info->metadata.source_dataset, PublishedBy(job.id));
+}
+
+// After MappingEnd: global adjustment, learning, and the map published under its name. `stream`
+// is null for a job a restarted server finishes by itself.
 Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, Stream* stream,
                         Job* job) {
   job->registry->SetState(job->id, v1::MAPPING_FINISHING);
+  Log("mapping_finishing", {{"map", job->name},
+                            {"job", std::to_string(job->id)},
+                            {"frames", std::to_string(job->frames)}});
   v1::MappingProgress answer;
   answer.set_state(v1::MAPPING_FINISHING);
   answer.set_frame_index(job->frames);
   answer.set_job_id(job->id);
-  stream->Write(answer);
+  Answer(stream, answer);
   const int mapped = job->builder.Progress().frames;
   if (mapped == 0) {
     return Fail(stream, job, StatusCode::FAILED_PRECONDITION,
                 "no frame was mapped: nothing was published");
   }
   const Timer timer;
-  const MapMetadata metadata{
-      job->name, static_cast<int64_t>(std::time(nullptr)),
-      StrCat("robot ", job->robot_id.empty() ? peer : job->robot_id, " over the link"),
-      StrCat("visloc ", VislocVersion(), " mapping service"), ""};
-  Map map = job->spool ? Extend(folder, job) : job->builder.Finish(metadata);
+  const MapMetadata metadata{job->name, static_cast<int64_t>(std::time(nullptr)),
+                             StrCat("robot ", job->robot_id.empty() ? peer : job->robot_id,
+                                    " over the link", PublishedBy(job->id)),
+                             StrCat("visloc ", VislocVersion(), " mapping service"), ""};
+  Map map = job->options.extend ? Extend(folder, job) : job->builder.Finish(metadata);
   // Up, from the floor beneath the keyframes (frames over the link carry no accelerometer).
   if (!map.metadata.gravity) map.metadata.gravity = mapping::GravityFromFloor(map).gravity;
   if (static_cast<int>(map.points.size()) < job->options.min_points) {
@@ -334,22 +430,178 @@ Status FinishAndPublish(mapstore::MapDirectory folder, const std::string& peer, 
   proto::ToProto(job->builder.stats().disparity_correction, answer.mutable_disparity_correction());
   answer.set_frame_ms(timer.ElapsedMs());
   job->registry->Update(job->id, answer);
-  job->registry->End(job->id, v1::MAPPING_PUBLISHED, "");
   Log("map_built_over_link", {{"map", job->name},
                               {"frames", std::to_string(job->frames)},
                               {"keyframes", std::to_string(map.keyframes.size())},
                               {"points", std::to_string(map.points.size())},
                               {"finish_ms", StrCat(timer.ElapsedMs())}});
-  stream->Write(answer);
+  // Answered before the spool goes: a server that dies between the two takes the job up again
+  // and finds its map published (PublishedBefore).
+  Answer(stream, answer);
+  job->End(v1::MAPPING_PUBLISHED, "");
   return Status::OK;
 }
 
 }  // namespace
 
 MappingService::MappingService(MapCache* maps, const MappingLimits& limits, const TokenAuth* auth)
-    : maps_(maps), limits_(limits), auth_(auth) {}
+    : maps_(maps), limits_(limits), auth_(auth) {
+  if (limits_.read_only || limits_.max_jobs == 0) return;  // No job runs here, none is taken up.
+  if (limits_.spool_dir.empty()) {
+    temporary_spool_ = std::make_unique<TempDir>("visloc-mapping-spool");
+    limits_.spool_dir = temporary_spool_->path();
+  }
+  // A spool that exists may hold jobs to take up; one that does not is made by the first job.
+  if (!std::filesystem::exists(limits_.spool_dir)) return;
+  if (HoldSpool()) {
+    Recover();
+  } else {
+    Log("mapping_spool_held", {{"spool", limits_.spool_dir},
+                               {"reason", "another server holds it: its jobs are that one's"}});
+  }
+}
 
-MappingService::~MappingService() = default;
+MappingService::~MappingService() {
+  stopping_ = true;
+  if (recovery_.joinable()) recovery_.join();
+  if (spool_lock_fd_ >= 0) close(spool_lock_fd_);
+}
+
+bool MappingService::HoldSpool() {
+  std::lock_guard<std::mutex> lock(spool_mutex_);
+  if (spool_lock_fd_ >= 0) return true;
+  std::error_code ignored;  // A folder that cannot be made fails the open below.
+  std::filesystem::create_directories(limits_.spool_dir, ignored);
+  const int fd = open((limits_.spool_dir + "/lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return false;
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    close(fd);
+    return false;
+  }
+  spool_lock_fd_ = fd;
+  return true;
+}
+
+uint64_t MappingService::NextJobId(const std::string& map_name, const std::string& robot_id) {
+  const uint64_t id = jobs_.Begin(map_name, robot_id);
+  // The next server hands out ids after this one, though its spool may be empty by then: a
+  // robot resuming a job of the last server must never reach another job of the same id.
+  WriteFileAtomically(limits_.spool_dir + "/next_id", StrCat(id + 1, "\n"));
+  return id;
+}
+
+void MappingService::Recover() {
+  const std::string next_id_path = limits_.spool_dir + "/next_id";
+  const std::vector<uint64_t> ids = JobSpool::JobIds(limits_.spool_dir);
+  uint64_t last_id = ids.empty() ? 0 : ids.back();
+  if (std::filesystem::exists(next_id_path)) {
+    try {
+      last_id = std::max<uint64_t>(last_id, std::stoull(ReadFileBytes(next_id_path)) - 1);
+    } catch (const std::exception&) {  // A torn or foreign file: the folders' ids serve.
+    }
+  }
+  jobs_.IdsAfter(last_id);
+  const std::string restarted = UnixTimeText(UnixNowNs());
+  for (const uint64_t id : ids) {
+    const std::string dir = StrCat(limits_.spool_dir, "/", id);
+    std::unique_ptr<JobSpool> spool;
+    try {
+      spool = JobSpool::Open(dir, limits_.wire);
+      proto::MappingJobOptions options = proto::FromProto(spool->start().options());
+      options.builder.threads = limits_.threads;
+      // Recovered jobs hold slots beyond the limit: they were admitted by the last server.
+      auto slot = std::make_unique<JobSlot>(&active_jobs_, INT_MAX);
+      auto job =
+          std::make_unique<Job>(&jobs_, std::move(slot), spool->start(), spool->rig(), options, id);
+      jobs_.Adopt(id, job->name, job->robot_id,
+                  StrCat("its server stopped after ", spool->size(), " frames",
+                         spool->ended() ? ", after MappingEnd" : "", "; the server started at ",
+                         restarted, " took it up from its spool and maps its frames again"));
+      job->spool = std::move(spool);
+      recovering_.insert(id);
+      to_recover_.push_back(std::move(job));
+    } catch (const std::exception& e) {
+      // A spool that cannot be taken up is recorded and dropped: it would fail every restart.
+      jobs_.Adopt(
+          id, "", "",
+          "its server stopped; the server started at " + restarted + " found its spool unusable");
+      jobs_.End(id, v1::MAPPING_FAILED, e.what());
+      std::error_code ignored;
+      std::filesystem::remove_all(dir, ignored);
+      Log("mapping_spool_unusable", {{"job", std::to_string(id)}, {"reason", e.what()}});
+    }
+  }
+  if (to_recover_.empty()) return;
+  recovery_ = std::thread([this] {
+    for (std::unique_ptr<Job>& job : to_recover_) {
+      const uint64_t id = job->id;
+      try {
+        Replay(std::move(job));
+      } catch (const std::exception& e) {  // The job's destructor has ended it FAILED.
+        Log("mapping_recovery_failed", {{"job", std::to_string(id)}, {"reason", e.what()}});
+      }
+      std::lock_guard<std::mutex> lock(recovery_mutex_);
+      recovering_.erase(id);
+      recovered_.notify_all();
+    }
+  });
+}
+
+void MappingService::Replay(std::unique_ptr<Job> job) {
+  const Timer timer;
+  const int kept = job->spool->size();
+  Log("mapping_recovering", {{"map", job->name},
+                             {"job", std::to_string(job->id)},
+                             {"frames", std::to_string(kept)},
+                             {"ended", job->spool->ended() ? "true" : "false"}});
+  for (int i = 0; i < kept; ++i) {
+    if (stopping_) {
+      job->parked = true;  // This server stops too: the spool stays for the next one.
+      return;
+    }
+    const Timer frame_timer;
+    mapping::StereoImages images;
+    try {
+      images = job->spool->Read(i);
+    } catch (const InputError& e) {  // A disk that lost what it was given.
+      job->End(v1::MAPPING_FAILED, StrCat("its server stopped after ", kept,
+                                          " frames, and they cannot be mapped again: ", e.what(),
+                                          ": nothing was published"));
+      return;
+    }
+    v1::MappingProgress progress;
+    try {
+      MapKeptFrame(images.timestamp_ns, images.left_raw, images.right_raw, job.get(), &progress);
+    } catch (const InputError& e) {  // As the frame was answered when it arrived.
+      progress.set_state(v1::MAPPING_FRAME_ERROR);
+      progress.set_error(e.what());
+    }
+    Record(images.timestamp_ns, frame_timer, job.get(), &progress);
+  }
+  Log("mapping_recovered", {{"map", job->name},
+                            {"job", std::to_string(job->id)},
+                            {"frames", std::to_string(kept)},
+                            {"ms", StrCat(timer.ElapsedMs())}});
+  if (!job->spool->ended()) {
+    Park(std::move(job), "its server stopped");
+    return;
+  }
+  // The robot asked for the map before the server stopped: it is finished without the robot.
+  if (PublishedBefore(maps_->directory(), *job)) {
+    job->End(v1::MAPPING_PUBLISHED, "");
+    return;
+  }
+  try {
+    FinishAndPublish(maps_->directory(), "", nullptr, job.get());
+  } catch (const std::exception& e) {
+    job->End(v1::MAPPING_FAILED, StrCat(e.what(), ": nothing was published"));
+  }
+}
+
+void MappingService::AwaitRecovery(uint64_t job_id) {
+  std::unique_lock<std::mutex> lock(recovery_mutex_);
+  recovered_.wait(lock, [&] { return !recovering_.count(job_id); });
+}
 
 Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const {
   if (limits_.read_only) {
@@ -362,6 +614,10 @@ Status MappingService::Refuse(const v1::MappingStart& start, bool replace) const
                   "mapping over the link is off on this server (--max-mapping-jobs 0)");
   }
   mapstore::CheckMapName(start.map_name());
+  if (const std::string full = DiskFull(limits_.spool_dir, limits_.min_free_disk_bytes);
+      !full.empty()) {
+    return Status(StatusCode::RESOURCE_EXHAUSTED, full + ": no mapping job can be kept");
+  }
   if (start.options().extend() && !maps_->directory().Contains(start.map_name())) {
     return Status(StatusCode::NOT_FOUND, StrCat("no map named '", start.map_name(),
                                                 "' to extend; build it first (without extend)"));
@@ -379,12 +635,14 @@ std::unique_ptr<ActiveMappingJob> MappingService::Open(const grpc::ServerContext
                                                        const v1::MappingStart& start,
                                                        Stream* stream, Status* refused) {
   if (start.resume_job_id() != 0) {
+    AwaitRecovery(start.resume_job_id());  // A job this server took up from its spool.
     std::unique_ptr<Job> job;
     {
       std::lock_guard<std::mutex> lock(waiting_mutex_);
       const auto found = waiting_.find(start.resume_job_id());
       if (found != waiting_.end() && found->second.job->name == start.map_name()) {
         job = std::move(found->second.job);
+        job->parked = false;
         waiting_.erase(found);
       }
     }
@@ -413,6 +671,13 @@ std::unique_ptr<ActiveMappingJob> MappingService::Open(const grpc::ServerContext
   proto::MappingJobOptions options = proto::FromProto(start.options());
   if (*refused = Refuse(start, options.replace); !refused->ok()) return nullptr;
   const proto::StereoRigInput rig = proto::FromProto(start.rig(), limits_.wire);
+  if (!HoldSpool()) {
+    *refused = Status(StatusCode::UNAVAILABLE,
+                      StrCat("the mapping spool ", limits_.spool_dir,
+                             " is held by another visloc-server on the same folder: map there, "
+                             "or give this one its own --mapping-spool"));
+    return nullptr;
+  }
   auto slot = std::make_unique<JobSlot>(&active_jobs_, limits_.max_jobs);
   if (!slot->held()) {
     *refused = Status(StatusCode::RESOURCE_EXHAUSTED,
@@ -422,7 +687,15 @@ std::unique_ptr<ActiveMappingJob> MappingService::Open(const grpc::ServerContext
     return nullptr;
   }
   options.builder.threads = limits_.threads;
-  auto job = std::make_unique<Job>(&jobs_, std::move(slot), start, rig, options);
+  // The mapper is made first: a rig it refuses leaves no job behind in the registry.
+  auto job = std::make_unique<Job>(&jobs_, std::move(slot), start, rig, options, 0);
+  job->id = NextJobId(job->name, job->robot_id);
+  try {
+    job->spool = JobSpool::Create(limits_.spool_dir, job->id, start, limits_.wire);
+  } catch (const InputError& e) {
+    *refused = Status(StatusCode::UNAVAILABLE, StrCat(e.what(), ": the job cannot be kept"));
+    return nullptr;  // The job's destructor ends it FAILED.
+  }
   v1::MappingProgress started;
   started.set_state(v1::MAPPING_STARTED);
   started.set_job_id(job->id);
@@ -439,12 +712,13 @@ Status MappingService::Park(std::unique_ptr<ActiveMappingJob> job, const std::st
   const std::string broke = StrCat("the mapping stream of '", job->name, "' broke after ",
                                    job->frames, " frames (", why, ")");
   if (limits_.resume_window_s <= 0) {
-    jobs_.End(job->id, v1::MAPPING_ABANDONED, broke + ": nothing was published");
+    job->End(v1::MAPPING_ABANDONED, broke + ": nothing was published");
     Log("mapping_abandoned",
         {{"map", job->name}, {"frames", std::to_string(job->frames)}, {"reason", why}});
     return Status(StatusCode::ABORTED, broke + ": nothing was published");
   }
   const uint64_t id = job->id;
+  job->parked = true;
   jobs_.SetState(id, v1::MAPPING_WAITING);
   Log("mapping_waiting", {{"map", job->name},
                           {"job", std::to_string(id)},
@@ -478,7 +752,7 @@ void MappingService::ExpireWaitingJobs() {
     const std::string reason = StrCat("the mapping stream of '", job->name, "' broke after ",
                                       job->frames, " frames and was not resumed within ",
                                       limits_.resume_window_s, " s: nothing was published");
-    jobs_.End(job->id, v1::MAPPING_ABANDONED, reason);
+    job->End(v1::MAPPING_ABANDONED, reason);
     Log("mapping_abandoned", {{"map", job->name},
                               {"job", std::to_string(job->id)},
                               {"frames", std::to_string(job->frames)},
@@ -507,6 +781,7 @@ Status MappingService::BuildMap(grpc::ServerContext* context, Stream* stream) {
         break;
       }
     }
+    if (ended) job->spool->MarkEnded();  // A server that stops now finishes it when restarted.
     if (!ended) {
       return Park(std::move(job),
                   context->IsCancelled() ? "the client went away" : "no MappingEnd");

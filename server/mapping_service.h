@@ -6,16 +6,26 @@
 // maps folder and publishes it under its name with one atomic rename (mapstore::MapDirectory):
 // sessions localizing in a replaced map keep it, new sessions get the new one. A stream that
 // breaks, or ends without MappingEnd, publishes nothing.
+//
+// A job outlives its server: its start and frames are kept on disk as they arrive (JobSpool,
+// under the maps folder by default, so a replica that takes over a shared folder finds them). A
+// restarted server maps the kept frames again, in order, which rebuilds the mapper's state as it
+// was (the mapper is deterministic at one thread), then waits for the robot to resume the job;
+// a job whose MappingEnd had arrived is finished and published without it.
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include "core/util/temp_dir.h"
 #include "proto/geometry_convert.h"
 #include "server/auth.h"
 #include "server/map_cache.h"
@@ -40,6 +50,12 @@ struct MappingLimits {
   // (MappingStart.resume_job_id), keeping its map so far and its slot; 0: it is dropped at once.
   double resume_window_s = 30.0;
   proto::WireLimits wire;
+  // Where jobs are kept as they arrive (job_spool.h); the server's default is
+  // MAPS/.mapping-jobs. Empty: a temporary folder that dies with the service.
+  std::string spool_dir;
+  // A job is refused, and its frames answered MAPPING_FRAME_ERROR, while the spool's disk has
+  // less free space than this.
+  int64_t min_free_disk_bytes = int64_t{1} << 30;
 };
 
 // The server's mapping jobs, running and recently ended, for ListJobs (`visloc jobs`). Thread-safe.
@@ -48,6 +64,13 @@ class MappingJobs {
   explicit MappingJobs(size_t keep_ended = 32) : keep_ended_(keep_ended) {}
   // A new running job; returns its id.
   uint64_t Begin(const std::string& map_name, const std::string& robot_id);
+  // A job an earlier server left in the spool, under its own id (later ids follow it).
+  void Adopt(uint64_t id, const std::string& map_name, const std::string& robot_id,
+             const std::string& note);
+  // New ids start after `id` (the ids a spool has handed out before a restart).
+  void IdsAfter(uint64_t id);
+  // What happened to the job that its answers do not say (a restart of its server).
+  void SetNote(uint64_t id, const std::string& note);
   // A frame's answer: its state, and for a mapped frame the counts and pose.
   void Update(uint64_t id, const v1::MappingProgress& progress);
   void SetState(uint64_t id, v1::MappingState state);
@@ -75,6 +98,7 @@ class MappingService final : public v1::Mapping::Service {
  public:
   // Every call needs the admin role. `maps` and `auth` must outlive the service.
   MappingService(MapCache* maps, const MappingLimits& limits, const TokenAuth* auth);
+  // Recovers the jobs the spool holds (in a thread of its own: see the file's comment).
   ~MappingService() override;
 
   grpc::Status BuildMap(
@@ -103,9 +127,23 @@ class MappingService final : public v1::Mapping::Service {
       grpc::Status* refused);
   // A job whose stream broke: kept for the resume window, or abandoned without one.
   grpc::Status Park(std::unique_ptr<ActiveMappingJob> job, const std::string& why);
+  // The spool's jobs taken up again: each one's frames mapped again, then parked for its robot,
+  // or finished and published when its MappingEnd had arrived.
+  void Recover();
+  void Replay(std::unique_ptr<ActiveMappingJob> job);
+  // Blocks a resumption of a job being recovered until its frames are mapped again.
+  void AwaitRecovery(uint64_t job_id);
+  // Whether this server holds the spool (an flock on SPOOL/lock, taken once and kept): two
+  // servers must never take up the same jobs. Made when missing.
+  bool HoldSpool();
+  // A new job in the registry; its id handed out durably (the spool's next_id file).
+  uint64_t NextJobId(const std::string& map_name, const std::string& robot_id);
 
   MapCache* maps_;
   MappingLimits limits_;
+  std::unique_ptr<TempDir> temporary_spool_;  // When limits_.spool_dir is empty.
+  std::mutex spool_mutex_;
+  int spool_lock_fd_ = -1;  // Held while the service lives.
   const TokenAuth* auth_;
   std::atomic<int> active_jobs_{0};
   MappingJobs jobs_;
@@ -115,6 +153,12 @@ class MappingService final : public v1::Mapping::Service {
   };
   std::mutex waiting_mutex_;
   std::map<uint64_t, WaitingJob> waiting_;  // By job id.
+  std::mutex recovery_mutex_;
+  std::condition_variable recovered_;
+  std::vector<std::unique_ptr<ActiveMappingJob>> to_recover_;  // Replayed in order.
+  std::set<uint64_t> recovering_;                              // Their ids, until parked or ended.
+  std::atomic<bool> stopping_{false};
+  std::thread recovery_;
 };
 
 }  // namespace visloc::server

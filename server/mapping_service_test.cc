@@ -55,5 +55,22 @@ TEST(MappingJobsTest, OnlyTheNewestEndedJobsAreKeptAndRunningOnesStay) {
   EXPECT_FALSE(jobs.Ended(running));
 }
 
+// A restarted server's registry: the spool's jobs under their own ids, with what happened to
+// them, and new jobs numbered after every id handed out before.
+TEST(MappingJobsTest, AdoptedJobsKeepTheirIdsAndNewOnesFollow) {
+  MappingJobs jobs;
+  jobs.IdsAfter(7);
+  jobs.Adopt(4, "hall", "robot-1", "its server stopped after 120 frames");
+  EXPECT_EQ(jobs.Begin("yard", ""), 8u);
+  jobs.Adopt(11, "dock", "", "");
+  EXPECT_EQ(jobs.Begin("roof", ""), 12u);
+  const std::vector<v1::MappingJob> now = jobs.Snapshot();
+  ASSERT_EQ(now.size(), 4u);
+  EXPECT_EQ(now[0].job_id(), 4u);
+  EXPECT_EQ(now[0].state(), v1::MAPPING_WAITING);
+  EXPECT_EQ(now[0].note(), "its server stopped after 120 frames");
+  EXPECT_FALSE(jobs.Ended(4));
+}
+
 }  // namespace
 }  // namespace visloc::server

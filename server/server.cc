@@ -103,6 +103,9 @@ MappingLimits MappingLimitsOf(const ServerConfig& config) {
   limits.max_memory_bytes = static_cast<size_t>(config.max_mapping_memory_mib) << 20;
   limits.read_only = config.maps_read_only;
   limits.resume_window_s = config.mapping_resume_s;
+  limits.spool_dir =
+      config.mapping_spool.empty() ? config.maps_dir + "/.mapping-jobs" : config.mapping_spool;
+  limits.min_free_disk_bytes = config.mapping_min_free_mib << 20;
   return limits;
 }
 
@@ -142,6 +145,9 @@ void ServerConfig::Check() const {
   if (max_mapping_frames < 1) throw UsageError("--max-mapping-frames must be at least 1");
   if (max_mapping_memory_mib < 1 || max_mapping_memory_mib > (int64_t{1} << 24)) {
     throw UsageError("--max-mapping-memory-mib must be 1 to 16777216");
+  }
+  if (mapping_min_free_mib < 0 || mapping_min_free_mib > (int64_t{1} << 30)) {
+    throw UsageError("--mapping-min-free-mib must be 0 to 1073741824");
   }
   if (!(mapping_resume_s >= 0 && mapping_resume_s <= 3600)) {
     throw UsageError("--mapping-resume-s must be 0 to 3600");

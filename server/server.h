@@ -61,6 +61,9 @@ struct ServerConfig {
   int max_mapping_frames = 20000;
   int64_t max_mapping_memory_mib = 2048;  // What one job's mapper may hold.
   double mapping_resume_s = 30.0;  // A broken mapping stream's job waits this long to resume.
+  // Where mapping jobs are kept as they arrive, to outlive the server; empty: MAPS/.mapping-jobs.
+  std::string mapping_spool;
+  int64_t mapping_min_free_mib = 1024;  // Disk the spool leaves free; jobs beyond it are refused.
 
   // Throws UsageError naming the flag of the first bad value.
   void Check() const;

@@ -45,12 +45,23 @@ const std::string kRobotToken = "robot-token-0123456789";
 // A link a lab's WiFi might give: 10 ms each way, 100 Mbit/s.
 const LinkProfile kWifi{10, 2, 100};
 
+// What a folder holds, but the mapping jobs' spool (MAPS/.mapping-jobs: a job's outcome removes
+// its folder there, which JobsKept counts).
 std::vector<std::string> FilesIn(const std::string& dir) {
   std::vector<std::string> names;
   for (const auto& f : std::filesystem::directory_iterator(dir)) {
-    names.push_back(f.path().filename().string());
+    if (f.path().filename() != ".mapping-jobs") names.push_back(f.path().filename().string());
   }
+  std::sort(names.begin(), names.end());
   return names;
+}
+
+int JobsKept(const std::string& maps_dir) {
+  const std::string spool = maps_dir + "/.mapping-jobs";
+  int jobs = 0;
+  if (!std::filesystem::exists(spool)) return 0;
+  for (const auto& f : std::filesystem::directory_iterator(spool)) jobs += f.is_directory();
+  return jobs;
 }
 
 class MappingLinkE2eTest : public ::testing::Test {
@@ -191,6 +202,7 @@ TEST_F(MappingLinkE2eTest, ALongCutPublishesNothingAndLeavesTheOldMap) {
   ASSERT_TRUE(server.WaitForLog("event=mapping_abandoned map=hall")) << server.Log();
   EXPECT_EQ(ReadFileBytes(maps_.File("hall.db")), before);
   EXPECT_EQ(FilesIn(maps_.path()), std::vector<std::string>{"hall.db"});
+  EXPECT_EQ(JobsKept(maps_.path()), 0);  // The abandoned job's spool went with it.
   const ProcessResult jobs = Visloc({"jobs", "--server", server.address()});
   EXPECT_THAT(jobs.out, HasSubstr("abandoned"));
   EXPECT_THAT(jobs.out, HasSubstr("was not resumed within 1 s: nothing was published"));
@@ -417,6 +429,7 @@ TEST_F(MappingServiceE2eTest, WithoutAResumeWindowABrokenJobIsAbandonedAtOnce) {
   EXPECT_EQ(Exchange(next->stream.get(), Start("next")).state(), v1::MAPPING_STARTED);
   next->context.TryCancel();
   EXPECT_TRUE(FilesIn(maps_.path()).empty());
+  EXPECT_TRUE(testing::WaitUntil([&] { return JobsKept(maps_.path()) == 0; }));  // Both abandoned.
 }
 
 TEST_F(MappingServiceE2eTest, OneJobAtATimeAdminsOnlyAndSmallMapsAreNotPublished) {
