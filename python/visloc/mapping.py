@@ -3,7 +3,8 @@
 The same session as the C++ library's visloc::client::MappingSession: at most ``max_in_flight``
 frames are unanswered (``submit`` waits for room: a map needs every frame); when the stream
 breaks the session reconnects with backoff and resumes the same job, which the server keeps for
-its --mapping-resume-s window, re-sending the unanswered frames after the last one it mapped.
+its --mapping-resume-s window (a restarted server takes the job up from its spool), re-sending
+the unanswered frames after the last one it mapped.
 
     from visloc import MappingOptions, MappingSession
     mapping = MappingSession(MappingOptions(server="10.0.0.5:50051", map_name="hall", rig=rig,
@@ -147,12 +148,39 @@ class MappingSession:
                 raise MappingError(self._job_failure)
             if self._stream.code in _REFUSED:
                 raise MappingError(f"server {self._o.server}: {self._stream.details}")
-            self._resume()
+            # The link broke around MappingEnd: the job either waits (resume it and end it
+            # again) or is already published (by this server, or by a restarted one that took
+            # the job up from its spool).
+            try:
+                self._resume()
+            except MappingError:
+                done = self._published_meanwhile()
+                if done is None:
+                    raise
+                return done
+
+    def _published_meanwhile(self) -> Optional[pb.MappingProgress]:
+        """After a break around MappingEnd: the job's PUBLISHED record, if the server has one."""
+        metadata = [("authorization", "Bearer " + self._o.token)] if self._o.token else None
+        try:
+            jobs = pb_grpc.MappingStub(self._channel).ListJobs(pb.ListJobsRequest(),
+                                                               metadata=metadata, timeout=5)
+        except grpc.RpcError:
+            return None
+        for job in jobs.jobs:
+            if job.job_id == self.job_id and job.state == pb.MAPPING_PUBLISHED:
+                done = pb.MappingProgress(state=pb.MAPPING_PUBLISHED, job_id=job.job_id,
+                                          frame_index=job.frames, keyframes=job.keyframes,
+                                          points=job.points)
+                done.map.name = job.map_name
+                return done
+        return None
 
     def _open(self, resume: bool):
         o = self._o
         channel = open_channel(o.server, o.tls_ca_pem, o.tls_cert_pem, o.tls_key_pem, 10000,
                                o.backoff_initial_s, o.backoff_max_s)
+        self._channel = channel
         start = pb.MappingRequest()
         start.start.map_name = o.map_name
         start.start.robot_id = o.robot_id
