@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <future>
 #include <set>
 
 #include <opencv2/imgcodecs.hpp>
@@ -26,7 +27,17 @@ namespace {
 std::string WorldKey(const RoomOptions& room) {
   return StrCat(room.seed, "/", static_cast<int>(room.layout), "/", room.people, "/", room.width_m,
                 "x", room.depth_m, "x", room.height_m, "/", room.texel_m, "/", room.suite, "/",
-                room.street);
+                room.street, "/", room.building);
+}
+
+// The two views of a stereo frame rendered at once, the right one on a second thread: rendering
+// is most of a sequence's time, and it reads the world only. The sensor's noise is drawn after,
+// in frame order, so a sequence is the same image for image.
+template <typename RenderLeft, typename RenderRight>
+void RenderPair(RenderLeft render_left, RenderRight render_right, cv::Mat* left, cv::Mat* right) {
+  std::future<cv::Mat> right_done = std::async(std::launch::async, render_right);
+  *left = render_left();
+  *right = right_done.get();
 }
 
 bool Within(const std::vector<std::pair<double, double>>& intervals, double t) {
@@ -176,14 +187,21 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       const double half = 0.5 * options_.effects->exposure_time_s;
       const Rigid3d open = spec.path.WorldFromBody(t - half),
                     close = spec.path.WorldFromBody(t + half);
-      left_radiance = left_renderer.RenderRadiance(world, open * rig.left.body_from_cam,
-                                                   close * rig.left.body_from_cam, t, 2 * half);
-      right_radiance = right_renderer.RenderRadiance(
-          world, open * rig.right.body_from_cam * calibrated_from_true_right,
-          close * rig.right.body_from_cam * calibrated_from_true_right, t, 2 * half);
+      RenderPair(
+          [&] {
+            return left_renderer.RenderRadiance(world, open * rig.left.body_from_cam,
+                                                close * rig.left.body_from_cam, t, 2 * half);
+          },
+          [&] {
+            return right_renderer.RenderRadiance(
+                world, open * rig.right.body_from_cam * calibrated_from_true_right,
+                close * rig.right.body_from_cam * calibrated_from_true_right, t, 2 * half);
+          },
+          &left_radiance, &right_radiance);
     } else {
-      left_radiance = left_renderer.RenderRadiance(world, world_from_left, t);
-      right_radiance = right_renderer.RenderRadiance(world, world_from_right, t);
+      RenderPair([&] { return left_renderer.RenderRadiance(world, world_from_left, t); },
+                 [&] { return right_renderer.RenderRadiance(world, world_from_right, t); },
+                 &left_radiance, &right_radiance);
     }
     render_ms += render_timer.ElapsedMs();
     SensorModel left_sensor = spec.sensor, right_sensor = spec.sensor;
