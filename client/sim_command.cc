@@ -94,6 +94,10 @@ int RunSim(const Args& args) {
     for (const std::string& name : sim::SequenceNames()) {
       std::printf("%-14s %s\n", name.c_str(), sim::MakeSequenceSpec(name, 1).description.c_str());
     }
+    for (const std::string& name : sim::LongSequenceNames()) {
+      std::printf("%-14s %s (by name only, not in \"all\")\n", name.c_str(),
+                  sim::MakeSequenceSpec(name, 1).description.c_str());
+    }
     return 0;
   }
   if (out_dir.empty()) throw UsageError("missing --out");

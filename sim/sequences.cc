@@ -135,6 +135,11 @@ const std::vector<std::string>& SequenceNames() {
   return names;
 }
 
+const std::vector<std::string>& LongSequenceNames() {
+  static const std::vector<std::string> names = {"map_building"};
+  return names;
+}
+
 namespace {
 
 // The 2 m square, walked counter-clockwise from its south-west corner facing east, turning
@@ -164,6 +169,44 @@ WalkingPath SuiteTour(const GaitOptions& gait) {
   VisitRoom(&path);  // North; back facing south.
   VisitRoom(&path);  // South; back facing north.
   path.Turn(M_PI).Walk(1.0 + kSuiteLaneY).Turn(M_PI / 2);
+  return path;
+}
+
+// Looks around where the robot stands: left, right and back to its heading.
+void LookAround(WalkingPath* path) { path->Turn(M_PI / 2).Turn(-M_PI).Turn(M_PI / 2); }
+
+// One round of the building from the centre room's lane crossing, facing east: to the east
+// room, then round the eight outer rooms (counter-clockwise with `turn` = +pi/2, clockwise with
+// -pi/2), looking around at each room's crossing, back through the east room to the centre, and
+// turned to face east again, looking around there.
+void BuildingRound(double turn, WalkingPath* path) {
+  const double step_m = 8.0 + kSuiteWallM;  // From one room's lane crossing to the next.
+  path->Walk(step_m);                       // East room.
+  LookAround(path);
+  path->Turn(turn);
+  for (const int rooms : {1, 2, 2, 2}) {  // Along the ring's four sides: corner, middle, corner.
+    for (int r = 0; r < rooms; ++r) {
+      path->Walk(step_m);
+      LookAround(path);
+    }
+    path->Turn(turn);
+  }
+  path->Walk(step_m);  // Back in the east room, facing the centre.
+  path->Turn(turn);
+  path->Walk(step_m);
+  path->Turn(M_PI);
+  LookAround(path);  // The centre room again.
+}
+
+// The building's mapping run: the mapping square, then three rounds of the eight rooms around
+// the centre one (the second clockwise), each ending where the first began: every room is seen
+// three times, from both sides, and every round closes a loop.
+WalkingPath BuildingTour(const GaitOptions& gait) {
+  WalkingPath path = SquarePath(-1.0, -1.0, gait);
+  path.Walk(1.0 + kSuiteLaneX).Turn(M_PI / 2).Walk(1.0 + kSuiteLaneY).Turn(-M_PI / 2);
+  BuildingRound(M_PI / 2, &path);
+  BuildingRound(-M_PI / 2, &path);
+  BuildingRound(M_PI / 2, &path);
   return path;
 }
 
@@ -244,6 +287,11 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
     spec.description = "mapping run in the five-room suite: the square, then every room";
     spec.room.suite = true;
     spec.path = SuiteTour(gait);
+  } else if (name == "map_building") {
+    spec.description =
+        "mapping run through a nine-room building: the square, then three rounds of its rooms";
+    spec.room.building = true;
+    spec.path = BuildingTour(gait);
   } else if (name == "query_suite") {
     spec.description = "the offset square in the suite's centre room, walls hiding 4 rooms";
     spec.room.suite = true;
@@ -263,6 +311,7 @@ SequenceSpec MakeSequenceSpec(const std::string& name, uint64_t seed) {
   } else {
     std::string known;
     for (const std::string& n : SequenceNames()) known += (known.empty() ? "" : ", ") + n;
+    for (const std::string& n : LongSequenceNames()) known += ", " + n;
     throw InputError("unknown sequence '" + name + "' (known: " + known + ")");
   }
   return spec;

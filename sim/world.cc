@@ -255,6 +255,35 @@ void AppendNeighbours(const RoomOptions& options, World* world) {
   }
 }
 
+// The building's eight rooms around the centre one (RoomOptions::building): room (i, j) of the
+// grid, i east and j north in -1..1, has a doorway on its lanes in every wall it shares with a
+// neighbour. Of two rooms sharing a wall, the one with i + j even (the centre and the corners)
+// closes the passage through the wall (its reveals), as the centre room does in the suite.
+void AppendBuilding(const RoomOptions& options, World* world) {
+  const double w = options.width_m, d = options.depth_m, t = kSuiteWallM;
+  int k = 0;
+  for (int j = -1; j <= 1; ++j) {
+    for (int i = -1; i <= 1; ++i) {
+      if (i == 0 && j == 0) continue;
+      const Eigen::Vector2d centre(i * (w + t), j * (d + t));
+      const uint64_t seed = options.seed * 100019 + 13 * (++k);
+      RoomPlan room = PlanRoom(options, centre, seed);
+      const Eigen::Vector2d lanes(centre.x() + kSuiteLaneX, centre.y() + kSuiteLaneY);
+      Rng rng(seed * 7919 + 17);
+      room.boxes = RandomBoxes(room, rng, [&](const Box& box) {
+        return std::abs(box.center_xy.x() - lanes.x()) >= 1.5 + box.size_m.x() / 2 &&
+               std::abs(box.center_xy.y() - lanes.y()) >= 1.5 + box.size_m.y() / 2;
+      });
+      if (j < 1) room.doorways_xy.emplace_back(lanes.x(), centre.y() + d / 2);
+      if (i < 1) room.doorways_xy.emplace_back(centre.x() + w / 2, lanes.y());
+      if (j > -1) room.doorways_xy.emplace_back(lanes.x(), centre.y() - d / 2);
+      if (i > -1) room.doorways_xy.emplace_back(centre.x() - w / 2, lanes.y());
+      room.door_reveals = (i + j) % 2 == 0;
+      AppendRoom(room, world);
+    }
+  }
+}
+
 // People cross the room on lines outside the 2 m mapping square, at walking pace.
 void AppendPeople(uint64_t seed, double texel_m, World* world) {
   const struct {
@@ -390,7 +419,9 @@ World MakeRoom(const RoomOptions& options) {
   VISLOC_CHECK(options.width_m > 4.6 && options.depth_m > 4.6 && options.height_m > 2.0, "room ",
                options.width_m, "x", options.depth_m, "x", options.height_m,
                " leaves no space to walk");
-  VISLOC_CHECK(!(options.suite && options.people), "the suite has no people");
+  VISLOC_CHECK(!((options.suite || options.building) && options.people),
+               "the suite and the building have no people");
+  VISLOC_CHECK(!(options.suite && options.building), "a world is the suite or the building");
   World world;
   world.width_m = options.width_m;
   world.depth_m = options.depth_m;
@@ -411,7 +442,7 @@ World MakeRoom(const RoomOptions& options) {
           RandomBoxes(centre, rng, [](const Box& b) { return b.center_xy.norm() >= 2.8; });
       break;
   }
-  if (options.suite) {
+  if (options.suite || options.building) {
     const double w = options.width_m, d = options.depth_m;
     centre.doorways_xy = {
         {kSuiteLaneX, d / 2}, {w / 2, kSuiteLaneY}, {kSuiteLaneX, -d / 2}, {-w / 2, kSuiteLaneY}};
@@ -419,6 +450,7 @@ World MakeRoom(const RoomOptions& options) {
   }
   AppendRoom(centre, &world);
   if (options.suite) AppendNeighbours(options, &world);
+  if (options.building) AppendBuilding(options, &world);
   if (options.people) AppendPeople(options.seed, options.texel_m, &world);
   return world;
 }

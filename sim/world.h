@@ -74,6 +74,11 @@ struct RoomOptions {
   // west, each behind a 0.1 m wall with a 1 m x 2.1 m doorway. Most of what a camera's frustum
   // holds is then hidden behind walls, as in a real building (seed paper 000, Sec. 5).
   bool suite = false;
+  // The building: nine rooms of the same size in a 3 x 3 grid (the suite's five and the four
+  // corners), each with a doorway in every wall it shares with a neighbour, on the suite's
+  // lanes, which are kept free of boxes in every room. A run through all of them and back is
+  // four times the suite's and more (issue 58: mapping a whole building in one run).
+  bool building = false;
   // Outdoors instead of a room (MakeStreet): a road between buildings, seen from a car.
   bool street = false;
 };

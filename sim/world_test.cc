@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <opencv2/core.hpp>
 
 #include "sim/renderer.h"
@@ -143,6 +145,41 @@ TEST(SuiteTest, TheTourNeverWalksThroughAWallOrABox) {
   EXPECT_LT(min_x, -7.9);
   EXPECT_GT(max_y, 7.9);
   EXPECT_LT(min_y, -6.9);
+}
+
+// The building's run: through every doorway of the nine rooms three times, never through a
+// wall or a box, every room's lane crossing reached, and back where the rounds began.
+TEST(BuildingTest, TheTourVisitsEveryRoomAndNeverWalksThroughAWallOrABox) {
+  RoomOptions options;
+  options.texel_m = 0.02;
+  options.building = true;
+  const World building = MakeRoom(options);
+  const SequenceSpec tour = MakeSequenceSpec("map_building", 1);
+  ASSERT_TRUE(tour.room.building);
+  const StereoRig rig = MakeRig(RigOptions{});
+  const double step_m = options.width_m + kSuiteWallM;
+  double nearest_m = 1e9;
+  std::set<std::pair<int, int>> crossings;  // Rooms whose lane crossing the run stood on.
+  for (double t = 0; t <= tour.path.duration_s(); t += 0.25) {
+    const Rigid3d world_from_body = tour.path.WorldFromBody(t);
+    for (const CameraInfo* cam : {&rig.left, &rig.right}) {
+      const Eigen::Vector3d position = (world_from_body * cam->body_from_cam).translation;
+      nearest_m = std::min(nearest_m, DistanceToNearestSurface(building, position));
+    }
+    const PlanarPose p = tour.path.PlannedAt(t);
+    const int i = static_cast<int>(std::lround((p.x - kSuiteLaneX) / step_m));
+    const int j = static_cast<int>(std::lround((p.y - kSuiteLaneY) / step_m));
+    if (std::hypot(p.x - kSuiteLaneX - i * step_m, p.y - kSuiteLaneY - j * step_m) < 0.05) {
+      crossings.insert({i, j});
+    }
+  }
+  EXPECT_GT(nearest_m, 0.35);  // As in the suite: the jambs, less the camera offset and sway.
+  EXPECT_EQ(crossings.size(), 9u);
+  const PlanarPose end = tour.path.PlannedAt(tour.path.duration_s());
+  EXPECT_NEAR(end.x, kSuiteLaneX, 1e-9);
+  EXPECT_NEAR(end.y, kSuiteLaneY, 1e-9);
+  // Four times the suite's run and more, at the sequences' 20 frames a second.
+  EXPECT_GT(tour.path.duration_s(), 4 * MakeSequenceSpec("map_suite", 1).path.duration_s());
 }
 
 }  // namespace

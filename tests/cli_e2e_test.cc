@@ -128,7 +128,7 @@ TEST(CliTest, BadInputGetsOneLineErrorsAndNonZeroExit) {
        1,
        "visloc sim: unknown sequence 'moon' (known: map_square, query_square, straight, circle, "
        "outward, glances, kidnap, blankwall, lowlight, occluders, changed, outofmap, map_suite, "
-       "query_suite, drive)\n"},
+       "query_suite, drive, map_building)\n"},
       {{"sim", "--out", dir.path(), "--resolution", "big"},
        2,
        "visloc sim: --resolution expects WIDTHxHEIGHT between 16 and 4096, got 'big' (see 'visloc "
