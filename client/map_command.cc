@@ -1,6 +1,8 @@
 // visloc map info|verify|export|list|delete|rename: offline management of map files and of a
 // maps folder. (The --server forms arrive with the gRPC service.)
 
+#include <sys/resource.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -17,6 +19,7 @@
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
+#include "core/util/timer.h"
 #include "core/util/version.h"
 #include "dataset/dataset.h"
 #include "dataset/euroc.h"
@@ -31,6 +34,33 @@
 
 namespace visloc::cli {
 namespace {
+
+// The wall time per frame in each quarter of a build's run, from its progress callback.
+class QuarterClock {
+ public:
+  void Frame(int done, int total) {
+    if (total < 4 || next_ >= 4 || done < (next_ + 1) * total / 4) return;
+    const double ms = timer_.ElapsedMs();
+    const int frames = (next_ + 1) * total / 4 - next_ * total / 4;
+    frame_ms_.push_back((ms - last_ms_) / frames);
+    last_ms_ = ms;
+    ++next_;
+  }
+  const std::vector<double>& FrameMs() const { return frame_ms_; }
+
+ private:
+  Timer timer_;
+  int next_ = 0;
+  double last_ms_ = 0.0;
+  std::vector<double> frame_ms_;
+};
+
+// The most memory the process has held resident, MiB.
+double PeakResidentMib() {
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // Linux counts KiB.
+}
 
 using mapstore::MapInfo;
 namespace fs = std::filesystem;
@@ -404,8 +434,10 @@ int RunBuild(const Args& args) {
   mapping::MapBuildStats stats;
   Trajectory frame_trajectory;
   const bool progress = ShowProgress() && !json;
+  QuarterClock quarters;
   const Map map = mapping::BuildMap(*dataset, options, metadata, &stats, &frame_trajectory,
                                     [&](int done, int total, const std::string& status) {
+                                      quarters.Frame(done, total);
                                       if (progress)
                                         std::fprintf(stderr, "\r\33[Kframe %d / %d: %s", done,
                                                      total, status.c_str());
@@ -446,8 +478,11 @@ int RunBuild(const Args& args) {
         .Field("global_ba_ms", stats.global_ba_ms)
         .Field("learning_ms", stats.learning_ms)
         .Field("total_s", stats.total_ms / 1000)
-        .Field("fps", stats.frames / (stats.total_ms / 1000))
-        .EndObject();
+        .Field("fps", stats.frames / (stats.total_ms / 1000));
+    // Whether the cost of a frame grows with the run (the end's adjustment excluded).
+    writer.Key("quarter_frame_ms").BeginArray();
+    for (const double ms : quarters.FrameMs()) writer.Value(ms);
+    writer.EndArray().Field("peak_rss_mib", PeakResidentMib()).EndObject();
     std::cout << writer.str() << "\n";
     return 0;
   }
