@@ -102,12 +102,12 @@ LoopClosureEvent LoopCloser::TryClose(SlamState* state) {
                      correction_deg >= options_.adjust_min_correction_deg;
     // The graph's edges are the relative poses before the tracks are merged: the merged tracks
     // join the drifted keyframe to the old ones, which is the loop edge's to say.
+    const int old = candidates[c].second;
     std::vector<PoseGraphEdge> edges;
-    if (event.adjusted) edges = CovisibilityEdges(*state, k + 1, options_.pose_graph);
+    if (event.adjusted) edges = CovisibilityEdges(*state, old, k + 1, options_.pose_graph);
     // Geometrically verified: the current keypoints are the old landmarks.
     MergeTracks(state, k, matches, result.inlier_mask);
     if (event.adjusted) {
-      const int old = candidates[c].second;
       const PoseGraphEdge loop_edge{
           old, k, result.cam_from_world * state->keyframes[old].cam_from_world.Inverse()};
       CorrectLoop(edges, loop_edge, options_.pose_graph, state);

@@ -68,27 +68,31 @@ PoseGraphEdge EdgeNow(const SlamState& state, int a, int b) {
 
 }  // namespace
 
-std::vector<PoseGraphEdge> CovisibilityEdges(const SlamState& state, int end,
+std::vector<PoseGraphEdge> CovisibilityEdges(const SlamState& state, int anchor, int end,
                                              const PoseGraphOptions& options) {
   options.Check();
-  VISLOC_CHECK(end >= 0 && end <= static_cast<int>(state.keyframes.size()), "pose graph of ", end,
-               " keyframes of ", state.keyframes.size());
+  VISLOC_CHECK(end >= 0 && end <= static_cast<int>(state.keyframes.size()) && anchor >= 0,
+               "pose graph of ", end, " keyframes of ", state.keyframes.size(), " anchored at ",
+               anchor);
   std::vector<PoseGraphEdge> edges;
-  for (int k = 1; k < end; ++k) edges.push_back(EdgeNow(state, k - 1, k));
+  for (int k = anchor + 1; k < end; ++k) edges.push_back(EdgeNow(state, k - 1, k));
   // Shared landmarks per pair of keyframes more than one apart, keyed a * end + b (a < b).
   std::unordered_map<int64_t, int> shared;
   std::vector<int> observers;
   for (const Landmark& landmark : state.landmarks) {
     if (landmark.culled) continue;
     observers.clear();
+    bool moves = false;  // Seen by a keyframe after the anchor.
     for (const auto& [k, i] : landmark.observations) {
       if (k < end) observers.push_back(k);
+      moves |= k > anchor && k < end;
     }
+    if (!moves) continue;
     std::sort(observers.begin(), observers.end());
     observers.erase(std::unique(observers.begin(), observers.end()), observers.end());
     for (size_t x = 0; x < observers.size(); ++x) {
       for (size_t y = x + 1; y < observers.size(); ++y) {
-        if (observers[y] > observers[x] + 1) {
+        if (observers[y] > observers[x] + 1 && observers[y] > anchor) {
           ++shared[static_cast<int64_t>(observers[x]) * end + observers[y]];
         }
       }
@@ -114,6 +118,7 @@ PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
   VISLOC_CHECK(loop_edge.a >= 0 && loop_edge.a < loop_edge.b &&
                    n <= static_cast<int>(state->keyframes.size()),
                "loop edge ", loop_edge.a, " -> ", loop_edge.b);
+  const int anchor = loop_edge.a;  // It and every keyframe before it are held.
   std::vector<PoseBlock> poses(n);
   std::vector<Rigid3d> before(n);
   for (int k = 0; k < n; ++k) {
@@ -122,19 +127,21 @@ PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
   }
   ceres::Problem problem;
   PoseGraphSummary summary;
+  std::vector<bool> in_problem(n, false);
   auto add_edge = [&](const PoseGraphEdge& edge) {
-    if (edge.a >= n || edge.b >= n) return;
+    if (edge.a >= n || edge.b >= n || std::max(edge.a, edge.b) <= anchor) return;
     problem.AddResidualBlock(RelativePoseCost::Create(edge, options), nullptr, poses[edge.a].data(),
                              poses[edge.a].data() + 4, poses[edge.b].data(),
                              poses[edge.b].data() + 4);
+    in_problem[edge.a] = in_problem[edge.b] = true;
     ++summary.edges;
   };
   for (const PoseGraphEdge& edge : edges) add_edge(edge);
   add_edge(loop_edge);
   for (int k = 0; k < n; ++k) {
-    SetUpPoseBlock(&problem, &poses[k], k == 0 || k == loop_edge.a);
+    if (in_problem[k]) SetUpPoseBlock(&problem, &poses[k], k <= anchor);
   }
-  summary.keyframes = n;
+  summary.keyframes = n - anchor - 1;  // That move.
   summary.iterations =
       SolveQuietly(&problem, ceres::SPARSE_NORMAL_CHOLESKY, options.max_iterations);
   // cam_from_world' = corrected_k * before_k^-1 * cam_from_world, for the points each keyframe

@@ -38,22 +38,25 @@ struct PoseGraphEdge {
 };
 
 // The graph's edges among keyframes [0, end) as their poses stand now: consecutive keyframes,
-// and pairs sharing options.min_shared_landmarks landmarks. Call before a closure merges tracks,
-// so that the loop's own new links are not taken as edges of the drifted poses.
-std::vector<PoseGraphEdge> CovisibilityEdges(const SlamState& state, int end,
+// and pairs sharing options.min_shared_landmarks landmarks; only those that reach a keyframe after
+// `anchor`, as CorrectLoop holds the loop's old keyframe and every one before it (an edge between
+// two held keyframes says nothing). Call before a closure merges tracks, so that the loop's own
+// new links are not taken as edges of the drifted poses.
+std::vector<PoseGraphEdge> CovisibilityEdges(const SlamState& state, int anchor, int end,
                                              const PoseGraphOptions& options);
 
 struct PoseGraphSummary {
-  int keyframes = 0;
+  int keyframes = 0;  // That the loop may move: those after its old keyframe.
   int edges = 0;
   int iterations = 0;
   double max_move_m = 0.0;  // The largest keyframe centre's move.
   double time_ms = 0.0;
 };
 
-// Moves keyframes [0, loop_edge.b] so that they keep `edges` and the loop edge as well as they
-// can, with keyframe 0 and the loop's old keyframe (loop_edge.a) held; landmarks move with the
-// keyframe of their first observation.
+// Moves keyframes (loop_edge.a, loop_edge.b] so that they keep `edges` and the loop edge as well
+// as they can, with the loop's old keyframe (loop_edge.a) and every one before it held: the drift
+// the loop measures is the one accumulated since, and the problem's size is the loop's, not the
+// run's. Landmarks move with the keyframe of their first observation.
 PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
                              const PoseGraphEdge& loop_edge, const PoseGraphOptions& options,
                              SlamState* state);

@@ -90,22 +90,44 @@ TEST(PoseGraphTest, EdgesJoinConsecutiveKeyframesAndThoseSharingLandmarks) {
   const DriftedRun run = DriftedCircle();
   PoseGraphOptions options;
   // Keyframes k and k + 2 share the 40 points of k; k and k + 3 share none.
-  const std::vector<PoseGraphEdge> edges = CovisibilityEdges(run.state, kKeyframes, options);
+  const std::vector<PoseGraphEdge> edges = CovisibilityEdges(run.state, 0, kKeyframes, options);
   EXPECT_EQ(edges.size(), static_cast<size_t>((kKeyframes - 1) + (kKeyframes - 2)));
   for (const PoseGraphEdge& edge : edges) {
     EXPECT_TRUE(edge.b == edge.a + 1 || edge.b == edge.a + 2) << edge.a << " -> " << edge.b;
   }
   options.min_shared_landmarks = kPointsPerKeyframe + 1;
-  EXPECT_EQ(CovisibilityEdges(run.state, kKeyframes, options).size(),
+  EXPECT_EQ(CovisibilityEdges(run.state, 0, kKeyframes, options).size(),
             static_cast<size_t>(kKeyframes - 1));
   // A graph of the first keyframes only.
-  EXPECT_EQ(CovisibilityEdges(run.state, 10, PoseGraphOptions{}).size(), 9u + 8u);
+  EXPECT_EQ(CovisibilityEdges(run.state, 0, 10, PoseGraphOptions{}).size(), 9u + 8u);
+}
+
+// A loop back to keyframe 10 moves the keyframes after it only: the graph is the loop's size,
+// not the run's, and the keyframes before it (corrected by earlier loops) stay where they are.
+TEST(PoseGraphTest, KeyframesUpToTheLoopsOldOneAreHeld) {
+  DriftedRun run = DriftedCircle();
+  const int anchor = 10, last = kKeyframes - 1;
+  const std::vector<PoseGraphEdge> edges =
+      CovisibilityEdges(run.state, anchor, kKeyframes, PoseGraphOptions{});
+  // Consecutive pairs after the anchor, and pairs (a, a + 2) whose later keyframe is after it.
+  EXPECT_EQ(edges.size(), static_cast<size_t>((last - anchor) + (kKeyframes - 2 - (anchor - 1))));
+  std::vector<Rigid3d> held;
+  for (int k = 0; k <= anchor; ++k) held.push_back(run.state.keyframes[k].cam_from_world);
+  const PoseGraphEdge loop{anchor, last,
+                           TrueCamFromWorld(last) * TrueCamFromWorld(anchor).Inverse()};
+  const double error_before_m = MaxKeyframeErrorM(run.state);
+  const PoseGraphSummary summary = CorrectLoop(edges, loop, PoseGraphOptions{}, &run.state);
+  EXPECT_EQ(summary.keyframes, last - anchor);
+  for (int k = 0; k <= anchor; ++k) {
+    EXPECT_EQ(run.state.keyframes[k].cam_from_world.translation, held[k].translation) << k;
+  }
+  EXPECT_LT(MaxKeyframeErrorM(run.state), 0.5 * error_before_m);
 }
 
 TEST(PoseGraphTest, TheLoopsDriftIsSpreadOverTheCircleAndThePointsFollow) {
   DriftedRun run = DriftedCircle();
   const PoseGraphOptions options;
-  const std::vector<PoseGraphEdge> edges = CovisibilityEdges(run.state, kKeyframes, options);
+  const std::vector<PoseGraphEdge> edges = CovisibilityEdges(run.state, 0, kKeyframes, options);
   const double keyframe_error_before_m = MaxKeyframeErrorM(run.state);
   const double point_error_before_m = MaxPointErrorM(run);
   // The closure: the last keyframe's pose from the first keyframe's landmarks is its true pose
