@@ -87,12 +87,7 @@ int64_t UnixNowNs() {
 uint64_t MappingJobs::Begin(const std::string& map_name, const std::string& robot_id) {
   std::lock_guard<std::mutex> lock(mutex_);
   const uint64_t id = next_id_++;
-  v1::MappingJob& job = jobs_[id];
-  job.set_job_id(id);
-  job.set_map_name(map_name);
-  job.set_robot_id(robot_id);
-  job.set_state(v1::MAPPING_TRACKING);
-  job.set_started_unix_ns(UnixNowNs());
+  NewRecord(id, map_name, robot_id, v1::MAPPING_TRACKING);
   return id;
 }
 
@@ -100,13 +95,18 @@ void MappingJobs::Adopt(uint64_t id, const std::string& map_name, const std::str
                         const std::string& note) {
   std::lock_guard<std::mutex> lock(mutex_);
   next_id_ = std::max(next_id_, id + 1);
+  NewRecord(id, map_name, robot_id, v1::MAPPING_WAITING).set_note(note);
+}
+
+v1::MappingJob& MappingJobs::NewRecord(uint64_t id, const std::string& map_name,
+                                       const std::string& robot_id, v1::MappingState state) {
   v1::MappingJob& job = jobs_[id];
   job.set_job_id(id);
   job.set_map_name(map_name);
   job.set_robot_id(robot_id);
-  job.set_state(v1::MAPPING_WAITING);
+  job.set_state(state);
   job.set_started_unix_ns(UnixNowNs());
-  job.set_note(note);
+  return job;
 }
 
 void MappingJobs::IdsAfter(uint64_t id) {

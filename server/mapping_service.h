@@ -84,6 +84,10 @@ class MappingJobs {
   std::vector<MappingJobView> Views() const;
 
  private:
+  // A job's record from its start (mutex_ held).
+  v1::MappingJob& NewRecord(uint64_t id, const std::string& map_name, const std::string& robot_id,
+                            v1::MappingState state);
+
   mutable std::mutex mutex_;
   uint64_t next_id_ = 1;
   std::map<uint64_t, v1::MappingJob> jobs_;
