@@ -55,6 +55,8 @@ int RunSim(const Args& args) {
   parser.AddFlag("frames", &options.max_frames, "stop after this many frames (0: whole sequence)");
   parser.AddFlag("seed", &seed, "seed for textures, noise and odometry drift");
   parser.AddFlag("supersample", &options.supersample, "anti-aliasing samples per pixel side (1-8)");
+  parser.AddFlag("threads", &options.render_threads,
+                 "1, or 2 to render a frame's two views at once (the same images, faster)");
   parser.AddFlag("format", &format, "dataset layout: euroc or kitti");
   parser.AddSwitch("distortion", &options.rig.distortion,
                    "lens distortion (radial-tangential; with --lens fisheye, k1..k4)");
@@ -104,6 +106,8 @@ int RunSim(const Args& args) {
   ParseResolution(resolution, &options.rig.width, &options.rig.height);
   if (options.rig.fps <= 0 || options.rig.fps > 200) throw UsageError("--fps must be in (0, 200]");
   if (options.max_frames < 0) throw UsageError("--frames must not be negative");
+  if (options.render_threads < 1 || options.render_threads > 2)
+    throw UsageError("--threads must be 1 or 2");
   if (options.supersample < 1 || options.supersample > 8)
     throw UsageError("--supersample must be 1-8");
   if (seed < 0) throw UsageError("--seed must not be negative");

@@ -32,7 +32,7 @@ RUN=$WORK/seq/map_building
 KILL_AT=18000  # 20 minutes of the run at 15 Hz.
 mkdir -p "$WORK"
 [[ -f $RUN/sequence.json ]] ||
-  "$V" sim --out "$WORK/seq" --no-contact-sheet --sequence map_building > /dev/null
+  "$V" sim --out "$WORK/seq" --no-contact-sheet --sequence map_building --threads 2 > /dev/null
 
 echo "== map build"
 "$V" map build --dataset "$RUN" --out "$WORK/building.db" --trajectory "$WORK/building.tum" \

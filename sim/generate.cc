@@ -30,11 +30,17 @@ std::string WorldKey(const RoomOptions& room) {
                 room.street, "/", room.building);
 }
 
-// The two views of a stereo frame rendered at once, the right one on a second thread: rendering
-// is most of a sequence's time, and it reads the world only. The sensor's noise is drawn after,
-// in frame order, so a sequence is the same image for image.
+// The two views of a stereo frame; with two threads rendered at once, the right one on a second
+// thread: rendering is most of a sequence's time, and it reads the world only. The sensor's
+// noise is drawn after, in frame order, so a sequence is the same image for image either way.
 template <typename RenderLeft, typename RenderRight>
-void RenderPair(RenderLeft render_left, RenderRight render_right, cv::Mat* left, cv::Mat* right) {
+void RenderPair(int threads, RenderLeft render_left, RenderRight render_right, cv::Mat* left,
+                cv::Mat* right) {
+  if (threads < 2) {
+    *left = render_left();
+    *right = render_right();
+    return;
+  }
   std::future<cv::Mat> right_done = std::async(std::launch::async, render_right);
   *left = render_left();
   *right = right_done.get();
@@ -188,6 +194,7 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
       const Rigid3d open = spec.path.WorldFromBody(t - half),
                     close = spec.path.WorldFromBody(t + half);
       RenderPair(
+          options_.render_threads,
           [&] {
             return left_renderer.RenderRadiance(world, open * rig.left.body_from_cam,
                                                 close * rig.left.body_from_cam, t, 2 * half);
@@ -199,9 +206,11 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
           },
           &left_radiance, &right_radiance);
     } else {
-      RenderPair([&] { return left_renderer.RenderRadiance(world, world_from_left, t); },
-                 [&] { return right_renderer.RenderRadiance(world, world_from_right, t); },
-                 &left_radiance, &right_radiance);
+      RenderPair(
+          options_.render_threads,
+          [&] { return left_renderer.RenderRadiance(world, world_from_left, t); },
+          [&] { return right_renderer.RenderRadiance(world, world_from_right, t); }, &left_radiance,
+          &right_radiance);
     }
     render_ms += render_timer.ElapsedMs();
     SensorModel left_sensor = spec.sensor, right_sensor = spec.sensor;

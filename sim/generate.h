@@ -35,6 +35,9 @@ struct GenerateOptions {
   RigOptions rig;
   std::optional<CameraEffects> effects;  // None: the ideal sensor of each sequence.
   int supersample = 2;  // Samples per pixel side.
+  // 2: a stereo frame's two views render at once, on two threads (the same images). 1 by default:
+  // the tests' data is rendered beside other tests, and a long run is the one that wants both.
+  int render_threads = 1;
   int max_frames = 0;   // 0: the whole sequence.
   uint64_t seed = 1;    // Textures, noise and drift.
   DatasetFormat format = DatasetFormat::kEuroc;
