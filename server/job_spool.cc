@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -33,7 +34,8 @@ int64_t SteadyNowNs() {
 // A folder name that is a job id ("12"), or 0.
 uint64_t JobIdOf(const std::string& folder_name) {
   if (folder_name.empty() || folder_name.size() > 19 ||
-      !std::all_of(folder_name.begin(), folder_name.end(), ::isdigit)) {
+      !std::all_of(folder_name.begin(), folder_name.end(),
+                   [](unsigned char c) { return std::isdigit(c) != 0; })) {
     return 0;
   }
   return std::stoull(folder_name);
