@@ -96,6 +96,11 @@ double CpuSeconds() {
          1e-6 * (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
 }
 
+// The server's reason when admission control refuses a session (server/admission.h).
+bool IsCapacityRefusal(const std::string& detail) {
+  return detail.find("server at capacity") != std::string::npos;
+}
+
 void Record(const client::Event& e, double since_start_s, RobotRecord* robot) {
   switch (e.kind) {
     case client::Event::Kind::kResult:
@@ -121,13 +126,15 @@ void Record(const client::Event& e, double since_start_s, RobotRecord* robot) {
       ++(robot->refused() ? robot->awaiting_admission : robot->dropped);
       break;
     case client::Event::Kind::kUndelivered:
-      ++robot->undelivered;
+      // Sent before the server's capacity refusal came back: the robot was not admitted.
+      ++(IsCapacityRefusal(e.detail) && robot->answered == 0 ? robot->awaiting_admission
+                                                             : robot->undelivered);
       break;
     case client::Event::Kind::kLinkState:
       if (e.link_state == client::LinkState::kFailed && robot->failure.empty()) {
         robot->failure = e.detail;
       }
-      robot->capacity_refusals += e.detail.find("server at capacity") != std::string::npos;
+      robot->capacity_refusals += IsCapacityRefusal(e.detail);
       break;
   }
 }

@@ -423,15 +423,6 @@ bool SessionImpl::EndStream(Events* events, bool* permanent) {
   stream->reader.join();
   const grpc::Status status = stream->call->Finish();
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const InFlight& lost : in_flight_) {
-    Event undelivered;
-    undelivered.kind = Event::Kind::kUndelivered;
-    undelivered.timestamp_ns = lost.timestamp_ns;
-    undelivered.detail = "the stream broke before its answer";
-    events->push_back(std::move(undelivered));
-    ++stats_.undelivered;
-  }
-  in_flight_.clear();
   *permanent = Permanent(status.error_code());
   // The server's status says most; ours (a stall we cancelled, a failed write) when there is
   // none or it is only the echo of our cancel.
@@ -441,6 +432,17 @@ bool SessionImpl::EndStream(Events* events, bool* permanent) {
                          : status.error_message() + " (gRPC code " +
                                std::to_string(static_cast<int>(status.error_code())) + ")";
   if (why.empty()) why = "the server ended the stream";
+  // Each unanswered frame says why: a refusal (no map, a server at capacity) is not a link
+  // that lost frames.
+  for (const InFlight& lost : in_flight_) {
+    Event undelivered;
+    undelivered.kind = Event::Kind::kUndelivered;
+    undelivered.timestamp_ns = lost.timestamp_ns;
+    undelivered.detail = "the stream broke before its answer: " + why;
+    events->push_back(std::move(undelivered));
+    ++stats_.undelivered;
+  }
+  in_flight_.clear();
   if (*permanent) {
     refused_ = "the server refused the session: " + why;
     SetState(LinkState::kFailed, refused_, events);

@@ -198,6 +198,15 @@ TEST_F(ClientSessionTest, ARefusedSessionFailsOnceWithTheServersReason) {
   EXPECT_EQ(events.back().link_state, LinkState::kFailed);
   EXPECT_THAT(events.back().detail, HasSubstr("no map named 'nope'"));
   EXPECT_THAT(events.back().detail, HasSubstr("gRPC code 5"));
+  // Frames sent before the refusal came say why they were never answered (a load test counts
+  // a capacity refusal's frames as awaiting admission, not as lost by the link).
+  int undelivered = 0;
+  for (const Event& e : events) {
+    if (e.kind != Event::Kind::kUndelivered) continue;
+    ++undelivered;
+    EXPECT_THAT(e.detail, HasSubstr("no map named 'nope'"));
+  }
+  EXPECT_GT(undelivered, 0) << "the frames went out before the refusal came";
   std::string why;
   EXPECT_FALSE(session->Submit(MakeFrame(1), &why));
   EXPECT_THAT(why, HasSubstr("no map named 'nope'"));

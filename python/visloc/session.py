@@ -444,11 +444,14 @@ class Session:
         channel.close()
         error = stream_state["status"]
         code = error.code() if error is not None else None
+        why = stream_state["why"] or (error.details() if error is not None else
+                                      "the server ended the stream")
         with self._lock:
+            # Each unanswered frame says why: a refusal is not a link that lost frames.
             for lost in self._in_flight:
                 self.stats["undelivered"] += 1
                 events.append(Event("undelivered", lost.timestamp_ns,
-                                    detail="the stream broke before its answer"))
+                                    detail="the stream broke before its answer: " + why))
             self._in_flight.clear()
             if code in _PERMANENT:
                 self._refused = f"the server refused the session: {error.details()} ({code.name})"
@@ -457,8 +460,6 @@ class Session:
                     events.append(Event("dropped", old.timestamp_ns, detail=self._refused))
                 self._queue.clear()
             elif not self._closing:
-                why = stream_state["why"] or (error.details() if error is not None else
-                                              "the server ended the stream")
                 self._set_state(LinkState.RECONNECTING, why, events)
             self._lock.notify_all()
         return code == grpc.StatusCode.RESOURCE_EXHAUSTED and not stream_state["answered"]
