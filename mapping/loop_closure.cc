@@ -101,16 +101,17 @@ LoopClosureEvent LoopCloser::TryClose(SlamState* state) {
     event.adjusted = correction_m >= options_.adjust_min_correction_m ||
                      correction_deg >= options_.adjust_min_correction_deg;
     // The graph's edges are the relative poses before the tracks are merged: the merged tracks
-    // join the drifted keyframe to the old ones, which is the loop edge's to say.
+    // join the drifted keyframes to the old ones, which is the loop edges' to say.
     const int old = candidates[c].second;
     std::vector<PoseGraphEdge> edges;
     if (event.adjusted) edges = CovisibilityEdges(*state, old, k + 1, options_.pose_graph);
     // Geometrically verified: the current keypoints are the old landmarks.
     MergeTracks(state, k, matches, result.inlier_mask);
     if (event.adjusted) {
-      const PoseGraphEdge loop_edge{
+      const PoseGraphEdge closure{
           old, k, result.cam_from_world * state->keyframes[old].cam_from_world.Inverse()};
-      CorrectLoop(edges, loop_edge, options_.pose_graph, state);
+      CorrectLoop(edges, LoopEdges(*state, closure, window_, edges, options_.pose_graph),
+                  options_.pose_graph, state);
     }
     return event;
   }

@@ -15,9 +15,9 @@
 namespace visloc::mapping {
 
 void PoseGraphOptions::Check() const {
-  VISLOC_CHECK(min_shared_landmarks >= 1 && max_iterations >= 1,
+  VISLOC_CHECK(min_shared_landmarks >= 1 && max_iterations >= 1 && loop_edges_per_keyframe >= 1,
                "pose graph: ", min_shared_landmarks, " shared landmarks, ", max_iterations,
-               " iterations");
+               " iterations, ", loop_edges_per_keyframe, " loop edges per keyframe");
   VISLOC_CHECK(translation_sigma_m > 0 && rotation_sigma_deg > 0, "pose graph sigmas ",
                translation_sigma_m, " m, ", rotation_sigma_deg, " deg");
 }
@@ -109,15 +109,52 @@ std::vector<PoseGraphEdge> CovisibilityEdges(const SlamState& state, int anchor,
   return edges;
 }
 
+std::vector<PoseGraphEdge> LoopEdges(const SlamState& state, const PoseGraphEdge& closure,
+                                     int window, const std::vector<PoseGraphEdge>& edges,
+                                     const PoseGraphOptions& options) {
+  options.Check();
+  const int old = closure.a, current = closure.b;
+  VISLOC_CHECK(old >= 0 && old < current && current < static_cast<int>(state.keyframes.size()) &&
+                   window >= 1,
+               "loop ", old, " -> ", current, " with a window of ", window);
+  std::vector<PoseGraphEdge> loop_edges{closure};
+  std::vector<int> old_place{old};
+  for (const PoseGraphEdge& edge : edges) {
+    if (static_cast<int>(old_place.size()) >= options.loop_edges_per_keyframe) break;
+    if (edge.a == old && edge.b <= current - window &&
+        std::find(old_place.begin(), old_place.end(), edge.b) == old_place.end()) {
+      old_place.push_back(edge.b);
+    }
+  }
+  // corrected_w = w_from_current * corrected_current: the window keeps its relative poses.
+  const Rigid3d& current_from_world = state.keyframes[current].cam_from_world;
+  const Rigid3d corrected_current = closure.b_from_a * state.keyframes[old].cam_from_world;
+  for (int w = std::max(old + 1, current - window + 1); w <= current; ++w) {
+    const Rigid3d corrected_w =
+        state.keyframes[w].cam_from_world * current_from_world.Inverse() * corrected_current;
+    for (int o : old_place) {
+      if (o >= w || (o == old && w == current)) continue;
+      loop_edges.push_back({o, w, corrected_w * state.keyframes[o].cam_from_world.Inverse()});
+    }
+  }
+  return loop_edges;
+}
+
 PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
-                             const PoseGraphEdge& loop_edge, const PoseGraphOptions& options,
-                             SlamState* state) {
+                             const std::vector<PoseGraphEdge>& loop_edges,
+                             const PoseGraphOptions& options, SlamState* state) {
   options.Check();
   Timer timer;
+  VISLOC_CHECK(!loop_edges.empty(), "a loop without its edge");
+  const PoseGraphEdge& loop_edge = loop_edges.front();
   const int n = loop_edge.b + 1;
   VISLOC_CHECK(loop_edge.a >= 0 && loop_edge.a < loop_edge.b &&
                    n <= static_cast<int>(state->keyframes.size()),
                "loop edge ", loop_edge.a, " -> ", loop_edge.b);
+  for (const PoseGraphEdge& edge : loop_edges) {
+    VISLOC_CHECK(edge.a >= 0 && edge.b >= 0 && edge.a < n && edge.b < n, "loop edge ", edge.a,
+                 " -> ", edge.b, " beyond keyframe ", loop_edge.b);
+  }
   const int anchor = loop_edge.a;  // It and every keyframe before it are held.
   std::vector<PoseBlock> poses(n);
   std::vector<Rigid3d> before(n);
@@ -137,7 +174,7 @@ PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
     ++summary.edges;
   };
   for (const PoseGraphEdge& edge : edges) add_edge(edge);
-  add_edge(loop_edge);
+  for (const PoseGraphEdge& edge : loop_edges) add_edge(edge);
   for (int k = 0; k < n; ++k) {
     if (in_problem[k]) SetUpPoseBlock(&problem, &poses[k], k <= anchor);
   }

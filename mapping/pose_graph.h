@@ -28,6 +28,9 @@ struct PoseGraphOptions {
   double translation_sigma_m = 0.01;
   double rotation_sigma_deg = 0.1;
   int max_iterations = 20;
+  // A loop joins each keyframe of the current window to up to this many keyframes of the old
+  // place (LoopEdges); 1: the closure's own edge only.
+  int loop_edges_per_keyframe = 8;
   void Check() const;
 };
 
@@ -53,12 +56,26 @@ struct PoseGraphSummary {
   double time_ms = 0.0;
 };
 
-// Moves keyframes (loop_edge.a, loop_edge.b] so that they keep `edges` and the loop edge as well
-// as they can, with the loop's old keyframe (loop_edge.a) and every one before it held: the drift
-// the loop measures is the one accumulated since, and the problem's size is the loop's, not the
-// run's. Landmarks move with the keyframe of their first observation.
+// The edges a loop closed at keyframe closure.b onto keyframe closure.a adds to the graph, the
+// closure's own first. The tracks the closure merges join the whole current window (its last
+// `window` keyframes) to the old place, so each keyframe of the window, moved rigidly with the
+// current one, is joined to the old keyframe and to the keyframes after it that share its
+// landmarks (in `edges`: CovisibilityEdges anchored at closure.a), outside the window: up to
+// options.loop_edges_per_keyframe of them. A revisited place's keyframes have dozens of
+// covisibility edges each; a loop of one edge is outweighed by them and leaves the drift where it
+// is (on the generated building, closure after closure moved keyframes 1 cm for a 5-8 cm
+// correction).
+std::vector<PoseGraphEdge> LoopEdges(const SlamState& state, const PoseGraphEdge& closure,
+                                     int window, const std::vector<PoseGraphEdge>& edges,
+                                     const PoseGraphOptions& options);
+
+// Moves keyframes (old, current] so that they keep `edges` and the loop's edges as well as they
+// can, where loop_edges.front() is the closure itself (a = old, b = current) and the others join
+// keyframes of those two places (within [0, current]). The loop's old keyframe and every one
+// before it are held: the drift the loop measures is the one accumulated since, and the problem's
+// size is the loop's, not the run's. Landmarks move with the keyframe of their first observation.
 PoseGraphSummary CorrectLoop(const std::vector<PoseGraphEdge>& edges,
-                             const PoseGraphEdge& loop_edge, const PoseGraphOptions& options,
-                             SlamState* state);
+                             const std::vector<PoseGraphEdge>& loop_edges,
+                             const PoseGraphOptions& options, SlamState* state);
 
 }  // namespace visloc::mapping
