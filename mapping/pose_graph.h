@@ -21,8 +21,11 @@
 namespace visloc::mapping {
 
 struct PoseGraphOptions {
-  // Keyframes that share at least this many landmarks are joined by an edge.
-  int min_shared_landmarks = 30;
+  // Keyframes that share at least this many landmarks are joined by an edge: the strong ones
+  // only (an essential graph). On the generated building 30 gave about 60 edges a keyframe and
+  // 2-3.5 s a correction across 2,400 keyframes; 100 took loop closure from 36 to 15 s with the
+  // frames' error the same (median 2.5 and 2.1 cm, max 5.5 and 6.5 cm).
+  int min_shared_landmarks = 100;
   // How firmly an edge holds its relative pose, per axis: the loop's drift goes where the edges
   // give most cheaply. The ratio weighs a degree against a centimetre.
   double translation_sigma_m = 0.01;

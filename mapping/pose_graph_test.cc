@@ -11,7 +11,7 @@ namespace visloc::mapping {
 namespace {
 
 constexpr int kKeyframes = 48;
-constexpr int kPointsPerKeyframe = 40;
+constexpr int kPointsPerKeyframe = 120;
 
 // A camera walking a circle of 2 m radius, looking along it (the rectified camera: z forward,
 // y down; the circle in the x-z plane), keyframe k at 7.5 degrees a step: the last keyframe
@@ -89,7 +89,7 @@ double MaxPointErrorM(const DriftedRun& run) {
 TEST(PoseGraphTest, EdgesJoinConsecutiveKeyframesAndThoseSharingLandmarks) {
   const DriftedRun run = DriftedCircle();
   PoseGraphOptions options;
-  // Keyframes k and k + 2 share the 40 points of k; k and k + 3 share none.
+  // Keyframes k and k + 2 share the 120 points of k; k and k + 3 share none.
   const std::vector<PoseGraphEdge> edges = CovisibilityEdges(run.state, 0, kKeyframes, options);
   EXPECT_EQ(edges.size(), static_cast<size_t>((kKeyframes - 1) + (kKeyframes - 2)));
   for (const PoseGraphEdge& edge : edges) {
