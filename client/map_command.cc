@@ -476,6 +476,7 @@ int RunBuild(const Args& args) {
         .Field("local_ba_ms", stats.local_ba_ms)
         .Field("loop_closure_ms", stats.loop_ms)
         .Field("global_ba_ms", stats.global_ba_ms)
+        .Field("global_ba_pieces", static_cast<int64_t>(stats.global_ba_pieces))
         .Field("learning_ms", stats.learning_ms)
         .Field("total_s", stats.total_ms / 1000)
         .Field("fps", stats.frames / (stats.total_ms / 1000));

@@ -42,6 +42,8 @@ void MapBuilderOptions::Check() const {
   VISLOC_CHECK(threads >= 0, "map building threads: ", threads, " (0: every core)");
   VISLOC_CHECK(local_ba.max_iterations >= 1 && global_ba_iterations >= 1, "BA iterations ",
                local_ba.max_iterations, ", ", global_ba_iterations);
+  VISLOC_CHECK(global_ba_max_keyframes >= 1, "global BA pieces of ", global_ba_max_keyframes,
+               " keyframes");
   VISLOC_CHECK(global_ba_function_tolerance > 0 && global_ba_readjust_fraction >= 0,
                "global BA tolerance ", global_ba_function_tolerance, ", readjustment after ",
                global_ba_readjust_fraction);
@@ -332,24 +334,59 @@ std::string MapBuilder::Status() const {
                 progress.tracked, " tracked, ", progress.loop_closures, " loops");
 }
 
+namespace {
+
+// The keyframes outside `piece` (ascending) that observe a landmark a keyframe of it observes.
+std::vector<int> HeldAround(const SlamState& state, const std::vector<int>& piece) {
+  std::vector<char> in_piece(state.keyframes.size(), 0);
+  for (int k : piece) in_piece[k] = 1;
+  std::vector<char> held(state.keyframes.size(), 0);
+  for (int k : piece) {
+    for (int l : state.keyframes[k].landmark) {
+      if (l < 0 || state.landmarks[l].culled) continue;
+      for (const auto& [kk, i] : state.landmarks[l].observations) held[kk] |= !in_piece[kk];
+    }
+  }
+  std::vector<int> around;
+  for (int k = 0; k < static_cast<int>(held.size()); ++k) {
+    if (held[k]) around.push_back(k);
+  }
+  return around;
+}
+
+}  // namespace
+
+void MapBuilder::GlobalAdjust() {
+  const int n = static_cast<int>(state_.keyframes.size());
+  if (n < 2) return;
+  BundleAdjustmentOptions global = options_.local_ba;
+  global.max_iterations = options_.global_ba_iterations;
+  global.function_tolerance = options_.global_ba_function_tolerance;
+  // Keyframes 1..n-1 in pieces of equal size; the first keyframe holds the map's frame.
+  const int pieces =
+      (n - 1 + options_.global_ba_max_keyframes - 1) / options_.global_ba_max_keyframes;
+  const int size = (n - 1 + pieces - 1) / pieces;
+  for (int begin = 1; begin < n; begin += size) {
+    std::vector<int> free;
+    for (int k = begin; k < std::min(n, begin + size); ++k) free.push_back(k);
+    std::vector<int> held = pieces == 1 ? std::vector<int>{0} : HeldAround(state_, free);
+    if (begin == 1) held.push_back(0);  // BundleAdjust takes a keyframe listed twice once.
+    const BundleAdjustmentSummary first = BundleAdjust(&state_, free, held, intrinsics_, global);
+    if (first.culled_observations >
+        options_.global_ba_readjust_fraction * first.residual_blocks) {
+      BundleAdjust(&state_, free, held, intrinsics_, global);  // again, without the outliers
+    }
+    ++stats_.global_ba_pieces;
+  }
+  counts_.reset();
+}
+
 Map MapBuilder::Finish(const MapMetadata& metadata) {
   VISLOC_CHECK(!state_.keyframes.empty(), "no frames were added");
   if (calibrating_) CalibrateDisparity();  // A sequence shorter than the calibration.
   Timer timer;
   const int n = static_cast<int>(state_.keyframes.size());
-  std::vector<int> free;
-  for (int k = 1; k < n; ++k) free.push_back(k);
-  BundleAdjustmentOptions global = options_.local_ba;
-  global.max_iterations = options_.global_ba_iterations;
-  global.function_tolerance = options_.global_ba_function_tolerance;
-  if (!free.empty()) {
-    const BundleAdjustmentSummary first = BundleAdjust(&state_, free, {0}, intrinsics_, global);
-    if (first.culled_observations >
-        options_.global_ba_readjust_fraction * first.residual_blocks) {
-      BundleAdjust(&state_, free, {0}, intrinsics_, global);  // again, without the outliers
-    }
-    counts_.reset();
-  }
+  GlobalAdjust();
   stats_.global_ba_ms += timer.ElapsedMs();
   timer.Restart();
   AssemblyStats assembly;

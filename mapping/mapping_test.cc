@@ -430,6 +430,37 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
   EXPECT_GE(view.points.size(), 50u);
 }
 
+// A run longer than global_ba_max_keyframes is adjusted at the end piece by piece, each piece
+// with the keyframes around it held: as accurate as the whole adjustment.
+TEST(MapBuilderGlobalAdjustmentTest, PiecesAreAsAccurateAsTheWholeRun) {
+  TempDir dir;
+  const Dataset dataset = RenderShort("map_square", 150, dir);
+  const Trajectory truth = ReadTum(dataset.root + "/groundtruth_map.tum");
+  const auto worst_error_m = [&](int max_keyframes, MapBuildStats* stats) {
+    DatasetMappingOptions options;
+    options.builder.loop_closure.enabled = false;
+    options.builder.global_ba_max_keyframes = max_keyframes;
+    Trajectory estimate;
+    BuildMap(dataset, options, {"pieces", 0, "test", "test", ""}, stats, &estimate);
+    EXPECT_EQ(estimate.size(), truth.size());
+    double worst_m = 0;
+    for (size_t i = 0; i < std::min(truth.size(), estimate.size()); ++i) {
+      worst_m =
+          std::max(worst_m, (estimate[i].pose.translation - truth[i].pose.translation).norm());
+    }
+    return worst_m;
+  };
+  MapBuildStats whole, pieces;
+  const double whole_m = worst_error_m(1000, &whole), pieces_m = worst_error_m(6, &pieces);
+  std::printf("%d keyframes: worst error %.2f cm adjusted whole, %.2f cm in %d pieces\n",
+              whole.keyframes, 100 * whole_m, 100 * pieces_m, pieces.global_ba_pieces);
+  EXPECT_EQ(whole.global_ba_pieces, 1);
+  ASSERT_GE(whole.keyframes, 13);
+  EXPECT_EQ(pieces.global_ba_pieces, (whole.keyframes - 1 + 5) / 6);
+  EXPECT_LT(whole_m, 0.02);
+  EXPECT_LT(pieces_m, whole_m + 0.003);
+}
+
 // MapBuilderOptions::threads splits a frame's work, decodes ahead and runs Ceres on several
 // threads: the map is the same, keyframe for keyframe and point for point.
 TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
