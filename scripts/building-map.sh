@@ -108,14 +108,15 @@ out = ["# A whole building in one run", "",
        "looking around in every room: %d frames at 320x240, exact ground truth." % b["frames"], "",
        "## Built here (`visloc map build`)", "",
        "| frames | keyframes | points | total, s | frames a second | features and stereo, s | "
-       "tracking, s | local BA, s | loop closure, s (closures, corrected) | global BA, s | "
+       "tracking, s | local BA, s | loop closure, s (closures, corrected) | global BA, s (pieces) | "
        "peak memory, MiB | frames' error, median / max, cm |",
        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-       "| %d | %d | %d | %.1f | %.0f | %.1f | %.1f | %.1f | %.2f (%d, %d) | %.2f | %.0f | %.2f / %.1f |" % (
+       "| %d | %d | %d | %.1f | %.0f | %.1f | %.1f | %.1f | %.2f (%d, %d) | %.2f (%d) | %.0f | %.2f / %.1f |" % (
            b["frames"], b["keyframes"], b["points"], b["total_s"], b["fps"],
            b["features_ms"] / 1e3, b["tracking_ms"] / 1e3, b["local_ba_ms"] / 1e3,
            b["loop_closure_ms"] / 1e3, b["loop_closures"], b["loop_adjustments"],
-           b["global_ba_ms"] / 1e3, b["peak_rss_mib"], 100 * t["median"], 100 * t["max"]), "",
+           b["global_ba_ms"] / 1e3, b["global_ba_pieces"], b["peak_rss_mib"], 100 * t["median"],
+           100 * t["max"]), "",
        "Wall time per frame in each quarter of the run (the end's global adjustment excluded): "
        "%s ms; the last quarter's is %.2f times the first's." % (
            ", ".join("%.2f" % x for x in q), q[-1] / q[0])]
