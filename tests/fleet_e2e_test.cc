@@ -119,20 +119,31 @@ TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBa
 
 // `visloc load`: many robots from one process, each frame accounted for (answered, skipped by the
 // server, dropped by the link's policy, late or undelivered), and a map the server does not
-// have named in the error. Its speed is a benchmark's to measure (scripts/capacity.sh).
+// have named in the error; at 5 Hz, a rate a sanitizer build keeps up with on a loaded machine
+// (at 10 Hz a CI run answered fewer than 90%). Its speed is a benchmark's to measure
+// (scripts/capacity.sh).
 TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
-  const std::vector<std::string> load = {"load",          "--server",   server.address(),
-                                         "--map",         "square",     "--dataset",
-                                         kData + "/query_square", "--robots", "4",
-                                         "--rate",        "10",         "--duration-s",
-                                         "3",             "--json"};
+  const std::vector<std::string> load = {"load",
+                                         "--server",
+                                         server.address(),
+                                         "--map",
+                                         "square",
+                                         "--dataset",
+                                         kData + "/query_square",
+                                         "--robots",
+                                         "4",
+                                         "--rate",
+                                         "5",
+                                         "--duration-s",
+                                         "4",
+                                         "--json"};
   const ProcessResult run = Visloc(load);
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const double frames = testing::JsonNumber(run.out, "frames");
   const double answered = testing::JsonNumber(run.out, "answered");
-  EXPECT_GE(frames, 4 * 10 * 3 - 4);
-  EXPECT_LE(frames, 4 * 10 * 3 + 4);
+  EXPECT_GE(frames, 4 * 5 * 4 - 4);
+  EXPECT_LE(frames, 4 * 5 * 4 + 4);
   double accounted = answered;
   for (const char* fate : {"skipped", "late", "dropped", "undelivered"}) {
     accounted += testing::JsonNumber(run.out, fate);

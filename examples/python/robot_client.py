@@ -33,10 +33,15 @@ def main() -> int:
     except ValueError as e:
         print(f"robot_client.py: {e}", file=sys.stderr)
         return 2
+    # Every frame ends as exactly one of: answered, late, dropped (a live robot's queue keeps the
+    # newest frames when the link or the server is slower than the camera) or undelivered.
     answered = posed = 0
+    unanswered = {"late": 0, "dropped": 0, "undelivered": 0}
 
     def on_event(event):
         nonlocal answered, posed
+        if event.kind in unanswered:
+            unanswered[event.kind] += 1
         if event.kind == "link":
             print(f"link {event.link_state.value}: {event.detail}", flush=True)
         elif event.kind == "result":
@@ -59,7 +64,9 @@ def main() -> int:
             print(f"not sent: {sent.reason}", file=sys.stderr)
         time.sleep(1 / 15)
     session.close()
-    print(f"answered {answered} of {len(images)} frames, {posed} with a pose")
+    print(f"answered {answered} of {len(images)} frames, {posed} with a pose; "
+          f"{unanswered['late']} late, {unanswered['dropped']} dropped, "
+          f"{unanswered['undelivered']} undelivered")
     return 0 if answered > 0 else 1
 
 

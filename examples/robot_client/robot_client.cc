@@ -54,9 +54,14 @@ int main(int argc, char** argv) {
   options.robot_id = "example-robot";
   options.encoding = visloc::client::Encoding::kJpeg;
   options.jpeg_quality = 90;
-  int posed = 0, answered = 0;
+  // Every frame ends as exactly one of: answered, late, dropped (a live robot's queue keeps the
+  // newest frames when the link or the server is slower than the camera) or undelivered.
+  int posed = 0, answered = 0, late = 0, dropped = 0, undelivered = 0;
   options.on_event = [&](const visloc::client::Event& event) {
     using Kind = visloc::client::Event::Kind;
+    if (event.kind == Kind::kLate) ++late;
+    if (event.kind == Kind::kDropped) ++dropped;
+    if (event.kind == Kind::kUndelivered) ++undelivered;
     if (event.kind == Kind::kLinkState) {
       std::printf("link %s: %s\n", visloc::client::LinkStateName(event.link_state),
                   event.detail.c_str());
@@ -85,6 +90,7 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::milliseconds(66));
   }
   session->Close();
-  std::printf("answered %d of %zu frames, %d with a pose\n", answered, images.size(), posed);
+  std::printf("answered %d of %zu frames, %d with a pose; %d late, %d dropped, %d undelivered\n",
+              answered, images.size(), posed, late, dropped, undelivered);
   return answered > 0 ? 0 : 1;
 }

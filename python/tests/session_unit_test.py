@@ -207,6 +207,42 @@ class ReplicaTest(unittest.TestCase):
         self.assertLess(answers[0] - refusals[0], 0.9)
 
 
+class SilentService(pb_grpc.LocalizationServicer):
+    """Reads every frame and answers none (a server stuck behind its engine)."""
+
+    def Localize(self, request_iterator, context):
+        for _ in request_iterator:
+            pass
+        return iter(())
+
+
+class CloseTest(unittest.TestCase):
+    """Closing reports every frame handed over: those on the wire undelivered, those still
+    waiting dropped (as the C++ library does); none vanish."""
+
+    def test_every_frame_submitted_before_close_is_accounted_for(self):
+        server = grpc.server(concurrent.futures.ThreadPoolExecutor(max_workers=4))
+        pb_grpc.add_LocalizationServicer_to_server(SilentService(), server)
+        port = server.add_insecure_port("127.0.0.1:0")
+        server.start()
+        events = []
+        options = SessionOptions(server=f"127.0.0.1:{port}", map_name="lab",
+                                 camera=pinhole_camera(320, 240, 160, 160, 159.5, 119.5),
+                                 encoding="raw", frame_deadline_s=30.0, stall_timeout_s=30.0,
+                                 on_event=events.append)
+        session = Session(options)
+        image = np.zeros((240, 320), np.uint8)
+        for i in range(4):  # Two on the wire, two waiting.
+            self.assertIs(session.submit(1_000 + i, image), True)
+            time.sleep(0.1)
+        session.close(drain_s=0.2)
+        server.stop(grace=None)
+        fates = {e.timestamp_ns: e.kind for e in events if e.kind != "link"}
+        self.assertEqual(sorted(fates), [1_000, 1_001, 1_002, 1_003], events)
+        self.assertEqual(sorted(fates.values()),
+                         ["dropped", "dropped", "undelivered", "undelivered"], events)
+
+
 class RefusedFramesTest(unittest.TestCase):
     """Frames the session cannot send are refused at once with the reason, as in C++."""
 

@@ -446,6 +446,8 @@ class Session:
         code = error.code() if error is not None else None
         why = stream_state["why"] or (error.details() if error is not None else
                                       "the server ended the stream")
+        if self._closing and code == grpc.StatusCode.CANCELLED:
+            why = "the session was closed"  # Our own cancel, not the link's.
         with self._lock:
             # Each unanswered frame says why: a refusal is not a link that lost frames.
             for lost in self._in_flight:
@@ -496,6 +498,13 @@ class Session:
                     while not (self._closing or self._queue or self.streams_opened == 0):
                         self._lock.wait(0.05)
                     if self._closing or self._refused:
+                        if self._closing:  # Never silent: what still waits is reported.
+                            for old in self._queue:
+                                events.append(Event("dropped", old.timestamp_ns,
+                                                    detail="the session was closed before it "
+                                                    "was sent"))
+                            self.stats["dropped"] += len(self._queue)
+                            self._queue.clear()
                         self._set_state(LinkState.CLOSED if self._closing else self._state,
                                         "closed", events)
                         self._emit(events)

@@ -47,14 +47,11 @@ bash "$work/page.sh" > "$work/page.out" 2>&1 || {
   echo "the page failed:"; tail -40 "$work/page.out"; exit 1; }
 tail -25 "$work/page.out"
 
-# Every robot: all but a few frames answered, all but a few answers with a pose.
+# Every robot: every frame accounted for, all but a few answered with a pose.
+source "$source/tests/support/robot_summary.sh"
+frames=$(ls "${QUERY:-$WORK/recordings/query_square}/mav0/cam0/data" | wc -l)
 for robot in robot_cpp robot_python; do
-  read -r answered total posed < <(sed -n \
-    's/^answered \([0-9]*\) of \([0-9]*\) frames, \([0-9]*\) with a pose$/\1 \2 \3/p' \
-    "$work/page/$robot.txt")
-  [[ -n ${total:-} && $answered -ge $((total - 3)) && $posed -ge $((answered - 3)) ]] || {
-    echo "$robot: answered ${answered:-?} of ${total:-?}, ${posed:-?} posed"; exit 1; }
-  echo "$robot: answered $answered of $total frames, $posed with a pose"
+  check_robot_summary "$robot" "$work/page/$robot.txt" "$frames" "$sanitize"
 done
 
 # The poses the robots printed against ground truth in the map's frame (the mapping recording's
