@@ -35,6 +35,8 @@ const char* GravitySourceText(MapGravity::Source source) {
       return "floor";
     case MapGravity::Source::kMotionPlane:
       return "motion plane";
+    case MapGravity::Source::kImuAndFloor:
+      return "IMU and floor";
   }
   return "unknown";
 }

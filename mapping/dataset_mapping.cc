@@ -48,7 +48,19 @@ std::optional<MapGravity> FindGravity(const Dataset& dataset, const DatasetMappi
     if (imu.gravity) {
       *report =
           StrCat("from the accelerometer (", FormatFixed(imu.measured_gravity_mps2, 3), " m/s^2)");
-      return imu.gravity;
+      // The floor, where one is seen, tells the tilts the run left loose (its bias's).
+      const GravityResult floor = GravityFromFloor(map, options.gravity);
+      if (!floor.gravity || floor.gravity->source != MapGravity::Source::kFloor) {
+        return imu.gravity;
+      }
+      const GravityResult combined = CombineImuAndFloor(imu, floor, options.gravity);
+      if (!combined.gravity) {
+        *report += " (not combined with the floor: " + combined.why_not + ")";
+        return imu.gravity;
+      }
+      *report += StrCat(" and the floor (", FormatFixed(imu.gravity->sigma_deg, 2), " and ",
+                        FormatFixed(floor.gravity->sigma_deg, 2), " deg alone)");
+      return combined.gravity;
     }
     reasons.push_back(imu.why_not);
   }

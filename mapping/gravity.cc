@@ -162,24 +162,24 @@ std::vector<Equation> WindowEquations(const std::vector<Window>& windows,
 }
 
 // Gravity's direction (down, map frame) and the bias fitted to the equations; the direction's
-// covariance (rad^2, in its tangent plane) in `direction_covariance`.
+// covariance (rad^2, map frame, in its tangent plane) in `direction_covariance`.
 Eigen::Vector3d FitGravityDirection(const std::vector<Equation>& equations,
                                     const Eigen::Vector3d& initial_down,
                                     const GravityOptions& options,
-                                    Eigen::Matrix2d* direction_covariance) {
+                                    Eigen::Matrix3d* direction_covariance) {
   using Matrix5d = Eigen::Matrix<double, 5, 5>;
   using Vector5d = Eigen::Matrix<double, 5, 1>;
   const double g = options.gravity_mps2;
   const double prior = 1.0 / (options.accel_bias_sigma_mps2 * options.accel_bias_sigma_mps2);
   Eigen::Vector3d down, bias;
   Matrix5d information;
+  Eigen::Matrix<double, 3, 2> tangent;  // The last step's basis, which `information` is in.
   // `scale`: the windows' variance over the noise model's.
   const auto solve = [&](double scale) {
     down = initial_down;  // n: gravity's direction.
     bias = Eigen::Vector3d::Zero();
     for (int iteration = 0; iteration < 8; ++iteration) {
       // Tangent basis at n: g(d) = |g| normalize(n + tangent d).
-      Eigen::Matrix<double, 3, 2> tangent;
       tangent.col(0) = down.unitOrthogonal();
       tangent.col(1) = down.cross(tangent.col(0));
       information = Matrix5d::Zero();
@@ -213,7 +213,8 @@ Eigen::Vector3d FitGravityDirection(const std::vector<Equation>& equations,
   // turns) are fitted to those errors instead of being held by the bias's prior.
   const double scatter = std::max(1.0, solve(1.0));
   if (scatter > 1.0) solve(scatter);
-  *direction_covariance = information.inverse().topLeftCorner<2, 2>();
+  *direction_covariance =
+      tangent * information.inverse().topLeftCorner<2, 2>() * tangent.transpose();
   return down;
 }
 
@@ -251,7 +252,7 @@ GravityResult GravityFromImu(const Trajectory& map_from_cam, const std::vector<I
                             ": its units, the rig's T_BS or the clocks are wrong");
     return result;
   }
-  Eigen::Matrix2d direction_covariance;
+  Eigen::Matrix3d direction_covariance;
   const Eigen::Vector3d down = FitGravityDirection(equations, plain_gravity_times_s.normalized(),
                                                    options, &direction_covariance);
   MapGravity found;
@@ -261,6 +262,7 @@ GravityResult GravityFromImu(const Trajectory& map_from_cam, const std::vector<I
   found.sigma_deg =
       std::max(options.min_imu_sigma_deg, std::sqrt(direction_covariance.trace() / 2) * kRadToDeg);
   result.gravity = found;
+  result.up_covariance_rad2 = direction_covariance;
   return result;
 }
 
@@ -291,6 +293,12 @@ struct Plane {
   // evenly with this rms.
   double width_m(int i) const { return std::sqrt(12.0) * spread_m(2 - i); }
 };
+
+// An even covariance (rad^2) of `sigma_deg` in the plane tangent to unit `up`.
+Eigen::Matrix3d TangentCovariance(const Eigen::Vector3d& up, double sigma_deg) {
+  const double sigma_rad = sigma_deg / kRadToDeg;
+  return sigma_rad * sigma_rad * (Eigen::Matrix3d::Identity() - up * up.transpose());
+}
 
 // How well a found floor tells up (deg): the fit's, the floor's laying, and the patch's own
 // rise across its narrower width.
@@ -439,6 +447,7 @@ GravityResult GravityFromFloor(const Map& map, const GravityOptions& options) {
     gravity.source = MapGravity::Source::kFloor;
     gravity.up_in_map = floor->normal;
     gravity.sigma_deg = FloorSigmaDeg(*floor, options);
+    result.up_covariance_rad2 = TangentCovariance(floor->normal, gravity.sigma_deg);
     if (gravity.sigma_deg > options.max_floor_sigma_deg) {
       floor_why_not = StrCat("the floor seen spans only ", FormatFixed(floor->width_m(1), 1), " x ",
                              FormatFixed(floor->width_m(0), 1), " m: level within ",
@@ -453,6 +462,7 @@ GravityResult GravityFromFloor(const Map& map, const GravityOptions& options) {
     gravity.up_in_map = motion->normal;
     // A walking robot's head bobs and a wheeled one's floor is not flat: a degree at least.
     gravity.sigma_deg = std::max(1.0, motion->sigma_deg);
+    result.up_covariance_rad2 = TangentCovariance(motion->normal, gravity.sigma_deg);
   } else {
     result.why_not =
         StrCat(floor_why_not.empty() ? "no floor beneath the keyframes" : floor_why_not, ", and ",
@@ -460,6 +470,50 @@ GravityResult GravityFromFloor(const Map& map, const GravityOptions& options) {
     return result;
   }
   result.gravity = gravity;
+  return result;
+}
+
+GravityResult CombineImuAndFloor(const GravityResult& imu, const GravityResult& floor,
+                                 const GravityOptions& options) {
+  VISLOC_CHECK(imu.gravity && imu.gravity->source == MapGravity::Source::kImu && floor.gravity &&
+                   floor.gravity->source == MapGravity::Source::kFloor,
+               "CombineImuAndFloor takes the accelerometer's up and the floor's");
+  // Both as small tilts (rad) in a basis tangent at the accelerometer's up: it at 0, the floor
+  // at its direction's tangent coordinates.
+  const Eigen::Vector3d& imu_up = imu.gravity->up_in_map;
+  Eigen::Matrix<double, 3, 2> tangent;
+  tangent.col(0) = imu_up.unitOrthogonal();
+  tangent.col(1) = imu_up.cross(tangent.col(0));
+  const Eigen::Vector2d floor_tilt = tangent.transpose() * floor.gravity->up_in_map;
+  // The accelerometer's covariance never below its floor (GravityOptions::min_imu_sigma_deg).
+  const double min_rad = options.min_imu_sigma_deg / kRadToDeg;
+  const Eigen::Matrix2d imu_covariance = tangent.transpose() * imu.up_covariance_rad2 * tangent +
+                                         min_rad * min_rad * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d floor_covariance = tangent.transpose() * floor.up_covariance_rad2 * tangent;
+  GravityResult result;
+  result.measured_gravity_mps2 = imu.measured_gravity_mps2;
+  const double disagreement_deg = AngleDeg(imu_up, floor.gravity->up_in_map);
+  // Chi-square of 2 degrees of freedom at 99.9%.
+  constexpr double kMaxMahalanobis2 = 13.82;
+  if (floor_tilt.dot((imu_covariance + floor_covariance).ldlt().solve(floor_tilt)) >
+      kMaxMahalanobis2) {
+    result.why_not =
+        StrCat("the floor and the accelerometer disagree by ", FormatFixed(disagreement_deg, 2),
+               " deg, beyond their sigmas (", FormatFixed(imu.gravity->sigma_deg, 2), " and ",
+               FormatFixed(floor.gravity->sigma_deg, 2), " deg)");
+    return result;
+  }
+  const Eigen::Matrix2d imu_information = imu_covariance.inverse();
+  const Eigen::Matrix2d floor_information = floor_covariance.inverse();
+  const Eigen::Matrix2d covariance = (imu_information + floor_information).inverse();
+  const Eigen::Vector2d tilt = covariance * (floor_information * floor_tilt);
+  MapGravity combined;
+  combined.source = MapGravity::Source::kImuAndFloor;
+  combined.up_in_map = (imu_up + tangent * tilt).normalized();
+  combined.sigma_deg =
+      std::max(options.min_imu_sigma_deg, std::sqrt(covariance.trace() / 2) * kRadToDeg);
+  result.gravity = combined;
+  result.up_covariance_rad2 = tangent * covariance * tangent.transpose();
   return result;
 }
 

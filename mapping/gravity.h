@@ -85,6 +85,9 @@ struct GravityResult {
   std::optional<MapGravity> gravity;
   std::string why_not;  // When there is no gravity: the reason, for the build's report.
   double measured_gravity_mps2 = 0.0;  // The accelerometer's gravity magnitude, when measured.
+  // The direction's covariance (rad^2, map frame, in the plane tangent to up): loose along the
+  // tilts a finding cannot tell (the accelerometer's where its bias is unobservable).
+  Eigen::Matrix3d up_covariance_rad2 = Eigen::Matrix3d::Zero();
 };
 
 // From the accelerometer. `map_from_cam` is the left camera's pose at each frame of the build
@@ -100,5 +103,14 @@ MapGravity GravityFromLevelBody(const Map& map, const Rigid3d& body_from_cam,
 
 // From the mapped floor and the keyframes' motion plane.
 GravityResult GravityFromFloor(const Map& map, const GravityOptions& options = {});
+
+// The accelerometer's up and the floor's (GravityFromFloor's, source kFloor) combined by their
+// covariances: a still run leaves the accelerometer's bias in both horizontal tilts and a
+// straight one in the tilt across its heading, where a floor seen wide tells level within a
+// degree; a run that turns keeps the accelerometer's, which the floor barely moves. Two that
+// disagree beyond their uncertainties (a ramp, a floor that is not level, a wrong T_BS) are not
+// combined: no gravity, and `why_not` gives the angle between them.
+GravityResult CombineImuAndFloor(const GravityResult& imu, const GravityResult& floor,
+                                 const GravityOptions& options = {});
 
 }  // namespace visloc::mapping

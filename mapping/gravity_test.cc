@@ -217,6 +217,57 @@ TEST(GravityTest, ASmallPatchOfFloorIsNotTakenForUpAndItsSigmaCoversItsTilt) {
   EXPECT_GT(drawn.gravity->sigma_deg, error_deg / 1.5);
 }
 
+// A still recording leaves the accelerometer's bias in both tilts; the room's floor, seen
+// wide, tells them. A walk that turns keeps the accelerometer's own, which the floor barely moves.
+TEST(GravityTest, TheFloorTellsTheTiltsTheAccelerometersBiasLeftLoose) {
+  const Scene scene = TiltedScene();
+  const GravityResult floor = GravityFromFloor(RoomMap(scene, true, true));
+  ASSERT_TRUE(floor.gravity) << floor.why_not;
+  Trajectory poses;
+  std::vector<ImuReading> samples;
+  CircleWalk(scene, Eigen::Vector3d(0.45, 0.0, 0.0), /*still=*/true, &poses, &samples);
+  const GravityResult still = GravityFromImu(poses, samples, Rigid3d());
+  ASSERT_TRUE(still.gravity) << still.why_not;
+  const double still_error_deg = AngleDeg(still.gravity->up_in_map, scene.UpInMap());
+  const GravityResult combined = CombineImuAndFloor(still, floor);
+  ASSERT_TRUE(combined.gravity) << combined.why_not;
+  EXPECT_EQ(combined.gravity->source, MapGravity::Source::kImuAndFloor);
+  const double combined_error_deg = AngleDeg(combined.gravity->up_in_map, scene.UpInMap());
+  EXPECT_LT(combined_error_deg, 0.5 * still_error_deg);
+  EXPECT_LT(combined.gravity->sigma_deg,
+            std::min(still.gravity->sigma_deg, floor.gravity->sigma_deg));
+  EXPECT_GT(combined.gravity->sigma_deg, combined_error_deg / 3);
+
+  poses.clear();
+  samples.clear();
+  CircleWalk(scene, Eigen::Vector3d(0.25, -0.3, 0.1), /*still=*/false, &poses, &samples);
+  const GravityResult turning = GravityFromImu(poses, samples, Rigid3d());
+  ASSERT_TRUE(turning.gravity) << turning.why_not;
+  const GravityResult kept = CombineImuAndFloor(turning, floor);
+  ASSERT_TRUE(kept.gravity) << kept.why_not;
+  EXPECT_LT(AngleDeg(kept.gravity->up_in_map, turning.gravity->up_in_map), 0.02);
+  EXPECT_LT(AngleDeg(kept.gravity->up_in_map, scene.UpInMap()), 0.1);
+}
+
+// A ramp is not level: a floor 8 deg off a well-known accelerometer's up is not combined.
+TEST(GravityTest, AFloorThatDisagreesWithTheAccelerometerIsNotCombined) {
+  const Scene scene = TiltedScene();
+  GravityResult floor = GravityFromFloor(RoomMap(scene, true, true));
+  ASSERT_TRUE(floor.gravity) << floor.why_not;
+  const Eigen::Vector3d axis = floor.gravity->up_in_map.unitOrthogonal();
+  floor.gravity->up_in_map = Eigen::AngleAxisd(8.0 * M_PI / 180.0, axis) * floor.gravity->up_in_map;
+  Trajectory poses;
+  std::vector<ImuReading> samples;
+  CircleWalk(scene, Eigen::Vector3d(0.05, -0.05, 0.02), /*still=*/false, &poses, &samples);
+  const GravityResult imu = GravityFromImu(poses, samples, Rigid3d());
+  ASSERT_TRUE(imu.gravity) << imu.why_not;
+  const GravityResult combined = CombineImuAndFloor(imu, floor);
+  EXPECT_FALSE(combined.gravity);
+  EXPECT_NE(combined.why_not.find("the floor and the accelerometer disagree by 8.0"),
+            std::string::npos)
+      << combined.why_not;
+}
+
 TEST(GravityTest, ALevelBodyIsUpThroughItsCamerasPlacement) {
   const Scene scene = TiltedScene();
   Map map;

@@ -113,6 +113,8 @@ const char* GravitySourceName(MapGravity::Source source) {
       return "floor";
     case MapGravity::Source::kMotionPlane:
       return "motion_plane";
+    case MapGravity::Source::kImuAndFloor:
+      return "imu_floor";
   }
   return "unknown";
 }
@@ -152,7 +154,7 @@ double MapFrameTiltDeg(const MapGravity& gravity) {
 std::optional<MapGravity::Source> ParseGravitySource(const std::string& text) {
   for (const MapGravity::Source source :
        {MapGravity::Source::kImu, MapGravity::Source::kLevelRig, MapGravity::Source::kFloor,
-        MapGravity::Source::kMotionPlane}) {
+        MapGravity::Source::kMotionPlane, MapGravity::Source::kImuAndFloor}) {
     if (text == GravitySourceName(source)) return source;
   }
   return std::nullopt;

@@ -46,6 +46,7 @@ struct MapGravity {
     kLevelRig,     // The rig's body declared level by the operator (a ground robot's base).
     kFloor,        // The mapped floor's plane, beneath the keyframes.
     kMotionPlane,  // The plane the keyframes moved in (a ground robot's), no floor seen.
+    kImuAndFloor,  // The accelerometer's and the floor's, combined by their covariances.
   };
   Eigen::Vector3d up_in_map = Eigen::Vector3d::UnitZ();  // Unit.
   double sigma_deg = 0.0;  // One sigma of the direction's error, degrees.
@@ -55,7 +56,7 @@ struct MapGravity {
   }
   bool operator!=(const MapGravity& other) const { return !(*this == other); }
 };
-// "imu", "level_rig", "floor", "motion_plane": how maps store and print it.
+// "imu", "level_rig", "floor", "motion_plane", "imu_floor": how maps store and print it.
 const char* GravitySourceName(MapGravity::Source source);
 // The inverse; nullopt for any other text.
 std::optional<MapGravity::Source> ParseGravitySource(const std::string& text);
