@@ -477,6 +477,8 @@ int RunBuild(const Args& args) {
         .Field("loop_closure_ms", stats.loop_ms)
         .Field("global_ba_ms", stats.global_ba_ms)
         .Field("global_ba_pieces", static_cast<int64_t>(stats.global_ba_pieces))
+        .Field("stereo_keypoints", stats.stereo_keypoints)
+        .Field("stereo_searched", stats.stereo_searched)
         .Field("learning_ms", stats.learning_ms)
         .Field("total_s", stats.total_ms / 1000)
         .Field("fps", stats.frames / (stats.total_ms / 1000));

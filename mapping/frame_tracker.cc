@@ -76,29 +76,44 @@ std::vector<LandmarkMatch> FrameTracker::MatchWithoutPrediction(const SlamState&
   return matches;
 }
 
-TrackResult FrameTracker::Track(const SlamState& state, const StereoFrame& frame,
+namespace {
+
+// The matches' observations, their keypoints' stereo matches searched first.
+std::vector<PoseObservation> SearchedObservations(const SlamState& state,
+                                                  const std::vector<LandmarkMatch>& matches,
+                                                  const RectifiedIntrinsics& intrinsics,
+                                                  StereoFrameSearch* frame) {
+  std::vector<int> features;
+  features.reserve(matches.size());
+  for (const LandmarkMatch& m : matches) features.push_back(m.feature);
+  frame->Search(features);
+  return LandmarkObservations(state, frame->frame().left_rect, frame->frame().right_x_rect, matches,
+                              intrinsics);
+}
+
+}  // namespace
+
+TrackResult FrameTracker::Track(const SlamState& state, StereoFrameSearch* search,
                                 const Rigid3d& predicted, const std::vector<int>& landmarks,
                                 uint64_t seed) const {
+  const StereoFrame& frame = search->frame();
   TrackResult result;
   result.cam_from_world = predicted;
   std::vector<LandmarkMatch> matches =
       Match(state, frame, predicted, landmarks, options_.search_radius_px);
   PnpRansacOptions pnp = pnp_;
   pnp.seed = seed;
-  PnpResult ransac = SolvePnpRansac(
-      LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_), pnp);
+  PnpResult ransac = SolvePnpRansac(SearchedObservations(state, matches, intrinsics_, search), pnp);
   if (!ransac.success) {
     matches = MatchWithoutPrediction(state, frame);
-    ransac = SolvePnpRansac(
-        LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_),
-        pnp);
+    ransac = SolvePnpRansac(SearchedObservations(state, matches, intrinsics_, search), pnp);
   }
   if (!ransac.success) return result;
   // Re-match with the estimated pose in a tight radius: more tracks, fewer outliers.
   matches = Match(state, frame, ransac.cam_from_world, landmarks, options_.refine_radius_px,
                   &result.in_view);
   const std::vector<PoseObservation> observations =
-      LandmarkObservations(state, frame.left_rect, frame.right_x_rect, matches, intrinsics_);
+      SearchedObservations(state, matches, intrinsics_, search);
   result.success = true;
   result.cam_from_world = RefinePose(ransac.cam_from_world, observations, pnp.refine);
   const PoseProjector projector(result.cam_from_world, pnp.refine);

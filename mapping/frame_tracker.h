@@ -45,9 +45,11 @@ class FrameTracker {
   FrameTracker(const TrackingOptions& options, const RectifiedView& view,
                const RectifiedIntrinsics& intrinsics, double disparity_weight);
 
-  // Tracks `frame` from the `predicted` pose against `landmarks` of `state`. `seed` makes the
-  // RANSAC sampling repeatable per frame.
-  TrackResult Track(const SlamState& state, const StereoFrame& frame, const Rigid3d& predicted,
+  // Tracks the frame from the `predicted` pose against `landmarks` of `state`, searching the
+  // stereo matches of the keypoints it matches to landmarks (those alone: a frame that becomes
+  // a keyframe has the rest searched then). `seed` makes the RANSAC sampling repeatable per
+  // frame.
+  TrackResult Track(const SlamState& state, StereoFrameSearch* frame, const Rigid3d& predicted,
                     const std::vector<int>& landmarks, uint64_t seed) const;
 
   // The PnP options tracking uses (loop closure verifies with the same, other thresholds aside).

@@ -97,14 +97,23 @@ Rigid3d MapBuilder::MapFromWorld() const {
 Rigid3d MapBuilder::RectFromRaw() const { return RotationOnly(rectifier_.rect_from_left()); }
 
 void MapBuilder::AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const cv::Mat& right_raw) {
+  AddPrepared(timestamp_ns, Prepare(left_raw, right_raw));
+}
+
+StereoFrameSearch MapBuilder::Prepare(const cv::Mat& left_raw, const cv::Mat& right_raw) const {
+  return StereoFrameSearch(left_raw, right_raw, *extractor_, rectifier_, options_.stereo);
+}
+
+void MapBuilder::AddPrepared(int64_t timestamp_ns, StereoFrameSearch&& frame) {
   Timer timer;
-  StereoFrame frame =
-      BuildStereoFrame(left_raw, right_raw, *extractor_, rectifier_, options_.stereo, correction_);
-  stats_.features_ms += timer.ElapsedMs();
+  frame.SetCorrection(correction_);
+  if (calibrating_) {  // Kept whole, to be corrected and mapped again.
+    calibration_frames_.emplace_back(timestamp_ns, std::move(frame).Complete());
+    frame = StereoFrameSearch(calibration_frames_.back().second);
+  }
+  stats_.features_ms += frame.prepare_ms() + timer.ElapsedMs();
   ++stats_.frames;
-  last_features_ = static_cast<int>(frame.left_rect.size());
-  last_stereo_matches_ = frame.stereo_matches();
-  if (calibrating_) calibration_frames_.emplace_back(timestamp_ns, frame);
+  last_features_ = static_cast<int>(frame.frame().left_rect.size());
   Process(timestamp_ns, std::move(frame));
   const DisparityCalibrationOptions& calibration = options_.disparity_calibration;
   if (calibrating_ && (static_cast<int>(calibration_frames_.size()) >= calibration.max_frames ||
@@ -179,7 +188,7 @@ void MapBuilder::CalibrateDisparity() {
     for (const auto& [timestamp_ns, first] : calibration_frames_) {
       StereoFrame frame = first;
       CorrectStereoFrame(correction_, rectifier_, options_.stereo, &frame);
-      Process(timestamp_ns, std::move(frame));
+      Process(timestamp_ns, StereoFrameSearch(std::move(frame)));
     }
   }
   stats_.disparity_correction = correction_;
@@ -200,20 +209,22 @@ void MapBuilder::Restart() {
   stats_.tracking_failures = stats_.loop_closures = stats_.loop_adjustments = 0;
 }
 
-void MapBuilder::Process(int64_t timestamp_ns, StereoFrame&& frame) {
+void MapBuilder::Process(int64_t timestamp_ns, StereoFrameSearch&& frame) {
   Timer timer;
   frame_timestamps_ns_.push_back(timestamp_ns);
   if (state_.keyframes.empty()) {
     frame_from_keyframe_.emplace_back(0, Rigid3d::Identity());
     last_cam_from_world_ = Rigid3d::Identity();
-    AddKeyframe(&state_, timestamp_ns, std::move(frame), Rigid3d::Identity(), {});
+    stats_.stereo_keypoints += static_cast<int64_t>(frame.frame().left.size());
+    stats_.stereo_searched += static_cast<int64_t>(frame.frame().left.size());
+    AddKeyframe(&state_, timestamp_ns, CompleteStereo(std::move(frame)), Rigid3d::Identity(), {});
     counts_.reset();
     stats_.tracking_ms += timer.ElapsedMs();
     return;
   }
   const Rigid3d predicted = velocity_ * last_cam_from_world_;
   const TrackResult track =
-      tracker_.Track(state_, frame, predicted, RecentLandmarks(state_, options_.keyframes.window),
+      tracker_.Track(state_, &frame, predicted, RecentLandmarks(state_, options_.keyframes.window),
                      static_cast<uint64_t>(stats_.frames));
   if (!track.success) ++stats_.tracking_failures;
   last_track_succeeded_ = track.success;
@@ -226,10 +237,24 @@ void MapBuilder::Process(int64_t timestamp_ns, StereoFrame&& frame) {
   const SlamKeyframe& keyframe = state_.keyframes.back();
   frame_from_keyframe_.emplace_back(static_cast<int>(state_.keyframes.size()) - 1,
                                     pose * keyframe.cam_from_world.Inverse());
-  stats_.tracking_ms += timer.ElapsedMs();
-  if (NeedsKeyframe(options_.keyframes, pose, keyframe.cam_from_world, last_tracked_)) {
-    StartKeyframe(timestamp_ns, std::move(frame), pose, track.tracked);
+  // The stereo searches tracking asked for count with the features, as a keyframe's do.
+  stats_.tracking_ms += timer.ElapsedMs() - frame.search_ms();
+  stats_.features_ms += frame.search_ms();
+  const bool new_keyframe =
+      NeedsKeyframe(options_.keyframes, pose, keyframe.cam_from_world, last_tracked_);
+  stats_.stereo_keypoints += static_cast<int64_t>(frame.frame().left.size());
+  stats_.stereo_searched += new_keyframe ? frame.frame().left.size() : frame.searched();
+  if (new_keyframe) {
+    StartKeyframe(timestamp_ns, CompleteStereo(std::move(frame)), pose, track.tracked);
   }
+}
+
+StereoFrame MapBuilder::CompleteStereo(StereoFrameSearch&& search) {
+  Timer timer;
+  StereoFrame frame = std::move(search).Complete();
+  stats_.features_ms += timer.ElapsedMs();
+  last_stereo_matches_ = frame.stereo_matches();
+  return frame;
 }
 
 void MapBuilder::StartKeyframe(int64_t timestamp_ns, StereoFrame&& frame,

@@ -135,6 +135,9 @@ struct MapBuildStats {
   double features_ms = 0, tracking_ms = 0, local_ba_ms = 0, loop_ms = 0, global_ba_ms = 0,
          learning_ms = 0, total_ms = 0;
   int global_ba_pieces = 0;  // The end adjustment's (global_ba_max_keyframes).
+  // The frames' keypoints, and of them those searched in the right image: the ones tracking
+  // matched to landmarks, and every one of a keyframe (StereoFrameSearch).
+  int64_t stereo_keypoints = 0, stereo_searched = 0;
 };
 
 // The map a build has so far in the map frame, for drawing while frames arrive: keyframe
@@ -153,7 +156,9 @@ struct MapBuilderProgress {
   int landmarks = 0;         // Not culled.
   int tracked = 0;           // Landmarks the last frame tracked.
   int features = 0;          // The last frame's left corners.
-  int stereo_matches = 0;    // Of them, matched in the right image.
+  // The last keyframe's left corners matched in the right image (a frame that is not one
+  // searches only the corners it tracked).
+  int stereo_matches = 0;
   bool last_tracked = true;  // Whether tracking the last frame succeeded (the first always does).
   int tracking_failures = 0;
   int loop_closures = 0;
@@ -168,8 +173,16 @@ class MapBuilder {
   MapBuilder(const Camera& left, const Camera& right, const Rigid3d& right_from_left,
              const MapBuilderOptions& options);
 
-  // Processes one stereo frame (raw 8-bit grey images of the calibrated size).
+  // Processes one stereo frame (raw 8-bit grey images of the calibrated size): AddPrepared of
+  // its Prepare.
   void AddFrame(int64_t timestamp_ns, const cv::Mat& left_raw, const cv::Mat& right_raw);
+  // A frame's features and rectification, for AddPrepared. Reads only the rig and the feature
+  // extractor, so one Prepare may run on another thread beside AddPrepared of the frame before
+  // (MapStereoFrames): the map is the same.
+  StereoFrameSearch Prepare(const cv::Mat& left_raw, const cv::Mat& right_raw) const;
+  // Maps a prepared frame: its stereo searches (with the disparity correction as it stands
+  // now), tracking, keyframing, local BA and loop closure.
+  void AddPrepared(int64_t timestamp_ns, StereoFrameSearch&& frame);
   // Global BA, then the map. Call once, after the last frame.
   Map Finish(const MapMetadata& metadata);
 
@@ -188,8 +201,11 @@ class MapBuilder {
   std::string Status() const;
 
  private:
-  // Tracking, keyframing, local BA and loop closure of one frame whose stereo matches are made.
-  void Process(int64_t timestamp_ns, StereoFrame&& frame);
+  // Tracking, keyframing, local BA and loop closure of one frame (its stereo matches searched
+  // for the keypoints tracking matches, and all of them if it becomes a keyframe).
+  void Process(int64_t timestamp_ns, StereoFrameSearch&& frame);
+  // The frame's every keypoint searched (timed with the features), for a keyframe.
+  StereoFrame CompleteStereo(StereoFrameSearch&& search);
   void StartKeyframe(int64_t timestamp_ns, StereoFrame&& frame, const Rigid3d& cam_from_world,
                      const std::vector<LandmarkMatch>& tracked);
   // Estimates the disparity correction from the frames so far, mapping them again with it

@@ -132,28 +132,38 @@ TEST(ReprojectionCostTest, ACorrectionChangeTakesABiasOffTheDisparity) {
   EXPECT_GT(std::abs(residuals[2]), 8.0 * 0.9);
 }
 
+// The generated head's stereo rig in the generated room: one shot, and the rig's rectifier.
+struct RoomShot {
+  RoomShot()
+      : rig(sim::MakeRig(sim::RigOptions{})),
+        rectifier(rig.left.camera, rig.right.camera,
+                  rig.right.body_from_cam.Inverse() * rig.left.body_from_cam) {
+    sim::RoomOptions room;
+    room.texel_m = 0.006;
+    const sim::World world = sim::MakeRoom(room);
+    const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
+    Rng noise(1);
+    shot = sim::RenderStereoShot(world, rig, body, sim::SensorModel{}, &noise);
+  }
+  sim::StereoRig rig;
+  StereoRectifier rectifier;
+  sim::StereoShot shot;
+};
+
 // Stereo matches' disparity errors (px) against the rendered depth, with the patch refinement
 // of `refine_radius_px` (0: the correlation peak alone). `frame_out`, when given, receives the
 // frame, built with `threads`.
 std::vector<double> DisparityErrorsPx(int refine_radius_px, int* matches, size_t* features,
                                       int threads = 1, StereoFrame* frame_out = nullptr) {
-  const sim::StereoRig rig = sim::MakeRig(sim::RigOptions{});
-  sim::RoomOptions room;
-  room.texel_m = 0.006;
-  const sim::World world = sim::MakeRoom(room);
-  const Rigid3d body(RotationFromRollPitchYaw(0, 0.02, 0.4), Eigen::Vector3d(-0.5, -0.6, 1.45));
-  Rng noise(1);
-  const sim::StereoShot shot = sim::RenderStereoShot(world, rig, body, sim::SensorModel{}, &noise);
-  const cv::Mat& left = shot.left;
-  const cv::Mat& right = shot.right;
-  const cv::Mat& depth = shot.left_depth;
-  const StereoRectifier rectifier(rig.left.camera, rig.right.camera,
-                                  rig.right.body_from_cam.Inverse() * rig.left.body_from_cam);
+  const RoomShot room;
+  const cv::Mat& depth = room.shot.left_depth;
+  const StereoRectifier& rectifier = room.rectifier;
   const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
   StereoMatchOptions options;
   options.refine_patch_radius_px = refine_radius_px;
   options.threads = threads;
-  const StereoFrame frame = BuildStereoFrame(left, right, *extractor, rectifier, options);
+  const StereoFrame frame =
+      BuildStereoFrame(room.shot.left, room.shot.right, *extractor, rectifier, options);
   if (frame_out) *frame_out = frame;
   // A corner on a depth edge belongs to either surface, so the truth is the closest of the 3x3
   // neighbourhood's disparities.
@@ -193,6 +203,26 @@ TEST(StereoFrameTest, TriangulatedDepthMatchesTheRenderedDepth) {
   EXPECT_LT(static_cast<double>(wrong) / errors_px.size(), 0.03);
 }
 
+// The same frame, keypoint for keypoint: matches, points and the searches' counts.
+void ExpectSameFrame(const StereoFrame& a, const StereoFrame& b) {
+  ASSERT_EQ(a.left.size(), b.left.size());
+  EXPECT_EQ(a.stereo_matches(), b.stereo_matches());
+  for (const auto& [x, y] : {std::pair{a.stats.searched, b.stats.searched},
+                             {a.stats.weak, b.stats.weak},
+                             {a.stats.ambiguous, b.stats.ambiguous},
+                             {a.stats.refine_rejected, b.stats.refine_rejected},
+                             {a.stats.out_of_range, b.stats.out_of_range}}) {
+    EXPECT_EQ(x, y);
+  }
+  for (size_t i = 0; i < a.left.size(); ++i) {
+    EXPECT_EQ(std::isfinite(a.right_x_rect[i]), std::isfinite(b.right_x_rect[i]));
+    if (std::isfinite(a.right_x_rect[i])) {
+      EXPECT_EQ(a.right_x_rect[i], b.right_x_rect[i]) << "keypoint " << i;
+      EXPECT_EQ(a.point_in_rect[i], b.point_in_rect[i]) << "keypoint " << i;
+    }
+  }
+}
+
 // Threads split the keypoints' searches (and extract beside rectifying): the frame is the same,
 // match for match, as on one thread.
 TEST(StereoFrameTest, ThreadsBuildTheSameFrame) {
@@ -201,23 +231,38 @@ TEST(StereoFrameTest, ThreadsBuildTheSameFrame) {
   StereoFrame one, three;
   DisparityErrorsPx(7, &matches, &features, 1, &one);
   DisparityErrorsPx(7, &matches, &features, 3, &three);
-  ASSERT_EQ(one.left.size(), three.left.size());
   EXPECT_GT(one.stereo_matches(), 500);
-  EXPECT_EQ(one.stereo_matches(), three.stereo_matches());
-  for (const auto& [a, b] : {std::pair{one.stats.searched, three.stats.searched},
-                             {one.stats.weak, three.stats.weak},
-                             {one.stats.ambiguous, three.stats.ambiguous},
-                             {one.stats.refine_rejected, three.stats.refine_rejected},
-                             {one.stats.out_of_range, three.stats.out_of_range}}) {
-    EXPECT_EQ(a, b);
+  ExpectSameFrame(one, three);
+}
+
+// Tracking searches the keypoints it matched, a keyframe the rest: searched in parts, in any
+// order and overlapping, the frame is BuildStereoFrame's, value for value; before it is
+// complete, the keypoints not searched have no match.
+TEST(StereoFrameTest, AFrameSearchedInPartsIsTheFrameSearchedWhole) {
+  const RoomShot room;
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  StereoMatchOptions options;
+  options.threads = 2;
+  const StereoFrame whole =
+      BuildStereoFrame(room.shot.left, room.shot.right, *extractor, room.rectifier, options);
+  StereoFrameSearch search(room.shot.left, room.shot.right, *extractor, room.rectifier, options);
+  const int n = static_cast<int>(search.frame().left.size());
+  ASSERT_GT(n, 500);
+  EXPECT_EQ(search.frame().stats.searched, 0);
+  std::vector<int> thirds, backwards;
+  for (int i = 0; i < n; i += 3) thirds.push_back(i);
+  for (int i = n / 2; i >= 0; i -= 2) backwards.push_back(i);
+  search.Search(thirds);
+  search.Search(backwards);
+  for (int i = 0; i < n; ++i) {
+    const bool searched = i % 3 == 0 || (i <= n / 2 && (n / 2 - i) % 2 == 0);
+    const bool expected = searched && whole.HasDepth(i);
+    EXPECT_EQ(search.frame().HasDepth(i), expected) << "keypoint " << i;
   }
-  for (size_t i = 0; i < one.left.size(); ++i) {
-    EXPECT_EQ(std::isfinite(one.right_x_rect[i]), std::isfinite(three.right_x_rect[i]));
-    if (std::isfinite(one.right_x_rect[i])) {
-      EXPECT_EQ(one.right_x_rect[i], three.right_x_rect[i]) << "keypoint " << i;
-      EXPECT_EQ(one.point_in_rect[i], three.point_in_rect[i]) << "keypoint " << i;
-    }
-  }
+  EXPECT_LT(search.frame().stereo_matches(), whole.stereo_matches());
+  const StereoFrame parts = std::move(search).Complete();
+  EXPECT_GT(whole.stereo_matches(), 500);
+  ExpectSameFrame(whole, parts);
 }
 
 TEST(StereoFrameTest, TheCorrelationPeakAloneIsGoodToAFewTenthsOfAPixel) {
@@ -328,7 +373,7 @@ TEST(FrameTrackerTest, AFrameFarFromItsPredictionIsFoundByDescriptorsAlone) {
   AddKeyframe(&state, 0, BuildStereoFrame(left, right, *extractor, scene.rectifier(), options),
               Rigid3d::Identity(), {});
   scene.Render(0.6, &left, &right);
-  const StereoFrame frame = BuildStereoFrame(left, right, *extractor, scene.rectifier(), options);
+  StereoFrameSearch frame(left, right, *extractor, scene.rectifier(), options);
   const Camera& rect = scene.rectifier().rectified_camera();
   const RectifiedIntrinsics intrinsics{rect.fx(), rect.cx(), rect.cy(),
                                        scene.rectifier().baseline_m()};
@@ -338,13 +383,15 @@ TEST(FrameTrackerTest, AFrameFarFromItsPredictionIsFoundByDescriptorsAlone) {
       Eigen::Quaterniond(Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY())),
       Eigen::Vector3d::Zero());
   const TrackResult track =
-      tracker.Track(state, frame, turned * truth, RecentLandmarks(state, 10), 1);
+      tracker.Track(state, &frame, turned * truth, RecentLandmarks(state, 10), 1);
   ASSERT_TRUE(track.success);
   const double error_m = (CameraCenter(track.cam_from_world) - CameraCenter(truth)).norm();
   std::printf("%zu landmarks tracked, %.1f cm from the truth %.2f m away\n", track.tracked.size(),
               100 * error_m, CameraCenter(truth).norm());
   EXPECT_GT(track.tracked.size(), 100u);
   EXPECT_LT(error_m, 0.05);
+  // Only the keypoints matched to landmarks were searched in the right image.
+  EXPECT_LT(frame.frame().stats.searched, static_cast<int>(frame.frame().left.size()));
 }
 
 class MapBuilderTest : public ::testing::TestWithParam<bool> {};
@@ -461,8 +508,8 @@ TEST(MapBuilderGlobalAdjustmentTest, PiecesAreAsAccurateAsTheWholeRun) {
   EXPECT_LT(pieces_m, whole_m + 0.003);
 }
 
-// MapBuilderOptions::threads splits a frame's work, decodes ahead and runs Ceres on several
-// threads: the map is the same, keyframe for keyframe and point for point.
+// MapBuilderOptions::threads splits a frame's work, reads and prepares the next frame beside this
+// one's mapping: the map is the same, keyframe for keyframe and point for point.
 TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
   TempDir dir;
   const Dataset dataset = RenderShort("map_square", 40, dir);
@@ -471,8 +518,13 @@ TEST(MapBuilderThreadsTest, TwoThreadsBuildTheSameMapAsOne) {
   for (int threads : {1, 2}) {
     DatasetMappingOptions options;
     options.builder.threads = threads;
+    // The rig's disparity correction estimated at frame 20, while frame 21 is prepared beside
+    // it on two threads: that frame's searches take the new correction off all the same.
+    options.builder.disparity_calibration.max_frames = 20;
+    options.builder.disparity_calibration.min_travel_baselines = 0.1;
     maps.push_back(BuildMap(dataset, options, {"t", 0, "test", "test", ""}, &stats[threads - 1]));
   }
+  EXPECT_GE(stats[1].calibration_passes, 1);
   ASSERT_GE(maps[0].keyframes.size(), 3u);
   ASSERT_EQ(maps[0].keyframes.size(), maps[1].keyframes.size());
   ASSERT_EQ(maps[0].points.size(), maps[1].points.size());

@@ -11,6 +11,7 @@
 #include "core/util/check.h"
 #include "core/util/cpu_dispatch.h"
 #include "core/util/parallel.h"
+#include "core/util/timer.h"
 
 namespace visloc::mapping {
 
@@ -154,8 +155,6 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
   return true;
 }
 
-namespace {
-
 // The rectified pair on the canvas (StereoRectifier::Rectify), as the correlation search and the
 // refinement need them.
 struct RectifiedPair {
@@ -163,6 +162,8 @@ struct RectifiedPair {
   cv::Mat left_f, left_gradient, right_f;   // CV_32F, for the refinement.
   cv::Mat right_sum, right_sum_sq;          // Integral images of `right` (CV_32S, CV_64F).
 };
+
+namespace {
 
 RectifiedPair Rectify(const cv::Mat& left_raw, const cv::Mat& right_raw,
                       const StereoRectifier& rectifier, bool refine) {
@@ -364,50 +365,106 @@ void AddSearchCounts(const StereoMatchStats& part, StereoMatchStats* total) {
 
 }  // namespace
 
+StereoFrameSearch::StereoFrameSearch(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                                     const FeatureExtractor& extractor,
+                                     const StereoRectifier& rectifier,
+                                     const StereoMatchOptions& options,
+                                     const DisparityCorrection& correction)
+    : rectifier_(&rectifier),
+      options_(options),
+      correction_(correction),
+      pair_(std::make_unique<RectifiedPair>()) {
+  const Timer timer;
+  options.Check();
+  RunBoth(
+      ResolveThreads(options.threads),
+      [&] {
+        frame_.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame_.left_rect);
+      },
+      [&] {
+        *pair_ = Rectify(left_raw, right_raw, rectifier, options.refine_patch_radius_px > 0);
+      });
+  const Camera& rect = rectifier.rectified_camera();
+  const size_t n = frame_.left.size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  frame_.right_x_rect.assign(n, nan);
+  frame_.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
+  frame_.stats.keypoints = static_cast<int>(n);
+  std::vector<Eigen::Vector2f> grid_pixels(n);
+  for (size_t i = 0; i < n; ++i) grid_pixels[i] = frame_.left_rect[i].cast<float>();
+  frame_.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
+  searched_.assign(n, false);
+  prepare_ms_ = timer.ElapsedMs();
+}
+
+StereoFrameSearch::StereoFrameSearch(StereoFrame complete)
+    : frame_(std::move(complete)), searched_count_(static_cast<int>(frame_.left.size())) {}
+
+StereoFrameSearch::~StereoFrameSearch() = default;
+StereoFrameSearch::StereoFrameSearch(StereoFrameSearch&&) noexcept = default;
+StereoFrameSearch& StereoFrameSearch::operator=(StereoFrameSearch&&) noexcept = default;
+
+void StereoFrameSearch::SetCorrection(const DisparityCorrection& correction) {
+  VISLOC_CHECK(searched_count_ == 0, "a frame's disparity correction is set before its searches");
+  correction_ = correction;
+}
+
+void StereoFrameSearch::Search(const std::vector<int>& features) {
+  if (!pair_) return;
+  const Timer timer;
+  std::vector<int> todo;
+  for (int i : features) {
+    if (!searched_[i]) {
+      searched_[i] = true;
+      todo.push_back(i);
+    }
+  }
+  searched_count_ += static_cast<int>(todo.size());
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> disparities(todo.size(), nan);
+  std::mutex stats_mutex;
+  // In chunks the threads take as they finish: a keypoint's search is as long as its row's
+  // disparity range, which grows across the image, so equal halves were not equal work.
+  ParallelChunks(static_cast<int>(todo.size()), ResolveThreads(options_.threads), kSearchChunk,
+                 [&](int begin, int end) {
+                   std::vector<double> scores;
+                   StereoMatchStats stats;
+                   for (int j = begin; j < end; ++j) {
+                     disparities[j] = MatchKeypoint(*pair_, *rectifier_, options_,
+                                                    frame_.left_rect[todo[j]], &scores, &stats);
+                   }
+                   const std::lock_guard<std::mutex> lock(stats_mutex);
+                   AddSearchCounts(stats, &frame_.stats);
+                 });
+  const Camera& rect = rectifier_->rectified_camera();
+  for (size_t j = 0; j < todo.size(); ++j) {
+    if (!std::isfinite(disparities[j])) continue;
+    const double left_x = frame_.left_rect[todo[j]].x();
+    SetDisparity(*rectifier_, options_, todo[j],
+                 disparities[j] - correction_.BiasPx(left_x - disparities[j], rect.fx(), rect.cx()),
+                 &frame_);
+  }
+  search_ms_ += timer.ElapsedMs();
+}
+
+StereoFrame StereoFrameSearch::Complete() && {
+  if (pair_) {
+    std::vector<int> rest;
+    for (size_t i = 0; i < searched_.size(); ++i) {
+      if (!searched_[i]) rest.push_back(static_cast<int>(i));
+    }
+    Search(rest);
+    pair_.reset();
+  }
+  return std::move(frame_);
+}
+
 StereoFrame BuildStereoFrame(const cv::Mat& left_raw, const cv::Mat& right_raw,
                              const FeatureExtractor& extractor, const StereoRectifier& rectifier,
                              const StereoMatchOptions& options,
                              const DisparityCorrection& correction) {
-  options.Check();
-  const int threads = ResolveThreads(options.threads);
-  StereoFrame frame;
-  RectifiedPair pair;
-  RunBoth(
-      threads,
-      [&] {
-        frame.left = KeepRectifiable(extractor.Extract(left_raw), rectifier, &frame.left_rect);
-      },
-      [&] { pair = Rectify(left_raw, right_raw, rectifier, options.refine_patch_radius_px > 0); });
-  const Camera& rect = rectifier.rectified_camera();
-  const size_t n = frame.left.size();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  frame.right_x_rect.assign(n, nan);
-  frame.point_in_rect.assign(n, Eigen::Vector3d::Constant(nan));
-  frame.stats.keypoints = static_cast<int>(n);
-  std::vector<double> disparities(n, nan);
-  std::mutex stats_mutex;
-  // In chunks the threads take as they finish: a keypoint's search is as long as its row's
-  // disparity range, which grows across the image, so equal halves were not equal work.
-  ParallelChunks(static_cast<int>(n), threads, kSearchChunk, [&](int begin, int end) {
-    std::vector<double> scores;
-    StereoMatchStats stats;
-    for (int i = begin; i < end; ++i) {
-      disparities[i] = MatchKeypoint(pair, rectifier, options, frame.left_rect[i], &scores, &stats);
-    }
-    const std::lock_guard<std::mutex> lock(stats_mutex);
-    AddSearchCounts(stats, &frame.stats);
-  });
-  std::vector<Eigen::Vector2f> grid_pixels(n);
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d& l = frame.left_rect[i];
-    grid_pixels[i] = l.cast<float>();
-    if (!std::isfinite(disparities[i])) continue;
-    SetDisparity(rectifier, options, i,
-                 disparities[i] - correction.BiasPx(l.x() - disparities[i], rect.fx(), rect.cx()),
-                 &frame);
-  }
-  frame.grid = KeypointGrid(std::move(grid_pixels), rect.width(), rect.height(), kGridCellPx);
-  return frame;
+  return StereoFrameSearch(left_raw, right_raw, extractor, rectifier, options, correction)
+      .Complete();
 }
 
 }  // namespace visloc::mapping

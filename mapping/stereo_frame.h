@@ -14,6 +14,7 @@
 // exposure. The best disparity must correlate strongly and clearly better than any other
 // (repetitive texture is refused), and is then refined to a few hundredths of a pixel.
 
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -85,6 +86,53 @@ bool RefineDisparity(const cv::Mat& left, const cv::Mat& left_gradient_x, const 
 // BuildStereoFrame would have with the sum of the two.
 void CorrectStereoFrame(const DisparityCorrection& change, const StereoRectifier& rectifier,
                         const StereoMatchOptions& options, StereoFrame* frame);
+
+struct RectifiedPair;  // stereo_frame.cc: the rectified images the row searches read.
+
+// A stereo frame whose keypoints' row searches are made when asked for. Tracking needs the
+// stereo matches of the keypoints it matched to landmarks, a keyframe all of them; most frames
+// are not keyframes, and the searches with their refinement are most of a frame's cost. A
+// keypoint's match is the same whenever it is searched, alone or with others: the frame
+// complete is BuildStereoFrame's, value for value.
+class StereoFrameSearch {
+ public:
+  // The left image's features beside the rectification; nothing searched yet. `rectifier` must
+  // outlive the search.
+  StereoFrameSearch(const cv::Mat& left_raw, const cv::Mat& right_raw,
+                    const FeatureExtractor& extractor, const StereoRectifier& rectifier,
+                    const StereoMatchOptions& options, const DisparityCorrection& correction = {});
+  // A frame searched already, every keypoint.
+  explicit StereoFrameSearch(StereoFrame complete);
+  ~StereoFrameSearch();
+  StereoFrameSearch(StereoFrameSearch&&) noexcept;
+  StereoFrameSearch& operator=(StereoFrameSearch&&) noexcept;
+
+  // The frame so far: a keypoint not searched yet has no match (NaN) and is not in its stats.
+  const StereoFrame& frame() const { return frame_; }
+  // Searches those of keypoints `features` (indices into frame().left) not searched yet.
+  void Search(const std::vector<int>& features);
+  // Every keypoint searched; the rectified images released.
+  StereoFrame Complete() &&;
+  // Wall time spent in Search so far (ms): a map build counts it with the features.
+  double search_ms() const { return search_ms_; }
+  // The keypoints searched so far.
+  int searched() const { return searched_count_; }
+  // The rig's disparity correction the searches take off, before any is made: a frame
+  // prepared beside another's mapping gets the correction as it stands when its turn comes.
+  void SetCorrection(const DisparityCorrection& correction);
+  // Wall time the features and the rectification took (ms).
+  double prepare_ms() const { return prepare_ms_; }
+
+ private:
+  StereoFrame frame_;
+  const StereoRectifier* rectifier_ = nullptr;
+  StereoMatchOptions options_;
+  DisparityCorrection correction_;
+  std::unique_ptr<RectifiedPair> pair_;  // Null once every keypoint is searched.
+  std::vector<bool> searched_;
+  double search_ms_ = 0.0, prepare_ms_ = 0.0;
+  int searched_count_ = 0;
+};
 
 // `correction` is the rig's disparity bias (core/camera/disparity_correction.h), taken off every
 // measured disparity: right_x_rect and point_in_rect hold corrected values.

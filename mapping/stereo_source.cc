@@ -20,15 +20,24 @@ Map MapStereoFrames(const StereoSource& source, const MapBuilderOptions& options
   MapBuilder builder(source.left_camera(), source.right_camera(), source.right_from_left(),
                      options);
   const int total = source.size();
+  // With threads, frame i + 1 is read and its features found (MapBuilder::Prepare) while frame
+  // i is tracked and adjusted, which is mostly one thread's work: on two cores the generated
+  // building's first 4,000 frames mapped 1.17 and 1.23 times as fast (two runs), to the same map.
   const bool prefetch = ResolveThreads(options.threads) > 1;
-  std::future<StereoImages> next;
-  if (prefetch && total > 0) next = std::async(std::launch::async, [&] { return source.Read(0); });
+  struct Prepared {
+    int64_t timestamp_ns;
+    StereoFrameSearch frame;
+  };
+  const auto prepare = [&source, &builder](int i) {
+    const StereoImages images = source.Read(i);
+    return Prepared{images.timestamp_ns, builder.Prepare(images.left_raw, images.right_raw)};
+  };
+  std::future<Prepared> next;
+  if (prefetch && total > 0) next = std::async(std::launch::async, prepare, 0);
   for (int i = 0; i < total; ++i) {
-    const StereoImages frame = prefetch ? next.get() : source.Read(i);
-    if (prefetch && i + 1 < total) {
-      next = std::async(std::launch::async, [&source, i] { return source.Read(i + 1); });
-    }
-    builder.AddFrame(frame.timestamp_ns, frame.left_raw, frame.right_raw);
+    Prepared frame = prefetch ? next.get() : prepare(i);
+    if (prefetch && i + 1 < total) next = std::async(std::launch::async, prepare, i + 1);
+    builder.AddPrepared(frame.timestamp_ns, std::move(frame.frame));
     if (progress) progress(i + 1, total, builder.Status());
   }
   if (progress) progress(total, total, "global bundle adjustment, visibility learning, vocabulary");

@@ -58,7 +58,8 @@ class StereoSource {
 
 // Every frame of `source` through one MapBuilder: the map, and optionally the builder's stats
 // (total_ms set) and the raw left camera's pose per frame. `progress` as for StereoSource. With
-// options.threads other than 1, frame i + 1 is read (decoded) while frame i is mapped.
+// options.threads other than 1, frame i + 1 is read (decoded) and prepared (its features and
+// rectification, MapBuilder::Prepare) while frame i is mapped.
 Map MapStereoFrames(const StereoSource& source, const MapBuilderOptions& options,
                     const MapMetadata& metadata, MapBuildStats* stats = nullptr,
                     Trajectory* frame_trajectory = nullptr,
