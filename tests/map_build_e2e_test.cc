@@ -38,8 +38,9 @@ TEST(MapBuildE2eTest, ShortSquareBuildsAnAccurateMap) {
   ASSERT_EQ(build.exit_code, 0) << build.err;
   const ProcessResult info = Visloc({"map", "info", map_path, "--json"});
   EXPECT_THAT(info.out, HasSubstr("\"rig_error\":{\"floor_m\":0,\"drift_fraction\":0}"));
-  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 6);  // It knows where up is (its IMU's).
-  EXPECT_THAT(info.out, HasSubstr("\"source\":\"imu\""));
+  // It knows where up is: its IMU's, with its floor's.
+  EXPECT_EQ(JsonNumber(info.out, "schema_version"), 6);
+  EXPECT_THAT(info.out, HasSubstr("\"source\":\"imu_floor\""));
   // The rig's baseline, from which a fix counts how well the map knows its points.
   EXPECT_NEAR(JsonNumber(info.out, "stereo_baseline_m"), 0.144, 1e-6);
   EXPECT_THAT(build.out, HasSubstr("\"frames\":150"));

@@ -129,12 +129,12 @@ TEST_F(MapMergeE2eTest, TwoSessionsOfOneRoomBecomeOneMapInTheFirstOnesFrame) {
   EXPECT_LT(JsonNumber(eval.out, "translation_m", "median"), 0.01);
   const ProcessResult info = Visloc({"map", "info", merged, "--json"});
   EXPECT_THAT(info.out, HasSubstr("\"lineage\":\"merge('map' <- "));
-  // A's rig error, stereo baseline and up are kept (the fixture's exact rig and its IMU's
-  // gravity), so the file is schema 6, not 2.
+  // A's rig error, stereo baseline and up are kept (the fixture's exact rig, and up from its
+  // IMU with its floor), so the file is schema 6, not 2.
   EXPECT_THAT(info.out, HasSubstr("\"rig_error\":{\"floor_m\":0,\"drift_fraction\":0}"));
   EXPECT_NEAR(JsonNumber(info.out, "", "stereo_baseline_m"), 0.144, 1e-6);
   EXPECT_THAT(info.out, HasSubstr("\"schema_version\":6"));
-  EXPECT_THAT(info.out, HasSubstr("\"source\":\"imu\""));
+  EXPECT_THAT(info.out, HasSubstr("\"source\":\"imu_floor\""));
   EXPECT_EQ(Visloc({"map", "verify", merged}).exit_code, 0);
 
   // Served: the merged map replaces the square's map on a running server; new sessions get it.

@@ -54,16 +54,17 @@ MapGravity GravityOf(const std::string& map_path) {
 
 TEST(SiteE2eTest, AGeneratedMapKnowsUpFromItsAccelerometerWithinAFifthOfADegree) {
   const MapGravity gravity = GravityOf(kData + "/map.db");
-  EXPECT_EQ(gravity.source, MapGravity::Source::kImu);
+  // The accelerometer, with the room's floor (which barely moves a run that turns).
+  EXPECT_EQ(gravity.source, MapGravity::Source::kImuAndFloor);
   const double error_deg = AngleDeg(gravity.up_in_map, TrueUpInMap(kData + "/map_square"));
   EXPECT_LT(error_deg, 0.2);
   EXPECT_LT(error_deg, 3 * gravity.sigma_deg);
   const ProcessResult info = Visloc({"map", "info", kData + "/map.db", "--json"});
   ASSERT_EQ(info.exit_code, 0) << info.err;
-  EXPECT_NE(info.out.find("\"source\":\"imu\""), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("\"source\":\"imu_floor\""), std::string::npos) << info.out;
   EXPECT_NEAR(JsonNumber(info.out, "gravity", "sigma_deg"), gravity.sigma_deg, 1e-9);
   const ProcessResult text = Visloc({"map", "info", kData + "/map.db"});
-  EXPECT_NE(text.out.find("from the IMU, sigma"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("from the IMU and floor, sigma"), std::string::npos) << text.out;
 }
 
 // Exports speak the site frame once the map knows up: the square was walked on a level floor,
