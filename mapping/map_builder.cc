@@ -215,11 +215,12 @@ void MapBuilder::Process(int64_t timestamp_ns, StereoFrameSearch&& frame) {
   if (state_.keyframes.empty()) {
     frame_from_keyframe_.emplace_back(0, Rigid3d::Identity());
     last_cam_from_world_ = Rigid3d::Identity();
-    stats_.stereo_keypoints += static_cast<int64_t>(frame.frame().left.size());
-    stats_.stereo_searched += static_cast<int64_t>(frame.frame().left.size());
+    CountSearches(frame, /*keyframe=*/true);
+    const double features_before_ms = stats_.features_ms;
     AddKeyframe(&state_, timestamp_ns, CompleteStereo(std::move(frame)), Rigid3d::Identity(), {});
     counts_.reset();
-    stats_.tracking_ms += timer.ElapsedMs();
+    // Its searches count with the features (CompleteStereo), not twice.
+    stats_.tracking_ms += timer.ElapsedMs() - (stats_.features_ms - features_before_ms);
     return;
   }
   const Rigid3d predicted = velocity_ * last_cam_from_world_;
@@ -242,11 +243,16 @@ void MapBuilder::Process(int64_t timestamp_ns, StereoFrameSearch&& frame) {
   stats_.features_ms += frame.search_ms();
   const bool new_keyframe =
       NeedsKeyframe(options_.keyframes, pose, keyframe.cam_from_world, last_tracked_);
-  stats_.stereo_keypoints += static_cast<int64_t>(frame.frame().left.size());
-  stats_.stereo_searched += new_keyframe ? frame.frame().left.size() : frame.searched();
+  CountSearches(frame, new_keyframe);
   if (new_keyframe) {
     StartKeyframe(timestamp_ns, CompleteStereo(std::move(frame)), pose, track.tracked);
   }
+}
+
+void MapBuilder::CountSearches(const StereoFrameSearch& frame, bool keyframe) {
+  const auto keypoints = static_cast<int64_t>(frame.frame().left.size());
+  stats_.stereo_keypoints += keypoints;
+  stats_.stereo_searched += keyframe ? keypoints : frame.searched();
 }
 
 StereoFrame MapBuilder::CompleteStereo(StereoFrameSearch&& search) {

@@ -206,6 +206,9 @@ class MapBuilder {
   void Process(int64_t timestamp_ns, StereoFrameSearch&& frame);
   // The frame's every keypoint searched (timed with the features), for a keyframe.
   StereoFrame CompleteStereo(StereoFrameSearch&& search);
+  // The frame's keypoints into stats_.stereo_keypoints, and those searched (all of a keyframe's)
+  // into stats_.stereo_searched.
+  void CountSearches(const StereoFrameSearch& frame, bool keyframe);
   void StartKeyframe(int64_t timestamp_ns, StereoFrame&& frame, const Rigid3d& cam_from_world,
                      const std::vector<LandmarkMatch>& tracked);
   // Estimates the disparity correction from the frames so far, mapping them again with it
