@@ -59,6 +59,33 @@ inline void Bilinear2(const cv::Mat& a, const cv::Mat& b, double x, double y, fl
   *value_b = (1 - fy) * ((1 - fx) * b0[0] + fx * b0[1]) + fy * ((1 - fx) * b1[0] + fx * b1[1]);
 }
 
+// out[i] = the rows' bilinear sample at column row_start + (i - radius) * stride, i in
+// [0, 2 radius], each computed as BilinearInRows does (the same values, lane by lane).
+inline void SampleRow(const float* __restrict r0, const float* __restrict r1, float fy,
+                      double row_start, double stride, int radius, float* __restrict out) {
+  for (int u = -radius; u <= radius; ++u)
+    out[u + radius] = BilinearInRows(r0, r1, fy, row_start + u * stride);
+}
+
+// J^T J of the three Jacobian columns, each entry summed in double in pixel order as six separate
+// sums would be (the same bits), in one pass: the six sums' additions overlap rather than wait
+// on each other.
+inline Eigen::Matrix3d NormalMatrix(const float* j0, const float* j1, const float* j2, int n) {
+  double s00 = 0, s10 = 0, s11 = 0, s20 = 0, s21 = 0, s22 = 0;
+  for (int k = 0; k < n; ++k) {
+    const double a = j0[k], b = j1[k], c = j2[k];
+    s00 += a * a;
+    s10 += b * a;
+    s11 += b * b;
+    s20 += c * a;
+    s21 += c * b;
+    s22 += c * c;
+  }
+  Eigen::Matrix3d jtj;
+  jtj << s00, s10, s20, s10, s11, s21, s20, s21, s22;
+  return jtj;
+}
+
 // Per-thread scratch of RefineDisparity, one entry per patch pixel: a map build refines hundreds
 // of patches a frame.
 struct RefinementScratch {
@@ -109,13 +136,8 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
     }
   }
   scratch.template_values -= scratch.template_values.mean();
-  const Eigen::ArrayXf* jacobian[3] = {&scratch.jacobian0, &scratch.jacobian1, &scratch.jacobian2};
-  Eigen::Matrix3d jtj;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c <= r; ++c) {
-      jtj(r, c) = jtj(c, r) = (jacobian[r]->cast<double>() * jacobian[c]->cast<double>()).sum();
-    }
-  }
+  Eigen::Matrix3d jtj =
+      NormalMatrix(scratch.jacobian0.data(), scratch.jacobian1.data(), scratch.jacobian2.data(), n);
   if (jtj(0, 0) < 1e-9) return false;  // A flat patch along the row: nothing to align.
   jtj.diagonal() += Eigen::Vector3d(0, 1e-3, 1e-3) * jtj(0, 0);  // gradients small unless needed
   const Eigen::LDLT<Eigen::Matrix3d> normal_equations(jtj);
@@ -128,11 +150,14 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
       const float* row = right.ptr<float>(y0 + v);
       const float* next_row = right.ptr<float>(y0 + v + 1);
       const double row_start = x - d0 - gv * v;
-      for (int u = -radius; u <= radius; ++u, ++k) {
-        const double xr = row_start + u * (1.0 - gu);
-        if (xr < 1 || xr >= right.cols - 2) return false;
-        scratch.values[k] = BilinearInRows(row, next_row, fy, xr);
+      // The row's columns grow with u (1 - gu >= 0: each step divides it by a positive factor),
+      // so its two ends bound them all; the samples between need no test, and vectorize.
+      const double stride = 1.0 - gu;
+      if (row_start - radius * stride < 1 || row_start + radius * stride >= right.cols - 2) {
+        return false;
       }
+      SampleRow(row, next_row, fy, row_start, stride, radius, &scratch.values[k]);
+      k += 2 * radius + 1;
     }
     // r = (I_r(W(u, v; p)) - mean_r) - (T - mean_T): small numbers, summed in floats.
     Eigen::ArrayXf& residuals = scratch.residuals;  // Allocated once per thread, not per step.
@@ -158,9 +183,9 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
 // The rectified pair on the canvas (StereoRectifier::Rectify), as the correlation search and the
 // refinement need them.
 struct RectifiedPair {
-  cv::Mat left, right;                      // 8-bit.
-  cv::Mat left_f, left_gradient, right_f;   // CV_32F, for the refinement.
-  cv::Mat right_sum, right_sum_sq;          // Integral images of `right` (CV_32S, CV_64F).
+  cv::Mat left, right;                     // 8-bit.
+  cv::Mat left_f, left_gradient, right_f;  // CV_32F, for the refinement.
+  cv::Mat right_sum, right_sum_sq;         // Integral images of `right` (CV_32S, CV_64F).
 };
 
 namespace {
