@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <mutex>
 
@@ -35,36 +36,43 @@ constexpr int kGridCellPx = 16;
 // evenly, large enough that taking the next is nothing beside searching them.
 constexpr int kSearchChunk = 32;
 
-// Bilinear interpolation along rows `r0` and `r1` (the one below) at column `x`, `fy` of the way
-// down: a patch's samples of one image row share the rows and their weight.
-inline float BilinearInRows(const float* r0, const float* r1, float fy, double x) {
-  const int x0 = static_cast<int>(std::floor(x));
-  const float fx = static_cast<float>(x - x0);
-  return (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x0 + 1]) +
-         fy * ((1 - fx) * r1[x0] + fx * r1[x0 + 1]);
-}
-
-// Bilinear interpolation of two images of the same size at the same point (the left image and its
-// gradient): the weights and the rows are found once. Each value is computed as BilinearInRows
-// does.
-inline void Bilinear2(const cv::Mat& a, const cv::Mat& b, double x, double y, float* value_a,
-                      float* value_b) {
-  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const float* a0 = a.ptr<float>(y0) + x0;
-  const float* a1 = a.ptr<float>(y0 + 1) + x0;
-  const float* b0 = b.ptr<float>(y0) + x0;
-  const float* b1 = b.ptr<float>(y0 + 1) + x0;
-  *value_a = (1 - fy) * ((1 - fx) * a0[0] + fx * a0[1]) + fy * ((1 - fx) * a1[0] + fx * a1[1]);
-  *value_b = (1 - fy) * ((1 - fx) * b0[0] + fx * b0[1]) + fy * ((1 - fx) * b1[0] + fx * b1[1]);
-}
-
-// out[i] = the rows' bilinear sample at column row_start + (i - radius) * stride, i in
-// [0, 2 radius], each computed as BilinearInRows does (the same values, lane by lane).
-inline void SampleRow(const float* __restrict r0, const float* __restrict r1, float fy,
-                      double row_start, double stride, int radius, float* __restrict out) {
-  for (int u = -radius; u <= radius; ++u)
-    out[u + radius] = BilinearInRows(r0, r1, fy, row_start + u * stride);
+// out[i] = the bilinear sample of rows `r0` and `r1` (the one below, both `width` long) at
+// column row_start + (i - radius) * stride, `fy` of the way down, i in [0, 2 radius]: a patch's
+// samples of one image row share the rows and their weight. Eight at a time, each lane the same
+// IEEE operations as one sample alone. Every column must lie in [0, width - 2) (the caller
+// bounds them), so truncation is the floor. A stride near 1 (the template's is 1) puts the eight
+// at consecutive pixels: loaded as vectors, not gathered one by one.
+inline void SampleRow(const float* r0, const float* r1, int width, float fy, double row_start,
+                      double stride, int radius, float* out) {
+  const int count = 2 * radius + 1;
+  for (int first = 0; first < count; first += 8) {
+    const int lanes = std::min(8, count - first);
+    Doubles8 u;  // Lanes past the row repeat its last column: in bounds, never stored.
+    for (int j = 0; j < 8; ++j) u[j] = std::min(first + j, count - 1) - radius;
+    const Doubles8 column = row_start + u * stride;
+    const Int64s8 x0 = __builtin_convertvector(column, Int64s8);
+    const Floats8 fx =
+        __builtin_convertvector(column - __builtin_convertvector(x0, Doubles8), Floats8);
+    bool consecutive = x0[0] + 8 < width;  // All nine columns a vector load reads.
+    for (int j = 1; j < lanes; ++j) consecutive &= x0[j] == x0[0] + j;
+    Floats8 a, b, c, d;
+    if (consecutive) {
+      std::memcpy(&a, r0 + x0[0], sizeof(a));
+      std::memcpy(&b, r0 + x0[0] + 1, sizeof(b));
+      std::memcpy(&c, r1 + x0[0], sizeof(c));
+      std::memcpy(&d, r1 + x0[0] + 1, sizeof(d));
+    } else {
+      for (int j = 0; j < 8; ++j) {
+        a[j] = r0[x0[j]];
+        b[j] = r0[x0[j] + 1];
+        c[j] = r1[x0[j]];
+        d[j] = r1[x0[j] + 1];
+      }
+    }
+    const Floats8 value =
+        (1.0f - fy) * ((1.0f - fx) * a + fx * b) + fy * ((1.0f - fx) * c + fx * d);
+    for (int j = 0; j < lanes; ++j) out[first + j] = value[j];
+  }
 }
 
 // J^T J of the three Jacobian columns, each entry summed in double in pixel order as six separate
@@ -124,15 +132,22 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
   // equations are made once, and an iteration samples the right image alone (the forward
   // additive form sampled the right image's gradient too and solved its normal equations each
   // time: half of a map build's time).
-  int k = 0;
-  for (int v = -radius; v <= radius; ++v) {
-    for (int u = -radius; u <= radius; ++u, ++k) {
-      float gradient = 0.0f;
-      Bilinear2(left, left_gradient_x, x + u, y + v, &scratch.template_values[k], &gradient);
+  const int side = 2 * radius + 1;
+  for (int v = -radius, k = 0; v <= radius; ++v, k += side) {
+    const double row_y = y + v;
+    const int y0 = static_cast<int>(std::floor(row_y));
+    const float fy = static_cast<float>(row_y - y0);
+    SampleRow(left.ptr<float>(y0), left.ptr<float>(y0 + 1), left.cols, fy, x, 1.0, radius,
+              &scratch.template_values[k]);
+    float* gradient = &scratch.jacobian0[k];
+    SampleRow(left_gradient_x.ptr<float>(y0), left_gradient_x.ptr<float>(y0 + 1), left.cols, fy, x,
+              1.0, radius, gradient);
+    for (int u = -radius; u <= radius; ++u) {
       // dT(W(u, v; p))/dp at p = 0: the template's x gradient times dx/dp = (-1, -u, -v).
-      scratch.jacobian0[k] = -gradient;
-      scratch.jacobian1[k] = -gradient * static_cast<float>(u);
-      scratch.jacobian2[k] = -gradient * static_cast<float>(v);
+      const float g = gradient[u + radius];
+      scratch.jacobian1[k + u + radius] = -g * static_cast<float>(u);
+      scratch.jacobian2[k + u + radius] = -g * static_cast<float>(v);
+      gradient[u + radius] = -g;
     }
   }
   scratch.template_values -= scratch.template_values.mean();
@@ -145,8 +160,7 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
   const float fy = static_cast<float>(y - y0);
   double d0 = *d, gu = 0.0, gv = 0.0;
   for (int iteration = 0; iteration < 10; ++iteration) {
-    k = 0;
-    for (int v = -radius; v <= radius; ++v) {
+    for (int v = -radius, k = 0; v <= radius; ++v, k += side) {
       const float* row = right.ptr<float>(y0 + v);
       const float* next_row = right.ptr<float>(y0 + v + 1);
       const double row_start = x - d0 - gv * v;
@@ -156,8 +170,7 @@ VISLOC_SIMD_CLONES bool RefineDisparity(const cv::Mat& left, const cv::Mat& left
       if (row_start - radius * stride < 1 || row_start + radius * stride >= right.cols - 2) {
         return false;
       }
-      SampleRow(row, next_row, fy, row_start, stride, radius, &scratch.values[k]);
-      k += 2 * radius + 1;
+      SampleRow(row, next_row, right.cols, fy, row_start, stride, radius, &scratch.values[k]);
     }
     // r = (I_r(W(u, v; p)) - mean_r) - (T - mean_T): small numbers, summed in floats.
     Eigen::ArrayXf& residuals = scratch.residuals;  // Allocated once per thread, not per step.
