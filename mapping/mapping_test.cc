@@ -265,6 +265,35 @@ TEST(StereoFrameTest, AFrameSearchedInPartsIsTheFrameSearchedWhole) {
   ExpectSameFrame(whole, parts);
 }
 
+// A map build's preparing thread runs every search ahead, before the mapping thread knows the
+// rig's disparity correction: with the correction set after, the frame searched in parts (and
+// its counts: only the keypoints asked for) is the lazily searched one, value for value.
+TEST(StereoFrameTest, SearchesRunAheadGiveTheFrameSearchedWhenAskedWithTheCorrectionSetAfter) {
+  const RoomShot room;
+  const auto extractor = CreateFeatureExtractor(DefaultFeatureSettings("harris_surf16"));
+  StereoMatchOptions options;
+  options.threads = 2;
+  const DisparityCorrection correction{0.3, 0.001};  // px, rad
+  const StereoFrame whole = BuildStereoFrame(room.shot.left, room.shot.right, *extractor,
+                                             room.rectifier, options, correction);
+  StereoFrameSearch lazy(room.shot.left, room.shot.right, *extractor, room.rectifier, options);
+  StereoFrameSearch ahead(room.shot.left, room.shot.right, *extractor, room.rectifier, options);
+  ahead.SearchAhead();
+  EXPECT_EQ(ahead.frame().stats.searched, 0);  // Nothing counted until asked for.
+  EXPECT_EQ(ahead.frame().stereo_matches(), 0);
+  lazy.SetCorrection(correction);
+  ahead.SetCorrection(correction);
+  std::vector<int> odd;
+  for (int i = 1; i < static_cast<int>(ahead.frame().left.size()); i += 2) odd.push_back(i);
+  lazy.Search(odd);
+  ahead.Search(odd);
+  ExpectSameFrame(lazy.frame(), ahead.frame());
+  EXPECT_EQ(lazy.searched(), ahead.searched());
+  const StereoFrame completed = std::move(ahead).Complete();
+  EXPECT_GT(whole.stereo_matches(), 500);
+  ExpectSameFrame(whole, completed);
+}
+
 TEST(StereoFrameTest, TheCorrelationPeakAloneIsGoodToAFewTenthsOfAPixel) {
   // The row search correlates at the keypoint's nearest whole pixel; the keypoint shares that
   // disparity (it once got the fraction of a pixel between them added, half a pixel off at worst).
@@ -454,7 +483,8 @@ TEST(MapBuilderProgressTest, EachFrameReportsItsPoseAndTheMapSoFar) {
     EXPECT_TRUE(progress.last_tracked) << "frame " << i;
     EXPECT_GE(progress.keyframes, std::max(1, keyframes_before));
     keyframes_before = progress.keyframes;
-    const Rigid3d last = builder.FrameTrajectory().back().pose;  // A copy: the trajectory is a temporary.
+    const Rigid3d last =
+        builder.FrameTrajectory().back().pose;  // A copy: the trajectory is a temporary.
     EXPECT_LT((progress.map_from_cam.translation - last.translation).norm(), 1e-9) << "frame " << i;
     EXPECT_LT(progress.map_from_cam.rotation.angularDistance(last.rotation), 1e-9);
     if (i > 0) {

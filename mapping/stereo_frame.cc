@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
-#include <mutex>
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
@@ -447,8 +446,47 @@ void StereoFrameSearch::SetCorrection(const DisparityCorrection& correction) {
   correction_ = correction;
 }
 
-void StereoFrameSearch::Search(const std::vector<int>& features) {
+namespace {
+
+// The disparities (rectified px, uncorrected; NaN: none) of the keypoints at rectified
+// `left_rect[todo[j]]`, j in [0, todo.size()), in chunks the threads take as they finish: a
+// keypoint's search is as long as its row's disparity range, which grows across the image, so
+// equal halves were not equal work. Each search's counts go to stats(j).
+template <typename StatsOf>
+std::vector<double> MatchKeypoints(const RectifiedPair& pair, const StereoRectifier& rectifier,
+                                   const StereoMatchOptions& options,
+                                   const std::vector<Eigen::Vector2d>& left_rect,
+                                   const std::vector<int>& todo, const StatsOf& stats) {
+  std::vector<double> disparities(todo.size(), std::numeric_limits<double>::quiet_NaN());
+  ParallelChunks(static_cast<int>(todo.size()), ResolveThreads(options.threads), kSearchChunk,
+                 [&](int begin, int end) {
+                   std::vector<double> scores;
+                   for (int j = begin; j < end; ++j) {
+                     disparities[j] = MatchKeypoint(pair, rectifier, options, left_rect[todo[j]],
+                                                    &scores, stats(j));
+                   }
+                 });
+  return disparities;
+}
+
+}  // namespace
+
+void StereoFrameSearch::SearchAhead() {
+  VISLOC_CHECK(searched_count_ == 0 && ahead_disparity_.empty(),
+               "a frame's searches run ahead before any is made");
   if (!pair_) return;
+  const Timer timer;
+  std::vector<int> all(frame_.left.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  ahead_stats_.assign(all.size(), StereoMatchStats{});
+  ahead_disparity_ = MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, all,
+                                    [this](int j) { return &ahead_stats_[j]; });
+  pair_.reset();
+  prepare_ms_ += timer.ElapsedMs();
+}
+
+void StereoFrameSearch::Search(const std::vector<int>& features) {
+  if (searched_.empty()) return;  // Built complete, or no keypoints.
   const Timer timer;
   std::vector<int> todo;
   for (int i : features) {
@@ -457,23 +495,20 @@ void StereoFrameSearch::Search(const std::vector<int>& features) {
       todo.push_back(i);
     }
   }
+  if (todo.empty()) return;
   searched_count_ += static_cast<int>(todo.size());
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  std::vector<double> disparities(todo.size(), nan);
-  std::mutex stats_mutex;
-  // In chunks the threads take as they finish: a keypoint's search is as long as its row's
-  // disparity range, which grows across the image, so equal halves were not equal work.
-  ParallelChunks(static_cast<int>(todo.size()), ResolveThreads(options_.threads), kSearchChunk,
-                 [&](int begin, int end) {
-                   std::vector<double> scores;
-                   StereoMatchStats stats;
-                   for (int j = begin; j < end; ++j) {
-                     disparities[j] = MatchKeypoint(*pair_, *rectifier_, options_,
-                                                    frame_.left_rect[todo[j]], &scores, &stats);
-                   }
-                   const std::lock_guard<std::mutex> lock(stats_mutex);
-                   AddSearchCounts(stats, &frame_.stats);
-                 });
+  std::vector<double> disparities;
+  if (ahead_disparity_.empty()) {
+    std::vector<StereoMatchStats> stats(todo.size());
+    disparities = MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, todo,
+                                 [&stats](int j) { return &stats[j]; });
+    for (const StereoMatchStats& s : stats) AddSearchCounts(s, &frame_.stats);
+  } else {
+    for (int i : todo) {
+      disparities.push_back(ahead_disparity_[i]);
+      AddSearchCounts(ahead_stats_[i], &frame_.stats);
+    }
+  }
   const Camera& rect = rectifier_->rectified_camera();
   for (size_t j = 0; j < todo.size(); ++j) {
     if (!std::isfinite(disparities[j])) continue;
@@ -486,14 +521,12 @@ void StereoFrameSearch::Search(const std::vector<int>& features) {
 }
 
 StereoFrame StereoFrameSearch::Complete() && {
-  if (pair_) {
-    std::vector<int> rest;
-    for (size_t i = 0; i < searched_.size(); ++i) {
-      if (!searched_[i]) rest.push_back(static_cast<int>(i));
-    }
-    Search(rest);
-    pair_.reset();
+  std::vector<int> rest;
+  for (size_t i = 0; i < searched_.size(); ++i) {
+    if (!searched_[i]) rest.push_back(static_cast<int>(i));
   }
+  Search(rest);
+  pair_.reset();
   return std::move(frame_);
 }
 

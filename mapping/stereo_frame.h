@@ -111,6 +111,11 @@ class StereoFrameSearch {
   const StereoFrame& frame() const { return frame_; }
   // Searches those of keypoints `features` (indices into frame().left) not searched yet.
   void Search(const std::vector<int>& features);
+  // Runs every keypoint's search now, before any Search, and releases the rectified images:
+  // Search then only takes the disparity correction off the results kept. On the thread that
+  // prepares frames ahead of a map build, the searches leave the mapping thread (the same
+  // results: a search does not depend on the correction, which is taken off after).
+  void SearchAhead();
   // Every keypoint searched; the rectified images released.
   StereoFrame Complete() &&;
   // Wall time spent in Search so far (ms): a map build counts it with the features.
@@ -130,6 +135,10 @@ class StereoFrameSearch {
   DisparityCorrection correction_;
   std::unique_ptr<RectifiedPair> pair_;  // Null once every keypoint is searched.
   std::vector<bool> searched_;
+  // From SearchAhead, per keypoint: the disparity found (rectified px, uncorrected; NaN: none)
+  // and its search's counts.
+  std::vector<double> ahead_disparity_;
+  std::vector<StereoMatchStats> ahead_stats_;
   double search_ms_ = 0.0, prepare_ms_ = 0.0;
   int searched_count_ = 0;
 };
