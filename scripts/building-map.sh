@@ -145,7 +145,12 @@ out = ["# A whole building in one run", "",
        "## Built here (`visloc map build`)", ""]
 if baseline:
     out += ["Commit %s's build (the row below today's) ran in the same run, after today's: compare "
-            "within the table, not across runs (the machine is shared)." % baseline[0], ""]
+            "within the table, not across runs (the machine is shared). The end's global "
+            "adjustment is the same work in both and runs alone: %.1f s today, %.1f s in the "
+            "other build (%.2f times as long), so part of the difference in frames a second "
+            "is the machine's, not the code's." % (
+                baseline[0], b["global_ba_ms"] / 1e3, baseline[1]["global_ba_ms"] / 1e3,
+                baseline[1]["global_ba_ms"] / b["global_ba_ms"]), ""]
 out += ["| commit | frames | keyframes | points | total, s | frames a second | features and stereo, s | "
         "tracking, s | local BA, s | loop closure, s (closures, corrected) | global BA, s (pieces) | "
         "peak memory, MiB | frames' error, median / max, cm |",
