@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
 #include <thread>
 
 #include "core/util/temp_dir.h"
@@ -91,8 +92,17 @@ TEST_F(FleetE2eTest, TheListShowsEachRobotAsItStreamsAndTheKidnappedOneLostAndBa
     if (lost_seen && k && k->has_pose()) {
       back_seen = true;
       EXPECT_EQ(k->without_pose_since_unix_ns(), 0);
-      EXPECT_GT(k->inliers(), 30u);
-      EXPECT_GT(k->inlier_ratio(), 0.3);
+      // The first answer back may be a limited fix (the frames a loaded robot delivered after
+      // the kidnapping may leave one that sees part of the map) or follow a skipped frame: each
+      // status's support is its own floor (LocalizerOptions): limited 12 inliers, tracked or
+      // relocalized 30 at a ratio of 0.4.
+      const std::string status = v1::Status_Name(k->status());
+      if (k->status() == v1::STATUS_LIMITED) {
+        EXPECT_GE(k->inliers(), 12u) << status;
+      } else if (k->status() == v1::STATUS_TRACKING || k->status() == v1::STATUS_RELOCALIZED) {
+        EXPECT_GE(k->inliers(), 30u) << status;
+        EXPECT_GT(k->inlier_ratio(), 0.3) << status;
+      }
     }
   }
   watch.TryCancel();
