@@ -449,21 +449,22 @@ void StereoFrameSearch::SetCorrection(const DisparityCorrection& correction) {
 namespace {
 
 // The disparities (rectified px, uncorrected; NaN: none) of the keypoints at rectified
-// `left_rect[todo[j]]`, j in [0, todo.size()), in chunks the threads take as they finish: a
-// keypoint's search is as long as its row's disparity range, which grows across the image, so
-// equal halves were not equal work. Each search's counts go to stats(j).
-template <typename StatsOf>
+// `left_rect[todo[j]]`, j in [0, todo.size()), and each search's counts in (*stats)[j]; in chunks
+// the threads take as they finish: a keypoint's search is as long as its row's disparity range,
+// which grows across the image, so equal halves were not equal work.
 std::vector<double> MatchKeypoints(const RectifiedPair& pair, const StereoRectifier& rectifier,
                                    const StereoMatchOptions& options,
                                    const std::vector<Eigen::Vector2d>& left_rect,
-                                   const std::vector<int>& todo, const StatsOf& stats) {
+                                   const std::vector<int>& todo,
+                                   std::vector<StereoMatchStats>* stats) {
   std::vector<double> disparities(todo.size(), std::numeric_limits<double>::quiet_NaN());
+  stats->assign(todo.size(), StereoMatchStats{});
   ParallelChunks(static_cast<int>(todo.size()), ResolveThreads(options.threads), kSearchChunk,
                  [&](int begin, int end) {
                    std::vector<double> scores;
                    for (int j = begin; j < end; ++j) {
                      disparities[j] = MatchKeypoint(pair, rectifier, options, left_rect[todo[j]],
-                                                    &scores, stats(j));
+                                                    &scores, &(*stats)[j]);
                    }
                  });
   return disparities;
@@ -478,9 +479,8 @@ void StereoFrameSearch::SearchAhead() {
   const Timer timer;
   std::vector<int> all(frame_.left.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
-  ahead_stats_.assign(all.size(), StereoMatchStats{});
-  ahead_disparity_ = MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, all,
-                                    [this](int j) { return &ahead_stats_[j]; });
+  ahead_disparity_ =
+      MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, all, &ahead_stats_);
   pair_.reset();
   prepare_ms_ += timer.ElapsedMs();
 }
@@ -499,9 +499,8 @@ void StereoFrameSearch::Search(const std::vector<int>& features) {
   searched_count_ += static_cast<int>(todo.size());
   std::vector<double> disparities;
   if (ahead_disparity_.empty()) {
-    std::vector<StereoMatchStats> stats(todo.size());
-    disparities = MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, todo,
-                                 [&stats](int j) { return &stats[j]; });
+    std::vector<StereoMatchStats> stats;
+    disparities = MatchKeypoints(*pair_, *rectifier_, options_, frame_.left_rect, todo, &stats);
     for (const StereoMatchStats& s : stats) AddSearchCounts(s, &frame_.stats);
   } else {
     for (int i : todo) {

@@ -47,15 +47,12 @@ build_here() {
 }
 echo "== map build"
 build_here "$V" "$WORK/building"
-mv "$WORK/building.json" "$WORK/build.json"
-mv "$WORK/building.eval.json" "$WORK/eval.json"
 rm -f "$WORK/baseline.json"
 if [[ -n $baseline_rev ]]; then
   build_baseline "$baseline_rev" "$WORK/baseline"
   echo "== map build at $BASELINE_COMMIT"
   build_here "$WORK/baseline/build/client/visloc" "$WORK/baseline"
   rm -f "$WORK/baseline.db"
-  echo "$BASELINE_COMMIT" > "$WORK/baseline/commit_measured"
 fi
 
 if ! $here_only; then
@@ -108,7 +105,7 @@ import json, os, sys
 work, report, commit, here_only, baseline_rev = sys.argv[1:6]
 here_only = here_only == "true"
 j = lambda name: json.load(open(os.path.join(work, name)))
-b, e = j("build.json"), j("eval.json")
+b, e = j("building.json"), j("building.eval.json")
 baseline = None
 if baseline_rev and os.path.exists(os.path.join(work, "baseline.json")):
     baseline = (open(os.path.join(work, "baseline", "commit")).read().strip(),
