@@ -133,7 +133,8 @@ class StereoFrameSearch {
   const StereoRectifier* rectifier_ = nullptr;
   StereoMatchOptions options_;
   DisparityCorrection correction_;
-  std::unique_ptr<RectifiedPair> pair_;  // Null once every keypoint is searched, or ahead.
+  std::unique_ptr<RectifiedPair>
+      pair_;  // Null once every keypoint is searched (or searched ahead).
   std::vector<bool> searched_;
   // From SearchAhead, per keypoint: the disparity found (rectified px, uncorrected; NaN: none)
   // and its search's counts.

@@ -95,9 +95,9 @@ stop_server
 sed -n 's/.*event=mapping_recovered .*frames=\([0-9]*\) ms=\([0-9.]*\).*/\1 \2/p' "$WORK/server.log" \
   > "$WORK/recovered"
 awk -v a="$restarted" -v b="$resumed" 'BEGIN { printf "%.1f\n", b - a }' > "$WORK/resumed_after_s"
-for map in streamed maps/building; do
-  "$V" map export "$WORK/$map.db" --keyframes "$WORK/$(basename $map).keyframes.tum" > /dev/null
-done
+# The unbroken stream's map and the killed-and-restarted one's (not the local build's).
+"$V" map export "$WORK/streamed.db" --keyframes "$WORK/streamed.keyframes.tum" > /dev/null
+"$V" map export "$WORK/maps/building.db" --keyframes "$WORK/killed.keyframes.tum" > /dev/null
 fi
 
 /usr/bin/python3 - "$WORK" "$REPORT" "$(git rev-parse --short HEAD)" "$here_only" "$baseline_rev" <<'PY'
@@ -173,7 +173,7 @@ if here_only:
 else:
     s, k = j("streamed.json"), j("killed.json")
     server_mib = float(open(os.path.join(work, "server_peak_mib")).read())
-    unbroken, killed = keyframes("streamed.keyframes.tum"), keyframes("building.keyframes.tum")
+    unbroken, killed = keyframes("streamed.keyframes.tum"), keyframes("killed.keyframes.tum")
     worst_mm = max((sum((a - b) ** 2 for a, b in zip(p[1], q[1])) ** 0.5 * 1e3
                     for p, q in zip(unbroken, killed)), default=float("nan"))
     kept_frames, replay_ms = open(os.path.join(work, "recovered")).read().split()
