@@ -2,11 +2,11 @@
 // Spreading robots over server replicas from the client side. A fleet that outgrows one
 // server runs several visloc-server replicas behind one DNS name (a Kubernetes headless
 // service: one address per replica) or names them as a list ("ipv4:10.0.0.5:50051,10.0.0.6:50051").
-// gRPC's round_robin policy sends each new call (one Localize stream = one robot session) to
-// the next ready replica, and a stream never leaves the replica it started on. What round_robin
-// alone does not do (gRPC 1.51) is start each *process* somewhere different: it begins with the
-// first address to connect, so every robot process would open its first session on the same
-// replica. Shuffling the list per process fixes that.
+// A robot session (one Localize stream, which never leaves the replica it started on) asks the
+// list's replicas in order: the first that connects serves it, a dead one is skipped, and one
+// at capacity sends it on to the next (client/lib/channel.h). Every robot gets its own shuffled
+// list, so robots spread over the replicas; the one-off calls of the CLI balance theirs with
+// gRPC's round_robin.
 
 #include <random>
 #include <string>
@@ -20,7 +20,8 @@ namespace visloc::cli {
 std::vector<std::string> ResolveReplicas(const std::string& host, const std::string& port);
 
 // The gRPC target for `server`: an explicit "ipv4:"/"ipv6:" list, or a HOST:PORT (optionally
-// "dns:///HOST:PORT") that resolves to two or more addresses, becomes a shuffled address list.
+// "dns:///HOST:PORT") that resolves to two or more addresses, becomes a shuffled address list
+// (shuffled by `rng`; Connection::ToLibrary draws a new one for each robot).
 // Anything else (one address, a name that does not resolve, other schemes) is returned as is,
 // so gRPC's own resolver reports failures and re-resolves. `resolve` is ResolveReplicas in
 // production and a table in tests.

@@ -38,8 +38,11 @@ std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,
   args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, static_cast<int>(timing.backoff_initial.count()));
   args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, static_cast<int>(timing.backoff_max.count()));
   args.SetMaxReceiveMessageSize(kMaxReceiveMessageBytes);
-  // Replicas (several addresses): each new stream goes to the next ready one.
-  args.SetLoadBalancingPolicyName("round_robin");
+  // Replicas (several addresses): the first in the list's order that connects, a dead one
+  // skipped. The order is the caller's (shuffled per robot, turned after a capacity refusal);
+  // round_robin would ignore it and send a stream to whichever replica connected first, a
+  // refused robot back to the full replica.
+  args.SetLoadBalancingPolicyName("pick_first");
   if (!credentials.tls_target_name.empty()) {
     args.SetSslTargetNameOverride(credentials.tls_target_name);
   }

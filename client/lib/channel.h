@@ -2,7 +2,7 @@
 // The channel a client stream runs on (localization sessions, mapping sessions, one-off calls):
 // a fresh connection per stream, since after a stall the old one may be a dead TCP connection
 // that gRPC has not noticed yet (a local subchannel pool); keepalive; the channel's own
-// reconnection no slower than the caller's; round robin over replicas; TLS from PEM strings.
+// reconnection no slower than the caller's; replicas in the list's order; TLS from PEM strings.
 
 #include <grpcpp/grpcpp.h>
 
@@ -29,8 +29,8 @@ inline void Authorize(grpc::ClientContext* context, const Credentials& credentia
 }
 
 // A replica list ("ipv4:A:PORT,B:PORT", "ipv6:...") with its first address moved to the end, so
-// a new channel's round robin starts at the next replica (gRPC 1.51 starts at the first); any
-// other target unchanged. A session refused by a replica at capacity asks the next one.
+// a new stream channel (pick_first: the list's order) starts at the next replica; any other
+// target unchanged. A session refused by a replica at capacity asks the next one.
 std::string NextReplicaFirst(const std::string& target);
 
 std::shared_ptr<grpc::Channel> NewStreamChannel(const std::string& server,

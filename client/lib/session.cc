@@ -51,11 +51,12 @@ double MsBetween(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
-// Statuses after which reconnecting cannot help: the request itself is refused.
-// How long a session refused for capacity (RESOURCE_EXHAUSTED) waits before asking again,
-// doubling while it is refused.
+// How long a session refused for capacity (RESOURCE_EXHAUSTED) by every replica waits before
+// asking again, doubling while it is refused.
 constexpr std::chrono::milliseconds kFirstCapacityBackoff{1000};
 constexpr std::chrono::milliseconds kMaxCapacityBackoff{8000};
+
+// Statuses after which reconnecting cannot help: the request itself is refused.
 
 bool Permanent(grpc::StatusCode code) {
   switch (code) {
@@ -118,8 +119,17 @@ class SessionImpl final : public Session {
     bool answered = false;  // The stream has answered a frame.
   };
   using Events = std::vector<Event>;
+  // Refusals for capacity in a row, and the wait once every replica has refused.
+  struct CapacityRefusals {
+    int in_a_row = 0;
+    std::chrono::milliseconds backoff = kFirstCapacityBackoff;
+  };
 
   void Work();
+  // A server at capacity refused the session: the next replica of a list at once, and once
+  // every replica has refused, again only after a backoff (every robot refused would otherwise
+  // knock at the link's pace). Called with no lock held.
+  void TurnToNextReplica(CapacityRefusals* refusals, Events* events);
   bool OpenStream(Events* events, grpc::Status* refused);
   void ReadAnswers(Stream* stream);
   void FinishWriting();
@@ -512,10 +522,22 @@ bool SessionImpl::SendNext() {
   return written;
 }
 
+void SessionImpl::TurnToNextReplica(CapacityRefusals* refusals, Events* events) {
+  ++refusals->in_a_row;
+  target_ = NextReplicaFirst(target_);
+  const int replicas = 1 + static_cast<int>(std::count(target_.begin(), target_.end(), ','));
+  if (refusals->in_a_row % replicas != 0) return;
+  Emit(std::move(*events));
+  events->clear();
+  std::unique_lock<std::mutex> lock(mutex_);
+  wake_.wait_for(lock, refusals->backoff, [this] { return closing_; });
+  refusals->backoff = std::min(refusals->backoff * 2, kMaxCapacityBackoff);
+  ExpireQueued(Clock::now(), events);
+}
+
 void SessionImpl::Work() {
   std::chrono::milliseconds backoff = options_.backoff_initial;
-  std::chrono::milliseconds capacity_backoff = kFirstCapacityBackoff;
-  int capacity_refusals = 0;  // In a row.
+  CapacityRefusals capacity;
   bool ever_connected = false;
   Clock::time_point last_stream = Clock::now();  // Opened, or the start.
   while (true) {
@@ -559,8 +581,15 @@ void SessionImpl::Work() {
           SetState(ever_connected ? LinkState::kReconnecting : LinkState::kConnecting,
                    refused.error_message(), &events);
           ExpireQueued(Clock::now(), &events);
-          wake_.wait_for(lock, backoff, [this] { return closing_; });
-          backoff = std::min(backoff * 2, options_.backoff_max);
+          if (refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) {
+            // Refused before the stream was up (the server answered before our first write).
+            lock.unlock();
+            TurnToNextReplica(&capacity, &events);
+            lock.lock();
+          } else {
+            wake_.wait_for(lock, backoff, [this] { return closing_; });
+            backoff = std::min(backoff * 2, options_.backoff_max);
+          }
         }
         lock.unlock();
         wake_.notify_all();
@@ -601,24 +630,9 @@ void SessionImpl::Work() {
       const bool at_capacity = EndStream(&events, &permanent);
       last_stream = Clock::now();  // Giving up counts from the break.
       if (at_capacity) {
-        // A server at capacity: the next replica of a list at once, and once every replica has
-        // refused, again later, not at once (every robot refused would otherwise knock at the
-        // link's pace).
-        ++capacity_refusals;
-        const std::string next = NextReplicaFirst(target_);
-        const int replicas = 1 + static_cast<int>(std::count(next.begin(), next.end(), ','));
-        target_ = next;
-        if (capacity_refusals % replicas == 0) {
-          Emit(std::move(events));
-          events.clear();
-          std::unique_lock<std::mutex> lock(mutex_);
-          wake_.wait_for(lock, capacity_backoff, [this] { return closing_; });
-          capacity_backoff = std::min(capacity_backoff * 2, kMaxCapacityBackoff);
-          ExpireQueued(Clock::now(), &events);
-        }
+        TurnToNextReplica(&capacity, &events);
       } else {
-        capacity_backoff = kFirstCapacityBackoff;
-        capacity_refusals = 0;
+        capacity = CapacityRefusals();
       }
     }
     wake_.notify_all();  // A Submit waiting for room sees drops and refusals.

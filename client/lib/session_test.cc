@@ -94,6 +94,60 @@ TEST(ReplicaListTest, TheNextReplicaComesFirst) {
   }
 }
 
+// A replica at capacity: refuses every session before reading a frame, as admission control
+// does (server/admission.h), and counts the sessions that reached it.
+class FullReplica final : public v1::Localization::Service {
+ public:
+  grpc::Status Localize(
+      grpc::ServerContext*,
+      grpc::ServerReaderWriter<v1::LocalizeResponse, v1::LocalizeRequest>*) override {
+    ++sessions;
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "server at capacity (a test replica)"};
+  }
+  std::atomic<int> sessions{0};
+};
+
+// Two replicas, the first in the robot's list full. A robot asks the replicas in its list's
+// order: the full one once, then the other at once, never the full one twice in a row (a CI
+// run's robot was sent back to the full replica by the channel's balancer, refused twice,
+// backed off a second and never served). A list with the free replica first never touches
+// the full one.
+TEST_F(ClientSessionTest, ARobotAsksItsReplicasInTheListsOrder) {
+  FullReplica full;
+  int full_port = 0;
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort("127.0.0.1:0", grpc::InsecureServerCredentials(), &full_port);
+  builder.RegisterService(&full);
+  const std::unique_ptr<grpc::Server> full_server = builder.BuildAndStart();
+  ASSERT_GT(full_port, 0);
+  const std::string full_address = "127.0.0.1:" + std::to_string(full_port);
+  const std::string free_address = "127.0.0.1:" + std::to_string(port_);
+  constexpr int kRobots = 12;
+  for (const bool full_first : {true, false}) {
+    full.sessions = 0;
+    for (int robot = 0; robot < kRobots; ++robot) {
+      SessionOptions options = Options();
+      options.server = full_first ? "ipv4:" + full_address + "," + free_address
+                                  : "ipv4:" + free_address + "," + full_address;
+      // A camera at 20 Hz until the first answer: frames sent to the full replica before its
+      // refusal came back are not answered, later ones are.
+      auto session = Session::Open(options);
+      std::vector<Event> events;
+      for (int i = 0; i < 200 && Count(events, Event::Kind::kResult) == 0; ++i) {
+        ASSERT_TRUE(session->Submit(MakeFrame(i)));
+        const std::vector<Event> more =
+            Collect(session.get(), 0.05, [](const auto&) { return false; });
+        events.insert(events.end(), more.begin(), more.end());
+      }
+      session->Close();
+      ASSERT_GE(Count(events, Event::Kind::kResult), 1) << "robot " << robot;
+    }
+    EXPECT_EQ(full.sessions.load(), full_first ? kRobots : 0)
+        << "full replica first: " << full_first;
+  }
+  full_server->Shutdown();
+}
+
 TEST_F(ClientSessionTest, EveryFrameIsAnsweredInOrderForEachEncoding) {
   for (const Encoding encoding : {Encoding::kJpeg, Encoding::kPng, Encoding::kRaw}) {
     SessionOptions options = Options();
