@@ -173,8 +173,9 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
   // through the rig's lever arm (a fifth of a degree is 2 px at 160 px of focal length), so the
   // right pose drawn in one camera may count fewer than a wrong one that a narrow view of
   // another allows. Each camera's best is therefore refined on its inliers and counted again
-  // (the local optimization of LO-RANSAC, at the end: two passes, the second selecting what the
-  // refinement reaches in the other cameras), and the refined counts decide.
+  // (the local optimization of LO-RANSAC, at the end: a pass at twice the threshold, which
+  // reaches the other cameras' points, then one at the threshold), and the refined counts
+  // decide. Two passes, not more: the tracker re-matches around the winner and refines twice.
   struct Best {
     int inliers = 0;      // The hypothesis's, over all cameras.
     int own_inliers = 0;  // In the camera it was drawn in.
@@ -183,9 +184,8 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
   std::vector<Best> best(rig.per_camera.size());
   std::vector<int> camera_inliers(rig.per_camera.size(), 0);
   PnpRansacOptions local_options = options;
-  local_options.refinement_passes = std::max(2, options.refinement_passes);
-  PnpRansacOptions wide_options = options;
-  wide_options.refinement_passes = 1;
+  local_options.refinement_passes = 1;
+  PnpRansacOptions wide_options = local_options;
   wide_options.max_error_px = 2 * options.max_error_px;
   int needed = options.max_iterations;
   int iteration = 0;
