@@ -57,7 +57,6 @@ constexpr std::chrono::milliseconds kFirstCapacityBackoff{1000};
 constexpr std::chrono::milliseconds kMaxCapacityBackoff{8000};
 
 // Statuses after which reconnecting cannot help: the request itself is refused.
-
 bool Permanent(grpc::StatusCode code) {
   switch (code) {
     case grpc::StatusCode::INVALID_ARGUMENT:
@@ -564,6 +563,9 @@ void SessionImpl::Work() {
       grpc::Status refused;
       if (!OpenStream(&events, &refused)) {
         std::unique_lock<std::mutex> lock(mutex_);
+        // Refused for capacity before the stream was up (the server answered before our first
+        // write): the next replica, as for a refusal after it.
+        bool at_capacity = false;
         const std::string code =
             " (gRPC code " + std::to_string(static_cast<int>(refused.error_code())) + ")";
         const bool give_up = options_.give_up_after.count() > 0 &&
@@ -581,17 +583,14 @@ void SessionImpl::Work() {
           SetState(ever_connected ? LinkState::kReconnecting : LinkState::kConnecting,
                    refused.error_message(), &events);
           ExpireQueued(Clock::now(), &events);
-          if (refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) {
-            // Refused before the stream was up (the server answered before our first write).
-            lock.unlock();
-            TurnToNextReplica(&capacity, &events);
-            lock.lock();
-          } else {
+          at_capacity = refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED;
+          if (!at_capacity) {
             wake_.wait_for(lock, backoff, [this] { return closing_; });
             backoff = std::min(backoff * 2, options_.backoff_max);
           }
         }
         lock.unlock();
+        if (at_capacity) TurnToNextReplica(&capacity, &events);
         wake_.notify_all();
         Emit(std::move(events));
         continue;
