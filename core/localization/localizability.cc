@@ -199,8 +199,7 @@ LocalizabilityEstimate LocalizabilityPredictor::Estimate(const Rigid3d& map_from
     }
   }
   estimate.visible_points = static_cast<float>(visible);
-  const double matched = visible * options_.matchable_fraction;
-  estimate.expected_inliers = static_cast<float>(std::min(matched, max_inliers_));
+  estimate.expected_inliers = static_cast<float>(ExpectedInliers(visible));
   if (estimate.expected_inliers < 3.0) return estimate;
   // The inliers are a share of the points in view: both sums scale with it.
   const double share = estimate.expected_inliers / visible;
@@ -222,6 +221,15 @@ LocalizabilityEstimate LocalizabilityPredictor::Estimate(const Rigid3d& map_from
   estimate.position_sigma_m =
       static_cast<float>(std::sqrt(std::max(0.0, position.eigenvalues().maxCoeff())));
   return estimate;
+}
+
+double LocalizabilityPredictor::ExpectedInliers(double visible_points) const {
+  const double matchable = visible_points * options_.matchable_fraction;
+  if (!std::isfinite(max_inliers_)) return matchable;
+  // Saturating, not clipped: the frame's keypoints are shared out over the image, so each further
+  // point in view finds a free keypoint less often, and the inliers approach the cap without
+  // reaching it. (Clipped, every pose beyond the cap tied, and the walks' rankings lost them.)
+  return max_inliers_ * (1.0 - std::exp(-matchable / max_inliers_));
 }
 
 bool LocalizabilityPredictor::IsGood(const LocalizabilityEstimate& estimate) const {

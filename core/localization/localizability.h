@@ -9,7 +9,7 @@
 //     keyframe sees nothing, however its neighbours agree.
 //   - in the frustum: the point lies in front of the camera and projects into its image;
 //   - matchable: a share of those become inliers (LocalizabilityOptions::matchable_fraction,
-//     measured on the generated walks), at most what a frame's keypoints can give;
+//     measured on the generated walks), saturating at what a frame's keypoints can give;
 //   - and how well they pin the pose: the Fisher information of the pose from their projections
 //     with the keypoints' noise; the points' own uncertainty (point_uncertainty.h) as the pose
 //     follows it, and the map's and rig's error, as the tracker counts them (pose_tracker.h). The
@@ -46,7 +46,7 @@ struct LocalizabilityOptions {
   // map (docs/site.md), actual inliers over the predicted sum on frames that tracked.
   double matchable_fraction = 0.75;
   // A frame's inliers cannot exceed its keypoints': this many per 100,000 image pixels (the
-  // localizer's default 600 at 320x240; 0: no cap).
+  // localizer's default 600 at 320x240; 0: no cap). Approached, not clipped (ExpectedInliers).
   double max_inliers_per_100k_px = 780.0;
   // A query keypoint's noise (raw image pixels): the tracker's measured reprojection error on the
   // generated walks (0.38-0.40 px).
@@ -131,6 +131,9 @@ class LocalizabilityPredictor {
  private:
   LocalizabilityEstimate Estimate(const Rigid3d& map_from_cam) const;
   bool IsGood(const LocalizabilityEstimate& estimate) const;
+  // The inliers `visible_points` kernel-weighted points in the frustum give: their matchable
+  // share, saturating at max_inliers_.
+  double ExpectedInliers(double visible_points) const;
   // Keyframes whose kernel value for the pose is at least min_kernel, with those values.
   void SimilarKeyframes(const Rigid3d& map_from_cam,
                         std::vector<std::pair<int, double>>* similar) const;

@@ -76,14 +76,33 @@ TEST(LocalizabilityTest, APoseSigmaIsTheFisherInformationsOfItsExpectedInliers) 
   EXPECT_EQ(quarter.visible_points, full.visible_points);
 }
 
-TEST(LocalizabilityTest, AFramesKeypointsCapItsInliers) {
+TEST(LocalizabilityTest, AFramesKeypointsBoundItsInliersWithoutTyingPosesBeyondThem) {
+  // A pose at a keyframe and one a step back, both with more matchable points in view than the
+  // frame has keypoints for: each expects fewer inliers than the cap, and the one seeing more
+  // expects more. Clipped at the cap, the two tied, and a walk's poses beyond it ranked as one.
   const LocalizationMap map = LoopMap();
   LocalizabilityOptions options;
   options.max_inliers_per_100k_px = 100.0;  // 76.8 at 320x240.
-  const LocalizabilityEstimate capped =
-      LocalizabilityPredictor(map, options).Predict(map.map().keyframes[0].map_from_cam);
-  EXPECT_FLOAT_EQ(capped.expected_inliers, 76.8f);
-  EXPECT_GT(capped.visible_points * options.matchable_fraction, 76.8f);
+  const LocalizabilityPredictor predictor(map, options);
+  const Rigid3d& keyframe = map.map().keyframes[0].map_from_cam;
+  const Rigid3d back(keyframe.rotation,
+                     keyframe.translation - keyframe.rotation * Eigen::Vector3d(0, 0, 0.3));
+  const LocalizabilityEstimate at = predictor.Predict(keyframe);
+  const LocalizabilityEstimate behind = predictor.Predict(back);
+  ASSERT_NE(at.visible_points, behind.visible_points);
+  for (const LocalizabilityEstimate& e : {at, behind}) {
+    const double matchable = e.visible_points * options.matchable_fraction;
+    EXPECT_GT(matchable, 76.8);
+    EXPECT_LT(e.expected_inliers, 76.8f);
+    EXPECT_NEAR(e.expected_inliers, 76.8 * (1.0 - std::exp(-matchable / 76.8)), 1e-3);
+  }
+  EXPECT_EQ(at.expected_inliers < behind.expected_inliers,
+            at.visible_points < behind.visible_points);
+  // Few points in view: nearly all of their matchable share.
+  options.max_inliers_per_100k_px = 1e5;
+  const LocalizabilityEstimate uncrowded = LocalizabilityPredictor(map, options).Predict(keyframe);
+  EXPECT_NEAR(uncrowded.expected_inliers, at.visible_points * options.matchable_fraction,
+              0.01 * uncrowded.expected_inliers);
 }
 
 TEST(LocalizabilityTest, TheGridCoversTheKeyframesAndFindsThemGoodLookingOut) {
