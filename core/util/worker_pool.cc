@@ -35,40 +35,59 @@ WorkerPool::~WorkerPool() {
 }
 
 void WorkerPool::Start() {
-  for (int part = 1; part <= helpers_; ++part) {
-    threads_.emplace_back([this, part] { HelperLoop(part); });
+  for (int helper = 0; helper < helpers_; ++helper) {
+    threads_.emplace_back([this] { HelperLoop(); });
   }
 }
 
-void WorkerPool::HelperLoop(int part) {
-  uint64_t seen = 0;
+void WorkerPool::HelperLoop() {
+  uint32_t seen = 0;
   for (;;) {
     SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; });
     const std::function<void(int)>* body = nullptr;
+    int parts = 0;
     {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [&] { return stop_ || generation_.load() != seen; });
       if (stop_) return;
       seen = generation_.load();
-      if (part < parts_) body = body_;
+      body = body_;
+      parts = parts_;
     }
-    if (body == nullptr) continue;  // Not needed for this job.
+    if (body == nullptr) continue;  // That job has ended already.
+    if (helper_delay_.count() > 0) std::this_thread::sleep_for(helper_delay_);
+    RunParts(seen, *body, parts);
+  }
+}
+
+void WorkerPool::RunParts(uint32_t generation, const std::function<void(int part)>& body,
+                          int parts) {
+  for (;;) {
+    uint64_t claim = claim_.load(std::memory_order_acquire);
+    do {
+      if (static_cast<uint32_t>(claim >> 32) != generation ||
+          static_cast<int>(claim & 0xffffffffu) >= parts) {
+        return;  // Another job's, or every part of this one is taken.
+      }
+    } while (!claim_.compare_exchange_weak(claim, claim + 1, std::memory_order_acq_rel));
+    const int part = static_cast<int>(claim & 0xffffffffu);
     try {
-      (*body)(part);
+      body(part);
     } catch (...) {
-      errors_[part] = std::current_exception();  // Read by the caller after pending_ is 0.
+      errors_[part] = std::current_exception();  // Read by the caller after every part is done.
     }
-    if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
-      std::lock_guard<std::mutex> lock(mutex_);  // The caller checks pending_ under it.
+    if (done_parts_.fetch_add(1, std::memory_order_acq_rel) + 1 == parts) {
+      std::lock_guard<std::mutex> lock(mutex_);  // The caller checks done_parts_ under it.
       done_.notify_one();
     }
   }
 }
 
-void WorkerPool::WaitForHelpers() {
-  if (SpinUntil([&] { return pending_.load(std::memory_order_acquire) == 0; })) return;
+void WorkerPool::WaitForParts(int parts) {
+  const auto all_done = [&] { return done_parts_.load(std::memory_order_acquire) == parts; };
+  if (SpinUntil(all_done)) return;
   std::unique_lock<std::mutex> lock(mutex_);
-  done_.wait(lock, [&] { return pending_.load(std::memory_order_acquire) == 0; });
+  done_.wait(lock, all_done);
 }
 
 void WorkerPool::Ranges(int n, int threads, const std::function<void(int begin, int end)>& fn) {
@@ -83,12 +102,16 @@ void WorkerPool::Ranges(int n, int threads, const std::function<void(int begin, 
   if (threads_.empty()) Start();
   const std::function<void(int)> body = range;
   errors_.assign(parts, nullptr);
+  uint32_t generation = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     body_ = &body;
     parts_ = parts;
-    pending_.store(parts - 1, std::memory_order_relaxed);
-    generation_.fetch_add(1, std::memory_order_release);
+    done_parts_.store(0, std::memory_order_relaxed);
+    generation = generation_.load(std::memory_order_relaxed) + 1;
+    // Part 0 is the caller's, claimed before any helper can look.
+    claim_.store((uint64_t{generation} << 32) | 1u, std::memory_order_relaxed);
+    generation_.store(generation, std::memory_order_release);
   }
   wake_.notify_all();
   try {
@@ -96,7 +119,9 @@ void WorkerPool::Ranges(int n, int threads, const std::function<void(int begin, 
   } catch (...) {
     errors_[0] = std::current_exception();
   }
-  WaitForHelpers();
+  done_parts_.fetch_add(1, std::memory_order_acq_rel);
+  RunParts(generation, body, parts);  // Whatever no helper has started.
+  WaitForParts(parts);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     body_ = nullptr;

@@ -5,8 +5,13 @@
 // idle core starts tens to hundreds of microseconds late, which a 1.4 ms frame cannot afford
 // three times. Here helpers wait on a condition variable between frames and spin briefly
 // (kSpinMicroseconds) after each job, when the next part of the same frame usually follows.
+// A job's parts are claimed, not assigned: the caller runs the first, then takes any part no
+// helper has started. A helper that wakes late (its core busy with another session, or taken
+// by the host) then costs the frame nothing beyond running that part on the caller, where a
+// part waiting for its helper would add the helper's whole delay to the frame's latency.
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <exception>
@@ -26,8 +31,9 @@ class WorkerPool {
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   // As ParallelRanges: fn(begin, end) on contiguous ranges covering [0, n), at most `threads`
-  // of them (and at most helpers + 1), the first on the calling thread; returns when all have,
-  // rethrowing the exception of the lowest range that threw. One caller at a time.
+  // of them (and at most helpers + 1), the first on the calling thread and each other on the
+  // first thread to claim it (a helper, or the caller once its own is done); returns when all
+  // have, rethrowing the exception of the lowest range that threw. One caller at a time.
   void Ranges(int n, int threads, const std::function<void(int begin, int end)>& fn);
   // fn(i) for every i of [0, n), over Ranges.
   void ForEach(int n, int threads, const std::function<void(int i)>& fn);
@@ -38,22 +44,32 @@ class WorkerPool {
   // helpers' end before it does.
   static constexpr int64_t kSpinMicroseconds = 200;
 
+  // Fault injection for tests: each helper sleeps this long after it wakes for a job, before it
+  // claims a part (a helper whose core is busy elsewhere).
+  void set_helper_delay_for_test(std::chrono::microseconds delay) { helper_delay_ = delay; }
+
  private:
   void Start();
-  void HelperLoop(int part);
-  void WaitForHelpers();
+  void HelperLoop();
+  // Claims and runs parts of job `generation` until none is left unclaimed.
+  void RunParts(uint32_t generation, const std::function<void(int part)>& body, int parts);
+  void WaitForParts(int parts);
 
   const int helpers_;
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable wake_;  // A new job, or stop.
-  std::condition_variable done_;  // The job's helpers are done.
-  // The job: body(part) for parts 1 .. parts_ - 1, set under mutex_ before generation_ moves.
+  std::condition_variable done_;  // The job's parts are all done.
+  // The job: body(part) for every part, set under mutex_ before generation_ moves.
   const std::function<void(int part)>* body_ = nullptr;
   int parts_ = 0;
   std::vector<std::exception_ptr> errors_;
-  std::atomic<uint64_t> generation_{0};
-  std::atomic<int> pending_{0};  // The job's helpers still running.
+  std::atomic<uint32_t> generation_{0};
+  // The job's generation (high 32 bits) and its next unclaimed part (low 32): a helper holding
+  // an earlier job's body can never claim a part of a later job.
+  std::atomic<uint64_t> claim_{0};
+  std::atomic<int> done_parts_{0};  // The job's parts finished, on any thread.
+  std::chrono::microseconds helper_delay_{0};
   std::atomic<bool> stop_{false};
   std::atomic<bool> busy_{false};  // A caller is in Ranges (checks "one caller at a time").
 };

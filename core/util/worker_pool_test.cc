@@ -33,16 +33,46 @@ TEST(WorkerPoolTest, RangesCoverEveryIndexOnceForAnyThreadCountAndJobAfterJob) {
 TEST(WorkerPoolTest, HelpersAreTheSameThreadsFromJobToJobBesideTheCaller) {
   WorkerPool pool(1);
   std::set<std::thread::id> helper_ids;
+  int helper_ran = 0;
   for (int job = 0; job < 20; ++job) {
     std::vector<std::thread::id> ids(2);
-    pool.Ranges(2, 2, [&](int begin, int) { ids[begin] = std::this_thread::get_id(); });
+    pool.Ranges(2, 2, [&](int begin, int) {
+      ids[begin] = std::this_thread::get_id();
+      // The caller's part lasts long enough for the helper to wake and claim the other.
+      if (begin == 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    });
     EXPECT_EQ(ids[0], std::this_thread::get_id());  // The first range runs on the caller.
-    EXPECT_NE(ids[1], ids[0]);
-    helper_ids.insert(ids[1]);
+    if (ids[1] != ids[0]) {                         // Or the caller took it: the helper was late.
+      helper_ids.insert(ids[1]);
+      ++helper_ran;
+    }
     // Jobs both while the helper still spins and after it has gone to sleep.
     if (job % 2) std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
+  EXPECT_GT(helper_ran, 0);
   EXPECT_EQ(helper_ids.size(), 1u);
+}
+
+TEST(WorkerPoolTest, APartNoHelperHasStartedRunsOnTheCallerAndALateHelperRunsNothingStale) {
+  // The helper wakes 100 ms late for every job (its core busy elsewhere): the caller runs every
+  // part itself and returns; the helper, waking during job k + 2 with job k's body, must not run
+  // it for the job in progress.
+  WorkerPool pool(1);
+  pool.set_helper_delay_for_test(std::chrono::milliseconds(100));
+  for (int job = 0; job < 5; ++job) {
+    std::vector<std::thread::id> ids(2);
+    std::vector<int> visits(6, 0);
+    pool.Ranges(6, 2, [&](int begin, int end) {
+      ids[begin == 0 ? 0 : 1] = std::this_thread::get_id();
+      for (int i = begin; i < end; ++i) ++visits[i];
+      // Long enough for the helper to take up the job's body and start its delay, so that it
+      // wakes during a later job holding this one's.
+      if (begin == 0) std::this_thread::sleep_for(std::chrono::milliseconds(40));
+    });
+    EXPECT_EQ(ids[0], std::this_thread::get_id());
+    EXPECT_EQ(ids[1], std::this_thread::get_id()) << "job " << job;
+    for (int v : visits) EXPECT_EQ(v, 1) << "job " << job;
+  }
 }
 
 TEST(WorkerPoolTest, RethrowsTheLowestRangesErrorAfterAllRanAndKeepsWorking) {
