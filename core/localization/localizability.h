@@ -42,8 +42,10 @@ struct LocalizabilityOptions {
   // Keyframes less similar to the pose than this (kernel value) do not vote: their share of the
   // view is noise, and skipping them keeps a 10,000-keyframe map's grid within a minute.
   double min_kernel = 0.02;
-  // The share of points in view that become inliers. Measured: generated walks on the square's
-  // map (docs/site.md), actual inliers over the predicted sum on frames that tracked.
+  // The share of points in view that become inliers while few are in view (ExpectedInliers
+  // saturates it at the frame's keypoints). Chosen on the square's generated walks, where it best
+  // separates the frames the localizer lost or limited from the rest; the prediction then runs
+  // 12-15% below the inliers the tracked frames had (docs/localizability.md).
   double matchable_fraction = 0.75;
   // A frame's inliers cannot exceed its keypoints': this many per 100,000 image pixels (the
   // localizer's default 600 at 320x240; 0: no cap). Approached, not clipped (ExpectedInliers).

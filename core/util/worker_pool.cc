@@ -70,16 +70,19 @@ void WorkerPool::RunParts(uint32_t generation, const std::function<void(int part
         return;  // Another job's, or every part of this one is taken.
       }
     } while (!claim_.compare_exchange_weak(claim, claim + 1, std::memory_order_acq_rel));
-    const int part = static_cast<int>(claim & 0xffffffffu);
-    try {
-      body(part);
-    } catch (...) {
-      errors_[part] = std::current_exception();  // Read by the caller after every part is done.
-    }
-    if (done_parts_.fetch_add(1, std::memory_order_acq_rel) + 1 == parts) {
-      std::lock_guard<std::mutex> lock(mutex_);  // The caller checks done_parts_ under it.
-      done_.notify_one();
-    }
+    RunPart(static_cast<int>(claim & 0xffffffffu), body, parts);
+  }
+}
+
+void WorkerPool::RunPart(int part, const std::function<void(int part)>& body, int parts) {
+  try {
+    body(part);
+  } catch (...) {
+    errors_[part] = std::current_exception();  // Read by the caller after every part is done.
+  }
+  if (done_parts_.fetch_add(1, std::memory_order_acq_rel) + 1 == parts) {
+    std::lock_guard<std::mutex> lock(mutex_);  // The caller checks done_parts_ under it.
+    done_.notify_one();
   }
 }
 
@@ -114,12 +117,7 @@ void WorkerPool::Ranges(int n, int threads, const std::function<void(int begin, 
     generation_.store(generation, std::memory_order_release);
   }
   wake_.notify_all();
-  try {
-    range(0);
-  } catch (...) {
-    errors_[0] = std::current_exception();
-  }
-  done_parts_.fetch_add(1, std::memory_order_acq_rel);
+  RunPart(0, body, parts);
   RunParts(generation, body, parts);  // Whatever no helper has started.
   WaitForParts(parts);
   {

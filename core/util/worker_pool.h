@@ -53,6 +53,8 @@ class WorkerPool {
   void HelperLoop();
   // Claims and runs parts of job `generation` until none is left unclaimed.
   void RunParts(uint32_t generation, const std::function<void(int part)>& body, int parts);
+  // Runs one claimed part, keeping its exception for the caller, and counts it done.
+  void RunPart(int part, const std::function<void(int part)>& body, int parts);
   void WaitForParts(int parts);
 
   const int helpers_;
