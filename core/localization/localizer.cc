@@ -1,6 +1,7 @@
 #include "core/localization/localizer.h"
 
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -148,21 +149,40 @@ std::vector<const QueryFrame*> Localizer::RigFrames(const QueryFrame& reference)
   return frames;
 }
 
-PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const {
+PoseFix Localizer::TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) {
   if (!rig()) return reference().tracker().Track(frame, prior_cam_from_map);
-  return pipeline_.tracker()->Track(RigFrames(frame), prior_cam_from_map);
+  return pipeline_.tracker()->Track(RigFrames(frame), prior_cam_from_map,
+                                    std::exchange(rig_prediction_, std::nullopt));
 }
 
-QueryFrame Localizer::ExtractRig(const FrameInput& input, FrameStats* stats) {
+QueryFrame Localizer::ExtractRig(const FrameInput& input, FrameStats* stats,
+                                 const std::optional<Rigid3d>& prior_cam_from_map) {
   const size_t n = pipeline_.size();
   std::vector<std::optional<QueryFrame>> frames(n);
   std::vector<ExtractStats> extract(n);
   std::vector<double> undistort_ms(n, 0.0);
-  // The cameras side by side (LocalizerOptions::rig_threads): each with its own pipeline.
-  pipeline_.ForEachCamera([&](size_t c) {
-    const cv::Mat& image = c == 0 ? input.image : input.rig_images[c - 1].image;
-    if (!image.empty()) {
-      frames[c].emplace(pipeline_.camera(c).Extract(image, &extract[c], &undistort_ms[c]));
+  const auto image_of = [&](size_t c) -> const cv::Mat& {
+    return c == 0 ? input.image : input.rig_images[c - 1].image;
+  };
+  rig_prediction_.reset();
+  if (prior_cam_from_map) {
+    rig_prediction_.emplace();
+    rig_prediction_->prior_ref_from_map = *prior_cam_from_map;
+    rig_prediction_->cameras.resize(n);
+  }
+  // Parts 0..n-1 extract camera c's features (each with its own pipeline), parts n..2n-1
+  // predict camera c's points; claimed in that order by up to LocalizerOptions::rig_threads
+  // threads. A camera's extraction and its prediction touch different objects (its extractor,
+  // its tracker).
+  const int parts = static_cast<int>(rig_prediction_ ? 2 * n : n);
+  pipeline_.ForEachClaimed(parts, [&](int part) {
+    const size_t c = static_cast<size_t>(part) % n;
+    if (image_of(c).empty()) return;
+    if (static_cast<size_t>(part) < n) {
+      frames[c].emplace(pipeline_.camera(c).Extract(image_of(c), &extract[c], &undistort_ms[c]));
+    } else {
+      rig_prediction_->cameras[c] =
+          pipeline_.tracker()->PredictCamera(c, rig_prediction_->prior_ref_from_map);
     }
   });
   // Each camera's keypoints, whether or not a fix comes (a fix's share replaces these); the
@@ -406,8 +426,11 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   // features (at 752x480 the tracking features were half a millisecond of such a frame, unused).
   std::optional<QueryFrame> frame;
   const bool features_first = TrackingFeaturesFirst();
-  if (Prior(input) || had_held_fix || features_first) {
-    frame.emplace(rig() ? ExtractRig(input, &result.stats) : Extract(input.image, &result.stats));
+  if (const std::optional<Rigid3d> prior = Prior(input); prior || had_held_fix || features_first) {
+    frame.emplace(rig()
+                      ? ExtractRig(input, &result.stats,
+                                   prior ? std::optional<Rigid3d>(prior->Inverse()) : std::nullopt)
+                      : Extract(input.image, &result.stats));
   }
   const bool taken =
       (frame && TrackFromPrior(*frame, input, motion, &result)) ||
@@ -415,6 +438,7 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
       Relocalize(input, frame && features_first ? &*frame : nullptr, motion, &result);
   if (!taken) BridgeOrLose(input.timestamp_ns, motion, &result);
   rig_frames_.clear();
+  rig_prediction_.reset();
   // A rig's answer names every camera, even when no features were extracted this frame.
   if (rig()) result.stats.cameras.resize(rig_.cameras.size());
   result.stats.times.total_ms = total.ElapsedMs();

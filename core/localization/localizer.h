@@ -166,12 +166,16 @@ class Localizer {
   QueryFrame Extract(const cv::Mat& image, FrameStats* stats) const;
   // A rig's tracking features: the reference camera's returned, the others' into rig_frames_
   // (each camera on its own thread, up to LocalizerOptions::rig_threads); their time and count
-  // into `stats`.
-  QueryFrame ExtractRig(const FrameInput& input, FrameStats* stats);
+  // into `stats`. With the prior the frame will be tracked from, each camera's prediction from
+  // it (into rig_prediction_) runs beside the extraction: a thread done with its camera's
+  // features predicts while the other still extracts, where tracking would wait for both.
+  QueryFrame ExtractRig(const FrameInput& input, FrameStats* stats,
+                        const std::optional<Rigid3d>& prior_cam_from_map = std::nullopt);
   // Every camera's frame for the rig's tracker: `reference` and rig_frames_.
   std::vector<const QueryFrame*> RigFrames(const QueryFrame& reference) const;
-  // Guided tracking of the frame (a rig's: all of its cameras) from `prior_cam_from_map`.
-  PoseFix TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map) const;
+  // Guided tracking of the frame (a rig's: all of its cameras) from `prior_cam_from_map`, with
+  // rig_prediction_ when it was made from it.
+  PoseFix TrackFrame(const QueryFrame& frame, const Rigid3d& prior_cam_from_map);
   // A rig's relocalization: the reference camera's fix verified with every camera, or, when it
   // has none, each other camera's relocalization in turn, moved to the reference and verified.
   PoseFix RelocalizeRig(const FrameInput& input, PoseFix reference_fix, const QueryFrame* frame,
@@ -225,6 +229,7 @@ class Localizer {
   LocalizerOptions options_;  // The reference pipeline's: radii scaled to its camera.
   // A rig's tracking features of this frame, cameras 1.. (none where no image came).
   std::vector<std::optional<QueryFrame>> rig_frames_;
+  std::optional<RigTracker::Prediction> rig_prediction_;  // This frame's, from ExtractRig.
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
   std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
 

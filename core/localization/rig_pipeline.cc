@@ -50,6 +50,10 @@ void RigPipeline::ForEachCamera(const std::function<void(size_t camera)>& fn) co
                     [&](int c) { fn(static_cast<size_t>(c)); });
 }
 
+void RigPipeline::ForEachClaimed(int n, const std::function<void(int i)>& fn) const {
+  workers_->ForEachClaimed(n, threads_, fn);
+}
+
 RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& images) const {
   VISLOC_CHECK(images.size() == cameras_.size(), "a rig of ", cameras_.size(), " cameras given ",
                images.size(), " images");

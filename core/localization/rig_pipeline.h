@@ -43,6 +43,9 @@ class RigPipeline {
   void SetThreads(int threads);
   // fn(c) for every camera, on up to that many threads (helpers kept from frame to frame).
   void ForEachCamera(const std::function<void(size_t camera)>& fn) const;
+  // fn(i) for every i of [0, n) on as many threads, each i claimed in turn by the first thread
+  // free for it (WorkerPool::ForEachClaimed): work of unequal parts, balanced.
+  void ForEachClaimed(int n, const std::function<void(int i)>& fn) const;
 
   // Global relocalization of one frame of the rig, with nothing known of where it was taken:
   // each camera's image (`images[c]`; an empty one: that camera gave none) is relocalized as

@@ -49,10 +49,39 @@ int RigTracker::CoarsePointsPerCamera(const std::vector<const QueryFrame*>& fram
   return std::max(options.rig_min_coarse_points, options.coarse_points / std::max(1, seeing));
 }
 
+RigTracker::CameraPrediction RigTracker::PredictCamera(size_t camera,
+                                                       const Rigid3d& prior_ref_from_map) const {
+  const PoseTracker& tracker = *trackers_[camera];
+  const Rigid3d cam_from_map = cam_from_ref_[camera] * prior_ref_from_map;
+  CameraPrediction prediction;
+  prediction.points = tracker.PredictPoints(cam_from_map, &prediction.fix);
+  Timer timer;
+  prediction.map_points = tracker.map().Points(prediction.points);
+  prediction.fix.times.predict_ms += timer.ElapsedMs();
+  timer.Restart();
+  prediction.projected =
+      ProjectPoints(prediction.map_points, tracker.camera(), cam_from_map, prediction.points);
+  prediction.fix.times.project_ms += timer.ElapsedMs();
+  return prediction;
+}
+
+namespace {
+
+bool SamePose(const Rigid3d& a, const Rigid3d& b) {
+  return a.rotation.coeffs() == b.rotation.coeffs() && a.translation == b.translation;
+}
+
+}  // namespace
+
 PoseFix RigTracker::Track(const std::vector<const QueryFrame*>& frames,
-                          const Rigid3d& prior_ref_from_map) const {
+                          const Rigid3d& prior_ref_from_map,
+                          std::optional<Prediction> prediction) const {
   VISLOC_CHECK(frames.size() == trackers_.size(), "rig of ", trackers_.size(), " cameras given ",
                frames.size(), " frames");
+  if (prediction && (prediction->cameras.size() != trackers_.size() ||
+                     !SamePose(prediction->prior_ref_from_map, prior_ref_from_map))) {
+    prediction.reset();  // Made for another prior (a held fix's, say).
+  }
   PoseFix fix;
   fix.cameras.resize(trackers_.size());
   std::vector<CameraMatches> per_camera(trackers_.size());
@@ -61,22 +90,22 @@ PoseFix RigTracker::Track(const std::vector<const QueryFrame*>& frames,
   rig.cam_from_ref = cam_from_ref_;
   rig.per_camera.resize(trackers_.size());
   const int coarse_points = CoarsePointsPerCamera(frames);
-  // Each camera's prediction and wide search, the cameras side by side; their counts and times
-  // (summed: CPU time, as the steps of one camera are) merged after.
+  // Each camera's prediction (unless made already) and wide search, the cameras side by side;
+  // their counts and times (summed: CPU time, as the steps of one camera are) merged after.
   std::vector<PoseFix> camera_fixes(trackers_.size());
   std::vector<char> camera_subsampled(trackers_.size(), 0);
   ForEachCamera([&](size_t c) {
     if (frames[c] == nullptr || frames[c]->size() == 0) return;
     const PoseTracker& tracker = *trackers_[c];
-    const Rigid3d cam_from_map = cam_from_ref_[c] * prior_ref_from_map;
-    PoseFix& camera_fix = camera_fixes[c];
+    CameraPrediction predicted =
+        prediction ? std::move(prediction->cameras[c]) : PredictCamera(c, prior_ref_from_map);
     CameraMatches& camera = per_camera[c];
-    camera.points = tracker.PredictPoints(cam_from_map, &camera_fix);
+    camera.points = std::move(predicted.points);
+    camera.map_points = std::move(predicted.map_points);
+    projected[c] = std::move(predicted.projected);
+    PoseFix& camera_fix = camera_fixes[c];
+    camera_fix = std::move(predicted.fix);
     Timer timer;
-    camera.map_points = tracker.map().Points(camera.points);
-    camera_fix.times.predict_ms += timer.ElapsedMs();
-    timer.Restart();
-    projected[c] = ProjectPoints(camera.map_points, tracker.camera(), cam_from_map, camera.points);
     std::vector<ProjectedPoint> subset;
     const std::vector<ProjectedPoint>& coarse =
         tracker.CoarseSubset(projected[c], coarse_points, &subset);

@@ -12,6 +12,7 @@
 // covariance: the rig's joint (J^T J)^-1, its points' uncertainty through every camera.
 
 #include <functional>
+#include <optional>
 #include <vector>
 
 #include "core/localization/pose_tracker.h"
@@ -29,10 +30,26 @@ class RigTracker {
   RigTracker(std::vector<const PoseTracker*> trackers, std::vector<Rigid3d> cam_from_ref,
              WorkerPool* workers, int threads = 1);
 
+  // One camera's points predicted from the rig's prior and projected into it. It needs no
+  // image, so a session runs it beside the cameras' feature extraction (Localizer::ExtractRig).
+  struct CameraPrediction {
+    std::vector<uint32_t> points;
+    PointView map_points;
+    std::vector<ProjectedPoint> projected;
+    PoseFix fix;  // Its share of PoseFix::predicted and of the predict and project times.
+  };
+  struct Prediction {
+    Rigid3d prior_ref_from_map;
+    std::vector<CameraPrediction> cameras;  // Camera c's at c.
+  };
+  CameraPrediction PredictCamera(size_t camera, const Rigid3d& prior_ref_from_map) const;
+
   // Full guided estimation from the reference camera's prior. `frames[c]` is camera c's frame;
   // nullptr for a camera without one this time. PoseFix::cameras holds each camera's share.
-  PoseFix Track(const std::vector<const QueryFrame*>& frames,
-                const Rigid3d& prior_ref_from_map) const;
+  // `prediction`, when it was made from this prior, saves predicting again; the fix is the same
+  // with it or without.
+  PoseFix Track(const std::vector<const QueryFrame*>& frames, const Rigid3d& prior_ref_from_map,
+                std::optional<Prediction> prediction = std::nullopt) const;
   // Verification and refinement of a reference pose from elsewhere (a relocalization of one
   // camera, moved to the reference): every camera re-matches in the tight radius around it.
   PoseFix Polish(const std::vector<const QueryFrame*>& frames, const Rigid3d& ref_from_map) const;

@@ -36,11 +36,11 @@ WorkerPool::~WorkerPool() {
 
 void WorkerPool::Start() {
   for (int helper = 0; helper < helpers_; ++helper) {
-    threads_.emplace_back([this] { HelperLoop(); });
+    threads_.emplace_back([this, helper] { HelperLoop(helper); });
   }
 }
 
-void WorkerPool::HelperLoop() {
+void WorkerPool::HelperLoop(int helper) {
   uint32_t seen = 0;
   for (;;) {
     SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; });
@@ -51,10 +51,12 @@ void WorkerPool::HelperLoop() {
       wake_.wait(lock, [&] { return stop_ || generation_.load() != seen; });
       if (stop_) return;
       seen = generation_.load();
-      body = body_;
-      parts = parts_;
+      if (helper < job_helpers_) {
+        body = body_;
+        parts = parts_;
+      }
     }
-    if (body == nullptr) continue;  // That job has ended already.
+    if (body == nullptr) continue;  // That job has ended already, or is not this helper's.
     if (helper_delay_.count() > 0) std::this_thread::sleep_for(helper_delay_);
     RunParts(seen, *body, parts);
   }
@@ -101,15 +103,29 @@ void WorkerPool::Ranges(int n, int threads, const std::function<void(int begin, 
     fn(begin, end);
   };
   if (parts == 1) return range(0);
-  VISLOC_CHECK(!busy_.exchange(true), "WorkerPool::Ranges called by two threads at once");
+  Run(parts, parts - 1, range);
+}
+
+void WorkerPool::ForEachClaimed(int n, int threads, const std::function<void(int i)>& fn) {
+  if (n <= 0) return;
+  const int helpers = std::clamp(threads - 1, 0, std::min(helpers_, n - 1));
+  if (helpers == 0) {
+    for (int i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  Run(n, helpers, fn);
+}
+
+void WorkerPool::Run(int parts, int helpers, const std::function<void(int part)>& body) {
+  VISLOC_CHECK(!busy_.exchange(true), "WorkerPool: one caller at a time");
   if (threads_.empty()) Start();
-  const std::function<void(int)> body = range;
   errors_.assign(parts, nullptr);
   uint32_t generation = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     body_ = &body;
     parts_ = parts;
+    job_helpers_ = helpers;
     done_parts_.store(0, std::memory_order_relaxed);
     generation = generation_.load(std::memory_order_relaxed) + 1;
     // Part 0 is the caller's, claimed before any helper can look.

@@ -37,6 +37,11 @@ class WorkerPool {
   void Ranges(int n, int threads, const std::function<void(int begin, int end)>& fn);
   // fn(i) for every i of [0, n), over Ranges.
   void ForEach(int n, int threads, const std::function<void(int i)>& fn);
+  // fn(i) for every i of [0, n), each i a part of its own claimed in order by the first of up
+  // to `threads` threads (the caller and threads - 1 helpers) to come for it: a thread that ends
+  // its part early takes the next, so unequal parts balance (a late helper's camera beside the
+  // caller's, and the work that does not wait for either after them).
+  void ForEachClaimed(int n, int threads, const std::function<void(int i)>& fn);
 
   int helpers() const { return helpers_; }
 
@@ -50,7 +55,9 @@ class WorkerPool {
 
  private:
   void Start();
-  void HelperLoop();
+  void HelperLoop(int helper);
+  // body(part) for every part of [0, parts), claimed by the caller and up to `helpers` helpers.
+  void Run(int parts, int helpers, const std::function<void(int part)>& body);
   // Claims and runs parts of job `generation` until none is left unclaimed.
   void RunParts(uint32_t generation, const std::function<void(int part)>& body, int parts);
   // Runs one claimed part, keeping its exception for the caller, and counts it done.
@@ -65,6 +72,7 @@ class WorkerPool {
   // The job: body(part) for every part, set under mutex_ before generation_ moves.
   const std::function<void(int part)>* body_ = nullptr;
   int parts_ = 0;
+  int job_helpers_ = 0;  // Helpers with an index below this take part in the job.
   std::vector<std::exception_ptr> errors_;
   std::atomic<uint32_t> generation_{0};
   // The job's generation (high 32 bits) and its next unclaimed part (low 32): a helper holding

@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -28,6 +29,39 @@ TEST(WorkerPoolTest, RangesCoverEveryIndexOnceForAnyThreadCountAndJobAfterJob) {
     }
   }
   pool.Ranges(0, 2, [](int, int) { FAIL() << "no range for no work"; });
+}
+
+TEST(WorkerPoolTest, ClaimedPartsRunOnceEachOnAtMostTheThreadsAskedFor) {
+  WorkerPool pool(3);
+  for (int job = 0; job < 100; ++job) {
+    for (int threads : {1, 2, 4}) {
+      std::vector<int> visits(6, 0);
+      std::mutex mutex;
+      std::set<std::thread::id> ran_on;
+      pool.ForEachClaimed(6, threads, [&](int i) {
+        ++visits[i];
+        std::lock_guard<std::mutex> lock(mutex);
+        ran_on.insert(std::this_thread::get_id());
+      });
+      for (int v : visits) ASSERT_EQ(v, 1) << threads << " threads, job " << job;
+      ASSERT_LE(static_cast<int>(ran_on.size()), threads) << "job " << job;
+    }
+  }
+}
+
+TEST(WorkerPoolTest, WhileTheCallersPartRunsTheHelperTakesEveryOtherPartInOrder) {
+  // Part 0 (the caller's camera) is long, the rest short: the helper, once awake, claims parts
+  // 1, 2, ... one after the other, so the parts that do not wait for part 0 end beside it.
+  WorkerPool pool(1);
+  for (int job = 0; job < 10; ++job) {
+    std::vector<std::thread::id> ids(4);
+    pool.ForEachClaimed(4, 2, [&](int i) {
+      ids[i] = std::this_thread::get_id();
+      if (i == 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    });
+    EXPECT_EQ(ids[0], std::this_thread::get_id());
+    for (int i = 1; i < 4; ++i) EXPECT_NE(ids[i], ids[0]) << "part " << i << ", job " << job;
+  }
 }
 
 TEST(WorkerPoolTest, HelpersAreTheSameThreadsFromJobToJobBesideTheCaller) {
