@@ -210,7 +210,9 @@ PY
   echo "With the other core kept busy by a loop (front-back, one run): $busy_line. A rig's cameras"
   echo "are parts its worker pool's threads claim (\`core/util/worker_pool.h\`): a helper that wakes"
   echo "late leaves its part to the caller instead of holding the frame until the host gives it a"
-  echo "core (with parts assigned to threads, as before, the p95 here was 10.6-11.4 ms)."
+  echo "core (with parts assigned to threads, as before, the p95 here was 10.6-11.4 ms). A"
+  echo "camera's prediction needs the prior, not its image: it is a part of the extraction's job,"
+  echo "so the thread done with its camera's features predicts while the other still extracts."
   if [[ -f $WORK/bench.mh01.1.json ]]; then
     echo
     echo "Where a frame's time goes, EuRoC MH_01, the first run (per-frame medians in ms; a rig's"
