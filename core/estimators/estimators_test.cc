@@ -248,12 +248,15 @@ TEST(PnpRansacTest, FailsCleanlyWithoutEnoughSupport) {
 
 // A front-back rig: the reference camera, and a second one 0.1 m behind it looking backwards
 // (turned half a turn about its y axis), each seeing its own points.
+std::vector<Rigid3d> FrontBackCamFromRef() {
+  return {Rigid3d(), Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
+                             Eigen::Vector3d(0.0, 0.0, -0.1))};
+}
+
 RigObservations FrontBackObservations(int front_count, int back_count, double outlier_share,
                                       Rng& rng) {
   RigObservations rig;
-  rig.cam_from_ref = {Rigid3d(),
-                      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY())),
-                              Eigen::Vector3d(0.0, 0.0, -0.1))};
+  rig.cam_from_ref = FrontBackCamFromRef();
   rig.per_camera = {
       MakeObservations(kTruth, front_count, 0.5, outlier_share, false, rng),
       MakeObservations(rig.cam_from_ref[1] * kTruth, back_count, 0.5, outlier_share, false, rng)};
@@ -281,6 +284,32 @@ TEST(RigPnpTest, FindsTheRigsPoseFromBothCamerasAmongOutliers) {
   EXPECT_EQ(result.stats.inliers, result.camera_inliers[0] + result.camera_inliers[1]);
   ASSERT_EQ(result.inlier_masks.size(), 2u);
   EXPECT_EQ(result.inlier_masks[1].size(), 120u);
+}
+
+TEST(RigPnpTest, ACamerasBestIsNotRefinedAgainWhereARefinedPoseExplainsItsPoints) {
+  // Both cameras see the truth: the first camera's refined best explains the second's points
+  // as well as the second's own best does, so one refinement serves both.
+  Rng rng(24);
+  const RigPnpResult agreeing = SolveExpectingTheTruth(FrontBackObservations(120, 100, 0.3, rng));
+  EXPECT_EQ(agreeing.stats.local_refinements, 1);
+  // The front camera's points fit a pose 5 degrees off, which the back camera's contradict: the
+  // front's refined best explains none of the back camera's points, so the back camera's best
+  // is refined too. The front's 150 points outnumber the back's 100, so the front's pose wins.
+  RigObservations contradicting;
+  contradicting.cam_from_ref = FrontBackCamFromRef();
+  const Rigid3d off(
+      Eigen::Quaterniond(Eigen::AngleAxisd(5 * M_PI / 180, Eigen::Vector3d::UnitY())) *
+          kTruth.rotation,
+      kTruth.translation);
+  contradicting.per_camera = {
+      MakeObservations(off, 150, 0.5, 0.0, false, rng),
+      MakeObservations(contradicting.cam_from_ref[1] * kTruth, 100, 0.5, 0.0, false, rng)};
+  PnpRansacOptions options;
+  options.refine.focal_px = kFocal;
+  const RigPnpResult result = SolveRigPnpRansac(contradicting, options);
+  ASSERT_TRUE(result.success);
+  EXPECT_EQ(result.stats.local_refinements, 2);
+  EXPECT_TRUE(ApproxEqual(result.ref_from_world, off, 0.01, 0.3));
 }
 
 TEST(RigPnpTest, ACoveredReferenceCameraLeavesThePoseToTheOther) {

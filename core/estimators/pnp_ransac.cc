@@ -217,8 +217,17 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
       needed = NeededIterations(all_good, options);
     }
   }
-  for (const int c : sampled_cameras) {
+  // The cameras' bests in order of their raw inliers. A camera whose own best hypothesis
+  // explains no more of its points than a pose already refined does (from another camera's
+  // draw) is not refined again: its refinement would climb the hill the refined pose stands on.
+  int local_refinements = 0;
+  std::vector<int> order = sampled_cameras;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return best[a].inliers > best[b].inliers; });
+  for (const int c : order) {
     if (best[c].inliers < options.min_inliers) continue;
+    if (result.success && result.camera_inliers[c] >= best[c].own_inliers) continue;
+    ++local_refinements;
     // First at twice the threshold, which takes in the other cameras' points the raw hypothesis
     // misses by a few pixels, then at the threshold (LO-RANSAC's shrinking threshold, Lebeda et
     // al. 2012).
@@ -230,6 +239,7 @@ RigPnpResult SolveRigPnpRansac(const RigObservations& rig, const PnpRansacOption
     }
   }
   result.stats.iterations = iteration;
+  result.stats.local_refinements = local_refinements;
   return result;
 }
 

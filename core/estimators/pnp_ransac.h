@@ -27,6 +27,8 @@ struct PnpRansacOptions {
 
 struct PnpStats {
   int iterations = 0;  // RANSAC hypotheses tried.
+  // A rig's RANSAC: how many of the cameras' best hypotheses were refined (SolveRigPnpRansac).
+  int local_refinements = 0;
   int inliers = 0;
   double inlier_ratio = 0.0;
   PoseRefineStats refine;
