@@ -38,7 +38,7 @@ stream() {
   local name=$1 dir=$2 map=$3 cameras=$4
   "$V" stream --server "$SERVER_ADDRESS" --map "$map" --dataset "$dir" --cameras "$cameras" \
     --rate 0 --trajectory "$WORK/$name.tum" --stats "$WORK/$name.csv" --json > "$WORK/$name.json"
-  "$V" eval --gt "$GT" ${GT_ORIGIN:+--gt-origin-first} --est "$WORK/$name.tum" \
+  "$V" eval --gt "$GT" ${GT_ORIGIN:+--gt-origin-first} --est "$WORK/$name.tum" --align \
     --stats "$WORK/$name.csv" --json > "$WORK/$name.eval.json"
 }
 # Frames answered without a pose (lost or initializing), from a stats CSV.
@@ -100,11 +100,7 @@ if [[ -d $REAL ]]; then
     real_rows+=("$(row "$rec.odd.rig" "$rec odd frames, stereo pair (cam0,cam1)")")
     # The same trajectories after an SE(3) alignment to the ground truth: the map frame's own
     # error (common to both) taken out.
-    for run in cam0 rig; do
-      "$V" eval --gt "$GT" --gt-origin-first --est "$WORK/$rec.odd.$run.tum" --align --json \
-        > "$WORK/$rec.odd.$run.aligned.json"
-    done
-    aligned+=("$rec $(fmt "$(field_in "$WORK/$rec.odd.cam0.aligned.json" ate_aligned median)" 100 2) cm alone, $(fmt "$(field_in "$WORK/$rec.odd.rig.aligned.json" ate_aligned median)" 100 2) cm as the pair")
+    aligned+=("$rec $(fmt "$(field_in "$WORK/$rec.odd.cam0.eval.json" ate_aligned median)" 100 2) cm alone, $(fmt "$(field_in "$WORK/$rec.odd.rig.eval.json" ate_aligned median)" 100 2) cm as the pair")
     [[ -d $d/mav0 ]] || continue
     # Each stereo pair of the second half alone, against a map of the first.
     half=$((n / 2))
@@ -202,7 +198,8 @@ PY
     printf '%s\n' "${real_rows[@]}"
     echo
     echo "After an SE(3) alignment of each trajectory to the ground truth (\`visloc eval --align\`),"
-    echo "median errors: $(IFS=';'; echo "${aligned[*]}" | sed 's/;/; /g'). The pair's second"
+    joined=$(printf '%s; ' "${aligned[@]}")
+    echo "median errors: ${joined%; }. The pair's second"
     echo "camera sees what the first sees; the error both keep is the map's and the ground truth's."
     echo
     echo "Each image (cam0) or stereo pair (cam0,cam1) of the second half alone through the Relocalize"
