@@ -56,8 +56,7 @@ done
 
 # Every pose checked below: as many as check_robot_summary asks for (fewer on a sanitizer build,
 # where a robot at camera pace drops what the loaded server cannot answer in time).
-min_poses=$((frames - 6))
-[[ -n $sanitize ]] && min_poses=$((frames / 4 - 3))
+min_poses=$(robot_min_poses "$frames" "$sanitize")
 
 # The poses the robots printed against ground truth in the map's frame (the mapping recording's
 # first left camera): the rendered query's own, or the real recording's moved there.

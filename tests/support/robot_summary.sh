@@ -8,13 +8,22 @@
 # suite runs beside it varies: CI runs' Python robot answered 139, then 112, then 93 of 150
 # EuRoC frames, and dropped the rest). The sanitizer build is there to find memory errors; the
 # release build's run is the one that holds the robot to camera pace.
+# robot_min_answered FRAMES SANITIZERS: the frames a robot must answer in time (above).
+robot_min_answered() {
+  if [[ -n $2 ]]; then echo $(($1 / 4)); else echo $(($1 - 3)); fi
+}
+# robot_min_poses FRAMES SANITIZERS: the poses a robot that passes check_robot_summary printed at
+# least (all but 3 of its answers).
+robot_min_poses() {
+  echo $(($(robot_min_answered "$1" "$2") - 3))
+}
 check_robot_summary() {
   local name=$1 file=$2 frames=$3 sanitize=$4 answered total posed late dropped undelivered
   read -r answered total posed late dropped undelivered < <(sed -n \
     's/^answered \([0-9]*\) of \([0-9]*\) frames, \([0-9]*\) with a pose; \([0-9]*\) late, \([0-9]*\) dropped, \([0-9]*\) undelivered$/\1 \2 \3 \4 \5 \6/p' \
     "$file")
-  local min_answered=$((frames - 3))
-  [[ -n $sanitize ]] && min_answered=$((frames / 4))
+  local min_answered
+  min_answered=$(robot_min_answered "$frames" "$sanitize")
   if [[ -z ${total:-} || $total != "$frames" ||
         $((answered + late + dropped + undelivered)) != "$frames" ||
         $answered -lt $min_answered || $posed -lt $((answered - 3)) ]]; then
