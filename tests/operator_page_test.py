@@ -20,6 +20,8 @@ run the kidnap and the square sequences at 15 Hz.
   2 s of the click;
 - a mapping job (`visloc map build --server`) is listed, its map grows on the canvas with the
   mapping robot's arrow, and it shows published when the run ends;
+- what the operator chose stays drawn: a job shown while the map list refreshes, a map chosen
+  while a slower one still loads, a map chosen while a job runs with no robots on the page;
 
   operator_page_test.py VISLOC_SERVER VISLOC WRITE_SYNTHETIC_MAP LOCALIZATION_DATA SANITIZE
                         [SCREENSHOT.png]
@@ -138,13 +140,64 @@ def true_up_in_map(recording):
     return [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)]
 
 
+def page_state(driver):
+    """What the page shows and why, for a failure's message: the view, the chosen map or job,
+    and the view's request made again from the page."""
+    return driver.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        "const shown = {view: state.view && state.view.name, map: state.map, job: state.job};"
+        "fetch('/api/maps/mh01/view', {headers: headers()})"
+        "  .then(r => r.text().then(t => done({...shown, again: r.status + ' ' + t.slice(0, 200)})))"
+        "  .catch(e => done({...shown, again: String(e)}));")
+
+
+def check_choices(driver, check):
+    """What the operator chose stays drawn. Run while a mapping job is shown and no robot
+    streams: a map list refreshed then keeps the job; a map chosen while a slower one loads is
+    the one drawn; a running job is not followed once the operator chose a map."""
+    then = ("const done = arguments[arguments.length - 1];"
+            "%s.then(() => done([state.map, state.job, state.view && state.view.name]),"
+            "        e => done(['failed', String(e), null]));")
+    kept = driver.execute_async_script(then % "loadMaps()")
+    check(kept[0] is None and kept[1] is not None and str(kept[2]).startswith("mapping "),
+          f"the job shown kept when the map list is refreshed: [map, job, view] {kept}")
+    # The big map's view answered 1.5 s late: the square map, chosen after it, stays drawn.
+    driver.execute_script(
+        "const original = window.fetch;"
+        "window.late = false;"
+        "window.fetch = (path, ...rest) => original(path, ...rest).then(r =>"
+        "  !String(path).endsWith('/api/maps/big/view') ? r :"
+        "  new Promise(ok => setTimeout(() => { ok(r); window.late = true; }, 1500)));"
+        "document.querySelector('#maprows tr[data-name=big]').click();"
+        "document.querySelector('#maprows tr[data-name=square]').click();"
+        "window.fetch = original;")
+    check(wait_for(driver, "return window.late;", 30), "the big map's late view answered")
+    time.sleep(1.0)  # Its body read and its selectMap resumed.
+    shown = driver.execute_script("return [state.map, state.view && state.view.name];")
+    check(shown == ["square", "square"],
+          f"the map chosen last drawn, not the one answered last: [map, view] {shown}")
+    # A job listed as running, no robots: the chosen square map stays.
+    followed = driver.execute_async_script(then % (
+        "(() => { const original = window.fetch;"
+        "  window.fetch = (path, ...rest) => !String(path).endsWith('/api/mapping') ?"
+        "    original(path, ...rest) : Promise.resolve(new Response(JSON.stringify({jobs: [{"
+        "      job: 999, map: 'ghost', state: 'tracking', running: true, frames: 3, keyframes: 1,"
+        "      keyframes_xz: [], points_xz: []}]})));"
+        "  state.sessions = [];"
+        "  return loadJobs().finally(() => { window.fetch = original; }); })()"))
+    check(followed == ["square", None, "square"],
+          f"a running job not followed once a map was chosen: [map, job, view] {followed}")
+    return "choices kept"
+
+
 def check_real_map_level(driver, check, recording, screenshot_out):
     driver.execute_script("document.querySelector('#maprows tr[data-name=mh01]').click();")
     view = wait_for(driver, "return state.view && state.view.name === 'mh01' && state.view;", 10)
     # MH_01's floor in view is a patch too small to be the map's up (mapping/gravity.h): the map
     # records none, and the page levels it on that floor, saying how well.
     check(view is not None and view["frame"] == "floor",
-          f"MH_01 drawn levelled on its floor, found now: {view and view['frame']}")
+          f"MH_01 drawn levelled on its floor, found now: {view and view['frame']}"
+          + ("" if view else f" (the page: {page_state(driver)})"))
     if view is None or "site_from_map" not in view:
         return "not drawn level"
     info = driver.execute_script("return document.getElementById('viewinfo').textContent;")
@@ -308,10 +361,11 @@ def main():
                     "return r !== null && r.dataset.state === 'published';")
                 time.sleep(0.2)
             check(published, "the mapping job shows published when the run ends")
+            choices = check_choices(driver, check)
             errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
             check(not errors, f"browser console errors: {errors}")
             level = check_real_map_level(driver, check, mh01, screenshot_out) if mh01 else "skipped"
-            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}")
+            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}; {choices}")
             print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
                   f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click; mapping "
