@@ -95,37 +95,64 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const C
 
 namespace {
 
-// The rig images a `carrier` (a frame, a request) carries, one per camera after the reference,
-// each decoded for its camera (an empty image where one carries none). InputError for a count
-// that is not the rig's, or an image that does not fit its camera (named).
-std::vector<RigImage> RigImagesOf(const google::protobuf::RepeatedPtrField<v1::RigImage>& in,
-                                  const CameraRig& rig, const char* carrier) {
+using RigImagesIn = google::protobuf::RepeatedPtrField<v1::RigImage>;
+
+// InputError unless a `carrier` (a frame, a request) carries one rig image per camera after the
+// reference.
+void CheckRigImageCount(const RigImagesIn& in, const CameraRig& rig, const char* carrier) {
   const size_t others = rig.cameras.size() - 1;
   if (static_cast<size_t>(in.size()) != others) {
     throw InputError(StrCat("the ", carrier, " carries ", in.size(), " rig images for a rig of ",
                             rig.cameras.size(), " cameras (", others, " besides the reference)"));
   }
-  std::vector<RigImage> images;
-  for (size_t c = 0; c < others; ++c) {
-    const v1::RigImage& image = in[static_cast<int>(c)];
-    RigImage& out = images.emplace_back();
-    out.timestamp_ns = image.timestamp_ns();
-    if (image.image_case() == v1::RigImage::IMAGE_NOT_SET) continue;  // None this time.
-    try {
-      out.image = DecodeImage(image.encoded(), image.has_raw() ? &image.raw() : nullptr,
-                              rig.cameras[c + 1]);
-    } catch (const InputError& e) {
-      throw InputError(StrCat("rig image ", c + 1, ": ", e.what()));
-    }
+}
+
+// Rig image `c` (1 for the first camera after the reference) decoded for its camera: an empty
+// image where the carrier has none this time. InputError naming the image that does not fit.
+RigImage RigImageOf(const RigImagesIn& in, const CameraRig& rig, size_t c) {
+  const v1::RigImage& image = in[static_cast<int>(c - 1)];
+  RigImage out;
+  out.timestamp_ns = image.timestamp_ns();
+  if (image.image_case() == v1::RigImage::IMAGE_NOT_SET) return out;
+  try {
+    out.image =
+        DecodeImage(image.encoded(), image.has_raw() ? &image.raw() : nullptr, rig.cameras[c]);
+  } catch (const InputError& e) {
+    throw InputError(StrCat("rig image ", c, ": ", e.what()));
   }
+  return out;
+}
+
+// The rig images a `carrier` carries, each decoded for its camera (RigImageOf).
+std::vector<RigImage> RigImagesOf(const RigImagesIn& in, const CameraRig& rig,
+                                  const char* carrier) {
+  CheckRigImageCount(in, rig, carrier);
+  std::vector<RigImage> images;
+  for (size_t c = 1; c < rig.cameras.size(); ++c) images.push_back(RigImageOf(in, rig, c));
   return images;
 }
 
 }  // namespace
 
-FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig) {
-  FrameInput input = FromProto(frame, rig.cameras.at(0));
-  input.rig_images = RigImagesOf(frame.rig_images(), rig, "frame");
+FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig, const ParallelFor& parallel) {
+  // In turn for one camera, and for a frame refused for its count (after its reference image's
+  // own faults, as ever).
+  if (!parallel || rig.cameras.size() == 1 ||
+      static_cast<size_t>(frame.rig_images_size()) != rig.cameras.size() - 1) {
+    FrameInput input = FromProto(frame, rig.cameras.at(0));
+    input.rig_images = RigImagesOf(frame.rig_images(), rig, "frame");
+    return input;
+  }
+  FrameInput input;  // Part 0's: the reference image and the frame's other fields.
+  std::vector<RigImage> others(rig.cameras.size() - 1);
+  parallel(static_cast<int>(rig.cameras.size()), [&](int c) {
+    if (c == 0) {
+      input = FromProto(frame, rig.cameras[0]);
+    } else {
+      others[c - 1] = RigImageOf(frame.rig_images(), rig, c);
+    }
+  });
+  input.rig_images = std::move(others);
   return input;
 }
 

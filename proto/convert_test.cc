@@ -10,8 +10,10 @@
 #include <functional>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "core/util/check.h"
+#include "core/util/worker_pool.h"
 
 namespace visloc {
 namespace {
@@ -124,6 +126,76 @@ TEST_F(WireValidationTest, ARigSessionDeclaresItsCamerasAndEachFrameCarriesTheir
   EXPECT_THAT([&] { proto::RigFromProto(start, proto::WireLimits{}); },
               ::testing::ThrowsMessage<InputError>(::testing::HasSubstr(
                   "start.rig_cameras: 8 cameras; at most 7 besides the reference")));
+}
+
+// A server decodes a rig frame's images side by side (Localizer::ForEachOnRigThreads): what it
+// gets, and the refusals, are what decoding them one after the other gives.
+TEST_F(WireValidationTest, ARigFramesImagesDecodedSideBySideAreTheOnesDecodedInTurn) {
+  v1::SessionStart start;
+  *start.mutable_camera() = GoodCamera();
+  for (int c = 1; c <= 3; ++c) {
+    v1::RigCamera* camera = start.add_rig_cameras();
+    *camera->mutable_camera() = GoodCamera();
+    proto::ToProto(Rigid3d(RotationFromRollPitchYaw(0, 0, c * M_PI / 2), Eigen::Vector3d::Zero()),
+                   camera->mutable_body_from_cam());
+  }
+  const CameraRig rig = proto::RigFromProto(start, proto::WireLimits{});
+  const auto jpeg = [](int grey) {
+    cv::Mat image(240, 320, CV_8UC1, cv::Scalar(grey));
+    cv::circle(image, cv::Point(40 + grey / 2, 120), 30, cv::Scalar(255 - grey), -1);
+    std::vector<uchar> bytes;
+    cv::imencode(".jpg", image, bytes);
+    return std::string(bytes.begin(), bytes.end());
+  };
+  v1::Frame frame;
+  frame.set_timestamp_ns(1000);
+  frame.set_encoded(jpeg(20));
+  proto::ToProto(Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(1, 2, 3)),
+                 frame.mutable_odom_from_cam());
+  for (int c = 1; c <= 3; ++c) {
+    v1::RigImage* image = frame.add_rig_images();
+    image->set_timestamp_ns(1000 + c);
+    if (c != 2) image->set_encoded(jpeg(20 + 60 * c));  // Camera 2 gave none this time.
+  }
+  WorkerPool pool(3);
+  const proto::ParallelFor side_by_side = [&](int n, const std::function<void(int)>& fn) {
+    pool.ForEachClaimed(n, 4, fn);
+  };
+  const FrameInput in_turn = proto::FromProto(frame, rig);
+  const FrameInput parallel = proto::FromProto(frame, rig, side_by_side);
+  EXPECT_EQ(parallel.timestamp_ns, 1000);
+  ASSERT_TRUE(parallel.odom_from_cam.has_value());
+  EXPECT_TRUE(parallel.odom_from_cam->translation.isApprox(Eigen::Vector3d(1, 2, 3)));
+  EXPECT_EQ(cv::norm(parallel.image, in_turn.image, cv::NORM_INF), 0.0);
+  ASSERT_EQ(parallel.rig_images.size(), 3u);
+  for (size_t c = 0; c < 3; ++c) {
+    EXPECT_EQ(parallel.rig_images[c].timestamp_ns, in_turn.rig_images[c].timestamp_ns);
+    ASSERT_EQ(parallel.rig_images[c].image.empty(), c == 1) << "rig image " << c + 1;
+    if (c != 1) {
+      EXPECT_EQ(cv::norm(parallel.rig_images[c].image, in_turn.rig_images[c].image, cv::NORM_INF),
+                0.0);
+    }
+  }
+  // Refusals: the first bad image in the rig's order is named, as in turn.
+  frame.mutable_rig_images(2)->set_encoded("not an image");
+  for (const proto::ParallelFor& how : {proto::ParallelFor(), side_by_side}) {
+    EXPECT_THAT([&] { proto::FromProto(frame, rig, how); },
+                ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 3: image:")));
+  }
+  frame.set_encoded("not a reference image either");
+  for (const proto::ParallelFor& how : {proto::ParallelFor(), side_by_side}) {
+    EXPECT_THAT(
+        [&] { proto::FromProto(frame, rig, how); },
+        ::testing::ThrowsMessage<InputError>(::testing::AllOf(
+            ::testing::HasSubstr("image:"), ::testing::Not(::testing::HasSubstr("rig image")))));
+  }
+  frame.set_encoded(jpeg(20));
+  frame.mutable_rig_images()->RemoveLast();
+  for (const proto::ParallelFor& how : {proto::ParallelFor(), side_by_side}) {
+    EXPECT_THAT([&] { proto::FromProto(frame, rig, how); },
+                ::testing::ThrowsMessage<InputError>(
+                    ::testing::HasSubstr("the frame carries 2 rig images for a rig of 4 cameras")));
+  }
 }
 
 TEST_F(WireValidationTest, SessionOptionsOutOfRangeAreRefusedByName) {

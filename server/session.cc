@@ -100,7 +100,11 @@ v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& requ
     // A rig's cameras side by side on the workers idle now.
     const SparePermits spare(workers_, static_cast<int>(rig_.cameras.size()) - 1);
     localizer_.SetRigThreads(1 + spare.taken());
-    answered = localizer_.Process(proto::FromProto(frame, rig_));
+    // The cameras' images decoded side by side on those threads, too.
+    answered = localizer_.Process(
+        proto::FromProto(frame, rig_, [this](int n, const std::function<void(int)>& decode) {
+          localizer_.ForEachOnRigThreads(n, decode);
+        }));
     proto::ToProto(*answered, index, &response);
     if (answered->has_pose) {
       proto::SetSitePose(map_metadata_, answered->map_from_cam, &response);

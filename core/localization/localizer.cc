@@ -140,6 +140,10 @@ void Localizer::SetRigThreads(int threads) {
   pipeline_.SetThreads(threads);
 }
 
+void Localizer::ForEachOnRigThreads(int n, const std::function<void(int i)>& fn) const {
+  pipeline_.ForEachClaimed(n, fn);
+}
+
 std::vector<const QueryFrame*> Localizer::RigFrames(const QueryFrame& reference) const {
   std::vector<const QueryFrame*> frames = {&reference};
   for (const std::optional<QueryFrame>& frame : rig_frames_) {

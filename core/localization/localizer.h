@@ -22,6 +22,7 @@
 //   lost          no pose (e.g. camera covered, or out of the map).
 // The map is shared read-only; a session never modifies it.
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -146,6 +147,10 @@ class Localizer {
   // LocalizerOptions::rig_threads from the next frame on (a server lends a rig session the
   // workers idle at each frame). The answers do not change.
   void SetRigThreads(int threads);
+  // fn(i) for every i of [0, n) on the threads the rig's cameras are worked on (each i claimed
+  // by the first thread free for it), before Process: a server decodes a rig frame's images
+  // side by side with it, which also wakes the helpers for the frame. Rethrows what fn threw.
+  void ForEachOnRigThreads(int n, const std::function<void(int i)>& fn) const;
 
  private:
   struct Motion {
