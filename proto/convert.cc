@@ -199,14 +199,24 @@ CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& refer
   return rig;
 }
 
-std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request,
-                                        const CameraRig& rig) {
-  std::vector<cv::Mat> images = {
-      DecodeImage(request.encoded_image(), request.has_raw_image() ? &request.raw_image() : nullptr,
-                  rig.cameras[0])};
-  for (RigImage& image : RigImagesOf(request.rig_images(), rig, "request")) {
-    images.push_back(std::move(image.image));
+std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request, const CameraRig& rig,
+                                        const ParallelFor& parallel) {
+  const auto reference = [&] {
+    return DecodeImage(request.encoded_image(),
+                       request.has_raw_image() ? &request.raw_image() : nullptr, rig.cameras[0]);
+  };
+  if (!parallel || rig.cameras.size() == 1 ||
+      static_cast<size_t>(request.rig_images_size()) != rig.cameras.size() - 1) {
+    std::vector<cv::Mat> images = {reference()};
+    for (RigImage& image : RigImagesOf(request.rig_images(), rig, "request")) {
+      images.push_back(std::move(image.image));
+    }
+    return images;
   }
+  std::vector<cv::Mat> images(rig.cameras.size());
+  parallel(static_cast<int>(images.size()), [&](int c) {
+    images[c] = c == 0 ? reference() : RigImageOf(request.rig_images(), rig, c).image;
+  });
   return images;
 }
 

@@ -14,12 +14,13 @@
 
 namespace visloc::proto {
 
-// Decodes a frame's image to 8-bit grey of exactly the camera's size.
-cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const Camera& camera);
-FrameInput FromProto(const v1::Frame& frame, const Camera& camera);
 // fn(i) for every i of [0, n), on as many threads as the caller has for it (a rig session's:
 // Localizer::ForEachOnRigThreads); rethrows an exception fn threw.
 using ParallelFor = std::function<void(int n, const std::function<void(int i)>& fn)>;
+
+// Decodes a frame's image to 8-bit grey of exactly the camera's size.
+cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const Camera& camera);
+FrameInput FromProto(const v1::Frame& frame, const Camera& camera);
 // A rig session's frame: the reference image of rig.cameras[0], and one rig image per other
 // camera (InputError naming a missing or misfit one). With `parallel`, the cameras' images are
 // decoded side by side: a JPEG of 320x240 takes 0.35-0.45 ms to decode, half the engine's time
@@ -34,7 +35,8 @@ CameraRig RigFromProto(const v1::SessionStart& start, const WireLimits& limits);
 // for a camera with none), InputError naming a missing or misfit one.
 CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& reference,
                        const WireLimits& limits);
-std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request, const CameraRig& rig);
+std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request, const CameraRig& rig,
+                                        const ParallelFor& parallel = {});
 void ToProto(const FrameInput& frame, const std::string& encoded_image, v1::Frame* out);
 
 LocalizerOptions FromProto(const v1::SessionOptions& options);

@@ -196,6 +196,26 @@ TEST_F(WireValidationTest, ARigFramesImagesDecodedSideBySideAreTheOnesDecodedInT
                 ::testing::ThrowsMessage<InputError>(
                     ::testing::HasSubstr("the frame carries 2 rig images for a rig of 4 cameras")));
   }
+
+  // The Relocalize RPC's images of a rig, the same way.
+  v1::RelocalizeRequest request;
+  request.set_encoded_image(jpeg(20));
+  for (int c = 1; c <= 3; ++c) {
+    v1::RigImage* image = request.add_rig_images();
+    if (c != 2) image->set_encoded(jpeg(20 + 60 * c));
+  }
+  const std::vector<cv::Mat> images_in_turn = proto::RigImagesFromProto(request, rig);
+  const std::vector<cv::Mat> images = proto::RigImagesFromProto(request, rig, side_by_side);
+  ASSERT_EQ(images.size(), 4u);
+  for (size_t c = 0; c < 4; ++c) {
+    ASSERT_EQ(images[c].empty(), c == 2) << "camera " << c;
+    if (c != 2) {
+      EXPECT_EQ(cv::norm(images[c], images_in_turn[c], cv::NORM_INF), 0.0);
+    }
+  }
+  request.mutable_rig_images(0)->set_encoded("not an image");
+  EXPECT_THAT([&] { proto::RigImagesFromProto(request, rig, side_by_side); },
+              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 1: image:")));
 }
 
 TEST_F(WireValidationTest, SessionOptionsOutOfRangeAreRefusedByName) {

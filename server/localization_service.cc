@@ -147,8 +147,14 @@ Status LocalizationService::Relocalize(grpc::ServerContext* context,
     // single frame is relocalized exactly as a session's first frame would be; a rig's frame
     // with all of its cameras.
     const CameraRig rig = proto::RigFromProto(*request, camera, limits_.wire);
-    const std::vector<cv::Mat> images = proto::RigImagesFromProto(*request, rig);
-    const RigPipeline pipeline(map, rig, LocalizerOptions{});
+    RigPipeline pipeline(map, rig, LocalizerOptions{});
+    // A rig's cameras side by side on the workers idle now, as a session's: their images
+    // decoded, and their features extracted for a candidate's verification.
+    const SparePermits spare(&workers_, static_cast<int>(rig.cameras.size()) - 1);
+    pipeline.SetThreads(1 + spare.taken());
+    const std::vector<cv::Mat> images = proto::RigImagesFromProto(
+        *request, rig,
+        [&](int n, const std::function<void(int)>& decode) { pipeline.ForEachClaimed(n, decode); });
     proto::ToProto(pipeline.RelocalizeImages(images), response);
     if (response->localized()) {
       proto::SetSitePose(map->map().metadata, proto::FromProto(response->map_from_cam(), "pose"),
