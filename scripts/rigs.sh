@@ -252,7 +252,8 @@ PY
   echo "A frame comes to a server idle since the last one, its caches cold and the rig's helper"
   echo "thread asleep, so a rig's frame costs more over one camera's here than back to back above."
   echo "The server decodes a rig frame's images side by side on the rig's threads, which wakes the"
-  echo "helper before the extraction (\`proto::FromProto\`; one after the other it was 1.67x, 8 runs)."
+  echo "helper before the extraction (\`proto::FromProto\`): in 8 runs of the two server binaries in"
+  echo "turn, 1.67x with the images decoded one after the other, 1.44x side by side."
   if [[ -f $WORK/bench.mh01.1.json ]]; then
     echo
     echo "Where a frame's time goes, EuRoC MH_01, the first run (per-frame medians in ms; a rig's"
