@@ -200,8 +200,9 @@ class StreamRecorder {
 
   RunReport report;
   std::vector<double> latency_ms;
-  // The server's own time per answered frame (LocalizeResponse.timings.server_ms): decoding,
-  // waiting for a worker and the engine, without the link.
+  // The server's own time per frame it answered with the engine (LocalizeResponse.timings.
+  // server_ms: decoding, waiting for a worker and the engine, without the link); refused and
+  // skipped frames, answered in microseconds, are left out.
   std::vector<double> server_ms;
   int errors = 0, skipped = 0, late = 0, dropped = 0, undelivered = 0, link_breaks = 0;
   std::string failure;
@@ -216,7 +217,6 @@ class StreamRecorder {
   void Answer(const client::Event& e, size_t frame_count) {
     const v1::LocalizeResponse& r = e.response;
     latency_ms.push_back(e.latency_ms);
-    server_ms.push_back(r.timings().server_ms());
     if (r.status() == v1::STATUS_ERROR) {
       ++errors;
       std::fprintf(stderr, "visloc stream: %s: server: %s\n", FrameName(e.timestamp_ns).c_str(),
@@ -234,6 +234,7 @@ class StreamRecorder {
       ++skipped;
       return;
     }
+    server_ms.push_back(r.timings().server_ms());
     LocalizationResult result = proto::FromProto(r);
     result.timestamp_ns = e.timestamp_ns;
     report.Add(result);

@@ -97,16 +97,6 @@ namespace {
 
 using RigImagesIn = google::protobuf::RepeatedPtrField<v1::RigImage>;
 
-// InputError unless a `carrier` (a frame, a request) carries one rig image per camera after the
-// reference.
-void CheckRigImageCount(const RigImagesIn& in, const CameraRig& rig, const char* carrier) {
-  const size_t others = rig.cameras.size() - 1;
-  if (static_cast<size_t>(in.size()) != others) {
-    throw InputError(StrCat("the ", carrier, " carries ", in.size(), " rig images for a rig of ",
-                            rig.cameras.size(), " cameras (", others, " besides the reference)"));
-  }
-}
-
 // Rig image `c` (1 for the first camera after the reference) decoded for its camera: an empty
 // image where the carrier has none this time. InputError naming the image that does not fit.
 RigImage RigImageOf(const RigImagesIn& in, const CameraRig& rig, size_t c) {
@@ -123,34 +113,41 @@ RigImage RigImageOf(const RigImagesIn& in, const CameraRig& rig, size_t c) {
   return out;
 }
 
-// The rig images a `carrier` carries, each decoded for its camera (RigImageOf).
-std::vector<RigImage> RigImagesOf(const RigImagesIn& in, const CameraRig& rig,
-                                  const char* carrier) {
-  CheckRigImageCount(in, rig, carrier);
-  std::vector<RigImage> images;
-  for (size_t c = 1; c < rig.cameras.size(); ++c) images.push_back(RigImageOf(in, rig, c));
+// The rig images a `carrier` (a frame, a request) carries, one per camera after the reference,
+// each decoded for its camera (RigImageOf), and reference() run for the reference camera's: side
+// by side on `parallel` where there is one, else the reference first. InputError for a count that
+// is not the rig's (after the reference's own faults), or the first image in the rig's order that
+// does not fit its camera.
+std::vector<RigImage> DecodeRigImages(const RigImagesIn& in, const CameraRig& rig,
+                                      const char* carrier, const ParallelFor& parallel,
+                                      const std::function<void()>& reference) {
+  const size_t others = rig.cameras.size() - 1;
+  std::vector<RigImage> images(others);
+  if (parallel && others > 0 && static_cast<size_t>(in.size()) == others) {
+    parallel(static_cast<int>(rig.cameras.size()), [&](int c) {
+      if (c == 0) {
+        reference();
+      } else {
+        images[c - 1] = RigImageOf(in, rig, c);
+      }
+    });
+    return images;
+  }
+  reference();
+  if (static_cast<size_t>(in.size()) != others) {
+    throw InputError(StrCat("the ", carrier, " carries ", in.size(), " rig images for a rig of ",
+                            rig.cameras.size(), " cameras (", others, " besides the reference)"));
+  }
+  for (size_t c = 1; c <= others; ++c) images[c - 1] = RigImageOf(in, rig, c);
   return images;
 }
 
 }  // namespace
 
 FrameInput FromProto(const v1::Frame& frame, const CameraRig& rig, const ParallelFor& parallel) {
-  // In turn for one camera, and for a frame refused for its count (after its reference image's
-  // own faults, as ever).
-  if (!parallel || rig.cameras.size() == 1 ||
-      static_cast<size_t>(frame.rig_images_size()) != rig.cameras.size() - 1) {
-    FrameInput input = FromProto(frame, rig.cameras.at(0));
-    input.rig_images = RigImagesOf(frame.rig_images(), rig, "frame");
-    return input;
-  }
-  FrameInput input;  // Part 0's: the reference image and the frame's other fields.
-  std::vector<RigImage> others(rig.cameras.size() - 1);
-  parallel(static_cast<int>(rig.cameras.size()), [&](int c) {
-    if (c == 0) {
-      input = FromProto(frame, rig.cameras[0]);
-    } else {
-      others[c - 1] = RigImageOf(frame.rig_images(), rig, c);
-    }
+  FrameInput input;
+  std::vector<RigImage> others = DecodeRigImages(frame.rig_images(), rig, "frame", parallel, [&] {
+    input = FromProto(frame, rig.cameras.at(0));
   });
   input.rig_images = std::move(others);
   return input;
@@ -201,22 +198,15 @@ CameraRig RigFromProto(const v1::RelocalizeRequest& request, const Camera& refer
 
 std::vector<cv::Mat> RigImagesFromProto(const v1::RelocalizeRequest& request, const CameraRig& rig,
                                         const ParallelFor& parallel) {
-  const auto reference = [&] {
-    return DecodeImage(request.encoded_image(),
-                       request.has_raw_image() ? &request.raw_image() : nullptr, rig.cameras[0]);
-  };
-  if (!parallel || rig.cameras.size() == 1 ||
-      static_cast<size_t>(request.rig_images_size()) != rig.cameras.size() - 1) {
-    std::vector<cv::Mat> images = {reference()};
-    for (RigImage& image : RigImagesOf(request.rig_images(), rig, "request")) {
-      images.push_back(std::move(image.image));
-    }
-    return images;
-  }
-  std::vector<cv::Mat> images(rig.cameras.size());
-  parallel(static_cast<int>(images.size()), [&](int c) {
-    images[c] = c == 0 ? reference() : RigImageOf(request.rig_images(), rig, c).image;
-  });
+  cv::Mat reference;
+  std::vector<RigImage> others =
+      DecodeRigImages(request.rig_images(), rig, "request", parallel, [&] {
+        reference =
+            DecodeImage(request.encoded_image(),
+                        request.has_raw_image() ? &request.raw_image() : nullptr, rig.cameras[0]);
+      });
+  std::vector<cv::Mat> images = {std::move(reference)};
+  for (RigImage& image : others) images.push_back(std::move(image.image));
   return images;
 }
 
