@@ -30,3 +30,21 @@ function(visloc_add_test NAME)
   endif()
   gtest_discover_tests(${NAME} DISCOVERY_TIMEOUT 60 PROPERTIES ${ARG_PROPERTIES})
 endfunction()
+
+#   visloc_hot_loops_under_sanitizers(a.cc b.cc [UNINSTRUMENTED])
+# compiles a module's pixel loops at -O2 in the sanitizer builds (the rest stays at -O1): the
+# sanitized suite spends most of its time in them, and at -O1 GCC does not vectorize them.
+# Still instrumented unless UNINSTRUMENTED (the simulator's renderer, which makes test data
+# and is not the product's code path). The bits they compute do not change: -ffp-contract=off
+# everywhere and no fast math. Call it from the directory that owns the sources.
+function(visloc_hot_loops_under_sanitizers)
+  cmake_parse_arguments(ARG "UNINSTRUMENTED" "" "" ${ARGN})
+  if(NOT VISLOC_SANITIZE)
+    return()
+  endif()
+  set(options -O2)
+  if(ARG_UNINSTRUMENTED)
+    list(APPEND options -fno-sanitize=all)
+  endif()
+  set_source_files_properties(${ARG_UNPARSED_ARGUMENTS} PROPERTIES COMPILE_OPTIONS "${options}")
+endfunction()
