@@ -105,9 +105,12 @@ class PythonClientTest(unittest.TestCase):
         walk = os.path.join(DATA, "front-back/kidnap/mav0")
         rear = rig_camera_from_yaml(os.path.join(walk, "cam2/sensor.yaml"), "rear")
         # A replay, not a live robot: every frame waits its turn (a loaded CI machine answered
-        # 97 of 120 with the live queue of 2, dropping the rest on the robot's side).
+        # 97 of 120 with the live queue of 2, dropping the rest on the robot's side), and a slow
+        # answer is waited for. With the live robot's 2 s stall timeout, an ASan server beside
+        # Chromium answered 88 of 120 in CI: the stream was taken for stalled and reopened again
+        # and again, the frames on it undelivered (6 busy loops beside it: 60 of 120).
         options = self.options(self.address, rig_cameras=[rear], max_queued=120,
-                               frame_deadline_s=30.0)
+                               frame_deadline_s=30.0, stall_timeout_s=30.0)
         options.session.body_from_cam.CopyFrom(
             body_from_cam_from_yaml(os.path.join(walk, "cam0/sensor.yaml")))
         session = Session(options)
@@ -121,9 +124,11 @@ class PythonClientTest(unittest.TestCase):
             self.assertTrue(session.submit(timestamp_ns, cv2.imread(path, cv2.IMREAD_GRAYSCALE),
                                            rig_images=[rear_image]))
             time.sleep(1 / 30)
-        session.close(drain_s=10)
-        results = [e for e in self.collect(session, time.monotonic() + 0.5) if e.kind == "result"]
-        self.assertGreaterEqual(len(results), 110)  # A loaded machine may drop a few.
+        # Close returns once every frame is answered; the bound is for a broken server only.
+        session.close(drain_s=90)
+        events = self.collect(session, time.monotonic() + 0.5)
+        results = [e for e in events if e.kind == "result"]
+        self.assertEqual(len(results), 120, [(e.kind, e.detail) for e in events if e.kind == "link"][:6])
         story = "\n".join(self.describe(e) for e in results)
         self.assertTrue(all(e.response.has_pose for e in results[1:]), story)
         self.assertTrue(all(len(e.response.cameras) == 2 for e in results), story)
