@@ -46,5 +46,6 @@ function(visloc_hot_loops_under_sanitizers)
   if(ARG_UNINSTRUMENTED)
     list(APPEND options -fno-sanitize=all)
   endif()
-  set_source_files_properties(${ARG_UNPARSED_ARGUMENTS} PROPERTIES COMPILE_OPTIONS "${options}")
+  # Appended: a file's own options (descriptor.cc's -fno-math-errno, say) stay.
+  set_property(SOURCE ${ARG_UNPARSED_ARGUMENTS} APPEND PROPERTY COMPILE_OPTIONS ${options})
 endfunction()
