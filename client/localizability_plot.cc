@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 
@@ -145,7 +145,8 @@ void WriteLocalizabilityPng(const LocalizabilityPlotInput& input, const std::str
   DrawWheels(grid, frame, input.good_inliers, &image);
   if (input.map) DrawMap(grid, *input.map, frame, &image);
   DrawLegend(input.good_inliers, input.title, &image);
-  if (!cv::imwrite(path, image)) throw InputError(path + ": cannot write the PNG");
+  std::string why;
+  if (!image::WritePng(path, image, 6, &why)) throw InputError(why);
 }
 
 }  // namespace visloc::cli

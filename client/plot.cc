@@ -6,9 +6,9 @@
 #include <limits>
 #include <sstream>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/localization/localizer.h"  // FitKeyframePlane
 #include "core/util/check.h"
 #include "core/util/strings.h"
@@ -61,7 +61,8 @@ class PngCanvas : public Canvas {
                 cv::Scalar(c.b, c.g, c.r), 1, cv::LINE_AA);
   }
   void Save(const std::string& path) override {
-    if (!cv::imwrite(path, image_)) throw InputError(path + ": cannot write PNG");
+    std::string why;
+    if (!image::WritePng(path, image_, 6, &why)) throw InputError(why);
   }
 
  private:

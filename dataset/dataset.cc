@@ -3,8 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "dataset/euroc.h"
@@ -47,8 +46,9 @@ Trajectory Dataset::GroundTruthLeftCam() const {
 
 cv::Mat LoadGreyImage(const std::string& path, int expected_width, int expected_height) {
   if (!std::filesystem::is_regular_file(path)) throw InputError(StrCat(path, ": no such image"));
-  cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (image.empty()) throw InputError(StrCat(path, ": cannot decode image"));
+  std::string why;
+  cv::Mat image = image::ReadGrey(path, &why);
+  if (image.empty()) throw InputError(why);  // "PATH: truncated PNG: ..."
   if (expected_width > 0 && (image.cols != expected_width || image.rows != expected_height)) {
     throw InputError(StrCat(path, ": image is ", image.cols, "x", image.rows,
                             " but the calibration says ", expected_width, "x", expected_height));

@@ -4,8 +4,8 @@
 #include <filesystem>
 
 #include <yaml-cpp/yaml.h>
-#include <opencv2/imgcodecs.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
@@ -334,13 +334,13 @@ void EurocWriter::AddFrame(int64_t timestamp_ns, const cv::Mat& left, const cv::
                " further images for ", others_.size(), " further cameras");
   VISLOC_CHECK(timestamps_ns_.empty() || timestamp_ns > timestamps_ns_.back(),
                "frame timestamps must increase: ", timestamp_ns);
-  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
   const std::string name = StrCat(timestamp_ns, ".png");
   auto write = [&](const std::string& path, const cv::Mat& image, const CameraInfo& info) {
     VISLOC_CHECK(image.type() == CV_8UC1 && image.cols == info.camera.width() &&
                      image.rows == info.camera.height(),
                  "image must be 8-bit grey of the calibrated size");
-    if (!cv::imwrite(path, image, png_params)) throw InputError(StrCat(path, ": cannot write"));
+    std::string why;
+    if (!image::WritePng(path, image, 1, &why)) throw InputError(why);
   };
   write(mav0_ + "/cam0/data/" + name, left, left_);
   if (right_) write(mav0_ + "/cam1/data/" + name, right, *right_);

@@ -3,8 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/strings.h"
 #include "core/util/text_file.h"
@@ -101,8 +100,9 @@ Dataset ReadKitti(const std::string& dir) {
     dataset.frames.push_back(std::move(frame));
   }
   // KITTI has no resolution in calib.txt: take it from the first image.
-  const cv::Mat first = cv::imread(dataset.frames[0].left_path, cv::IMREAD_GRAYSCALE);
-  if (first.empty()) throw InputError(StrCat(dataset.frames[0].left_path, ": cannot decode image"));
+  std::string why;
+  const cv::Mat first = image::ReadGrey(dataset.frames[0].left_path, &why);
+  if (first.empty()) throw InputError(why);
   dataset.left.camera =
       Camera(first.cols, first.rows, p0(0, 0), p0(1, 1), p0(0, 2), p0(1, 2));
   if (timestamps.size() > 1) {
@@ -154,9 +154,8 @@ void WriteKittiFrame(const std::string& dir, int index, const cv::Mat& left, con
   const std::string name = ImageName(index);
   for (const auto& [folder, image] : {std::pair{"image_0", left}, std::pair{"image_1", right}}) {
     const std::string path = dir + "/" + folder + "/" + name;
-    if (!cv::imwrite(path, image, {cv::IMWRITE_PNG_COMPRESSION, 1})) {
-      throw InputError(StrCat(path, ": cannot write"));
-    }
+    std::string why;
+    if (!image::WritePng(path, image, 1, &why)) throw InputError(why);
   }
 }
 

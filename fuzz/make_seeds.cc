@@ -9,10 +9,11 @@
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/map/synthetic_map.h"
+#include "core/util/check.h"
 #include "core/util/temp_dir.h"
 #include "core/util/text_file.h"
 #include "dataset/euroc.h"
@@ -59,11 +60,17 @@ v1::Frame RawFrame(int64_t timestamp_ns) {
   return frame;
 }
 
+std::vector<uint8_t> Png(const cv::Mat& image) {
+  std::vector<uint8_t> png;
+  std::string error;
+  VISLOC_CHECK(image::EncodePng(image, 1, &png, &error), error);
+  return png;
+}
+
 void FrameSeeds(const fs::path& out) {
   v1::Frame raw = RawFrame(1000);
   Write(out, "frame_raw", Tagged(0, raw.SerializeAsString()));
-  std::vector<uint8_t> png;
-  cv::imencode(".png", Texture(kCamera.width(), kCamera.height()), png);
+  const std::vector<uint8_t> png = Png(Texture(kCamera.width(), kCamera.height()));
   v1::Frame encoded;
   encoded.set_timestamp_ns(2000);
   encoded.set_encoded(std::string(png.begin(), png.end()));
@@ -181,8 +188,7 @@ void DatasetSeeds(const fs::path& out) {
 void Ros2MessageSeeds(const fs::path& out) {
   const cv::Mat image = Texture(16, 12);
   Write(out, "image", Tagged(0, bag::testing::Ros2Image(1'700'000'000'000'000'000, image, "cam0")));
-  std::vector<uint8_t> png;
-  cv::imencode(".png", image, png);
+  const std::vector<uint8_t> png = Png(image);
   Write(out, "compressed",
         Tagged(1, bag::testing::Ros2CompressedImage(5, "png", std::string(png.begin(), png.end()),
                                                     "cam0")));

@@ -2,9 +2,7 @@
 
 #include <cmath>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 
 namespace visloc::proto {
@@ -79,12 +77,9 @@ cv::Mat DecodeImage(const std::string& encoded, const v1::RawImage* raw, const C
                .clone();
   } else {
     if (encoded.empty()) throw InputError("frame has no image");
-    const cv::Mat bytes(1, static_cast<int>(encoded.size()), CV_8UC1,
-                        const_cast<char*>(encoded.data()));
-    grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) {
-      throw InputError(StrCat("image: ", encoded.size(), " bytes are not a decodable PNG or JPEG"));
-    }
+    std::string why;
+    grey = image::DecodeGrey(encoded.data(), encoded.size(), &why);
+    if (grey.empty()) throw InputError(StrCat("image (", encoded.size(), " bytes): ", why));
   }
   if (grey.cols != camera.width() || grey.rows != camera.height()) {
     throw InputError(StrCat("image is ", grey.cols, "x", grey.rows, " but the session camera is ",

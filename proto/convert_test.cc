@@ -9,9 +9,9 @@
 #include <cmath>
 #include <functional>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/worker_pool.h"
 
@@ -94,8 +94,9 @@ TEST_F(WireValidationTest, ARigSessionDeclaresItsCamerasAndEachFrameCarriesTheir
   EXPECT_TRUE(ApproxEqual(rig.CamFromReference(1), body_from_rear.Inverse(), 1e-12, 1e-9));
 
   const cv::Mat grey(240, 320, CV_8UC1, cv::Scalar(90));
-  std::vector<uchar> png;
-  cv::imencode(".png", grey, png);
+  std::vector<uint8_t> png;
+  std::string error;
+  ASSERT_TRUE(image::EncodePng(grey, 1, &png, &error)) << error;
   v1::Frame frame;
   frame.set_timestamp_ns(1000);
   frame.set_encoded(std::string(png.begin(), png.end()));
@@ -143,8 +144,9 @@ TEST_F(WireValidationTest, ARigFramesImagesDecodedSideBySideAreTheOnesDecodedInT
   const auto jpeg = [](int grey) {
     cv::Mat image(240, 320, CV_8UC1, cv::Scalar(grey));
     cv::circle(image, cv::Point(40 + grey / 2, 120), 30, cv::Scalar(255 - grey), -1);
-    std::vector<uchar> bytes;
-    cv::imencode(".jpg", image, bytes);
+    std::vector<uint8_t> bytes;
+    std::string error;
+    EXPECT_TRUE(image::EncodeJpeg(image, 95, &bytes, &error)) << error;
     return std::string(bytes.begin(), bytes.end());
   };
   v1::Frame frame;

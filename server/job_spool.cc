@@ -9,7 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include <opencv2/imgcodecs.hpp>
+#include "core/image/image_codec.h"
 
 #include "core/util/check.h"
 #include "core/util/strings.h"
@@ -142,7 +142,7 @@ std::string JobSpool::name() const {
 }
 
 std::string JobSpool::Path(int index, const char* side) const {
-  return (fs::path(dir_) / StrCat(index, "_", side)).string();  // imread tells PNG from JPEG.
+  return (fs::path(dir_) / StrCat(index, "_", side)).string();  // The bytes tell PNG from JPEG.
 }
 
 void JobSpool::Keep(const std::string& encoded, const cv::Mat& decoded,
@@ -154,7 +154,8 @@ void JobSpool::Keep(const std::string& encoded, const cv::Mat& decoded,
         static_cast<bool>(out.write(encoded.data(), static_cast<std::streamsize>(encoded.size())));
   } else {
     // Fast PNG: the spool is read back once, and disk is cheaper than the server's time.
-    kept = cv::imwrite(path + ".png", decoded, {cv::IMWRITE_PNG_COMPRESSION, 1}) &&
+    std::string error;
+    kept = image::WritePng(path + ".png", decoded, 1, &error) &&
            std::rename((path + ".png").c_str(), path.c_str()) == 0;
   }
   if (!kept) throw InputError(StrCat("cannot keep a frame of the run in ", dir_));
@@ -192,10 +193,11 @@ void JobSpool::Remove() {
 
 mapping::StereoImages JobSpool::Read(int index) const {
   const auto read = [&](const char* side) {
-    cv::Mat image = cv::imread(Path(index, side), cv::IMREAD_GRAYSCALE);
+    std::string error;
+    cv::Mat image = image::ReadGrey(Path(index, side), &error);
     if (image.empty()) {
       throw InputError(StrCat("frame ", index, " of mapping job ", job_id_, ": its ", side,
-                              " image in ", dir_, " cannot be read back"));
+                              " image cannot be read back: ", error));
     }
     return image;
   };

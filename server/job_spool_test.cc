@@ -9,8 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/temp_dir.h"
 #include "proto/geometry_convert.h"
@@ -40,8 +39,9 @@ class JobSpoolTest : public ::testing::Test {
     *right = cv::Mat(48, 64, CV_8UC1);
     cv::randu(*left, 0, 255);
     cv::randu(*right, 0, 255);
-    std::vector<uchar> png;
-    cv::imencode(".png", *left, png);
+    std::vector<uint8_t> png;
+    std::string error;
+    EXPECT_TRUE(image::EncodePng(*left, 1, &png, &error)) << error;
     v1::StereoFrame frame;
     frame.set_timestamp_ns(timestamp_ns);
     frame.set_left_encoded(std::string(png.begin(), png.end()));

@@ -4,8 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include <opencv2/imgcodecs.hpp>
-
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/random.h"
 #include "core/util/strings.h"
@@ -26,6 +25,11 @@ constexpr int kTexelsPerSquare = 24;
 
 // The board: (cols + 1) x (rows + 1) squares, black in the top-left corner, inside a white
 // margin of one square, on the plane of a Surface whose u axis runs along the rows.
+void WriteView(const std::string& path, const cv::Mat& image) {
+  std::string why;
+  if (!image::WritePng(path, image, 1, &why)) throw InputError(why);
+}
+
 std::shared_ptr<const Texture> BoardTexture(const BoardViewOptions& o) {
   const int squares_u = o.cols + 3, squares_v = o.rows + 3;  // With the margin.
   cv::Mat albedo(squares_v * kTexelsPerSquare, squares_u * kTexelsPerSquare, CV_8UC1,
@@ -150,10 +154,10 @@ BoardViewStats GenerateBoardViews(const RigOptions& rig_options, const BoardView
     Rng noise(o.seed * 1000 + stats.views);
     char name[32];
     std::snprintf(name, sizeof(name), "%03d.png", stats.views);
-    cv::imwrite(dir + "/left/" + name,
-                sensor.Capture(left_renderer.RenderRadiance(scene, world_from_left, 0), &noise));
-    cv::imwrite(dir + "/right/" + name,
-                sensor.Capture(right_renderer.RenderRadiance(scene, world_from_right, 0), &noise));
+    WriteView(dir + "/left/" + name,
+              sensor.Capture(left_renderer.RenderRadiance(scene, world_from_left, 0), &noise));
+    WriteView(dir + "/right/" + name,
+              sensor.Capture(right_renderer.RenderRadiance(scene, world_from_right, 0), &noise));
     ++stats.views;
   }
   // The truth, as calibrate writes it: the left camera is the body.

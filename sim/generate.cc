@@ -6,9 +6,9 @@
 #include <future>
 #include <set>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/json.h"
 #include "core/util/strings.h"
@@ -315,7 +315,11 @@ GenerateStats SequenceGenerator::Generate(const std::string& name, const std::st
   for (int k : blank_frames) json.Value(k);
   json.EndArray().EndObject();
   WriteFileAtomically(stats.dir + "/sequence.json", json.str() + "\n");
-  if (!sheet.empty()) cv::imwrite(stats.dir + "/contact_sheet.png", MakeContactSheet(sheet));
+  std::string why;
+  if (!sheet.empty() &&
+      !image::WritePng(stats.dir + "/contact_sheet.png", MakeContactSheet(sheet), 1, &why)) {
+    throw InputError(why);
+  }
   return stats;
 }
 

@@ -366,7 +366,7 @@ TEST_F(MappingServiceE2eTest, BadFramesAreAnsweredByNameAndTheJobGoesOn) {
   garbage.mutable_frame()->set_left_encoded("not an image");
   const v1::MappingProgress refused = Exchange(call->stream.get(), garbage);
   EXPECT_EQ(refused.state(), v1::MAPPING_FRAME_ERROR);
-  EXPECT_THAT(refused.error(), HasSubstr("left image: 12 bytes are not a decodable PNG or JPEG"));
+  EXPECT_THAT(refused.error(), HasSubstr("left image (12 bytes): not a PNG or JPEG image"));
 
   v1::MappingRequest small = Frame(1);
   small.mutable_frame()->clear_right_encoded();

@@ -5,11 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
 #include <fstream>
 
+#include "core/image/image_codec.h"
 #include "core/map/synthetic_map.h"
 #include "core/util/temp_dir.h"
 #include "mapstore/map_store.h"
@@ -38,7 +38,10 @@ class SecurityE2eTest : public ::testing::Test {
     std::ofstream(files_.File("tokens")) << "# robots and operators\n"
                                          << kRobotToken << " localize\n"
                                          << kAdminToken << " admin\n";
-    cv::imwrite(files_.File("blank.png"), cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)));
+    std::string error;
+    EXPECT_TRUE(image::WritePng(files_.File("blank.png"),
+                                cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)), 1, &error))
+        << error;
   }
   TempDir maps_{"visloc_security_maps"};
   TempDir files_{"visloc_security_files"};

@@ -273,7 +273,8 @@ TEST_F(ServerE2eTest, ABadFrameMidStreamGetsAnErrorAndTheSessionGoesOn) {
   ASSERT_EQ(stream.exit_code, 0) << stream.err;
   EXPECT_EQ(JsonNumber(stream.out, "errors"), 1);
   EXPECT_THAT(stream.err,
-              HasSubstr("frame 10: server: image: 17 bytes are not a decodable PNG or JPEG"));
+              HasSubstr("frame 10: server: image (17 bytes): not a PNG or JPEG image (first bytes "
+                        "74 68 69 73)"));
   EXPECT_EQ(JsonNumber(stream.out, "frames"), 29);
   EXPECT_EQ(JsonNumber(stream.out, "localized_fraction"), 1.0);
 }

@@ -1,9 +1,9 @@
 // Frame encoding and the small helpers of the public header.
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "core/image/image_codec.h"
 #include "visloc/client/session.h"
 
 namespace visloc::client {
@@ -25,14 +25,13 @@ std::string EncodeImage(const cv::Mat& image, Encoding encoding, int jpeg_qualit
     const cv::Mat packed = grey.isContinuous() ? grey : grey.clone();
     return std::string(reinterpret_cast<const char*>(packed.data), packed.total());
   }
-  std::vector<uchar> bytes;
-  const bool jpeg = encoding == Encoding::kJpeg;
-  const std::vector<int> params =
-      jpeg ? std::vector<int>{cv::IMWRITE_JPEG_QUALITY, jpeg_quality}
-           : std::vector<int>{cv::IMWRITE_PNG_COMPRESSION, 1};  // Fast: a robot's CPU is weak.
-  if (!cv::imencode(jpeg ? ".jpg" : ".png", grey, bytes, params)) {
-    throw std::invalid_argument("EncodeImage: the encoder refused the image");
-  }
+  std::vector<uint8_t> bytes;
+  std::string error;
+  const bool encoded =
+      encoding == Encoding::kJpeg
+          ? image::EncodeJpeg(grey, jpeg_quality, &bytes, &error)
+          : image::EncodePng(grey, 1, &bytes, &error);  // Fast: a robot's CPU is weak.
+  if (!encoded) throw std::invalid_argument("EncodeImage: " + error);
   return std::string(bytes.begin(), bytes.end());
 }
 

@@ -6,8 +6,8 @@
 #include <filesystem>
 
 #include <opencv2/core/utility.hpp>
-#include <opencv2/imgcodecs.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 #include "core/util/temp_dir.h"
 #include "dataset/euroc.h"
@@ -58,8 +58,9 @@ Rendered Render(const sim::RigOptions& rig, int views) {
   for (int i = 0; i < views; ++i) {
     char name[16];
     std::snprintf(name, sizeof(name), "/%03d.png", i);
-    r.left.push_back(cv::imread(dir.path() + "/left" + name, cv::IMREAD_GRAYSCALE));
-    r.right.push_back(cv::imread(dir.path() + "/right" + name, cv::IMREAD_GRAYSCALE));
+    std::string error;
+    r.left.push_back(image::ReadGrey(dir.path() + "/left" + name, &error));
+    r.right.push_back(image::ReadGrey(dir.path() + "/right" + name, &error));
   }
   r.left_truth = ReadSensorYaml(dir.path() + "/truth/cam0/sensor.yaml");
   r.right_truth = ReadSensorYaml(dir.path() + "/truth/cam1/sensor.yaml");

@@ -6,7 +6,6 @@
 
 #include <benchmark/benchmark.h>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/estimators/p3p.h"
@@ -14,6 +13,7 @@
 #include "core/estimators/pose_refinement.h"
 #include "core/features/features.h"
 #include "core/features/harris_surf16.h"
+#include "core/image/image_codec.h"
 #include "core/localization/localizability.h"
 #include "core/localization/localizer.h"
 #include "core/localization/map_matching.h"
@@ -33,7 +33,8 @@ cv::Mat RealImage(const std::string& recording) {
   const std::string dir = std::string(VISLOC_REAL_DATA) + "/" + recording;
   for (const std::string& path :
        {dir + "/mav0/cam0/data/1403636584763555584.png", dir + "/image_0/000000.png"}) {
-    cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    std::string why;
+    cv::Mat image = image::ReadGrey(path, &why);
     if (!image.empty()) return image;
   }
   return cv::Mat();

@@ -9,11 +9,11 @@
 
 #include <visloc/client/session.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -84,7 +84,10 @@ int main(int argc, char** argv) {
   for (const auto& path : images) {
     visloc::client::Frame frame;
     frame.timestamp_ns = std::stoll(path.stem().string());
-    frame.image = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
+    // The file's PNG bytes go as they are, as a camera that compresses on board would send
+    // them: the robot decodes nothing (frame.image takes a cv::Mat instead).
+    std::ifstream file(path, std::ios::binary);
+    frame.encoded.assign(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
     std::string why_not;
     if (!session->Submit(frame, &why_not)) std::fprintf(stderr, "not sent: %s\n", why_not.c_str());
     std::this_thread::sleep_for(std::chrono::milliseconds(66));

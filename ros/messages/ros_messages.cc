@@ -7,9 +7,9 @@
 #include <map>
 
 #include <Eigen/Geometry>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 
 namespace visloc::ros_msg {
@@ -120,11 +120,11 @@ Rigid3d OdometryPose(const Eigen::Quaterniond& orientation, const Eigen::Vector3
 
 cv::Mat DecodeCompressedImage(const std::string& format, std::string_view data) {
   if (data.empty()) throw InputError("compressed image has no data");
-  const cv::Mat bytes(1, static_cast<int>(data.size()), CV_8UC1, const_cast<char*>(data.data()));
-  cv::Mat grey = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  std::string why;
+  cv::Mat grey = image::DecodeGrey(data.data(), data.size(), &why);
   if (grey.empty()) {
-    throw InputError(StrCat("compressed image (format '", format, "', ", data.size(),
-                            " bytes) cannot be decoded as JPEG or PNG"));
+    throw InputError(
+        StrCat("compressed image (format '", format, "', ", data.size(), " bytes): ", why));
   }
   return grey;
 }

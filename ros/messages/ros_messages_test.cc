@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image/image_codec.h"
 #include "core/util/check.h"
 
 namespace visloc::ros_msg {
@@ -67,7 +67,8 @@ TEST(DecodeRawImageTest, RefusesWhatCannotBeAnImage) {
 TEST(DecodeCompressedImageTest, DecodesJpegAndPngAndRefusesGarbage) {
   cv::Mat grey(16, 16, CV_8UC1, cv::Scalar(90));
   std::vector<uint8_t> png;
-  cv::imencode(".png", grey, png);
+  std::string error;
+  ASSERT_TRUE(image::EncodePng(grey, 1, &png, &error)) << error;
   const cv::Mat decoded = DecodeCompressedImage(
       "png", std::string_view(reinterpret_cast<char*>(png.data()), png.size()));
   EXPECT_EQ(cv::norm(decoded, grey, cv::NORM_INF), 0.0);
