@@ -14,8 +14,6 @@
 #include <iostream>
 #include <thread>
 
-#include <opencv2/videoio.hpp>
-
 #include "client/commands.h"
 #include "client/connection.h"
 #include "client/dataset_frames.h"

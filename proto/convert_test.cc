@@ -116,7 +116,8 @@ TEST_F(WireValidationTest, ARigSessionDeclaresItsCamerasAndEachFrameCarriesTheir
   EXPECT_TRUE(proto::FromProto(frame, rig).rig_images[0].image.empty());
   image->set_encoded("not an image");
   EXPECT_THAT([&] { proto::FromProto(frame, rig); },
-              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 1: image:")));
+              ::testing::ThrowsMessage<InputError>(
+                  ::testing::HasSubstr("rig image 1: image (12 bytes): not a PNG or JPEG")));
   // Each rig camera is placed, and a rig has at most eight cameras.
   rear->clear_body_from_cam();
   EXPECT_THAT([&] { proto::RigFromProto(start, proto::WireLimits{}); },
@@ -182,14 +183,15 @@ TEST_F(WireValidationTest, ARigFramesImagesDecodedSideBySideAreTheOnesDecodedInT
   frame.mutable_rig_images(2)->set_encoded("not an image");
   for (const proto::ParallelFor& how : {proto::ParallelFor(), side_by_side}) {
     EXPECT_THAT([&] { proto::FromProto(frame, rig, how); },
-                ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 3: image:")));
+                ::testing::ThrowsMessage<InputError>(
+                    ::testing::HasSubstr("rig image 3: image (12 bytes): not a PNG or JPEG")));
   }
   frame.set_encoded("not a reference image either");
   for (const proto::ParallelFor& how : {proto::ParallelFor(), side_by_side}) {
-    EXPECT_THAT(
-        [&] { proto::FromProto(frame, rig, how); },
-        ::testing::ThrowsMessage<InputError>(::testing::AllOf(
-            ::testing::HasSubstr("image:"), ::testing::Not(::testing::HasSubstr("rig image")))));
+    EXPECT_THAT([&] { proto::FromProto(frame, rig, how); },
+                ::testing::ThrowsMessage<InputError>(
+                    ::testing::AllOf(::testing::HasSubstr("image (28 bytes): not a PNG or JPEG"),
+                                     ::testing::Not(::testing::HasSubstr("rig image")))));
   }
   frame.set_encoded(jpeg(20));
   frame.mutable_rig_images()->RemoveLast();
@@ -217,7 +219,8 @@ TEST_F(WireValidationTest, ARigFramesImagesDecodedSideBySideAreTheOnesDecodedInT
   }
   request.mutable_rig_images(0)->set_encoded("not an image");
   EXPECT_THAT([&] { proto::RigImagesFromProto(request, rig, side_by_side); },
-              ::testing::ThrowsMessage<InputError>(::testing::HasSubstr("rig image 1: image:")));
+              ::testing::ThrowsMessage<InputError>(
+                  ::testing::HasSubstr("rig image 1: image (12 bytes): not a PNG or JPEG")));
 }
 
 TEST_F(WireValidationTest, SessionOptionsOutOfRangeAreRefusedByName) {

@@ -304,6 +304,23 @@ TEST_F(RobotLinkE2eTest, AVideoSourceStreamsLikeACamera) {
        "--camera-yaml", kData + "/query_square/mav0/cam0/sensor.yaml", "--encoding", "file"});
   EXPECT_EQ(file_from_camera.exit_code, 2);
   EXPECT_THAT(file_from_camera.err, HasSubstr("--encoding file needs --dataset"));
+  // The CLI copied alone, without its video capture module: a camera is refused by naming what
+  // is missing, and every other verb still works (the module is loaded only for cameras).
+  std::filesystem::create_directories(out_.File("alone"));
+  const std::string alone = out_.File("alone/visloc");
+  std::filesystem::copy_file(VISLOC_CLI_PATH, alone);
+  const ProcessResult no_module = testing::RunProcess(
+      {alone, "stream", "--server", server.address(), "--map", "square", "--camera", video,
+       "--camera-yaml", kData + "/query_square/mav0/cam0/sensor.yaml"});
+  EXPECT_EQ(no_module.exit_code, 1);
+  EXPECT_THAT(no_module.err, HasSubstr("square.avi: cameras and video files are read by visloc's "
+                                       "video capture module, which is not installed here"));
+  EXPECT_THAT(no_module.err, HasSubstr("alone/libvisloc_video_capture.so"));
+  const ProcessResult files = testing::RunProcess(
+      {alone, "stream", "--server", server.address(), "--map", "square", "--dataset",
+       kData + "/query_square", "--frames", "5", "--rate", "0", "--json"});
+  ASSERT_EQ(files.exit_code, 0) << files.err;
+  EXPECT_EQ(JsonNumber(files.out, "frames"), 5);
 }
 
 // A rig of live sources: the front-back kidnap walk's front and rear cameras as two video files
