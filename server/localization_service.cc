@@ -81,6 +81,18 @@ Status LocalizationService::Localize(
     return Status(StatusCode::RESOURCE_EXHAUSTED,
                   StrCat("session limit reached (", limits_.max_sessions, " concurrent sessions)"));
   }
+  const auto refused = [&](const std::exception& e) {
+    Log("session_refused",
+        {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
+    return StatusFromException(e, "Localize: session start");
+  };
+  // A map that does not exist is said first: a lasting reason, where the load's "retry later"
+  // would send the robot back again and again. A stat, not a load (what admission spares).
+  try {
+    maps_->CheckExists(start.map_name());
+  } catch (const std::exception& e) {
+    return refused(e);
+  }
   // The newcomer is not yet among the active sessions the load is shared by.
   if (const AdmissionDecision admission = Admission(); !admission.admit) {
     ++refused_at_capacity_;
@@ -97,9 +109,7 @@ Status LocalizationService::Localize(
     session = std::make_unique<LocalizationSession>(map, start, limits_.wire, &workers_, &registry_,
                                                     before_frame_);
   } catch (const std::exception& e) {
-    Log("session_refused",
-        {{"map", start.map_name()}, {"peer", context->peer()}, {"reason", e.what()}});
-    return StatusFromException(e, "Localize: session start");
+    return refused(e);
   }
   Log("session_start", {{"session", std::to_string(session->id())},
                         {"map", start.map_name()},

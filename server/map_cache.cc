@@ -43,6 +43,14 @@ std::shared_ptr<const LocalizationMap> MapCache::Load(const std::string& path, b
   return map;
 }
 
+namespace {
+
+[[noreturn]] void ThrowNotFound(const std::string& name) {
+  throw NotFoundError("no map named '" + name + "' in the server's maps folder");
+}
+
+}  // namespace
+
 MapCache::FileIdentity MapCache::IdentityOf(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return {};
@@ -57,15 +65,18 @@ std::shared_ptr<std::mutex> MapCache::LoadLockFor(const std::string& name) {
   return load_lock;
 }
 
+void MapCache::CheckExists(const std::string& name) const {
+  mapstore::CheckMapName(name);
+  if (IdentityOf(directory_.PathOf(name)).inode == 0) ThrowNotFound(name);
+}
+
 std::shared_ptr<const LocalizationMap> MapCache::Acquire(const std::string& name) {
   mapstore::CheckMapName(name);
   const std::string path = directory_.PathOf(name);
   const std::shared_ptr<std::mutex> load_lock = LoadLockFor(name);
   std::lock_guard<std::mutex> loading(*load_lock);
   const FileIdentity identity = IdentityOf(path);
-  if (identity.inode == 0) {
-    throw NotFoundError("no map named '" + name + "' in the server's maps folder");
-  }
+  if (identity.inode == 0) ThrowNotFound(name);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     auto it = entries_.find(name);

@@ -42,6 +42,9 @@ class MapCache {
   // ..."), InputError for an invalid name or a map file that does not load (the reason). The
   // caller holds the map as long as it keeps the pointer, and counts as its user meanwhile.
   std::shared_ptr<const LocalizationMap> Acquire(const std::string& name);
+  // Throws what Acquire() would for a bad name or a map that does not exist, without loading
+  // anything (a stat): the lasting reasons, told before a passing one such as the load.
+  void CheckExists(const std::string& name) const;
   // How many holders of Acquire()'s pointers NAME has now (sessions localizing in it, a
   // relocalization under way), whichever version of the file they hold.
   int UsersOf(const std::string& name) const;

@@ -176,23 +176,28 @@ TEST_F(FleetE2eTest, ALoadOfRobotsFromOneProcessIsAnsweredFrameByFrame) {
   EXPECT_THAT(usage.err, HasSubstr("--robots is 1..256"));
 }
 
+// A session on the raw wire for `map` that sends no frame: how it ends (OK when admitted).
+grpc::Status SessionStartOf(const std::string& address, const std::string& map) {
+  auto stub =
+      v1::Localization::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(2));
+  auto call = stub->Localize(&context);
+  v1::LocalizeRequest start;
+  start.mutable_start()->set_map_name(map);
+  call->Write(start);
+  call->WritesDone();
+  return call->Finish();
+}
+
 // A newcomer on the raw wire, tried every 300 ms for 7 s until the server refuses it for
 // capacity (once the robots streaming on it fill its window); its last answer.
 grpc::Status RefusalOf(const std::string& address) {
-  auto stub =
-      v1::Localization::NewStub(grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
   grpc::Status refused;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(7);
   while (std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(2));
-    auto call = stub->Localize(&context);
-    v1::LocalizeRequest start;
-    start.mutable_start()->set_map_name("square");
-    call->Write(start);
-    call->WritesDone();
-    refused = call->Finish();  // Admitted: the session ends with the writes (no frames).
+    refused = SessionStartOf(address, "square");
     if (refused.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) break;
   }
   return refused;
@@ -230,6 +235,11 @@ TEST_F(FleetE2eTest, NewRobotsOnAServerAtCapacityAreRefusedByNameAndTheOthersKee
               AllOf(HasSubstr("server at capacity: its workers (1) were"), HasSubstr("sessions"),
                     HasSubstr("over the 1% that keeps its robots on time"),
                     HasSubstr("Retry in a few seconds, or on another replica")));
+  // A robot asking for a map the server does not have hears that, the lasting reason, and not
+  // "retry later": no retry would find the map.
+  const grpc::Status unknown = SessionStartOf(server.address(), "nope");
+  EXPECT_EQ(unknown.error_code(), grpc::StatusCode::NOT_FOUND) << unknown.error_message();
+  EXPECT_THAT(unknown.error_message(), HasSubstr("no map named 'nope'"));
   // Two robots arriving through the client library: refused, and counted so.
   const ProcessResult newcomers = testing::RunProcess(load(2, 2));
   ASSERT_EQ(newcomers.exit_code, 0) << newcomers.err;
