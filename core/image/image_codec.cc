@@ -126,6 +126,16 @@ void JpegMessage(j_common_ptr cinfo, int level) {
   }
 }
 
+// libjpeg's error manager on `errors`, set before jpeg_create_(de)compress, which keeps
+// client_data.
+template <typename Cinfo>
+void AttachErrors(Cinfo* cinfo, JpegErrorState* errors) {
+  cinfo->err = jpeg_std_error(&errors->manager);
+  errors->manager.error_exit = &JpegErrorExit;
+  errors->manager.emit_message = &JpegMessage;
+  cinfo->client_data = errors;
+}
+
 struct JpegReadState {
   jpeg_decompress_struct cinfo;
   JpegErrorState errors;
@@ -161,10 +171,7 @@ bool RunJpegDecode(const uint8_t* data, size_t size, JpegReadState* state, cv::M
 
 cv::Mat DecodeJpeg(const uint8_t* data, size_t size, std::string* error) {
   JpegReadState state;
-  state.cinfo.err = jpeg_std_error(&state.errors.manager);
-  state.errors.manager.error_exit = &JpegErrorExit;
-  state.errors.manager.emit_message = &JpegMessage;
-  state.cinfo.client_data = &state.errors;  // Kept by jpeg_create_decompress.
+  AttachErrors(&state.cinfo, &state.errors);
   jpeg_create_decompress(&state.cinfo);
   cv::Mat grey;
   const bool ok = RunJpegDecode(data, size, &state, &grey);
@@ -220,8 +227,6 @@ bool RunPngEncode(png_structp png, png_infop info, const cv::Mat& image, int lev
   png_write_end(png, info);
   return true;
 }
-
-void JpegNoMessage(j_common_ptr, int) {}
 
 struct JpegWriteState {
   jpeg_compress_struct cinfo;
@@ -316,10 +321,7 @@ bool EncodeJpeg(const cv::Mat& image, int quality, std::vector<uint8_t>* jpeg, s
     return false;
   }
   JpegWriteState state;
-  state.cinfo.err = jpeg_std_error(&state.errors.manager);
-  state.errors.manager.error_exit = &JpegErrorExit;
-  state.errors.manager.emit_message = &JpegNoMessage;
-  state.cinfo.client_data = &state.errors;  // Kept by jpeg_create_compress.
+  AttachErrors(&state.cinfo, &state.errors);
   jpeg_create_compress(&state.cinfo);
   const bool ok = RunJpegEncode(image, std::clamp(quality, 1, 100), &state);
   jpeg_destroy_compress(&state.cinfo);
