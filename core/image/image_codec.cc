@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <iterator>
+#include <sstream>
 
 #include <jerror.h>
 #include <jpeglib.h>
@@ -285,13 +285,14 @@ cv::Mat ReadGrey(const std::string& path, std::string* error) {
     *error = path + ": cannot open";
     return cv::Mat();
   }
-  const std::vector<char> bytes((std::istreambuf_iterator<char>(file)),
-                                std::istreambuf_iterator<char>());
+  std::ostringstream bytes;  // One read of the whole file (not character by character).
+  bytes << file.rdbuf();
   if (file.bad()) {
     *error = path + ": cannot read";
     return cv::Mat();
   }
-  cv::Mat grey = DecodeGrey(bytes.data(), bytes.size(), error);
+  const std::string data = bytes.str();
+  cv::Mat grey = DecodeGrey(data.data(), data.size(), error);
   if (grey.empty()) *error = path + ": " + *error;
   return grey;
 }
