@@ -11,14 +11,19 @@ namespace {
 
 // Calls done() until it is true or kSpinMicroseconds have passed; whether it became true.
 template <typename Done>
-bool SpinUntil(const Done& done) {
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::microseconds(WorkerPool::kSpinMicroseconds);
+bool SpinUntil(const Done& done, std::chrono::steady_clock::time_point deadline) {
   while (!done()) {
     if (std::chrono::steady_clock::now() > deadline) return false;
     std::this_thread::yield();  // Another runnable thread on this core goes first.
   }
   return true;
+}
+
+// The same for kSpinMicroseconds from now.
+template <typename Done>
+bool SpinUntil(const Done& done) {
+  return SpinUntil(done, std::chrono::steady_clock::now() +
+                             std::chrono::microseconds(WorkerPool::kSpinMicroseconds));
 }
 
 }  // namespace
@@ -40,15 +45,54 @@ void WorkerPool::Start() {
   }
 }
 
+void WorkerPool::ExpectJob(std::chrono::steady_clock::time_point when,
+                           std::chrono::microseconds lead, std::chrono::microseconds grace) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    expectation_ = {when, lead, grace};
+    ++expectation_id_;
+  }
+  wake_.notify_all();  // Helpers asleep without a deadline take this one's.
+}
+
+WorkerPool::ExpectationStats WorkerPool::expectation_stats() const {
+  return {expected_wakes_.load(), expected_met_.load(), expected_missed_.load()};
+}
+
+void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored) {
+  const auto job_or_stop = [&] { return stop_ || generation_.load() != seen; };
+  while (!job_or_stop()) {
+    if (*honored == expectation_id_) {
+      wake_.wait(lock);  // Until a job, stop or a new expectation.
+      continue;
+    }
+    const Expectation expected = expectation_;
+    if (std::chrono::steady_clock::now() < expected.when - expected.lead) {
+      wake_.wait_until(lock, expected.when - expected.lead);
+      continue;
+    }
+    // The window is open: look for the job without sleeping until it comes or the window ends.
+    *honored = expectation_id_;
+    ++expected_wakes_;
+    lock.unlock();
+    const bool met =
+        SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; },
+                  expected.when + expected.grace);
+    ++(met ? expected_met_ : expected_missed_);
+    lock.lock();
+  }
+}
+
 void WorkerPool::HelperLoop(int helper) {
   uint32_t seen = 0;
+  uint64_t honored = 0;  // The last expectation this helper woke for.
   for (;;) {
     SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; });
     const std::function<void(int)>* body = nullptr;
     int parts = 0;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stop_ || generation_.load() != seen; });
+      AwaitJob(lock, seen, &honored);
       if (stop_) return;
       seen = generation_.load();
       if (helper < job_helpers_) {

@@ -43,6 +43,21 @@ class WorkerPool {
   // caller's, and the work that does not wait for either after them).
   void ForEachClaimed(int n, int threads, const std::function<void(int i)>& fn);
 
+  // The next job is expected at `when`: a helper asleep then wakes `lead` before it and looks
+  // for the job until `grace` after it, so the job does not wait for the helper's wake (a rig
+  // session's next frame, ArrivalPredictor). A later call replaces an earlier one's.
+  void ExpectJob(std::chrono::steady_clock::time_point when, std::chrono::microseconds lead,
+                 std::chrono::microseconds grace);
+
+  // What the expectations came to: a helper woke for one (wakes), and a job then came while it
+  // looked (met) or the window ended without one (missed). Counted per helper.
+  struct ExpectationStats {
+    int64_t wakes = 0;
+    int64_t met = 0;
+    int64_t missed = 0;
+  };
+  ExpectationStats expectation_stats() const;
+
   int helpers() const { return helpers_; }
 
   // How long a helper keeps looking for the next job before it sleeps, and the caller for the
@@ -63,6 +78,9 @@ class WorkerPool {
   // Runs one claimed part, keeping its exception for the caller, and counts it done.
   void RunPart(int part, const std::function<void(int part)>& body, int parts);
   void WaitForParts(int parts);
+  // Under `lock`, until a job after `seen` or stop: asleep, but awake over the window of an
+  // expectation the helper has not yet looked out for (`honored`, its id).
+  void AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored);
 
   const int helpers_;
   std::vector<std::thread> threads_;
@@ -80,6 +98,14 @@ class WorkerPool {
   std::atomic<uint64_t> claim_{0};
   std::atomic<int> done_parts_{0};  // The job's parts finished, on any thread.
   std::chrono::microseconds helper_delay_{0};
+  // The next job's expectation (under mutex_), and its id: 0 for none yet.
+  struct Expectation {
+    std::chrono::steady_clock::time_point when;
+    std::chrono::microseconds lead{0}, grace{0};
+  };
+  Expectation expectation_;
+  uint64_t expectation_id_ = 0;
+  std::atomic<int64_t> expected_wakes_{0}, expected_met_{0}, expected_missed_{0};
   std::atomic<bool> stop_{false};
   std::atomic<bool> busy_{false};  // A caller is in Ranges (checks "one caller at a time").
 };

@@ -150,3 +150,56 @@ TEST(WorkerPoolTest, APoolWithoutHelpersRunsOnTheCaller) {
 
 }  // namespace
 }  // namespace visloc
+
+namespace visloc {
+namespace {
+
+// Polls `done` for up to 10 s (the helpers run on a shared machine); whether it became true.
+template <typename Done>
+bool Eventually(const Done& done) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return true;
+}
+
+TEST(WorkerPoolTest, AHelperWakesForAnExpectedJobAndMeetsIt) {
+  WorkerPool pool(1);
+  std::atomic<int> runs{0};
+  pool.ForEachClaimed(2, 2, [&](int) { ++runs; });  // Starts the helper.
+  // Asleep once its spin after that job ends; the expectation wakes it 5 ms before the job is
+  // due, and it looks for the job for up to 10 s after.
+  using std::chrono::milliseconds;
+  pool.ExpectJob(std::chrono::steady_clock::now() + milliseconds(20), milliseconds(5),
+                 std::chrono::seconds(10));
+  ASSERT_TRUE(Eventually([&] { return pool.expectation_stats().wakes == 1; }));
+  std::this_thread::sleep_for(milliseconds(30));
+  pool.ForEachClaimed(2, 2, [&](int) { ++runs; });
+  EXPECT_EQ(runs, 4);
+  ASSERT_TRUE(Eventually([&] { return pool.expectation_stats().met == 1; }));
+  EXPECT_EQ(pool.expectation_stats().missed, 0);
+  EXPECT_EQ(pool.expectation_stats().wakes, 1);
+}
+
+TEST(WorkerPoolTest, AnExpectedJobThatDoesNotComeLetsTheHelperSleepAgain) {
+  WorkerPool pool(2);
+  pool.ForEachClaimed(3, 3, [](int) {});
+  using std::chrono::milliseconds;
+  pool.ExpectJob(std::chrono::steady_clock::now() + milliseconds(2), milliseconds(1),
+                 milliseconds(3));
+  // Both helpers wake for it, look for 4 ms, and go back to sleep: each counts a miss.
+  ASSERT_TRUE(Eventually([&] { return pool.expectation_stats().missed == 2; }));
+  const WorkerPool::ExpectationStats stats = pool.expectation_stats();
+  EXPECT_EQ(stats.wakes, 2);
+  EXPECT_EQ(stats.met, 0);
+  // Asleep, they still take the next job.
+  std::atomic<int> runs{0};
+  pool.ForEachClaimed(3, 3, [&](int) { ++runs; });
+  EXPECT_EQ(runs, 3);
+  EXPECT_EQ(pool.expectation_stats().wakes, 2);  // No expectation left to wake for.
+}
+
+}  // namespace
+}  // namespace visloc
