@@ -83,13 +83,25 @@ ModeRun RunMode(const std::shared_ptr<const LocalizationMap>& map, const Dataset
 struct RigRun {
   std::vector<std::string> cameras;
   int threads = 2;
-  ErrorStats one_camera_ms, rig_ms, rig_threaded_ms;  // Engine time per frame.
+  // Engine time per frame; "asleep": threaded with the helpers sleeping between frames
+  // (LocalizerOptions::rig_wake_ahead off), timed in a pass of its own beside cam0 alone again.
+  ErrorStats one_camera_ms, rig_ms, rig_threaded_ms;
+  ErrorStats one_camera_again_ms, rig_asleep_ms;  // The asleep pass's, beside each other.
   // Per step of FrameTimes: where the rig's extra time goes. A rig's steps sum its cameras'
   // (CPU time); its total is the wall time, on one thread or side by side.
   std::vector<StepSummary> one_camera_steps, rig_steps, rig_threaded_steps;
   double localized_fraction = 0.0;
   std::vector<double> camera_inliers_median;  // Per camera, over the rig's fixes.
+  // The threaded rig's helpers woken for a frame they expected: it came while they looked
+  // (met), or not (missed); counted per helper.
+  WorkerPool::ExpectationStats helper_expectations;
 };
+
+// A rig's frame as its reference camera's alone.
+FrameInput ReferenceOnly(FrameInput input) {
+  input.rig_images.clear();
+  return input;
+}
 
 RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
                const std::vector<cv::Mat>& images, const std::vector<std::string>& cameras,
@@ -106,9 +118,9 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
   std::vector<LocalizationResult> one_results, rig_results, threaded_results;
   std::vector<std::vector<double>> inliers(cameras.size());
   int localized = 0;
-  for (size_t i = 0; i < images.size(); ++i) {
+  // Frame i of the rig: the reference camera's input with the other cameras' images read.
+  const auto rig_input = [&](size_t i) {
     FrameInput input = InputFor(dataset, images, i);
-    one_results.push_back(one.Process(input));
     for (size_t c = 1; c < cameras.size(); ++c) {
       const auto image = CameraImageAt(dataset, cameras[c], i, LocalizerOptions{}.max_rig_skew_ns);
       RigImage& rig_image = input.rig_images.emplace_back();
@@ -117,6 +129,11 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
       rig_image.image =
           LoadGreyImage(image->second, rig.cameras[c].width(), rig.cameras[c].height());
     }
+    return input;
+  };
+  for (size_t i = 0; i < images.size(); ++i) {
+    const FrameInput input = rig_input(i);
+    one_results.push_back(one.Process(ReferenceOnly(input)));
     const LocalizationResult& r = rig_results.emplace_back(serial.Process(input));
     threaded_results.push_back(threaded.Process(input));
     if (!r.has_pose || r.source == PoseSource::kMotion) continue;
@@ -131,6 +148,20 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
   run.rig_ms = run.rig_steps.back().ms;
   run.rig_threaded_steps = SummarizeSteps(threaded_results);
   run.rig_threaded_ms = run.rig_threaded_steps.back().ms;
+  run.helper_expectations = threaded.rig_expectation_stats();
+  // The threaded rig again with its helpers asleep between frames, in a pass of its own beside
+  // a new one-camera session: two rigs' helpers in one pass would keep each other's core awake.
+  threaded_options.rig_wake_ahead = false;
+  Localizer one_again(map, dataset.left.camera, LocalizerOptions{});
+  Localizer asleep(map, rig, threaded_options);
+  std::vector<LocalizationResult> one_again_results, asleep_results;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const FrameInput input = rig_input(i);
+    one_again_results.push_back(one_again.Process(ReferenceOnly(input)));
+    asleep_results.push_back(asleep.Process(input));
+  }
+  run.rig_asleep_ms = SummarizeSteps(asleep_results).back().ms;
+  run.one_camera_again_ms = SummarizeSteps(one_again_results).back().ms;
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
   for (const auto& camera : inliers) {
     run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
@@ -416,6 +447,12 @@ int RunBench(const Args& raw_args) {
           .Field("engine_ratio", rig->rig_ms.median / rig->one_camera_ms.median)
           .Field("threaded_latency_ratio", rig->rig_threaded_ms.median / rig->one_camera_ms.median)
           .Field("localized_fraction", rig->localized_fraction)
+          .Field("asleep_ms_per_frame_median", rig->rig_asleep_ms.median)
+          .Field("asleep_latency_ratio",
+                 rig->rig_asleep_ms.median / rig->one_camera_again_ms.median)
+          .Field("helper_expected_wakes", rig->helper_expectations.wakes)
+          .Field("helper_expected_met", rig->helper_expectations.met)
+          .Field("helper_expected_missed", rig->helper_expectations.missed)
           .Key("camera_inliers_median")
           .BeginArray();
       for (double inliers : rig->camera_inliers_median) out.Value(inliers);
@@ -485,10 +522,21 @@ int RunBench(const Args& raw_args) {
         ("rig " + names).c_str(), rig->rig_ms.median, rig->rig_ms.median / orb.median,
         100 * rig->localized_fraction, rig->rig_ms.median / rig->one_camera_ms.median,
         rig->one_camera_ms.median, inliers.c_str());
-    std::printf("%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's)\n",
-                StrCat("  on ", rig->threads, " threads").c_str(), rig->rig_threaded_ms.median,
-                rig->rig_threaded_ms.median / orb.median,
-                rig->rig_threaded_ms.median / rig->one_camera_ms.median);
+    const WorkerPool::ExpectationStats& woken = rig->helper_expectations;
+    std::printf(
+        "%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's; helpers woke for %lld "
+        "expected frames: %lld came in time, %lld did not)\n",
+        StrCat("  on ", rig->threads, " threads").c_str(), rig->rig_threaded_ms.median,
+        rig->rig_threaded_ms.median / orb.median,
+        rig->rig_threaded_ms.median / rig->one_camera_ms.median,
+        static_cast<long long>(woken.wakes), static_cast<long long>(woken.met),
+        static_cast<long long>(woken.missed));
+    std::printf(
+        "%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's %.3f ms, its own pass)\n",
+        "  helpers asleep in between", rig->rig_asleep_ms.median,
+        rig->rig_asleep_ms.median / orb.median,
+        rig->rig_asleep_ms.median / rig->one_camera_again_ms.median,
+        rig->one_camera_again_ms.median);
   }
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;

@@ -86,6 +86,8 @@ LocalizationSession::~LocalizationSession() { registry_->Close(tally_.id); }
 
 v1::LocalizeResponse LocalizationSession::Answer(const v1::LocalizeRequest& request) {
   Timer timer;
+  // Before the permit and the decoding: the rhythm of the robot's frames is its camera's.
+  if (request.has_frame()) localizer_.NoteFrameArrival();
   v1::LocalizeResponse response;
   const uint64_t index = tally_.frames;
   std::optional<LocalizationResult> answered;

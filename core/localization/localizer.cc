@@ -418,8 +418,14 @@ PoseFix Localizer::TryRelocalize(const QueryPipeline& pipeline, const cv::Mat& i
   return found.fix;
 }
 
+void Localizer::NoteFrameArrival() {
+  arrivals_.Observe(ArrivalPredictor::Clock::now());
+  arrival_noted_ = true;
+}
+
 LocalizationResult Localizer::Process(const FrameInput& input) {
   Timer total;
+  if (!std::exchange(arrival_noted_, false)) arrivals_.Observe(ArrivalPredictor::Clock::now());
   CheckInput(input);
   LocalizationResult result;
   result.timestamp_ns = input.timestamp_ns;
@@ -446,6 +452,10 @@ LocalizationResult Localizer::Process(const FrameInput& input) {
   // A rig's answer names every camera, even when no features were extracted this frame.
   if (rig()) result.stats.cameras.resize(rig_.cameras.size());
   result.stats.times.total_ms = total.ElapsedMs();
+  if (const std::optional<ArrivalPredictor::Expectation> next = arrivals_.Next();
+      next && rig() && options_.rig_wake_ahead) {
+    pipeline_.ExpectFrame(*next);
+  }
   return result;
 }
 

@@ -35,6 +35,8 @@
 #include "core/localization/localizer_options.h"
 #include "core/localization/motion_filter.h"
 #include "core/localization/rig_pipeline.h"
+#include "core/util/arrival_predictor.h"
+#include "core/util/worker_pool.h"
 
 namespace visloc {
 
@@ -151,6 +153,14 @@ class Localizer {
   // by the first thread free for it), before Process: a server decodes a rig frame's images
   // side by side with it, which also wakes the helpers for the frame. Rethrows what fn threw.
   void ForEachOnRigThreads(int n, const std::function<void(int i)>& fn) const;
+  // The next frame has arrived, now: a server calls this as it receives a frame, before it
+  // decodes it; Process calls it for a frame nobody did. From the arrivals' rhythm a rig
+  // session's helpers wake themselves just before the next frame (ArrivalPredictor).
+  void NoteFrameArrival();
+  // What the helpers' wakes for expected frames came to (WorkerPool::ExpectationStats).
+  WorkerPool::ExpectationStats rig_expectation_stats() const {
+    return pipeline_.expectation_stats();
+  }
 
  private:
   struct Motion {
@@ -235,6 +245,8 @@ class Localizer {
   // A rig's tracking features of this frame, cameras 1.. (none where no image came).
   std::vector<std::optional<QueryFrame>> rig_frames_;
   std::optional<RigTracker::Prediction> rig_prediction_;  // This frame's, from ExtractRig.
+  ArrivalPredictor arrivals_;   // The frames' arrivals, for the rig's helpers' wakes.
+  bool arrival_noted_ = false;  // NoteFrameArrival was called for the frame to come.
   std::optional<Eigen::Matrix3d> cam_from_body_rotation_;
   std::optional<std::pair<Eigen::Vector3d, double>> plane_;  // Unit normal and offset.
 

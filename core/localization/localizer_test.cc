@@ -4,6 +4,9 @@
 
 #include "core/localization/localizer.h"
 
+#include <chrono>
+#include <thread>
+
 #include <gtest/gtest.h>
 
 #include "core/map/synthetic_map.h"
@@ -135,6 +138,33 @@ TEST(LocalizerTest, ARigsFrameIsCheckedCameraByCameraAndTheSessionGoesOn) {
   EXPECT_EQ(blind.status, TrackingStatus::kInitializing);
   EXPECT_FALSE(blind.has_pose);
   EXPECT_EQ(blind.relocalization.kind, RelocalizationReport::Kind::kGlobal);
+}
+
+// Whether a rig session on two threads, given 8 frames 10 ms apart, had its helper wake ahead
+// of an expected frame (waiting up to 10 s for the wake after the last frame).
+bool HelperWokeAhead(bool wake_ahead) {
+  const auto map = SmallHarrisMap();
+  LocalizerOptions options;
+  options.rig_threads = 2;
+  options.rig_wake_ahead = wake_ahead;
+  Localizer localizer(map, FrontBackRig(map->map().camera), options);
+  const cv::Mat dark(240, 320, CV_8UC1, cv::Scalar(3));
+  for (int i = 0; i < 8; ++i) {
+    localizer.Process(RigFrame((i + 1) * 10'000'000, dark, dark));
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::seconds(wake_ahead ? 10 : 1);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (localizer.rig_expectation_stats().wakes > 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return false;
+}
+
+TEST(LocalizerTest, ARigsHelperWakesAheadOfFramesThatKeepARhythmUnlessToldNot) {
+  EXPECT_TRUE(HelperWokeAhead(true));
+  EXPECT_FALSE(HelperWokeAhead(false));
 }
 
 TEST(LocalizerTest, ARigIsOneToEightCamerasEachPlaced) {

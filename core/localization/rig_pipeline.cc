@@ -54,6 +54,10 @@ void RigPipeline::ForEachClaimed(int n, const std::function<void(int i)>& fn) co
   workers_->ForEachClaimed(n, threads_, fn);
 }
 
+void RigPipeline::ExpectFrame(const ArrivalPredictor::Expectation& next) const {
+  if (cameras_.size() > 1 && threads_ > 1) workers_->ExpectJob(next.when, next.lead, next.grace);
+}
+
 RelocalizationResult RigPipeline::RelocalizeImages(const std::vector<cv::Mat>& images) const {
   VISLOC_CHECK(images.size() == cameras_.size(), "a rig of ", cameras_.size(), " cameras given ",
                images.size(), " images");

@@ -12,6 +12,8 @@
 
 #include "core/localization/query_pipeline.h"
 #include "core/localization/rig_tracker.h"
+#include "core/util/arrival_predictor.h"
+#include "core/util/worker_pool.h"
 
 namespace visloc {
 
@@ -46,6 +48,11 @@ class RigPipeline {
   // fn(i) for every i of [0, n) on as many threads, each i claimed in turn by the first thread
   // free for it (WorkerPool::ForEachClaimed): work of unequal parts, balanced.
   void ForEachClaimed(int n, const std::function<void(int i)>& fn) const;
+  // The next frame is expected then: the helpers wake for it before it comes
+  // (WorkerPool::ExpectJob). Nothing for one camera or one thread.
+  void ExpectFrame(const ArrivalPredictor::Expectation& next) const;
+  // What the helpers' expectations came to (WorkerPool::expectation_stats).
+  WorkerPool::ExpectationStats expectation_stats() const { return workers_->expectation_stats(); }
 
   // Global relocalization of one frame of the rig, with nothing known of where it was taken:
   // each camera's image (`images[c]`; an empty one: that camera gave none) is relocalized as
