@@ -34,19 +34,19 @@ TEST(ArrivalPredictorTest, ASteadyCameraIsExpectedOnePeriodOnWithTheNarrowestWin
   const auto next = predictor.Next();
   ASSERT_TRUE(next);
   EXPECT_NEAR(MsFrom(At(1000.0 + 19 * 66.7), next->when), 66.7, 0.002);
-  EXPECT_EQ(next->lead, microseconds(600));  // Options::min_window_ms.
-  EXPECT_EQ(next->grace, microseconds(600));
+  EXPECT_EQ(next->lead, microseconds(1000));  // Options::min_window_ms.
+  EXPECT_EQ(next->grace, microseconds(1000));
 }
 
 TEST(ArrivalPredictorTest, AJitteryLinkWidensTheWindowUpToItsCap) {
   ArrivalPredictor predictor;
   // 49.8 and 50.2 ms in turn: the median interval one of them, the median absolute deviation
-  // 0.4 ms, the window 3 x 0.4 = 1.2 ms a side.
+  // 0.4 ms, the window 6 x 0.4 = 2.4 ms a side.
   double t = 0.0;
   for (int i = 0; i < 9; ++i) predictor.Observe(At(t += (i % 2 ? 50.2 : 49.8)));
   auto next = predictor.Next();
   ASSERT_TRUE(next);
-  EXPECT_NEAR(next->lead.count(), 1200, 1);
+  EXPECT_NEAR(next->lead.count(), 2400, 1);
   // +- 4 ms: capped at 3 ms a side.
   for (int i = 0; i < 9; ++i) predictor.Observe(At(t += (i % 2 ? 54.0 : 46.0)));
   next = predictor.Next();
