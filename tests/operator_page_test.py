@@ -3,7 +3,8 @@
 and python3-selenium) loads it from a real visloc-server while two real `visloc stream` robots
 run the kidnap and the square sequences at 15 Hz.
 
-- the page is usable (the map drawn, both robots listed) within 2 s of loading;
+- the page is usable (the robots' map drawn, though another lists first, and the robots listed)
+  within 2 s of loading;
 - it shows both robots; the kidnapped one turns lost while its camera is covered and has a pose
   again after, without a reload (the page is pushed the sessions 5 times a second);
 - the screenshot shows the map drawn (the keyframes' blue and the points' grey in the canvas's
@@ -279,6 +280,9 @@ def main():
                 time.sleep(0.1)
             check(usable_s is not None and usable_s < USABLE_S,
                   f"the page was usable after {usable_s} s (map drawn, the robots listed)")
+            # "big" lists first, but an operator opening the page wants the robots' map.
+            shown = driver.execute_script("return state.map;")
+            check(shown == "square", f"the page opened on the map its robots are on: {shown}")
             # The rig robot's card names its cameras and which of them the fix took; while its
             # front camera is covered, the front one is drawn blind and the rear one seeing.
             check(("cam2", "seeing") in rig_cameras and ("reference", "seeing") in rig_cameras,
@@ -366,7 +370,8 @@ def main():
             check(not errors, f"browser console errors: {errors}")
             level = check_real_map_level(driver, check, mh01, screenshot_out) if mh01 else "skipped"
             print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}; {choices}")
-            print(f"usable after {usable_s:.2f} s; kidnapped robot: {' -> '.join(seen)}; "
+            usable = "never" if usable_s is None else f"{usable_s:.2f} s"
+            print(f"usable after {usable}; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
                   f"robot pixels; 10,000-keyframe map drawn {big_s} s after the click; mapping "
                   f"job keyframes seen {grown}, {mapping_pixels} pixels of its map")
