@@ -1,5 +1,6 @@
 #include "core/util/json.h"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 
@@ -91,9 +92,13 @@ JsonWriter& JsonWriter::Value(double value) {
     out_ += "null";
     return *this;
   }
+  // printf's "%.9g" text (the standard defines to_chars's general format so), written without
+  // parsing a format string: the operator page's map views are tens of thousands of numbers,
+  // and snprintf was four fifths of their cost.
   char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.9g", value);
-  out_ += buffer;
+  const std::to_chars_result written =
+      std::to_chars(buffer, buffer + sizeof(buffer), value, std::chars_format::general, 9);
+  out_.append(buffer, written.ptr);
   return *this;
 }
 JsonWriter& JsonWriter::Value(int64_t value) {
