@@ -40,6 +40,24 @@ class BackgroundPool : public httplib::TaskQueue {
   httplib::ThreadPool pool_;
 };
 
+// The client's Accept-Encoding without Brotli ("br"), so that httplib answers it with gzip.
+// Debian's cpp-httplib (0.11) prefers Brotli whenever a client accepts it, at Brotli's slowest
+// quality (11): a small map's view took 0.37 s of a core (gzip: 0.02 s) and a 10,000-keyframe
+// one 1.4 s, for 10% fewer bytes than gzip. Every browser accepts Brotli.
+void RefuseBrotli(const httplib::Request& request) {
+  // httplib hands the pre-routing handler its own (non-const) request, before it chooses the
+  // response's encoding; this is the only place the choice can be steered.
+  httplib::Headers& headers = const_cast<httplib::Request&>(request).headers;
+  const auto accepted = headers.find("Accept-Encoding");
+  if (accepted == headers.end()) return;
+  std::string kept;
+  for (const std::string& coding : Split(accepted->second, ',')) {  // "gzip", "br;q=1.0"...
+    if (Trim(std::string_view(coding).substr(0, coding.find(';'))) == "br") continue;
+    kept += (kept.empty() ? "" : ", ") + coding;
+  }
+  accepted->second = kept;
+}
+
 std::unique_ptr<httplib::Server> MakeServer(const HttpOptions& options) {
   std::unique_ptr<httplib::Server> server;
   if (options.tls_cert.empty()) {
@@ -51,6 +69,10 @@ std::unique_ptr<httplib::Server> MakeServer(const HttpOptions& options) {
     server = std::move(tls);
   }
   server->new_task_queue = [] { return new BackgroundPool(); };
+  server->set_pre_routing_handler([](const httplib::Request& request, httplib::Response&) {
+    RefuseBrotli(request);
+    return httplib::Server::HandlerResponse::Unhandled;
+  });
   return server;
 }
 
