@@ -139,8 +139,10 @@ TEST_F(FaultE2eTest, CorruptMapFilesAreListedUnavailableAndTheOthersAreServed) {
 
 TEST_F(FaultE2eTest, AMapDeletedDuringASessionServesThatSessionToItsEnd) {
   ServerProcess server(VISLOC_SERVER_PATH, maps_.path());
-  // 45 frames at 15 Hz: three seconds, with the map deleted after the first.
-  const int robot = testing::SpawnProcess(StreamArgs(server.address(), "square", 45, "15"),
+  // 105 frames at 15 Hz: seven seconds, with the map deleted after the first. (Three seconds
+  // were too few on a loaded CI machine: the sanitized client's `map delete` came after the
+  // session had ended, and the refusal it tests never happened.)
+  const int robot = testing::SpawnProcess(StreamArgs(server.address(), "square", 105, "15"),
                                           files_.File("robot.out"), files_.File("robot.err"));
   ASSERT_TRUE(server.WaitForLog("event=session_start"));
   std::this_thread::sleep_for(std::chrono::seconds(1));

@@ -3,8 +3,9 @@
 and python3-selenium) loads it from a real visloc-server while two real `visloc stream` robots
 run the kidnap and the square sequences at 15 Hz.
 
-- the page is usable (the robots' map drawn, though another lists first, and the robots listed)
-  within 2 s of loading;
+- opened while the robots run, the page is usable (the robots' map drawn, though another lists
+  first, and the robots listed) within 2 s of loading; opened with no robot live it draws the first map listed, and follows
+  the first robot that comes onto another;
 - it shows both robots; the kidnapped one turns lost while its camera is covered and has a pose
   again after, without a reload (the page is pushed the sessions 5 times a second);
 - the screenshot shows the map drawn (the keyframes' blue and the points' grey in the canvas's
@@ -31,6 +32,7 @@ and the 2 s bounds become 8 s (the release build is held to 2 s).
 Exit 77 (skipped) when Chromium or its driver is not installed.
 """
 
+import json
 import math
 import os
 import re
@@ -39,6 +41,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.request
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
 from http_harness import Checks, browser, square_maps, start_server  # noqa: E402
@@ -59,6 +62,17 @@ except ImportError as e:
 if not shutil.which("chromium") or not os.path.exists("/usr/bin/chromedriver"):
     print("skipped: chromium and chromium-driver are not installed")
     sys.exit(77)
+
+
+def wait_for_sessions(http_address, count, seconds):
+    """How many sessions the server lists on a map, once `count` are or `seconds` have passed."""
+    deadline = time.monotonic() + seconds
+    while True:
+        with urllib.request.urlopen("http://" + http_address + "/api/sessions") as response:
+            live = sum(1 for s in json.load(response)["sessions"] if s.get("map"))
+        if live >= count or time.monotonic() > deadline:
+            return live
+        time.sleep(0.1)
 
 
 def robot_statuses(driver):
@@ -191,6 +205,20 @@ def check_choices(driver, check):
     return "choices kept"
 
 
+def check_follows_robots(driver, check, url):
+    """Until the operator chooses, a page opened with no robot live draws the first map listed
+    (big), and follows the first robot that comes onto another map (square)."""
+    driver.get(url)
+    idle = wait_for(driver, "return state.events > 0 && state.sessions.length === 0 &&"
+                            " state.view && state.view.name;", 60)
+    check(idle == "big", f"with no robot live, the first map listed drawn: {idle}")
+    driver.execute_script("state.sessions = [{session: 'probe', map: 'square'}];"
+                          "showDefault(false);")
+    followed = wait_for(driver, "return state.view && state.view.name === 'square';", 30)
+    check(followed, f"a robot coming onto square followed there: {page_state(driver)}")
+    return f"opened on {idle}, followed to square"
+
+
 def check_real_map_level(driver, check, recording, screenshot_out):
     driver.execute_script("document.querySelector('#maprows tr[data-name=mh01]').click();")
     view = wait_for(driver, "return state.view && state.view.name === 'mh01' && state.view;", 10)
@@ -253,6 +281,10 @@ def main():
                      "--cameras", cameras, "--rate", "15"],
                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
             driver = browser()
+            # The bound is for a page opened while the robots run (a sanitized client takes
+            # seconds to connect); a page opened before they come is check_follows_robots's.
+            live = wait_for_sessions(http_address, 3, 60)
+            check(live == 3, f"the three robots live on the server: {live}")
             loaded = time.monotonic()
             driver.get("http://" + http_address + "/")
             usable_s = None
@@ -369,7 +401,12 @@ def main():
             errors = [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
             check(not errors, f"browser console errors: {errors}")
             level = check_real_map_level(driver, check, mh01, screenshot_out) if mh01 else "skipped"
-            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}; {choices}")
+            for robot_process in robots:
+                robot_process.kill()
+                robot_process.wait()
+            follows = check_follows_robots(driver, check, "http://" + http_address + "/")
+            print(f"floor plan: {floor_plan}; MH_01 drawn level: {level}; {redraws}; {choices}; "
+                  f"{follows}")
             usable = "never" if usable_s is None else f"{usable_s:.2f} s"
             print(f"usable after {usable}; kidnapped robot: {' -> '.join(seen)}; "
                   f"canvas: {keyframe_pixels} keyframe, {grey_pixels} point, {robot_pixels} "
