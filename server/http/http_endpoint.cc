@@ -43,7 +43,7 @@ class BackgroundPool : public httplib::TaskQueue {
 // The client's Accept-Encoding without Brotli ("br"), so that httplib answers it with gzip.
 // Debian's cpp-httplib (0.11) prefers Brotli whenever a client accepts it, at Brotli's slowest
 // quality (11): a small map's view took 0.37 s of a core (gzip: 0.02 s) and a 10,000-keyframe
-// one 1.4 s, for 10% fewer bytes than gzip. Every browser accepts Brotli.
+// one 1.4 s, for 8% fewer bytes than gzip (41,003 against 44,806). Every browser accepts Brotli.
 void RefuseBrotli(const httplib::Request& request) {
   // httplib hands the pre-routing handler its own (non-const) request, before it chooses the
   // response's encoding; this is the only place the choice can be steered.
