@@ -385,9 +385,11 @@ std::vector<Keypoint> HarrisSurf16Extractor::MergeAndSelect(const std::vector<Ke
     spread.Offer(i, cell);
   }
   if (detected) *detected = static_cast<int>(kept.size());
+  // More than the budget: the spread's choice (a ternary of the two would copy `kept`).
+  if (static_cast<int>(kept.size()) > options_.max_features) kept = spread.Chosen();
   std::vector<Keypoint> selected;
-  const bool all = static_cast<int>(kept.size()) <= options_.max_features;
-  for (int i : all ? kept : spread.Chosen()) selected.push_back(sorted[i]);
+  selected.reserve(kept.size());
+  for (int i : kept) selected.push_back(sorted[i]);
   return selected;
 }
 
