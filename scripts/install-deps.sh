@@ -5,7 +5,7 @@
 set -euo pipefail
 
 PACKAGES=(
-  build-essential cmake pkg-config git curl bc
+  build-essential cmake ninja-build pkg-config git curl bc
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libeigen3-dev libopencv-dev libceres-dev libsqlite3-dev
   libgtest-dev libgmock-dev libbenchmark-dev

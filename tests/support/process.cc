@@ -94,7 +94,7 @@ ServerProcess::ServerProcess(const std::string& server_binary, const std::string
           ("visloc-server-" + std::to_string(getpid()) + "-" + std::to_string(counter++)))
              .string();
   std::filesystem::create_directories(dir_);
-  // $VISLOC_TEST_SERVER swaps in another build of the server (scripts/test.sh runs these tests
+  // $VISLOC_TEST_SERVER swaps in another build of the server (run these tests by hand
   // against the ThreadSanitizer build of visloc-server).
   const char* other_build = std::getenv("VISLOC_TEST_SERVER");
   std::vector<std::string> argv = {other_build ? other_build : server_binary, "--maps", maps_dir,
