@@ -28,7 +28,7 @@ bool SpinUntil(const Done& done) {
 
 }  // namespace
 
-WorkerPool::WorkerPool(int helpers) : helpers_(std::max(0, helpers)) {}
+WorkerPool::WorkerPool(int helpers) : helpers_(std::max(0, helpers)), seats_(helpers_) {}
 
 WorkerPool::~WorkerPool() {
   {
@@ -59,7 +59,8 @@ WorkerPool::ExpectationStats WorkerPool::expectation_stats() const {
   return {expected_wakes_.load(), expected_met_.load(), expected_missed_.load()};
 }
 
-void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored) {
+void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored,
+                          HelperSeat* seat) {
   const auto job_or_stop = [&] { return stop_ || generation_.load() != seen; };
   while (!job_or_stop()) {
     if (*honored == expectation_id_) {
@@ -75,24 +76,34 @@ void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uin
     *honored = expectation_id_;
     ++expected_wakes_;
     lock.unlock();
-    const bool met =
-        SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; },
-                  expected.when + expected.grace);
+    const bool met = SpinUntil(
+        [&] {
+          seat->cpu.store(CurrentCpu(), std::memory_order_relaxed);
+          return stop_ || generation_.load(std::memory_order_acquire) != seen;
+        },
+        expected.when + expected.grace);
     ++(met ? expected_met_ : expected_missed_);
     lock.lock();
   }
 }
 
 void WorkerPool::HelperLoop(int helper) {
+  HelperSeat& seat = seats_[helper];
+  seat.cpus = CpuSet::OfThisThread();
+  // Published after cpus: a caller reads them once it sees the id (MoveHelpersOffThisCpu).
+  seat.thread_id.store(CurrentThreadId(), std::memory_order_release);
   uint32_t seen = 0;
   uint64_t honored = 0;  // The last expectation this helper woke for.
   for (;;) {
-    SpinUntil([&] { return stop_ || generation_.load(std::memory_order_acquire) != seen; });
+    SpinUntil([&] {
+      seat.cpu.store(CurrentCpu(), std::memory_order_relaxed);
+      return stop_ || generation_.load(std::memory_order_acquire) != seen;
+    });
     const std::function<void(int)>* body = nullptr;
     int parts = 0;
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      AwaitJob(lock, seen, &honored);
+      AwaitJob(lock, seen, &honored, &seat);
       if (stop_) return;
       seen = generation_.load();
       if (helper < job_helpers_) {
@@ -100,6 +111,8 @@ void WorkerPool::HelperLoop(int helper) {
         parts = parts_;
       }
     }
+    // Moved off a caller's core and running elsewhere now: its own cores again, for later.
+    if (seat.moved.exchange(false)) seat.cpus.ApplyTo();
     if (body == nullptr) continue;  // That job has ended already, or is not this helper's.
     if (helper_delay_.count() > 0) std::this_thread::sleep_for(helper_delay_);
     RunParts(seen, *body, parts);
@@ -177,6 +190,7 @@ void WorkerPool::Run(int parts, int helpers, const std::function<void(int part)>
     generation_.store(generation, std::memory_order_release);
   }
   wake_.notify_all();
+  MoveHelpersOffThisCpu(helpers);
   RunPart(0, body, parts);
   RunParts(generation, body, parts);  // Whatever no helper has started.
   WaitForParts(parts);
@@ -189,6 +203,35 @@ void WorkerPool::Run(int parts, int helpers, const std::function<void(int part)>
   for (const std::exception_ptr& error : errors_) {
     if (error) std::rethrow_exception(error);
   }
+}
+
+void WorkerPool::MoveHelpersOffThisCpu(int helpers) {
+  const int cpu = CurrentCpu();
+  if (cpu < 0) return;
+  for (int helper = 0; helper < helpers; ++helper) {
+    HelperSeat& seat = seats_[helper];
+    const int64_t thread_id = seat.thread_id.load(std::memory_order_acquire);
+    if (thread_id == 0 || seat.cpu.load(std::memory_order_relaxed) != cpu) continue;
+    // Marked first: the helper, once moved, may run and look before this thread goes on.
+    seat.moved = true;
+    if (KeepThreadOffCpu(thread_id, seat.cpus, cpu)) {
+      seat.cpu = -1;  // Not known until it looks again.
+      ++helpers_moved_;
+    }
+  }
+}
+
+bool WorkerPool::PinHelperForTest(int helper, int cpu) {
+  HelperSeat& seat = seats_.at(helper);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  int64_t thread_id = 0;  // Set once the helper's thread has started.
+  while ((thread_id = seat.thread_id.load(std::memory_order_acquire)) == 0 &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  if (thread_id == 0 || !CpuSet::Single(cpu).ApplyTo(thread_id)) return false;
+  seat.cpu = cpu;  // The only core it can be on now.
+  return true;
 }
 
 void WorkerPool::ForEach(int n, int threads, const std::function<void(int i)>& fn) {

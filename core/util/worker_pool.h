@@ -9,6 +9,8 @@
 // helper has started. A helper that wakes late (its core busy with another session, or taken
 // by the host) then costs the frame nothing beyond running that part on the caller, where a
 // part waiting for its helper would add the helper's whole delay to the frame's latency.
+// A caller that finds a helper on its own core moves the helper to another (cpu_placement.h:
+// the scheduler can leave the two sharing one core while the other idles).
 
 #include <atomic>
 #include <chrono>
@@ -19,6 +21,8 @@
 #include <mutex>
 #include <thread>
 #include <vector>
+
+#include "core/util/cpu_placement.h"
 
 namespace visloc {
 
@@ -58,6 +62,9 @@ class WorkerPool {
   };
   ExpectationStats expectation_stats() const;
 
+  // Times a caller found a helper on its own core and moved it to another.
+  int64_t helpers_moved() const { return helpers_moved_.load(); }
+
   int helpers() const { return helpers_; }
 
   // How long a helper keeps looking for the next job before it sleeps, and the caller for the
@@ -67,6 +74,9 @@ class WorkerPool {
   // Fault injection for tests: each helper sleeps this long after it wakes for a job, before it
   // claims a part (a helper whose core is busy elsewhere).
   void set_helper_delay_for_test(std::chrono::microseconds delay) { helper_delay_ = delay; }
+  // For tests: confines helper `helper` to core `cpu`, as the scheduler could leave it, once its
+  // thread has started (waits up to 5 s). False if it did not start or the system refused.
+  bool PinHelperForTest(int helper, int cpu);
 
  private:
   void Start();
@@ -78,9 +88,14 @@ class WorkerPool {
   // Runs one claimed part, keeping its exception for the caller, and counts it done.
   void RunPart(int part, const std::function<void(int part)>& body, int parts);
   void WaitForParts(int parts);
+  // Moves each of the job's first `helpers` helpers that is on the calling thread's core now
+  // (or was last, asleep) to another of its cores.
+  void MoveHelpersOffThisCpu(int helpers);
   // Under `lock`, until a job after `seen` or stop: asleep, but awake over the window of an
   // expectation the helper has not yet looked out for (`honored`, its id).
-  void AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored);
+  struct HelperSeat;
+  void AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored,
+                HelperSeat* seat);
 
   const int helpers_;
   std::vector<std::thread> threads_;
@@ -106,6 +121,16 @@ class WorkerPool {
   Expectation expectation_;
   uint64_t expectation_id_ = 0;
   std::atomic<int64_t> expected_wakes_{0}, expected_met_{0}, expected_missed_{0};
+  // Where each helper is: its thread's id and own cores (set once it starts), the core it last
+  // looked for a job on, and whether a caller has moved it (it takes back its cores then).
+  struct HelperSeat {
+    std::atomic<int64_t> thread_id{0};
+    CpuSet cpus;
+    std::atomic<int> cpu{-1};
+    std::atomic<bool> moved{false};
+  };
+  std::vector<HelperSeat> seats_;
+  std::atomic<int64_t> helpers_moved_{0};
   std::atomic<bool> stop_{false};
   std::atomic<bool> busy_{false};  // A caller is in Ranges (checks "one caller at a time").
 };

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/util/cpu_placement.h"
+
 namespace visloc {
 namespace {
 
@@ -199,6 +201,47 @@ TEST(WorkerPoolTest, AnExpectedJobThatDoesNotComeLetsTheHelperSleepAgain) {
   pool.ForEachClaimed(3, 3, [&](int) { ++runs; });
   EXPECT_EQ(runs, 3);
   EXPECT_EQ(pool.expectation_stats().wakes, 2);  // No expectation left to wake for.
+}
+
+TEST(WorkerPoolTest, AHelperOnTheCallersCoreIsMovedToAnotherAndRunsItsPartThere) {
+  // The scheduler can leave a helper waiting to run on the caller's core while another core
+  // idles; the caller then runs every part itself. Here the helper is pinned to the caller's
+  // core as the scheduler could leave it, and the caller's part computes until the helper's
+  // is done (bounded): the caller must move the helper for it to run beside.
+  const CpuSet own = CpuSet::OfThisThread();
+  if (own.count() < 2) GTEST_SKIP() << "one core: nowhere to move the helper";
+  // The helper starts with this thread's cores (a thread inherits its creator's), all of them.
+  WorkerPool pool(1);
+  pool.ForEachClaimed(2, 2, [](int) {});
+  const int caller_cpu = CurrentCpu();
+  ASSERT_TRUE(CpuSet::Single(caller_cpu).ApplyTo());
+  struct Restore {
+    const CpuSet& own;
+    ~Restore() { own.ApplyTo(); }
+  } restore{own};
+  ASSERT_TRUE(pool.PinHelperForTest(0, caller_cpu));
+  std::atomic<bool> helper_part_done{false};
+  std::atomic<int> helper_part_cpu{-1};
+  std::thread::id helper_part_thread;
+  const auto started = std::chrono::steady_clock::now();
+  pool.ForEachClaimed(2, 2, [&](int i) {
+    if (i == 1) {
+      helper_part_cpu = CurrentCpu();
+      helper_part_thread = std::this_thread::get_id();
+      helper_part_done = true;
+      return;
+    }
+    while (!helper_part_done &&
+           std::chrono::steady_clock::now() - started < std::chrono::seconds(2)) {
+    }
+  });
+  EXPECT_NE(helper_part_thread, std::this_thread::get_id());
+  EXPECT_NE(helper_part_cpu, caller_cpu);
+  EXPECT_EQ(pool.helpers_moved(), 1);
+  // Moved, the helper took back its own cores: a later job runs as any other.
+  std::atomic<int> parts{0};
+  pool.ForEachClaimed(4, 2, [&](int) { ++parts; });
+  EXPECT_EQ(parts, 4);
 }
 
 }  // namespace
