@@ -277,10 +277,13 @@ PY
   echo "is awake for the next one, and decodes a rig frame's images side by side on the rig's"
   echo "threads (\`proto::FromProto\`). At 23d629e, before the helpers woke ahead, this ratio was"
   echo "1.58: waking ahead gains nothing here, though the helpers met 90-98% of these frames awake"
-  echo "(counted per session in a trial run). The engine's part is as much larger over one"
-  echo "camera's as the whole; why, I have not measured. Likely the caches: after 66 ms idle both"
-  echo "cores' are cold, and a rig's frame touches twice the data (two images, two cameras'"
-  echo "predicted points)."
+  echo "(counted per session in a trial run). Awake was not enough: the helper sat out 30-40% of"
+  echo "its parts (counted per job in a trial run, with \`perf sched\` beside it). A helper spinning"
+  echo "for its job is a running task; the caller, woken by the frame's arrival or the end of a"
+  echo "part it waited for, could be put on the helper's core, and the idle core did not pull the"
+  echo "cache-hot helper over, so the caller ran both cameras. The caller now moves a helper it"
+  echo "finds on its own core to another (\`WorkerPool\`, \`core/util/cpu_placement.h\`): at ba41de4,"
+  echo "5 alternating rounds of 200 frames, the server before the move 1.80, after it 1.19."
   if [[ -f $WORK/bench.mh01.1.json ]]; then
     echo
     echo "Where a frame's time goes, EuRoC MH_01, the first run (per-frame medians in ms; a rig's"
