@@ -237,7 +237,9 @@ TEST(WorkerPoolTest, AHelperOnTheCallersCoreIsMovedToAnotherAndRunsItsPartThere)
   });
   EXPECT_NE(helper_part_thread, std::this_thread::get_id());
   EXPECT_NE(helper_part_cpu, caller_cpu);
-  EXPECT_EQ(pool.helpers_moved(), 1);
+  // At least this move (the start may have made one too, and a helper moved just after it took
+  // that job takes back its cores only with the next: the pin may be undone, no move needed).
+  EXPECT_GE(pool.helpers_moved(), 1);
   // Moved, the helper took back its own cores: a later job runs as any other.
   std::atomic<int> parts{0};
   pool.ForEachClaimed(4, 2, [&](int) { ++parts; });
