@@ -189,7 +189,7 @@ echo "== writing $REPORT"
   echo "- Vector code: the 8-bit blur, the Harris response, non-maximum suppression, the finest-scale"
   echo "  descriptors, keypoint undistortion and descriptor distances to a candidate set are built for"
   echo "  AVX-512, AVX2 and the x86-64 baseline, picked at load time (same results); this"
-  echo "  CPU $(if grep -qw avx512bw /proc/cpuinfo && grep -qw avx512vl /proc/cpuinfo && grep -qw avx512dq /proc/cpuinfo; then echo runs the AVX-512 versions; elif grep -qw avx2 /proc/cpuinfo; then echo runs the AVX2 versions; else echo has neither: baseline versions; fi)."
+  echo "  CPU runs the $(vector_level) versions."
   echo
   echo "## Accuracy (paper Tables 3-4, Fig. 10), 320x240, map of the full 2 m square"
   echo

@@ -2,6 +2,19 @@
 # visloc's --json output and figure tables, formatting, and a loopback visloc-server. Sourced,
 # not run.
 
+# Which clones of the hot loops this CPU runs (core/util/cpu_dispatch.h): "AVX-512", "AVX2" or
+# "baseline". Absolute times differ by it from machine to machine; a run's ratios do not.
+vector_level() {
+  if grep -qw avx512bw /proc/cpuinfo && grep -qw avx512vl /proc/cpuinfo &&
+    grep -qw avx512dq /proc/cpuinfo; then
+    echo AVX-512
+  elif grep -qw avx2 /proc/cpuinfo; then
+    echo AVX2
+  else
+    echo baseline
+  fi
+}
+
 # The figure of recording REC named KEY in a figures table (FILE REC KEY; tab-separated lines
 # "REC KEY VALUE", as real-world.sh writes docs/real-world.tsv); empty when absent.
 value() { awk -F'\t' -v r="$2" -v k="$3" '$1 == r && $2 == k { print $3 }' "$1"; }
