@@ -1,17 +1,17 @@
 #include "core/util/thread_priority.h"
 
 #include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
+
+#include "core/util/cpu_placement.h"
 
 namespace visloc {
 namespace {
 
 // setpriority(PRIO_PROCESS, tid) sets one thread's nice on Linux (POSIX would set the process's).
-id_t ThisThreadsId() { return static_cast<id_t>(syscall(SYS_gettid)); }
+id_t ThisThreadsId() { return static_cast<id_t>(CurrentThreadId()); }
 
 }  // namespace
 

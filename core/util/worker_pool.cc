@@ -59,6 +59,11 @@ WorkerPool::ExpectationStats WorkerPool::expectation_stats() const {
   return {expected_wakes_.load(), expected_met_.load(), expected_missed_.load()};
 }
 
+bool WorkerPool::LookForJob(uint32_t seen, HelperSeat* seat) {
+  seat->cpu.store(CurrentCpu(), std::memory_order_relaxed);
+  return stop_ || generation_.load(std::memory_order_acquire) != seen;
+}
+
 void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored,
                           HelperSeat* seat) {
   const auto job_or_stop = [&] { return stop_ || generation_.load() != seen; };
@@ -76,12 +81,8 @@ void WorkerPool::AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uin
     *honored = expectation_id_;
     ++expected_wakes_;
     lock.unlock();
-    const bool met = SpinUntil(
-        [&] {
-          seat->cpu.store(CurrentCpu(), std::memory_order_relaxed);
-          return stop_ || generation_.load(std::memory_order_acquire) != seen;
-        },
-        expected.when + expected.grace);
+    const bool met =
+        SpinUntil([&] { return LookForJob(seen, seat); }, expected.when + expected.grace);
     ++(met ? expected_met_ : expected_missed_);
     lock.lock();
   }
@@ -95,10 +96,7 @@ void WorkerPool::HelperLoop(int helper) {
   uint32_t seen = 0;
   uint64_t honored = 0;  // The last expectation this helper woke for.
   for (;;) {
-    SpinUntil([&] {
-      seat.cpu.store(CurrentCpu(), std::memory_order_relaxed);
-      return stop_ || generation_.load(std::memory_order_acquire) != seen;
-    });
+    SpinUntil([&] { return LookForJob(seen, &seat); });
     const std::function<void(int)>* body = nullptr;
     int parts = 0;
     {

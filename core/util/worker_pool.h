@@ -91,9 +91,12 @@ class WorkerPool {
   // Moves each of the job's first `helpers` helpers that is on the calling thread's core now
   // (or was last, asleep) to another of its cores.
   void MoveHelpersOffThisCpu(int helpers);
+  struct HelperSeat;
+  // One look of a spinning helper: notes the core it is on (for MoveHelpersOffThisCpu), and
+  // whether a job after `seen`, or stop, has come.
+  bool LookForJob(uint32_t seen, HelperSeat* seat);
   // Under `lock`, until a job after `seen` or stop: asleep, but awake over the window of an
   // expectation the helper has not yet looked out for (`honored`, its id).
-  struct HelperSeat;
   void AwaitJob(std::unique_lock<std::mutex>& lock, uint32_t seen, uint64_t* honored,
                 HelperSeat* seat);
 
