@@ -19,7 +19,9 @@ LocalizationService::LocalizationService(MapCache* maps, const ServiceLimits& li
 
 namespace {
 
-// The session-end log line: the session's figures, and a paged map's page cache.
+// The session-end log line: the session's figures, a rig session's helper threads (what their
+// wakes ahead of the frames came to: a frame that missed its helper waits for its wake), and a
+// paged map's page cache.
 void LogSessionEnd(const LocalizationSession& session, const LocalizationMap& map, SessionEnd end,
                    const grpc::ServerContext& context) {
   const SessionStatus& t = session.status();
@@ -34,6 +36,14 @@ void LogSessionEnd(const LocalizationSession& session, const LocalizationMap& ma
       {"mean_ms", FormatFixed(session.mean_server_ms(), 2)},
       {"cancelled", context.IsCancelled() ? "true" : "false"},
       {"closed_idle", end == SessionEnd::kIdle ? "true" : "false"}};
+  if (session.cameras() > 1) {
+    const WorkerPool::ExpectationStats wakes = session.helper_expectations();
+    fields.insert(fields.end(), {{"cameras", std::to_string(session.cameras())},
+                                 {"helper_wakes", std::to_string(wakes.wakes)},
+                                 {"helper_wakes_met", std::to_string(wakes.met)},
+                                 {"helper_wakes_missed", std::to_string(wakes.missed)},
+                                 {"helpers_moved", std::to_string(session.helpers_moved())}});
+  }
   if (map.paged()) {
     // The map's page cache, over every session on it so far.
     const PageCacheStats pages = map.page_stats();

@@ -78,6 +78,15 @@ class LocalizationSession {
   const SessionStatus& status() const { return tally_; }
   // Mean server time of the frames answered (ms).
   double mean_server_ms() const;
+  // The session's cameras (1 for a one-camera session).
+  size_t cameras() const { return rig_.cameras.size(); }
+  // A rig session's helper threads: their wakes ahead of expected frames, and their moves off
+  // the core of the thread answering the frames (Localizer's rig_expectation_stats and
+  // rig_helpers_moved).
+  WorkerPool::ExpectationStats helper_expectations() const {
+    return localizer_.rig_expectation_stats();
+  }
+  int64_t helpers_moved() const { return localizer_.rig_helpers_moved(); }
 
  private:
   void Refuse(const v1::LocalizeRequest& request, uint64_t index, const std::string& why,

@@ -220,6 +220,17 @@ TEST_F(RigE2eTest, FourCamerasLookingEveryWayTrackTheCircle) {
   }
   EXPECT_GE(all_four, 110) << "frames where every camera contributes";
   ExpectCovarianceCoversTheError(kData + "/four/circle", "four", 0.03);
+  // The session's end in the server's log names its cameras and what its helper threads' wakes
+  // ahead of the frames came to (each wake met its frame or missed it, or is still looking).
+  ASSERT_TRUE(server.WaitForLog("event=session_end")) << server.Log();
+  const std::string log = server.Log();
+  std::smatch end;
+  ASSERT_TRUE(std::regex_search(
+      log, end,
+      std::regex("event=session_end .* cameras=4 helper_wakes=(\\d+) helper_wakes_met=(\\d+) "
+                 "helper_wakes_missed=(\\d+) helpers_moved=(\\d+)")))
+      << log;
+  EXPECT_LE(std::stoll(end[2]) + std::stoll(end[3]), std::stoll(end[1]));
 }
 
 // The Relocalize RPC with a rig's frame: every image proposes, the pose found is verified with

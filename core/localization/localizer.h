@@ -161,6 +161,8 @@ class Localizer {
   WorkerPool::ExpectationStats rig_expectation_stats() const {
     return pipeline_.expectation_stats();
   }
+  // How often a rig's helper was moved off the core of the thread calling Process.
+  int64_t rig_helpers_moved() const { return pipeline_.helpers_moved(); }
 
  private:
   struct Motion {

@@ -4,6 +4,7 @@
 // tracker over all of them (RigTracker). Shared, as QueryPipeline is for one camera, by a rig
 // session's Localizer and by the Relocalize RPC of several images.
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <vector>
@@ -53,6 +54,8 @@ class RigPipeline {
   void ExpectFrame(const ArrivalPredictor::Expectation& next) const;
   // What the helpers' expectations came to (WorkerPool::expectation_stats).
   WorkerPool::ExpectationStats expectation_stats() const { return workers_->expectation_stats(); }
+  // Helpers moved off the caller's core (WorkerPool::helpers_moved).
+  int64_t helpers_moved() const { return workers_->helpers_moved(); }
 
   // Global relocalization of one frame of the rig, with nothing known of where it was taken:
   // each camera's image (`images[c]`; an empty one: that camera gave none) is relocalized as
