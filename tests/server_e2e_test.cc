@@ -95,6 +95,8 @@ TEST_F(ServerE2eTest, StreamsAKidnappingThroughTheServerLikeTheInProcessEngine) 
   EXPECT_THAT(log, HasSubstr("event=session_start session=1 map=square"));
   EXPECT_THAT(
       log, HasSubstr("event=session_end session=1 map=square frames=150 localized_fraction=0.880"));
+  // A one-camera session has no helper threads: its end line names none (as before rigs).
+  EXPECT_THAT(log, ::testing::Not(HasSubstr("helper_wakes")));
   EXPECT_THAT(log, HasSubstr("event=server_stop"));
 }
 
