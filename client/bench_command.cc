@@ -6,6 +6,8 @@
 //     frames and the map search alone (predict + project + match + pose, what prediction changes);
 //   - OpenCV's ORB (ORB::create(500), default pyramid) detecting and describing each frame;
 //   - global relocalization per query (features + retrieval + verification), and per step;
+//   - with --cameras: a rig beside its reference camera alone, and with --rate both again at a
+//     camera's pace, each frame meeting an idle engine;
 //   - with --server: the round trip per frame through gRPC, one frame in flight at a time.
 // Images are decoded before timing starts; only the engine's work is timed.
 
@@ -14,8 +16,11 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
+#include <thread>
+#include <utility>
 
 #include <opencv2/features2d.hpp>
 
@@ -87,6 +92,11 @@ struct RigRun {
   // (LocalizerOptions::rig_wake_ahead off), timed in a pass of its own beside cam0 alone again.
   ErrorStats one_camera_ms, rig_ms, rig_threaded_ms;
   ErrorStats one_camera_again_ms, rig_asleep_ms;  // The asleep pass's, beside each other.
+  // At a camera's pace (--rate; empty without): cam0 alone and the threaded rig in turn, each
+  // frame after 1/rate s with the engine idle, per step, and the rig's helpers' wakes there.
+  double rate_hz = 0.0;
+  std::vector<StepSummary> one_camera_paced_steps, rig_paced_steps;
+  WorkerPool::ExpectationStats paced_helper_expectations;
   // Per step of FrameTimes: where the rig's extra time goes. A rig's steps sum its cameras'
   // (CPU time); its total is the wall time, on one thread or side by side.
   std::vector<StepSummary> one_camera_steps, rig_steps, rig_threaded_steps;
@@ -103,12 +113,29 @@ FrameInput ReferenceOnly(FrameInput input) {
   return input;
 }
 
+// Every frame through cam0 alone and then through the rig, each Process after `idle` with
+// nothing running (zero: back to back); the two sessions' results.
+using InTurnResults = std::pair<std::vector<LocalizationResult>, std::vector<LocalizationResult>>;
+InTurnResults InTurn(size_t frames, const std::function<FrameInput(size_t)>& rig_input,
+                     Localizer& one, Localizer& rig, std::chrono::microseconds idle) {
+  InTurnResults results;
+  for (size_t i = 0; i < frames; ++i) {
+    const FrameInput input = rig_input(i);
+    std::this_thread::sleep_for(idle);
+    results.first.push_back(one.Process(ReferenceOnly(input)));
+    std::this_thread::sleep_for(idle);
+    results.second.push_back(rig.Process(input));
+  }
+  return results;
+}
+
 RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset& dataset,
                const std::vector<cv::Mat>& images, const std::vector<std::string>& cameras,
-               int threads) {
+               int threads, double rate_hz) {
   RigRun run;
   run.cameras = cameras;
   run.threads = threads;
+  run.rate_hz = rate_hz;
   const CameraRig rig = DatasetCameraRig(dataset, cameras, /*gyro=*/false);
   LocalizerOptions threaded_options;
   threaded_options.rig_threads = threads;
@@ -154,14 +181,22 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
   threaded_options.rig_wake_ahead = false;
   Localizer one_again(map, dataset.left.camera, LocalizerOptions{});
   Localizer asleep(map, rig, threaded_options);
-  std::vector<LocalizationResult> one_again_results, asleep_results;
-  for (size_t i = 0; i < images.size(); ++i) {
-    const FrameInput input = rig_input(i);
-    one_again_results.push_back(one_again.Process(ReferenceOnly(input)));
-    asleep_results.push_back(asleep.Process(input));
+  const InTurnResults asleep_pass =
+      InTurn(images.size(), rig_input, one_again, asleep, std::chrono::microseconds(0));
+  run.one_camera_again_ms = SummarizeSteps(asleep_pass.first).back().ms;
+  run.rig_asleep_ms = SummarizeSteps(asleep_pass.second).back().ms;
+  if (rate_hz > 0) {
+    // At the camera's pace, the way a robot's frames come to a server: each meets an engine
+    // idle since the last, its caches cold, where the passes above run frames back to back.
+    threaded_options.rig_wake_ahead = true;
+    Localizer one_paced(map, dataset.left.camera, LocalizerOptions{});
+    Localizer paced(map, rig, threaded_options);
+    const auto idle = std::chrono::microseconds(static_cast<int64_t>(1e6 / rate_hz));
+    const InTurnResults paced_pass = InTurn(images.size(), rig_input, one_paced, paced, idle);
+    run.one_camera_paced_steps = SummarizeSteps(paced_pass.first);
+    run.rig_paced_steps = SummarizeSteps(paced_pass.second);
+    run.paced_helper_expectations = paced.rig_expectation_stats();
   }
-  run.rig_asleep_ms = SummarizeSteps(asleep_results).back().ms;
-  run.one_camera_again_ms = SummarizeSteps(one_again_results).back().ms;
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();
   for (const auto& camera : inliers) {
     run.camera_inliers_median.push_back(ComputeErrorStats(camera).median);
@@ -350,6 +385,7 @@ GrpcRun TimeGrpc(const Connection& server, const std::string& map_name,
 int RunBench(const Args& raw_args) {
   std::string dataset_dir, map_path, format, server_map, cameras = "cam0";
   int frames = 0, relocalization_queries = 30, rig_threads = 2;
+  double rate_hz = 0.0;
   bool json = false;
   Connection server;
   ArgParser parser("visloc bench",
@@ -366,6 +402,9 @@ int RunBench(const Args& raw_args) {
   parser.AddFlag("cameras", &cameras,
                  "also time this rig (cam0 first) beside cam0 alone, interleaved frame by frame");
   parser.AddFlag("rig-threads", &rig_threads, "with --cameras: the threaded rig's threads");
+  parser.AddFlag("rate", &rate_hz,
+                 "with --cameras: also time cam0 alone and the threaded rig in turn at this frame "
+                 "rate, each frame after 1/RATE s idle, as frames come to a server (0: not)");
   server.AddFlags(parser, /*server_required=*/false);
   parser.AddFlag("server-map", &server_map, "the map's name on the server (default: file stem)");
   parser.AddSwitch("json", &json, "print one JSON object");
@@ -373,7 +412,11 @@ int RunBench(const Args& raw_args) {
   server.ApplyEnvironment();
   if (frames < 0 || relocalization_queries < 1) throw UsageError("--frames >= 0, queries >= 1");
   if (rig_threads < 1) throw UsageError("--rig-threads must be at least 1");
+  if (!(rate_hz >= 0 && rate_hz <= 1000)) throw UsageError("--rate must be 0..1000 frames/s");
   const std::vector<std::string> rig_cameras = ParseCameraNames(cameras);
+  if (rate_hz > 0 && rig_cameras.size() < 2) {
+    throw UsageError("--rate times a rig at a camera's pace: it needs --cameras with a rig");
+  }
   const Dataset dataset = ReadQueryDataset(dataset_dir, format, /*odometry=*/false);
   const auto map = std::make_shared<const LocalizationMap>(mapstore::LoadMap(map_path));
   const size_t count =
@@ -391,7 +434,9 @@ int RunBench(const Args& raw_args) {
   const RelocalizationRun relocalization =
       TimeRelocalization(map, camera, images, relocalization_queries);
   std::optional<RigRun> rig;
-  if (rig_cameras.size() > 1) rig = TimeRig(map, dataset, images, rig_cameras, rig_threads);
+  if (rig_cameras.size() > 1) {
+    rig = TimeRig(map, dataset, images, rig_cameras, rig_threads, rate_hz);
+  }
   std::optional<GrpcRun> grpc;
   if (!server.server.empty()) {
     if (server_map.empty()) server_map = std::filesystem::path(map_path).stem().string();
@@ -460,6 +505,19 @@ int RunBench(const Args& raw_args) {
       write_steps("one_camera_steps", rig->one_camera_steps);
       write_steps("steps", rig->rig_steps);
       write_steps("threaded_steps", rig->rig_threaded_steps);
+      if (!rig->rig_paced_steps.empty()) {
+        const double one = rig->one_camera_paced_steps.back().ms.median;
+        const double paced = rig->rig_paced_steps.back().ms.median;
+        out.Field("paced_rate_hz", rig->rate_hz)
+            .Field("paced_one_camera_ms_per_frame_median", one)
+            .Field("paced_ms_per_frame_median", paced)
+            .Field("paced_latency_ratio", paced / one)
+            .Field("paced_helper_expected_wakes", rig->paced_helper_expectations.wakes)
+            .Field("paced_helper_expected_met", rig->paced_helper_expectations.met)
+            .Field("paced_helper_expected_missed", rig->paced_helper_expectations.missed);
+        write_steps("one_camera_paced_steps", rig->one_camera_paced_steps);
+        write_steps("paced_steps", rig->rig_paced_steps);
+      }
       out.EndObject();
     }
     if (grpc) {
@@ -537,6 +595,19 @@ int RunBench(const Args& raw_args) {
         rig->rig_asleep_ms.median / orb.median,
         rig->rig_asleep_ms.median / rig->one_camera_again_ms.median,
         rig->one_camera_again_ms.median);
+    if (!rig->rig_paced_steps.empty()) {
+      const double one = rig->one_camera_paced_steps.back().ms.median;
+      const double paced = rig->rig_paced_steps.back().ms.median;
+      std::printf(
+          "%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's %.3f ms, in turn at %.0f "
+          "frames/s)\n",
+          "  at the camera's pace", paced, paced / orb.median, paced / one, one, rig->rate_hz);
+      std::printf("  %-26s %10s %10s\n", "step at the pace", "cam0 ms", "rig ms");
+      for (size_t s = 0; s < rig->rig_paced_steps.size(); ++s) {
+        std::printf("  %-26s %10.3f %10.3f\n", rig->rig_paced_steps[s].name.c_str(),
+                    rig->one_camera_paced_steps[s].ms.median, rig->rig_paced_steps[s].ms.median);
+      }
+    }
   }
   if (grpc) {
     const double round_trip = grpc->round_trip_ms.median;

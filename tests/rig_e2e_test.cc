@@ -233,6 +233,41 @@ TEST_F(RigE2eTest, FourCamerasLookingEveryWayTrackTheCircle) {
   EXPECT_LE(std::stoll(end[2]) + std::stoll(end[3]), std::stoll(end[1]));
 }
 
+// `visloc bench --cameras`: the rig beside its front camera alone on the same frames, and with
+// --rate both again at a camera's pace (each frame after 1/rate s idle, as frames come to a
+// server). No timing is compared here (the machine is shared and noisy; docs/rigs.md has the
+// ratios): every figure is there, for every frame, and the rig localized them all.
+TEST_F(RigE2eTest, BenchTimesTheRigBesideOneCameraAtTheCamerasPace) {
+  const ProcessResult bench = Visloc(
+      {"bench", "--dataset", kData + "/four/circle", "--map", kData + "/map.db", "--frames", "12",
+       "--relocalization-queries", "2", "--cameras", "cam0,cam2", "--rate", "60", "--json"});
+  ASSERT_EQ(bench.exit_code, 0) << bench.err;
+  EXPECT_EQ(JsonNumber(bench.out, "rig", "cameras"), 2.0);
+  EXPECT_EQ(JsonNumber(bench.out, "rig", "localized_fraction"), 1.0);
+  EXPECT_EQ(JsonNumber(bench.out, "rig", "paced_rate_hz"), 60.0);
+  for (const char* key : {"one_camera_ms_per_frame_median", "threaded_ms_per_frame_median",
+                          "asleep_ms_per_frame_median", "paced_one_camera_ms_per_frame_median",
+                          "paced_ms_per_frame_median", "paced_latency_ratio"}) {
+    EXPECT_GT(JsonNumber(bench.out, "rig", key), 0.0) << key;
+  }
+  // The paced pass's steps, each camera's work summed: the rig matched in both images.
+  const std::string paced_steps = bench.out.substr(bench.out.find("\"paced_steps\""));
+  EXPECT_GT(JsonNumber(paced_steps, "match", "median"), 0.0);
+  EXPECT_GT(JsonNumber(bench.out, "one_camera_paced_steps", "median"), 0.0);
+  // The helper woke ahead of the paced frames (12 frames: the first 3 intervals learn the rhythm);
+  // each wake met its frame or missed it.
+  const double wakes = JsonNumber(bench.out, "rig", "paced_helper_expected_wakes");
+  EXPECT_GE(wakes, 1.0);
+  EXPECT_LE(JsonNumber(bench.out, "rig", "paced_helper_expected_met") +
+                JsonNumber(bench.out, "rig", "paced_helper_expected_missed"),
+            wakes);
+  // A pace needs a rig to time beside cam0.
+  const ProcessResult alone = Visloc({"bench", "--dataset", kData + "/four/circle", "--map",
+                                      kData + "/map.db", "--frames", "4", "--rate", "15"});
+  EXPECT_EQ(alone.exit_code, 2);
+  EXPECT_THAT(alone.err, ::testing::HasSubstr("--rate times a rig at a camera's pace"));
+}
+
 // The Relocalize RPC with a rig's frame: every image proposes, the pose found is verified with
 // every camera. A covered front camera's frames are found by the rear one alone.
 TEST_F(RigE2eTest, TheRelocalizeRpcFindsACoveredRobotByItsRearCamera) {
