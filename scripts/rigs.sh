@@ -202,6 +202,30 @@ print(f"cam0 alone {one['median']:.3f} ms median, {one['p95']:.3f} ms p95; front
 PY
 )
 
+# step_table BENCH_JSON "HEADER|HEADER|..." COLUMN...: a row per step of a bench run's rig, each
+# COLUMN the median of that set of steps (one_camera_steps, paced_steps, ...), or "/": the
+# column before it over the one before that.
+step_table() {
+  python3 - "$@" <<'PY'
+import json, sys
+rig = json.load(open(sys.argv[1]))["rig"]
+headers, columns = sys.argv[2].split("|"), sys.argv[3:]
+print("| step | " + " | ".join(headers) + " |")
+print("|---" * (len(headers) + 1) + "|")
+for step in rig["one_camera_steps"]:
+    if step == "relocalize":
+        continue
+    cells = []
+    for column in columns:
+        if column == "/":
+            cells.append(cells[-1] / cells[-2] if cells[-2] > 0 else 0.0)
+        else:
+            cells.append(rig[column][step]["median"])
+    text = [f"{c:.2f}" if columns[i] == "/" else f"{c:.3f}" for i, c in enumerate(cells)]
+    print(f"| {step} | " + " | ".join(text) + " |")
+PY
+}
+
 # --- the report ------------------------------------------------------------------------------
 {
   echo "# Rigs: the robot's whole rig against one camera"
@@ -301,25 +325,16 @@ PY
   echo "the link. What a frame to an idle engine pays, step by step (front-back, the first run; per-frame medians"
   echo "in ms, a rig's steps summed over its cameras, its total wall time on 2 threads):"
   echo
-  python3 - "$WORK/bench.two.1.json" <<'PY'
-import json, sys
-rig = json.load(open(sys.argv[1]))["rig"]
-print("| step | cam0, back to back | cam0, at the pace | slower | rig, back to back | rig, at the pace | slower |")
-print("|---|---|---|---|---|---|---|")
-for step, warm in rig["one_camera_steps"].items():
-    if step == "relocalize":
-        continue
-    cold = rig["one_camera_paced_steps"][step]["median"]
-    rig_warm, rig_cold = rig["threaded_steps"][step]["median"], rig["paced_steps"][step]["median"]
-    print(f"| {step} | {warm['median']:.3f} | {cold:.3f} | {cold / warm['median']:.2f} | "
-          f"{rig_warm:.3f} | {rig_cold:.3f} | {rig_cold / rig_warm:.2f} |")
-PY
+  step_table "$WORK/bench.two.1.json" \
+    "cam0, back to back|cam0, at the pace|slower|rig, back to back|rig, at the pace|slower" \
+    one_camera_steps one_camera_paced_steps / threaded_steps paced_steps /
   echo
-  echo "Every step slows on a cold frame, the small ones that wander through memory most"
-  echo "(projecting and matching the map's points, the pose); extraction, which the cameras"
-  echo "share out, least. Those small steps are a larger share of a rig's critical path than of"
-  echo "one camera's (its joint pose runs on one thread after both cameras), so the rig pays"
-  echo "more for the cold frame than cam0 alone does. In a trial run with the caller's phases"
+  echo "Projecting the map's points slows most on a cold frame (it reads each predicted point's"
+  echo "position wherever the map keeps it), matching next; extraction and prediction least. The"
+  echo "back-to-back ratio moved with the machine in these runs (front-back 1.16-1.42, at the pace"
+  echo "1.23-1.41); in ten trial runs of 200 frames earlier that day, back to back 1.20 at the"
+  echo "median (1.07-1.91), at the pace 1.30 (1.21-2.88), the pace the higher in 8 of the 10."
+  echo "In a trial run with the caller's phases"
   echo "timed, the rig's frame at the pace against back to back: extraction and prediction +17%,"
   echo "matching +40-70%, RANSAC +50%, the Levenberg-Marquardt refinement +20%, the covariance"
   echo "+60%; its wait for the helper stayed 0.1-0.15 ms a frame either way (d860e66 and a trial"
@@ -331,18 +346,9 @@ PY
     echo "image's work, is most of a frame, so a second camera costs nearly a second frame on one"
     echo "thread; on two, the cameras' steps run side by side and the joint pose alone runs once:"
     echo
-    python3 - "$WORK/bench.mh01.1.json" <<'PY'
-import json, sys
-rig = json.load(open(sys.argv[1]))["rig"]
-print("| step | cam0 alone | stereo pair, one thread | ratio | stereo pair, 2 threads |")
-print("|---|---|---|---|---|")
-for step, one in rig["one_camera_steps"].items():
-    if step == "relocalize":
-        continue
-    pair, threaded = rig["steps"][step]["median"], rig["threaded_steps"][step]["median"]
-    ratio = pair / one["median"] if one["median"] > 0 else 0
-    print(f"| {step} | {one['median']:.3f} | {pair:.3f} | {ratio:.2f} | {threaded:.3f} |")
-PY
+    step_table "$WORK/bench.mh01.1.json" \
+      "cam0 alone|stereo pair, one thread|ratio|stereo pair, 2 threads" \
+      one_camera_steps steps / threaded_steps
   fi
 } > "$REPORT"
 echo "wrote $REPORT"
