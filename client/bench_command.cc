@@ -404,7 +404,8 @@ int RunBench(const Args& raw_args) {
   parser.AddFlag("rig-threads", &rig_threads, "with --cameras: the threaded rig's threads");
   parser.AddFlag("rate", &rate_hz,
                  "with --cameras: also time cam0 alone and the threaded rig in turn at this frame "
-                 "rate, each frame after 1/RATE s idle, as frames come to a server (0: not)");
+                 "rate, each frame after 1/RATE s idle, as frames come to a server (adds 2/RATE s "
+                 "a frame; 0: not)");
   server.AddFlags(parser, /*server_required=*/false);
   parser.AddFlag("server-map", &server_map, "the map's name on the server (default: file stem)");
   parser.AddSwitch("json", &json, "print one JSON object");
@@ -598,10 +599,13 @@ int RunBench(const Args& raw_args) {
     if (!rig->rig_paced_steps.empty()) {
       const double one = rig->one_camera_paced_steps.back().ms.median;
       const double paced = rig->rig_paced_steps.back().ms.median;
+      const WorkerPool::ExpectationStats& woken = rig->paced_helper_expectations;
       std::printf(
           "%-28s %10.3f %10.2f            (latency %.2fx cam0 alone's %.3f ms, in turn at %.0f "
-          "frames/s)\n",
-          "  at the camera's pace", paced, paced / orb.median, paced / one, one, rig->rate_hz);
+          "frames/s; helpers woke for %lld expected frames: %lld came in time, %lld did not)\n",
+          "  at the camera's pace", paced, paced / orb.median, paced / one, one, rig->rate_hz,
+          static_cast<long long>(woken.wakes), static_cast<long long>(woken.met),
+          static_cast<long long>(woken.missed));
       std::printf("  %-26s %10s %10s\n", "step at the pace", "cam0 ms", "rig ms");
       for (size_t s = 0; s < rig->rig_paced_steps.size(); ++s) {
         std::printf("  %-26s %10.3f %10.3f\n", rig->rig_paced_steps[s].name.c_str(),
