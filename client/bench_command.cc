@@ -20,7 +20,6 @@
 #include <iostream>
 #include <memory>
 #include <thread>
-#include <utility>
 
 #include <opencv2/features2d.hpp>
 
@@ -115,16 +114,18 @@ FrameInput ReferenceOnly(FrameInput input) {
 
 // Every frame through cam0 alone and then through the rig, each Process after `idle` with
 // nothing running (zero: back to back); the two sessions' results.
-using InTurnResults = std::pair<std::vector<LocalizationResult>, std::vector<LocalizationResult>>;
+struct InTurnResults {
+  std::vector<LocalizationResult> one_camera, rig;
+};
 InTurnResults InTurn(size_t frames, const std::function<FrameInput(size_t)>& rig_input,
                      Localizer& one, Localizer& rig, std::chrono::microseconds idle) {
   InTurnResults results;
   for (size_t i = 0; i < frames; ++i) {
     const FrameInput input = rig_input(i);
     std::this_thread::sleep_for(idle);
-    results.first.push_back(one.Process(ReferenceOnly(input)));
+    results.one_camera.push_back(one.Process(ReferenceOnly(input)));
     std::this_thread::sleep_for(idle);
-    results.second.push_back(rig.Process(input));
+    results.rig.push_back(rig.Process(input));
   }
   return results;
 }
@@ -178,23 +179,23 @@ RigRun TimeRig(const std::shared_ptr<const LocalizationMap>& map, const Dataset&
   run.helper_expectations = threaded.rig_expectation_stats();
   // The threaded rig again with its helpers asleep between frames, in a pass of its own beside
   // a new one-camera session: two rigs' helpers in one pass would keep each other's core awake.
-  threaded_options.rig_wake_ahead = false;
+  LocalizerOptions asleep_options = threaded_options;
+  asleep_options.rig_wake_ahead = false;
   Localizer one_again(map, dataset.left.camera, LocalizerOptions{});
-  Localizer asleep(map, rig, threaded_options);
+  Localizer asleep(map, rig, asleep_options);
   const InTurnResults asleep_pass =
       InTurn(images.size(), rig_input, one_again, asleep, std::chrono::microseconds(0));
-  run.one_camera_again_ms = SummarizeSteps(asleep_pass.first).back().ms;
-  run.rig_asleep_ms = SummarizeSteps(asleep_pass.second).back().ms;
+  run.one_camera_again_ms = SummarizeSteps(asleep_pass.one_camera).back().ms;
+  run.rig_asleep_ms = SummarizeSteps(asleep_pass.rig).back().ms;
   if (rate_hz > 0) {
     // At the camera's pace, the way a robot's frames come to a server: each meets an engine
     // idle since the last, its caches cold, where the passes above run frames back to back.
-    threaded_options.rig_wake_ahead = true;
     Localizer one_paced(map, dataset.left.camera, LocalizerOptions{});
     Localizer paced(map, rig, threaded_options);
     const auto idle = std::chrono::microseconds(static_cast<int64_t>(1e6 / rate_hz));
     const InTurnResults paced_pass = InTurn(images.size(), rig_input, one_paced, paced, idle);
-    run.one_camera_paced_steps = SummarizeSteps(paced_pass.first);
-    run.rig_paced_steps = SummarizeSteps(paced_pass.second);
+    run.one_camera_paced_steps = SummarizeSteps(paced_pass.one_camera);
+    run.rig_paced_steps = SummarizeSteps(paced_pass.rig);
     run.paced_helper_expectations = paced.rig_expectation_stats();
   }
   run.localized_fraction = images.empty() ? 0.0 : static_cast<double>(localized) / images.size();

@@ -266,6 +266,11 @@ TEST_F(RigE2eTest, BenchTimesTheRigBesideOneCameraAtTheCamerasPace) {
                                       kData + "/map.db", "--frames", "4", "--rate", "15"});
   EXPECT_EQ(alone.exit_code, 2);
   EXPECT_THAT(alone.err, ::testing::HasSubstr("--rate times a rig at a camera's pace"));
+  const ProcessResult negative =
+      Visloc({"bench", "--dataset", kData + "/four/circle", "--map", kData + "/map.db", "--frames",
+              "4", "--cameras", "cam0,cam2", "--rate", "-15"});
+  EXPECT_EQ(negative.exit_code, 2);
+  EXPECT_THAT(negative.err, ::testing::HasSubstr("--rate must be 0..1000 frames/s"));
 }
 
 // The Relocalize RPC with a rig's frame: every image proposes, the pose found is verified with
